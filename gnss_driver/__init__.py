@@ -1,0 +1,1 @@
+"""NMEA 0183 GNSS driver: Leica RTK rover, Thales/Ashtech ADU5, generic receivers."""

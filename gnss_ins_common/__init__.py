@@ -1,0 +1,1 @@
+"""Pieces both drivers share: clock synchronisation, the reconnecting serial link, pty devices."""

@@ -1,0 +1,1 @@
+"""GNSS-aided INS: strapdown mechanization, error-state Kalman filter, simulator and tools."""

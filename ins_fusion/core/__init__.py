@@ -1,0 +1,1 @@
+"""Pure fusion core (no ROS): earth model, strapdown mechanization, error-state filter."""

@@ -1,0 +1,1 @@
+"""Vehicle and sensor simulator (no ROS): trajectories and sensor error models."""

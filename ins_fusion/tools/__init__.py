@@ -1,0 +1,1 @@
+"""The gnss_ins command-line tool and its sub-commands."""

@@ -1,0 +1,43 @@
+"""`gnss_ins` command-line tool: one sub-command per module in ins_fusion/tools.
+
+Each sub-command module defines ``add_arguments(parser)`` and ``run(args) -> int``; register it
+in ``SUBCOMMANDS`` below. Imports are lazy so ``gnss_ins --help`` stays fast and a sub-command
+that needs rclpy does not slow down one that does not.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+#: sub-command name -> (module under ins_fusion.tools, one-line help)
+SUBCOMMANDS: dict[str, tuple[str, str]] = {
+    "emulate-imu": ("emulate_imu", "emulated IMU400CC on a pseudo-terminal"),
+    "imu-demo": ("imu_demo", "run imu400cc_node on an emulated device and print what it publishes"),
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Parser with every registered sub-command (their modules are imported here)."""
+    parser = argparse.ArgumentParser(prog="gnss_ins", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for name, (module_name, help_text) in SUBCOMMANDS.items():
+        module = importlib.import_module(f"ins_fusion.tools.{module_name}")
+        sub_parser = sub.add_parser(name, help=help_text, description=help_text)
+        module.add_arguments(sub_parser)
+        sub_parser.set_defaults(_module=module)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``gnss_ins`` console script."""
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args._module.run(args))
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

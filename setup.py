@@ -1,0 +1,56 @@
+"""ament_python package gnss_ins (also pip-installable for machines without a ROS install)."""
+
+from glob import glob
+
+from setuptools import find_packages, setup
+
+PACKAGE = "gnss_ins"
+
+setup(
+    name=PACKAGE,
+    version="0.1.0",
+    packages=find_packages(exclude=["test", "test.*", "bench", "bench.*"]),
+    data_files=[
+        ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
+        (f"share/{PACKAGE}", ["package.xml"]),
+        (f"share/{PACKAGE}/config", glob("config/*.yaml")),
+        (f"share/{PACKAGE}/launch", glob("launch/*.launch.py")),
+    ],
+    python_requires=">=3.11",
+    install_requires=[
+        "setuptools",
+        "numpy>=1.26",
+        "scipy>=1.11",
+        "pyserial>=3.5",
+        "pynmea2>=1.19",
+        "pymap3d>=3.0",
+        "rosbags>=0.10",
+        "filterpy>=1.4.5",
+        "allantools>=2019.9",
+        "matplotlib>=3.7",
+        "PyYAML>=6.0",
+    ],
+    extras_require={
+        "test": [
+            "pytest>=8",
+            "hypothesis>=6.100",
+            "ruff>=0.6",
+            "mypy>=1.10",
+            "types-PyYAML",
+            "colcon-common-extensions>=0.3",
+        ],
+    },
+    zip_safe=True,
+    maintainer="gnss_ins maintainers",
+    maintainer_email="maintainers@gnss-ins.invalid",
+    description="GNSS-aided INS for a survey vehicle: IMU400CC and NMEA drivers, ESKF fusion, tools.",
+    license="Apache-2.0",
+    entry_points={
+        "console_scripts": [
+            "imu400cc_node = imu400cc_driver.node:main",
+            "gnss_node = gnss_driver.node:main",
+            "ins_fusion_node = ins_fusion.node:main",
+            "gnss_ins = ins_fusion.tools.cli:main",
+        ],
+    },
+)
