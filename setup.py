@@ -43,7 +43,7 @@ setup(
     zip_safe=True,
     maintainer="gnss_ins maintainers",
     maintainer_email="maintainers@gnss-ins.invalid",
-    description="GNSS-aided INS for a survey vehicle: IMU400CC and NMEA drivers, ESKF fusion, tools.",
+    description="GNSS-aided INS: IMU400CC and NMEA drivers, ESKF fusion, tools.",
     license="Apache-2.0",
     entry_points={
         "console_scripts": [

@@ -1,0 +1,193 @@
+"""A serial port read on a background thread that reopens itself.
+
+``SerialLink`` owns one pyserial port. After every (re)open it calls ``on_open(port)`` so the
+driver can put the device in its mode (and verify it answers); then it reads continuously and hands
+each chunk to ``on_data(chunk, receive_time_s)``, where the receive time is taken right after the
+read returned, on the clock the caller supplies (the node's ROS clock). A vanished port, a read
+error, an exception from ``on_open`` or a stream that stays silent longer than ``stall_timeout_s``
+closes the port and reopens it with exponential back-off. Nothing here raises into the caller.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import serial
+
+
+class LinkStallError(Exception):
+    """The device stopped sending for longer than the stall time-out."""
+
+
+@dataclass
+class LinkStats:
+    """Counters of one link since start-up."""
+
+    opens: int = 0
+    reconnects: int = 0
+    open_failures: int = 0
+    stalls: int = 0
+    bytes_read: int = 0
+    callback_errors: int = 0
+    last_error: str = ""
+
+
+@dataclass(frozen=True)
+class LinkSettings:
+    """How to open and supervise the port (38400 8N1 without flow control by default)."""
+
+    port: str
+    baud: int = 38400
+    stall_timeout_s: float = 1.0
+    backoff_initial_s: float = 0.1
+    backoff_max_s: float = 5.0
+    read_timeout_s: float = 0.05
+
+
+class SerialLink:
+    """Reconnecting pyserial reader thread; see the module docstring."""
+
+    def __init__(
+        self,
+        settings: LinkSettings,
+        *,
+        on_open: Callable[[serial.Serial], None],
+        on_data: Callable[[bytes, float], None],
+        now: Callable[[], float],
+        log: Callable[[str], None] = print,
+    ) -> None:
+        """``now`` returns the host time in seconds used to stamp each received chunk."""
+        self.settings = settings
+        self.stats = LinkStats()
+        self._on_open = on_open
+        self._on_data = on_data
+        self._now = now
+        self._log = log
+        self._stop = threading.Event()
+        self._write_lock = threading.Lock()
+        self._port: serial.Serial | None = None
+        self._thread: threading.Thread | None = None
+
+    @property
+    def is_open(self) -> bool:
+        """True while the port is open and configured."""
+        return self._port is not None
+
+    def start(self) -> None:
+        """Start the reader thread (opens the port in the background)."""
+        self._stop.clear()
+        self._thread = threading.Thread(
+            target=self._run, name=f"serial:{self.settings.port}", daemon=True
+        )
+        self._thread.start()
+
+    def stop(self, before_close: Callable[[serial.Serial], None] | None = None) -> None:
+        """Stop the thread and close the port; ``before_close`` may still write to it."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=2.0)
+            self._thread = None
+        port = self._port
+        if port is not None and before_close is not None:
+            try:
+                before_close(port)
+            except (serial.SerialException, OSError) as exc:
+                self._log(f"could not send the shutdown command: {exc}")
+        self._close()
+
+    def write(self, data: bytes) -> bool:
+        """Send bytes if the port is open; returns False (and writes nothing) otherwise."""
+        port = self._port
+        if port is None:
+            return False
+        try:
+            with self._write_lock:
+                port.write(data)
+        except (serial.SerialException, OSError) as exc:
+            self.stats.last_error = f"write failed: {exc}"
+            return False
+        return True
+
+    def _run(self) -> None:
+        backoff = self.settings.backoff_initial_s
+        while not self._stop.is_set():
+            try:
+                self._open()
+                backoff = self.settings.backoff_initial_s
+                self._read_until_error()
+            except LinkStallError as exc:
+                self.stats.stalls += 1
+                self._note(str(exc))
+            except (serial.SerialException, OSError, ValueError) as exc:
+                if self._port is None:
+                    self.stats.open_failures += 1
+                self._note(f"serial error on {self.settings.port}: {exc}")
+            except Exception as exc:  # an on_open callback failing must not end the thread
+                self._note(f"device set-up failed on {self.settings.port}: {exc!r}")
+            if self._stop.is_set():
+                break  # stop() still writes its shutdown command before it closes the port
+            self._close()
+            if self._stop.wait(backoff):
+                break
+            backoff = min(2.0 * backoff, self.settings.backoff_max_s)
+
+    def _open(self) -> None:
+        port = serial.Serial(
+            self.settings.port,
+            self.settings.baud,
+            bytesize=serial.EIGHTBITS,
+            parity=serial.PARITY_NONE,
+            stopbits=serial.STOPBITS_ONE,
+            timeout=self.settings.read_timeout_s,
+            write_timeout=1.0,
+            xonxoff=False,
+            rtscts=False,
+            dsrdtr=False,
+        )
+        # pyserial asserts DTR and RTS on open (its defaults), as the Aalborg MATLAB set-up did
+        # (imu400cc-aalborg-notes.md §2.1); it ignores ports without modem lines, like a pty.
+        port.reset_input_buffer()
+        if self.stats.opens > 0:
+            self.stats.reconnects += 1
+        self.stats.opens += 1
+        self._port = port
+        self._on_open(port)
+        self._log(f"opened {self.settings.port} at {self.settings.baud} baud")
+
+    def _read_until_error(self) -> None:
+        port = self._port
+        assert port is not None
+        last_data = time.monotonic()
+        while not self._stop.is_set():
+            chunk = port.read(1)
+            if chunk:
+                waiting = port.in_waiting
+                if waiting:
+                    chunk += port.read(waiting)
+                received = self._now()
+                last_data = time.monotonic()
+                self.stats.bytes_read += len(chunk)
+                try:
+                    self._on_data(chunk, received)
+                except Exception as exc:  # a decoding bug must not take the link down
+                    self.stats.callback_errors += 1
+                    self.stats.last_error = f"data callback failed: {exc!r}"
+            elif time.monotonic() - last_data > self.settings.stall_timeout_s:
+                raise LinkStallError(
+                    f"no data from {self.settings.port} for {self.settings.stall_timeout_s:.1f} s"
+                )
+
+    def _close(self) -> None:
+        port, self._port = self._port, None
+        if port is not None:
+            with contextlib.suppress(serial.SerialException, OSError):
+                port.close()
+
+    def _note(self, message: str) -> None:
+        if message != self.stats.last_error:
+            self._log(message)
+        self.stats.last_error = message

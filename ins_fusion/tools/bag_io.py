@@ -1,0 +1,483 @@
+"""rosbag2 bags through ``rosbags``: a splitting writer, a time-ordered reader, a summary.
+
+Bags are rosbag2 metadata version 9 (Jazzy): every connection carries its message definition
+(``ros2msg`` with its dependencies) and its RIHS01 type-description hash from the Jazzy typestore,
+so ``ros2 bag info/play`` and this reader accept them. A bag is a directory ``NAME/`` with
+``metadata.yaml`` and one storage file per split, ``NAME_0.mcap``, ``NAME_1.mcap``, ... (or
+``.db3``), the layout ``ros2 bag record`` produces. Times are ROS times in integer nanoseconds
+since the Unix epoch (``log_time_ns``: the bag's receive/record time of a message).
+
+No rclpy here: the recorder, the player, the importer and the simulator share this module.
+"""
+
+from __future__ import annotations
+
+import heapq
+import shutil
+from collections.abc import Collection, Iterator, Sequence
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from functools import cache
+from pathlib import Path, PurePath
+from types import TracebackType
+from typing import Any, Literal, NamedTuple, cast
+
+import yaml
+from rosbags.highlevel import AnyReader
+from rosbags.interfaces import Connection, Qos
+from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys.store import Typestore
+
+#: ``--storage`` choices -> rosbags storage plugin (MCAP is the Jazzy default).
+STORAGES: dict[str, StoragePlugin] = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}
+#: rosbag2 metadata version written (Jazzy).
+BAG_VERSION: Literal[9] = 9
+#: Largest gaps kept per topic for the summary.
+GAPS_KEPT = 3
+#: A gap is listed in the summary when it lasts this many mean periods of its topic or more.
+GAP_REPORT_PERIODS = 1.5
+
+RawMessage = bytes | memoryview
+
+
+class BagError(Exception):
+    """A bag cannot be written or read as asked."""
+
+
+@cache
+def jazzy_typestore() -> Typestore:
+    """The rosbags typestore of ROS 2 Jazzy (common_interfaces, rosgraph_msgs, ...)."""
+    return get_typestore(Stores.ROS2_JAZZY)
+
+
+def utc_text(time_ns: int) -> str:
+    """``2013-08-26T10:00:00.000Z`` for a time in ns since the Unix epoch."""
+    stamp = datetime.fromtimestamp(time_ns / 1e9, tz=UTC)
+    return stamp.strftime("%Y-%m-%dT%H:%M:%S.") + f"{stamp.microsecond // 1000:03d}Z"
+
+
+# --------------------------------------------------------------------------------------------
+# Summary
+# --------------------------------------------------------------------------------------------
+
+
+class Gap(NamedTuple):
+    """A gap between two consecutive messages of one topic."""
+
+    topic: str
+    start_ns: int
+    length_ns: int
+    periods: float  #: length in mean periods of the topic (1.0 = on time)
+
+
+@dataclass
+class TopicStats:
+    """Count, time span and largest gaps of one topic (times in ns)."""
+
+    msgtype: str
+    count: int = 0
+    first_ns: int = 0
+    last_ns: int = 0
+    #: min-heap of (length_ns, start_ns) holding the GAPS_KEPT largest gaps
+    gaps: list[tuple[int, int]] = field(default_factory=list)
+
+    @property
+    def rate_hz(self) -> float:
+        """Mean message rate over the topic's own span (0 with fewer than two messages)."""
+        span = self.last_ns - self.first_ns
+        return (self.count - 1) * 1e9 / span if span > 0 else 0.0
+
+    @property
+    def max_gap_ns(self) -> int:
+        """Largest interval between consecutive messages (0 with fewer than two messages)."""
+        return max(self.gaps)[0] if self.gaps else 0
+
+
+@dataclass
+class BagSummary:
+    """Messages per topic, time span and largest gaps; fed one message time at a time."""
+
+    topics: dict[str, TopicStats] = field(default_factory=dict)
+
+    def add(self, topic: str, msgtype: str, log_time_ns: int) -> None:
+        """Account one message. A time earlier than the topic's last (a loop) opens no gap."""
+        stats = self.topics.get(topic)
+        if stats is None:
+            self.topics[topic] = TopicStats(msgtype, 1, log_time_ns, log_time_ns)
+            return
+        gap = log_time_ns - stats.last_ns
+        if gap > 0:
+            item = (gap, stats.last_ns)
+            if len(stats.gaps) < GAPS_KEPT:
+                heapq.heappush(stats.gaps, item)
+            elif item > stats.gaps[0]:
+                heapq.heapreplace(stats.gaps, item)
+        stats.count += 1
+        stats.first_ns = min(stats.first_ns, log_time_ns)
+        stats.last_ns = max(stats.last_ns, log_time_ns)
+
+    @property
+    def count(self) -> int:
+        """Messages of all topics."""
+        return sum(s.count for s in self.topics.values())
+
+    @property
+    def start_ns(self) -> int:
+        """Time of the earliest message (0 when empty)."""
+        return min((s.first_ns for s in self.topics.values()), default=0)
+
+    @property
+    def end_ns(self) -> int:
+        """Time of the latest message (0 when empty)."""
+        return max((s.last_ns for s in self.topics.values()), default=0)
+
+    def largest_gaps(self, n: int = 5) -> list[Gap]:
+        """Up to ``n`` gaps of GAP_REPORT_PERIODS mean periods or more, longest (relative to
+        their topic's mean period) first."""
+        gaps = [
+            Gap(topic, start, length, length * s.rate_hz / 1e9)
+            for topic, s in self.topics.items()
+            for length, start in s.gaps
+            if length * s.rate_hz / 1e9 >= GAP_REPORT_PERIODS
+        ]
+        return sorted(gaps, key=lambda g: g.periods, reverse=True)[:n]
+
+    def format(self, title: str = "") -> str:
+        """Human-readable table (counts, rates, max gaps) and the largest gaps."""
+        lines = [title] if title else []
+        if not self.topics:
+            return "\n".join([*lines, "no messages"])
+        span_s = (self.end_ns - self.start_ns) / 1e9
+        lines.append(
+            f"{self.count} messages, {utc_text(self.start_ns)} .. {utc_text(self.end_ns)}"
+            f" ({span_s:.3f} s)"
+        )
+        width = max(len("topic"), *(len(t) for t in self.topics))
+        type_width = max(len("type"), *(len(s.msgtype) for s in self.topics.values()))
+        lines.append(
+            f"  {'topic':<{width}}  {'type':<{type_width}}  {'count':>8}  {'rate Hz':>9}"
+            f"  {'max gap s':>9}"
+        )
+        for topic in sorted(self.topics):
+            s = self.topics[topic]
+            lines.append(
+                f"  {topic:<{width}}  {s.msgtype:<{type_width}}  {s.count:>8}  {s.rate_hz:>9.3f}"
+                f"  {s.max_gap_ns / 1e9:>9.4f}"
+            )
+        gaps = self.largest_gaps()
+        if not gaps:
+            lines.append(f"  no gap of {GAP_REPORT_PERIODS} mean periods or more")
+        else:
+            lines.append("  largest gaps:")
+            lines.extend(
+                f"    {g.topic}: {g.length_ns / 1e9:.4f} s at"
+                f" +{(g.start_ns - self.start_ns) / 1e9:.3f} s ({g.periods:.1f} mean periods)"
+                for g in gaps
+            )
+        return "\n".join(lines)
+
+
+# --------------------------------------------------------------------------------------------
+# Writer
+# --------------------------------------------------------------------------------------------
+
+
+class _Topic(NamedTuple):
+    msgtype: str
+    qos: tuple[Qos, ...]
+
+
+class BagWriter:
+    """Writes a rosbag2 bag directory, splitting into a new storage file on size or duration.
+
+    ``write`` takes raw CDR bytes (e.g. from an rclpy ``raw=True`` subscription) or a rosbags
+    message object of the topic's type. Topics are declared with ``add_topic`` (required for
+    raw bytes); a message object declares its topic on first use. Files split when the payload
+    bytes of the current file would exceed ``max_file_bytes`` or when a message is
+    ``max_file_duration_s`` or more after the file's first message (0 = never). Not
+    thread-safe: one thread writes.
+    """
+
+    def __init__(
+        self,
+        path: Path | str,
+        *,
+        storage: str = "mcap",
+        max_file_bytes: int = 0,
+        max_file_duration_s: float = 0.0,
+        typestore: Typestore | None = None,
+    ) -> None:
+        if storage not in STORAGES:
+            raise BagError(f"unknown storage {storage!r}; choose from {', '.join(STORAGES)}")
+        self.path = Path(path)
+        if self.path.exists():
+            raise BagError(f"{self.path} exists already, not overwriting")
+        self.storage = storage
+        self.max_file_bytes = max_file_bytes
+        self.max_file_duration_ns = round(max_file_duration_s * 1e9)
+        self.typestore = typestore if typestore is not None else jazzy_typestore()
+        self.summary = BagSummary()
+        self.files: list[Path] = []
+        self._topics: dict[str, _Topic] = {}
+        self._connections: dict[str, Connection] = {}
+        self._part_metadata: list[dict[str, Any]] = []
+        self._part: Writer | None = None
+        self._part_bytes = 0
+        self._part_start_ns = 0
+        self._part_count = 0
+        self.path.mkdir(parents=True)
+        self._open_part()
+
+    def add_topic(self, topic: str, msgtype: str, qos: Sequence[Qos] = ()) -> None:
+        """Declare a topic, its type (``pkg/msg/Name``) and the QoS profiles its publishers
+        offered (empty: unknown; players then use their defaults)."""
+        if topic in self._topics:
+            if self._topics[topic].msgtype != msgtype:
+                raise BagError(f"{topic} declared as {self._topics[topic].msgtype}, not {msgtype}")
+            return
+        if msgtype not in self.typestore.fielddefs:
+            raise BagError(f"message type {msgtype} is not in the typestore")
+        self._topics[topic] = _Topic(msgtype, tuple(qos))
+        self._connect(topic)
+
+    def write(self, topic: str, log_time_ns: int, message: RawMessage | object) -> None:
+        """Write one message at ``log_time_ns`` (ns since the epoch)."""
+        if isinstance(message, RawMessage):
+            if topic not in self._topics:
+                raise BagError(f"raw message on undeclared topic {topic}")
+            data = message
+        else:
+            self.add_topic(topic, cast(str, getattr(message, "__msgtype__", "")))
+            data = self.typestore.serialize_cdr(message, self._topics[topic].msgtype)
+        if self._part_count and (
+            (self.max_file_bytes and self._part_bytes + len(data) > self.max_file_bytes)
+            or (
+                self.max_file_duration_ns
+                and log_time_ns - self._part_start_ns >= self.max_file_duration_ns
+            )
+        ):
+            self._close_part()
+            self._open_part()
+        if not self._part_count:
+            self._part_start_ns = log_time_ns
+        assert self._part is not None
+        self._part.write(self._connections[topic], log_time_ns, data)
+        self._part_bytes += len(data)
+        self._part_count += 1
+        self.summary.add(topic, self._topics[topic].msgtype, log_time_ns)
+
+    def close(self) -> BagSummary:
+        """Finish the current file and write ``metadata.yaml``; returns the summary."""
+        if self._part is not None:
+            self._close_part()
+            self._write_metadata()
+        return self.summary
+
+    def _connect(self, topic: str) -> None:
+        assert self._part is not None
+        info = self._topics[topic]
+        self._connections[topic] = self._part.add_connection(
+            topic,
+            info.msgtype,
+            typestore=self.typestore,
+            serialization_format="cdr",
+            offered_qos_profiles=info.qos,
+        )
+
+    def _open_part(self) -> None:
+        # rosbags writes <dir>/<dir>.<ext>; each file is written as a one-file bag in a
+        # sub-directory named like the final file, then moved up (see _close_part).
+        part = Writer(
+            self.path / f"{self.path.name}_{len(self.files)}",
+            version=BAG_VERSION,
+            storage_plugin=STORAGES[self.storage],
+        )
+        part.open()
+        self._part = part
+        self._connections = {}
+        self._part_bytes = 0
+        self._part_count = 0
+        for topic in self._topics:
+            self._connect(topic)
+
+    def _close_part(self) -> None:
+        assert self._part is not None and self._part.storage is not None
+        part_dir = self._part.path
+        storage_file = self._part.storage.path
+        self._part.close()
+        self._part = None
+        self._part_metadata.append(_load_metadata(part_dir))
+        self.files.append(storage_file.replace(self.path / storage_file.name))
+        shutil.rmtree(part_dir)
+
+    def _write_metadata(self) -> None:
+        """Merge the one-file metadata of every part into the bag's metadata.yaml."""
+        parts = self._part_metadata
+        merged = dict(parts[0])
+        with_messages = [p for p in parts if p["message_count"]] or parts[:1]
+        start = min(p["starting_time"]["nanoseconds_since_epoch"] for p in with_messages)
+        end = max(
+            p["starting_time"]["nanoseconds_since_epoch"] + p["duration"]["nanoseconds"]
+            for p in with_messages
+        )
+        counts: dict[str, int] = {}
+        for part in parts:
+            for item in part["topics_with_message_count"]:
+                name = item["topic_metadata"]["name"]
+                counts[name] = counts.get(name, 0) + item["message_count"]
+        topics = [
+            {**item, "message_count": counts[item["topic_metadata"]["name"]]}
+            for item in parts[-1]["topics_with_message_count"]
+        ]
+        merged.update(
+            relative_file_paths=[p for part in parts for p in part["relative_file_paths"]],
+            starting_time={"nanoseconds_since_epoch": start},
+            duration={"nanoseconds": max(0, end - start)},
+            message_count=sum(p["message_count"] for p in parts),
+            topics_with_message_count=topics,
+            files=[f for part in parts for f in part["files"]],
+        )
+        text = yaml.safe_dump({"rosbag2_bagfile_information": merged}, sort_keys=False)
+        (self.path / "metadata.yaml").write_text(text, encoding="utf-8")
+
+    def __enter__(self) -> BagWriter:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        # Closing on errors too keeps every message written so far in a readable bag.
+        self.close()
+
+
+def _load_metadata(bag_dir: Path) -> dict[str, Any]:
+    try:
+        text = (bag_dir / "metadata.yaml").read_text(encoding="utf-8")
+        info = yaml.safe_load(text)["rosbag2_bagfile_information"]
+    except (OSError, yaml.YAMLError, KeyError, TypeError) as exc:
+        raise BagError(f"{bag_dir}: unreadable metadata.yaml ({exc})") from exc
+    return cast(dict[str, Any], info)
+
+
+# --------------------------------------------------------------------------------------------
+# Reader
+# --------------------------------------------------------------------------------------------
+
+
+class BagMessage(NamedTuple):
+    """One message of a bag: raw CDR bytes, or a rosbags message object when deserialized."""
+
+    topic: str
+    msgtype: str
+    log_time_ns: int
+    message: Any
+
+
+@dataclass(frozen=True)
+class BagTopic:
+    """A topic of a bag: type, message count, QoS profiles offered when it was recorded."""
+
+    msgtype: str
+    count: int
+    qos: tuple[Qos, ...]
+
+
+def storage_files(path: Path) -> list[Path]:
+    """What rosbags opens for a bag: its storage files (so messages merge in time order across
+    splits), or the directory itself when it is compressed (rosbags decompresses it)."""
+    if not path.is_dir():
+        return [path]
+    info = _load_metadata(path)
+    if str(info.get("compression_mode") or "none").lower() != "none":
+        return [path]
+    return [path / PurePath(p).name for p in info["relative_file_paths"]]
+
+
+class BagReader:
+    """Reads a rosbag2 bag (directory of MCAP or sqlite3 files, or one storage file).
+
+    Messages come in log-time order across all files. Types come from the definitions stored
+    in the bag, else from the Jazzy typestore (older bags without definitions).
+    """
+
+    def __init__(self, path: Path | str, typestore: Typestore | None = None) -> None:
+        self.path = Path(path)
+        if not self.path.exists():
+            raise BagError(f"{self.path}: no such bag")
+        default = typestore if typestore is not None else jazzy_typestore()
+        self._reader = AnyReader(storage_files(self.path), default_typestore=default)
+        self._reader.open()
+        self.topics: dict[str, BagTopic] = {}
+        for conn in self._reader.connections:
+            known = self.topics.get(conn.topic)
+            qos = tuple(getattr(conn.ext, "offered_qos_profiles", ()))
+            self.topics[conn.topic] = BagTopic(
+                conn.msgtype,
+                conn.msgcount + (known.count if known else 0),
+                known.qos if known else qos,
+            )
+
+    @property
+    def start_ns(self) -> int:
+        """Log time of the first message."""
+        return int(self._reader.start_time)
+
+    @property
+    def end_ns(self) -> int:
+        """Log time of the last message."""
+        return int(self._reader.end_time) - 1
+
+    def messages(
+        self,
+        topics: Collection[str] | None = None,
+        *,
+        start_ns: int | None = None,
+        deserialize: bool = False,
+    ) -> Iterator[BagMessage]:
+        """Messages of ``topics`` (all if None) at or after ``start_ns``, in log-time order."""
+        if topics is not None and (unknown := set(topics) - set(self.topics)):
+            raise BagError(f"{self.path}: no topic {', '.join(sorted(unknown))}")
+        connections = [c for c in self._reader.connections if topics is None or c.topic in topics]
+        if not connections:
+            return
+        for conn, log_time_ns, data in self._reader.messages(connections, start=start_ns):
+            message = self._reader.deserialize(data, conn.msgtype) if deserialize else bytes(data)
+            yield BagMessage(conn.topic, conn.msgtype, log_time_ns, message)
+
+    def summary(self, topics: Collection[str] | None = None) -> BagSummary:
+        """Counts, span and gaps of the bag (reads every message time)."""
+        summary = BagSummary()
+        for msg in self.messages(topics):
+            summary.add(msg.topic, msg.msgtype, msg.log_time_ns)
+        return summary
+
+    def close(self) -> None:
+        """Close the storage files."""
+        self._reader.close()
+
+    def __enter__(self) -> BagReader:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+
+def read_messages(
+    path: Path | str,
+    topics: Collection[str] | None = None,
+    *,
+    start_ns: int | None = None,
+    deserialize: bool = False,
+) -> Iterator[BagMessage]:
+    """Every message of the bag at ``path`` in log-time order (see ``BagReader.messages``)."""
+    with BagReader(path) as reader:
+        yield from reader.messages(topics, start_ns=start_ns, deserialize=deserialize)

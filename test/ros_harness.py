@@ -1,0 +1,94 @@
+"""Helpers for tests that run real rclpy nodes in the test process."""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import defaultdict
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from typing import Any
+
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+
+class Collector:
+    """A node that records every message of the given topics, with its receive wall time."""
+
+    def __init__(self, topics: dict[str, type], name: str = "test_collector") -> None:
+        self.node = rclpy.create_node(name)
+        self._lock = threading.Lock()
+        self.messages: dict[str, list[Any]] = defaultdict(list)
+        self.receive_times: dict[str, list[float]] = defaultdict(list)
+        qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+        for topic, msg_type in topics.items():
+            self.node.create_subscription(
+                msg_type, topic, lambda msg, t=topic: self._store(t, msg), qos
+            )
+
+    def _store(self, topic: str, msg: Any) -> None:
+        now = time.time()
+        with self._lock:
+            self.messages[topic].append(msg)
+            self.receive_times[topic].append(now)
+
+    def get(self, topic: str) -> list[Any]:
+        with self._lock:
+            return list(self.messages[topic])
+
+    def count(self, topic: str) -> int:
+        with self._lock:
+            return len(self.messages[topic])
+
+    def clear(self) -> None:
+        with self._lock:
+            self.messages.clear()
+            self.receive_times.clear()
+
+
+@contextmanager
+def spinning(*nodes: Node) -> Iterator[SingleThreadedExecutor]:
+    """Spin the nodes on a background executor for the duration of the block.
+
+    Single-threaded on purpose: rclpy's MultiThreadedExecutor busy-waits while a callback group
+    is busy, holding the GIL and starving the drivers' serial reader threads.
+    """
+    executor = SingleThreadedExecutor()
+    for node in nodes:
+        executor.add_node(node)
+    thread = threading.Thread(target=executor.spin, daemon=True)
+    thread.start()
+    try:
+        yield executor
+    finally:
+        executor.shutdown(timeout_sec=2.0)
+        thread.join(timeout=2.0)
+
+
+def wait_for(predicate: Callable[[], bool], timeout_s: float, poll_s: float = 0.02) -> bool:
+    """Poll ``predicate`` until it is true or the time-out expires; returns its last value."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(poll_s)
+    return predicate()
+
+
+def overrides(**values: Any) -> list[Parameter]:
+    """Parameter overrides for a node constructor."""
+    return [Parameter(name, value=value) for name, value in values.items()]
+
+
+def stamp_s(msg: Any) -> float:
+    """header.stamp in seconds."""
+    return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+
+
+def diagnostic_values(array: Any) -> dict[str, str]:
+    """Key/values of the first status of a DiagnosticArray."""
+    return {kv.key: kv.value for kv in array.status[0].values}
