@@ -27,7 +27,7 @@ endif
 venv: $(BIN)/.installed
 
 demo: venv
-	$(BIN)/gnss_ins demo
+	$(BIN)/gnss_ins imu-demo
 
 lint: venv
 	$(BIN)/ruff check .

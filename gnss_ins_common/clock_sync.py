@@ -26,7 +26,8 @@ from __future__ import annotations
 import bisect
 import math
 from collections import deque
-from collections.abc import Iterable
+from collections.abc import Collection
+from itertools import chain
 from operator import itemgetter
 from typing import NamedTuple
 
@@ -52,16 +53,16 @@ class _LowerChain:
     def __init__(self) -> None:
         self.vertices: list[_Point] = []
 
-    def push(self, p: _Point) -> list[_Point]:
+    def push(self, p: _Point) -> tuple[_Point, ...]:
         """Append ``p`` and return the vertices it hid, newest first (for ``undo``)."""
         v = self.vertices
-        hidden = []
+        hidden: list[_Point] = []
         while len(v) >= 2 and _cross(v[-2], v[-1], p) <= 0.0:
             hidden.append(v.pop())
         v.append(p)
-        return hidden
+        return tuple(hidden)  # usually the shared empty tuple: nothing to allocate or collect
 
-    def undo(self, hidden: list[_Point]) -> None:
+    def undo(self, hidden: tuple[_Point, ...]) -> None:
         """Revert the last ``push``, given what it returned."""
         self.vertices.pop()
         self.vertices.extend(reversed(hidden))
@@ -98,11 +99,15 @@ class _Moments:
     """Count, means and co-moments of the window's points (Welford's update; removal reverses
     it), for the mean sensor time and the delay statistics without cancellation."""
 
-    def __init__(self, points: Iterable[_Point] = ()) -> None:
-        self.n = 0
-        self.mean_x = self.mean_y = self.cxx = self.cxy = self.cyy = 0.0
-        for p in points:
-            self.add(p)
+    def __init__(self, points: Collection[_Point] = ()) -> None:
+        """Exact (two-pass) moments of ``points``."""
+        self.n = len(points)
+        self.mean_x = math.fsum(p[0] for p in points) / max(self.n, 1)
+        self.mean_y = math.fsum(p[1] for p in points) / max(self.n, 1)
+        dxy = [(p[0] - self.mean_x, p[1] - self.mean_y) for p in points]
+        self.cxx = math.fsum(dx * dx for dx, _ in dxy)
+        self.cxy = math.fsum(dx * dy for dx, dy in dxy)
+        self.cyy = math.fsum(dy * dy for _, dy in dxy)
 
     def add(self, p: _Point) -> None:
         self.n += 1
@@ -171,7 +176,7 @@ class EnvelopeClockSync:
         self._origin: _Point = (0.0, 0.0)  # absolute (sensor, delay) of the first point [s]
         self._window: deque[_Point] = deque()  # every point in the window, oldest first
         self._front = _LowerChain()  # over mirrored points: the oldest part of the window
-        self._front_hidden: deque[list[_Point]] = deque()  # per front point, its push's log
+        self._front_hidden: deque[tuple[_Point, ...]] = deque()  # per front point, its push log
         self._back = _LowerChain()  # the newest part of the window
         self._moments = _Moments()
         self._last_sensor_s = -math.inf
@@ -222,9 +227,8 @@ class EnvelopeClockSync:
     def _support_at_mean(self) -> tuple[_Point, float]:
         """(a point of, slope of) the supporting line of the window's hull at the mean x; until
         ``ready`` (and for one point) the horizontal one through the lowest point."""
-        if len(self._window) < max(self.min_points, 2):
-            lowest_front = min(self._front.vertices, key=_y, default=(0.0, math.inf))
-            return min(_mirror(lowest_front), *self._back.vertices, key=_y), 0.0
+        if len(self._window) < max(self.min_points, 2):  # the lowest point is a hull vertex
+            return min(chain(map(_mirror, self._front.vertices), self._back.vertices), key=_y), 0.0
         x_mean = self._moments.mean_x
         front, back = self._front.vertices, self._back.vertices  # back holds the newest point
         if not front:
@@ -283,8 +287,8 @@ class EnvelopeClockSync:
 
     @property
     def skew(self) -> float:
-        """Host seconds per sensor second minus 1 (drift in ppm = skew * 1e6); 0 until two
-        points exist."""
+        """Host seconds per sensor second minus 1 (drift in ppm = skew * 1e6); 0 until
+        ``ready``."""
         return 0.0 if self._fit is None else self._fit.skew
 
     @property

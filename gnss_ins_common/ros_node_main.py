@@ -10,7 +10,7 @@ import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
-from gnss_ins_common.ros_params import ParameterValueError
+from gnss_ins_common.params import ParameterValueError
 
 
 class ClosableNode(Protocol):

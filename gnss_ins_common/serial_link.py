@@ -59,14 +59,16 @@ class SerialLink:
         on_data: Callable[[bytes, float], None],
         now: Callable[[], float],
         log: Callable[[str], None] = print,
+        info: Callable[[str], None] = print,
     ) -> None:
-        """``now`` returns the host time in seconds used to stamp each received chunk."""
+        """``now``: host time [s] stamping each chunk; ``log``: problems; ``info``: news."""
         self.settings = settings
         self.stats = LinkStats()
         self._on_open = on_open
         self._on_data = on_data
         self._now = now
         self._log = log
+        self._info = info
         self._stop = threading.Event()
         self._write_lock = threading.Lock()
         self._port: serial.Serial | None = None
@@ -156,7 +158,7 @@ class SerialLink:
         self.stats.opens += 1
         self._port = port
         self._on_open(port)
-        self._log(f"opened {self.settings.port} at {self.settings.baud} baud")
+        self._info(f"opened {self.settings.port} at {self.settings.baud} baud")
 
     def _read_until_error(self) -> None:
         port = self._port

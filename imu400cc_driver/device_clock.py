@@ -47,7 +47,8 @@ class DeviceStamp:
     device_time_s: float
     #: Packets missing between the previous packet and this one (0 in polled mode).
     dropped_packets: int
-    #: The gap spanned at least one whole timer wrap (~52 ms), resolved with the host clock.
+    #: The gap before this packet was at least one whole timer wrap (~52 ms), more than the
+    #: count alone can measure.
     wrapped_gap: bool
 
 
@@ -84,8 +85,8 @@ class DeviceClock:
         with ``latency_s``, the device's constant delay from sampling to the first byte [s]
         (not observable here). ``window_s``, ``min_points``: of the ``EnvelopeClockSync`` (1 s of
         packets by default). ``max_gap_s``: a longer silence [s] restarts the mapping, since the
-        device may have restarted and the host clock pins the wraps less well; must exceed the
-        poll period in polled mode."""
+        device may have restarted and the host clock pins the wraps less well (must exceed the
+        poll period in polled mode); stamps follow a host clock stepping back by more."""
         if nominal_tick_s <= 0.0 or (nominal_period_s is not None and nominal_period_s <= 0.0):
             raise ValueError("nominal_tick_s and nominal_period_s must be > 0")
         self.nominal_tick_s = nominal_tick_s
@@ -135,12 +136,10 @@ class DeviceClock:
         self._timer = timers[-1]
 
         device_times = []
-        for k, ticks in enumerate(steps):
+        for ticks in steps:
             self._ticks += ticks
             device_times.append(self._ticks * self.nominal_tick_s)
-            # Each packet's last byte was on the wire at least one packet time before the next.
-            arrival_s = last_host_s - (len(timers) - 1 - k) * self.transmission_s
-            self._sync.update(device_times[-1], arrival_s)
+            self._sync.update(device_times[-1], last_host_s)
 
         stamps = []
         for ticks, device_time_s in zip(steps, device_times, strict=True):
@@ -153,7 +152,7 @@ class DeviceClock:
                 dropped = max(round(ticks * self.nominal_tick_s / self.nominal_period_s) - 1, 0)
             wrapped = ticks >= TIMER_MODULUS
             self._dropped += dropped
-            self._timer_gaps += wrapped
+            self._timer_gaps += int(wrapped)
             stamps.append(DeviceStamp(stamp_s, device_time_s, dropped, wrapped))
         return stamps
 
@@ -207,7 +206,7 @@ class DeviceClock:
 
     @property
     def timer_gaps(self) -> int:
-        """Gaps of at least one whole timer wrap (~52 ms) so far, resolved with the host clock."""
+        """Gaps of at least one whole timer wrap (~52 ms) so far (every packet in polled mode)."""
         return self._timer_gaps
 
     @property

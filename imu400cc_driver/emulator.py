@@ -72,6 +72,15 @@ class EmulatorConfig:
     answer_external_commands: bool = True
 
 
+@dataclass(frozen=True)
+class SentPacket:
+    """What the emulator sent: timer field, true sample time and write time (wall clock, s)."""
+
+    timer: int
+    sample_wall_s: float
+    written_wall_s: float
+
+
 class Imu400ccEmulator:
     """A running emulated IMU400CC on a pty; ``path`` is what the driver opens."""
 
@@ -81,13 +90,14 @@ class Imu400ccEmulator:
         config: EmulatorConfig | None = None,
         *,
         link_path: str | None = None,
-        on_packet: Callable[[int, float], None] | None = None,
+        on_packet: Callable[[SentPacket], None] | None = None,
     ) -> None:
-        """``on_packet(timer, wall_time_written)`` is called after each packet is written."""
+        """``on_packet(SentPacket)`` is called after each packet is written."""
         self.config = config or EmulatorConfig()
         self._source = source or resting_source()
         self._axis_map = AxisMap.from_spec(list(self.config.axis_spec))
         self._on_packet = on_packet
+        self._wall_minus_monotonic = time.time() - time.monotonic()
         self.pty = PtyDevice(link_path)
         self.commands: Counter[str] = Counter()
         self.packets_sent = 0
@@ -162,6 +172,8 @@ class Imu400ccEmulator:
 
     # ---- device behaviour -------------------------------------------------------------------
     def _power_up(self) -> None:
+        # Same convention as DeviceClock.drift_ppm: positive means the device clock runs slow.
+        self._host_per_device = 1.0 + self.config.clock_drift_ppm * 1e-6
         self._streaming = False
         self._voltage_mode = False
         self._start_monotonic = time.monotonic()
@@ -170,12 +182,10 @@ class Imu400ccEmulator:
 
     def _device_time(self, monotonic_s: float) -> float:
         """Device-oscillator time since power-up for a host monotonic time [s]."""
-        drift = 1.0 + self.config.clock_drift_ppm * 1e-6
-        return (monotonic_s - self._start_monotonic) * drift
+        return (monotonic_s - self._start_monotonic) / self._host_per_device
 
     def _host_time_of(self, device_time_s: float) -> float:
-        drift = 1.0 + self.config.clock_drift_ppm * 1e-6
-        return self._start_monotonic + device_time_s / drift
+        return self._start_monotonic + device_time_s * self._host_per_device
 
     def _run(self) -> None:
         while not self._stop.is_set():
@@ -214,9 +224,11 @@ class Imu400ccEmulator:
                 self._corrupt_next -= 1
                 packet = packet[:5] + bytes([packet[5] ^ 0x5A]) + packet[6:]
         if self.pty.write(packet) == len(packet):
+            written = time.time()
             self.packets_sent += 1
             if self._on_packet is not None:
-                self._on_packet(timer, time.time())
+                sample = self._host_time_of(device_time_s) + self._wall_minus_monotonic
+                self._on_packet(SentPacket(timer, sample, written))
 
     def _sample_packet(self, device_time_s: float, timer: int) -> RawPacket:
         rate, force = self._source(device_time_s)

@@ -18,8 +18,9 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, Temperature
 
 from gnss_ins_common import ros_diagnostics as diag
+from gnss_ins_common.params import Param
 from gnss_ins_common.ros_node_main import run_node
-from gnss_ins_common.ros_params import Param, declare_parameters
+from gnss_ins_common.ros_params import declare_parameters
 from gnss_ins_common.serial_link import LinkSettings, SerialLink
 from imu400cc_driver.axes import DEFAULT_AXIS_SPEC, AxisMap, packet_to_measurement
 from imu400cc_driver.device_clock import NOMINAL_RATE_HZ, NOMINAL_TICK_S, DeviceClock
@@ -108,6 +109,10 @@ class Imu400ccNode(Node):
         self._frame_id = p["frame_id"]
         self._scaling = Scaling(p["gyro_range_dps"], p["accel_range_g"])
         self._axis_map = AxisMap.from_spec(p["axis_map"])
+        if not self._axis_map.proper:
+            self.get_logger().warning(
+                f"axis_map {p['axis_map']} is a mirror image (left-handed): check the mounting"
+            )
         self._accel_sign = p["accel_sign"]
         self._gravity = p["gravity"]
         self._gyro_cov = [d * d * NOMINAL_RATE_HZ for d in p["gyro_noise_density"]]
@@ -118,6 +123,9 @@ class Imu400ccNode(Node):
             nominal_period_s=1.0 / NOMINAL_RATE_HZ if self._continuous else None,
             transmission_s=PACKET_LENGTH * 10 / p["baud"],
             latency_s=p["latency"],
+            # Polled: fewer samples, so a shorter warm-up and silences longer than a poll period.
+            min_points=134 if self._continuous else 10,
+            max_gap_s=1.0 if self._continuous else max(1.0, 3.0 / p["poll_rate"]),
         )
         self._temperature_every = max(1, round(NOMINAL_RATE_HZ / p["temperature_rate"]))
         if not self._continuous:
@@ -148,6 +156,7 @@ class Imu400ccNode(Node):
             on_data=self._on_data,
             now=self._now,
             log=self.get_logger().warning,
+            info=self.get_logger().info,
         )
         self._link.start()
         self.get_logger().info(
@@ -161,12 +170,16 @@ class Imu400ccNode(Node):
     def _on_open(self, port: Any) -> None:
         info = configure_device(port, self._continuous, log=self.get_logger().warning)
         self._serial_number = info.serial_number
-        self._framer.reset()
-        self._device_clock.reset()
+        if self._link.stats.opens > 1:  # a reconnect: the stream and its timer start anew
+            self._framer.reset()
+            self._device_clock.reset()
 
     def _on_data(self, chunk: bytes, received_s: float) -> None:
-        for raw in self._framer.feed(chunk):
-            stamp = self._device_clock.stamp(raw.timer, received_s)
+        packets = self._framer.feed(chunk)
+        # All packets of one read share its receive time: stamping them together keeps a stalled
+        # read from looking like lost packets (docs/timing.md).
+        stamps = self._device_clock.stamp_chunk([raw.timer for raw in packets], received_s)
+        for raw, stamp in zip(packets, stamps, strict=True):
             meas = packet_to_measurement(
                 raw, self._scaling, self._axis_map, self._accel_sign, self._gravity
             )
@@ -230,6 +243,7 @@ class Imu400ccNode(Node):
             "rate_hz": rate,
             "packets": framer.packets,
             "bad_checksums": framer.bad_checksums,
+            "unconfirmed": framer.unconfirmed,
             "skipped_bytes": framer.skipped_bytes,
             "resyncs": framer.resyncs,
             "dropped_packets": clock.dropped_packets,

@@ -17,8 +17,13 @@ from diagnostic_msgs.msg import DiagnosticArray
 from ros_harness import Collector, diagnostic_values, overrides, spinning, stamp_s, wait_for
 from sensor_msgs.msg import Imu, Temperature
 
-from gnss_ins_common.ros_params import ParameterValueError
-from imu400cc_driver.emulator import EmulatorConfig, Imu400ccEmulator, resting_source
+from gnss_ins_common.params import ParameterValueError
+from imu400cc_driver.emulator import (
+    EmulatorConfig,
+    Imu400ccEmulator,
+    SentPacket,
+    resting_source,
+)
 from imu400cc_driver.node import PARAMETERS, Imu400ccNode
 
 pytestmark = pytest.mark.ros
@@ -96,15 +101,17 @@ def test_continuous_stream_values_units_covariance_and_rate():
 
 
 def test_stamps_are_sample_times_not_read_times():
-    written: list[float] = []
-    with Imu400ccEmulator(on_packet=lambda _t, wall: written.append(wall)) as dev:
+    sent: list[SentPacket] = []
+    with Imu400ccEmulator(on_packet=sent.append) as dev:
         collector, _ = _run(dev, 4.0)
     imu = collector.get("imu/data_raw")
     stamps = np.array([stamp_s(m) for m in imu])
     # The i-th message is the i-th streamed packet: the set-up's 'G' answer is not published.
-    writes = np.array(written[1 : 1 + len(stamps)])
-    sample_times = writes - 18 * 10 / 38400
+    sample_times = np.array([p.sample_wall_s for p in sent[1 : 1 + len(stamps)]])
+    writes = np.array([p.written_wall_s for p in sent[1 : 1 + len(stamps)]])
+    assert np.median(writes - sample_times) == pytest.approx(18 * 10 / 38400, abs=1e-3)
     error = (stamps - sample_times)[len(stamps) // 2 :]  # after the clock fit settled
+    assert np.median(np.abs(error)) < 0.5e-3
     assert np.percentile(np.abs(error), 95) < 2e-3
 
 

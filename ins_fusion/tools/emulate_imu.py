@@ -13,7 +13,12 @@ from imu400cc_driver.emulator import EmulatorConfig, Imu400ccEmulator, resting_s
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of the emulated device."""
     parser.add_argument("--link", help="stable path for the port (default: a temporary symlink)")
-    parser.add_argument("--drift-ppm", type=float, default=0.0, help="device clock drift [ppm]")
+    parser.add_argument(
+        "--drift-ppm",
+        type=float,
+        default=0.0,
+        help="device clock rate error [ppm], positive = slow",
+    )
     parser.add_argument("--temperature", type=float, default=25.0, help="reported temp [degC]")
     parser.add_argument("--seed", type=int, default=0, help="seed of the sensor noise")
     parser.add_argument("--no-noise", action="store_true", help="noise-free level unit at rest")

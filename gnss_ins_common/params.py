@@ -1,0 +1,122 @@
+"""Node parameters as data: name, default, description and what values are valid (no ROS).
+
+A node declares its ``Param`` specs through ``gnss_ins_common.ros_params``; offline tools (the
+replay tool reading the same YAML file as the fusion node) validate them with ``validate`` and
+``load_yaml`` here, so both refuse the same bad values with the same messages.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+import yaml
+
+ParamValue = bool | int | float | str | list[str] | list[float] | list[int]
+
+
+class ParameterValueError(ValueError):
+    """A parameter is out of range, of the wrong type, unknown or not allowed."""
+
+
+@dataclass(frozen=True)
+class Param:
+    """One declared parameter: name, default, description and what values are valid."""
+
+    name: str
+    default: ParamValue
+    description: str
+    low: float | None = None
+    high: float | None = None
+    choices: tuple[str, ...] = ()
+    #: Extra check on the value: returns an error message, or None when the value is fine.
+    check: Callable[[Any], str | None] | None = None
+    #: Element type of a list parameter whose default is empty (it cannot be inferred).
+    empty_list_of: Literal["str", "float"] = "str"
+
+    def problem(self, value: Any) -> str | None:
+        """Why ``value`` is not acceptable, or None (type, choices, range, extra check)."""
+        if isinstance(self.default, list):
+            if not isinstance(value, list):
+                return f"expected a list, got {value!r}"
+            element = self.default[0] if self.default else _EMPTY_ELEMENT[self.empty_list_of]
+            wrong = [item for item in value if not _same_type(element, item)]
+            if wrong:
+                return f"expected a list of {type(element).__name__}, got {wrong[0]!r}"
+        elif not _same_type(self.default, value):
+            return f"expected {type(self.default).__name__}, got {value!r}"
+        if self.choices and value not in self.choices:
+            return f"'{value}' is not one of {', '.join(self.choices)}"
+        for item in value if isinstance(value, list) else [value]:
+            if isinstance(item, str | bool):
+                continue
+            if (self.low is not None and item < self.low) or (
+                self.high is not None and item > self.high
+            ):
+                return f"{item} is outside [{self.low}, {self.high}]"
+        return self.check(value) if self.check is not None else None
+
+
+_EMPTY_ELEMENT: dict[str, ParamValue] = {"str": "", "float": 0.0}
+
+
+def _same_type(default: Any, value: Any) -> bool:
+    """``value`` has the type of ``default``; an int is accepted where a float is expected."""
+    if isinstance(default, bool) or isinstance(value, bool):
+        return isinstance(default, bool) and isinstance(value, bool)
+    if isinstance(default, float):
+        return isinstance(value, int | float)
+    return isinstance(value, type(default))
+
+
+def validate(spec: Param, value: Any) -> Any:
+    """``value`` (ints widened to float where the default is a float), or ParameterValueError."""
+    if isinstance(value, tuple):
+        value = list(value)
+    problem = spec.problem(value)
+    if problem:
+        raise ParameterValueError(f"parameter '{spec.name}': {problem} ({spec.description})")
+    if isinstance(spec.default, float) and isinstance(value, int) and not isinstance(value, bool):
+        return float(value)
+    default = spec.default
+    if isinstance(value, list) and isinstance(default, list) and default:
+        return [float(v) for v in value] if isinstance(default[0], float) else value
+    return value
+
+
+def validate_all(specs: Sequence[Param], values: Mapping[str, Any]) -> dict[str, Any]:
+    """Defaults overridden by ``values``; unknown names and bad values raise."""
+    by_name = {spec.name: spec for spec in specs}
+    unknown = sorted(set(values) - set(by_name))
+    if unknown:
+        raise ParameterValueError(f"unknown parameter(s): {', '.join(unknown)}")
+    result = {}
+    for spec in specs:
+        default = list(spec.default) if isinstance(spec.default, list) else spec.default
+        result[spec.name] = validate(spec, values[spec.name]) if spec.name in values else default
+    return result
+
+
+def load_yaml(path: Path, node_name: str, specs: Sequence[Param]) -> dict[str, Any]:
+    """Validated parameters of ``node_name`` from a ROS parameter file (``ros__parameters``)."""
+    try:
+        document = yaml.safe_load(path.read_text()) or {}
+    except (OSError, yaml.YAMLError) as exc:
+        raise ParameterValueError(f"cannot read parameter file {path}: {exc}") from exc
+    section = document.get(node_name, document.get(f"/{node_name}", {}))
+    values = (section or {}).get("ros__parameters", {})
+    return validate_all(specs, _flatten(values))
+
+
+def _flatten(values: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    """Nested YAML maps to dotted ROS names: {imu_noise: {gyro_arw: 1}} -> imu_noise.gyro_arw."""
+    flat: dict[str, Any] = {}
+    for key, value in values.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, Mapping):
+            flat.update(_flatten(value, f"{name}."))
+        else:
+            flat[name] = value
+    return flat

@@ -1,0 +1,235 @@
+"""EnvelopeClockSync: accuracy on synthetic 134 Hz streams, and hull invariants (hypothesis).
+
+``simulate`` is also used by test_device_clock.py and bench/bench_clock_sync.py.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from gnss_ins_common.clock_sync import EnvelopeClockSync
+from imu400cc_driver.device_clock import (
+    COUNTS_PER_PACKET,
+    NOMINAL_RATE_HZ,
+    NOMINAL_TICK_S,
+    PACKET_TRANSMISSION_S,
+)
+
+HOST_START_S = 1.7e9  # an epoch-sized host clock, to exercise float precision
+
+
+@dataclass(frozen=True)
+class Stream:
+    """One simulated IMU400CC run; every array has one entry per delivered packet."""
+
+    ticks: np.ndarray  # device ticks since the first packet (int64)
+    sample_host_s: np.ndarray  # true sample time on the host clock [s]
+    receive_s: np.ndarray  # host time the read that completed the packet returned [s]
+    dropped: np.ndarray  # packets missing right before this one
+
+    @property
+    def device_s(self) -> np.ndarray:
+        """Device time in nominal ticks [s]."""
+        return self.ticks * NOMINAL_TICK_S
+
+    def seconds(self) -> np.ndarray:
+        """True sample times since the first packet [s]."""
+        return self.sample_host_s - self.sample_host_s[0]
+
+    def stalled(self, start_s: float, duration_s: float) -> Stream:
+        """The same run with the reader asleep for ``duration_s`` from ``start_s`` [s]: whatever
+        arrived meanwhile is read at once, with the first packet after it."""
+        receive = self.receive_s.copy()
+        asleep = (receive >= self.sample_host_s[0] + start_s) & (
+            receive < self.sample_host_s[0] + start_s + duration_s
+        )
+        wake = np.flatnonzero(asleep)[-1] + 1
+        receive[asleep] = receive[wake]
+        return Stream(self.ticks, self.sample_host_s, receive, self.dropped)
+
+
+def simulate(
+    seconds: float,
+    drift_ppm: float,
+    seed: int,
+    drop_probability: float = 0.01,
+    runs: int = 3,
+    run_length: int = 20,
+    drift_after_ppm: float | None = None,
+) -> Stream:
+    """A 134 Hz stream: host = start + (1 + drift) * device time (drift switches to
+    ``drift_after_ppm`` half-way when given); the timer latch wobbles by up to ±9 counts (notes
+    §2.6); single drops and ``runs`` runs of ``run_length`` (20: longer than one ~7-packet wrap)
+    go missing after the first second; each packet
+    arrives in order after its wire time plus an exponential delay (1 ms mean) and, 1 % of the
+    time, a 20 ms USB stall; the reader often lags, so packets come in reads of 1-3 that share
+    the receive time of their last one (never across a pause of over 16 ms)."""
+    rng = np.random.default_rng(seed)
+    count = round(seconds * NOMINAL_RATE_HZ)
+    index = np.arange(count)
+    ticks = np.round(index * COUNTS_PER_PACKET).astype(np.int64) + rng.integers(-9, 10, count)
+    ticks -= ticks[0]
+    device_s = ticks * NOMINAL_TICK_S
+    rate = np.full(count, 1.0 + drift_ppm * 1e-6)
+    if drift_after_ppm is not None:
+        rate[count // 2 :] = 1.0 + drift_after_ppm * 1e-6
+    sample_host_s = HOST_START_S + np.concatenate(([0.0], np.cumsum(np.diff(device_s) * rate[1:])))
+
+    keep = rng.random(count) >= drop_probability
+    for start in rng.integers(NOMINAL_RATE_HZ, count - 2 * run_length, runs):
+        keep[start : start + run_length] = False
+    keep[0] = True
+    missing_before = np.diff(np.flatnonzero(keep), prepend=0) - 1
+    missing_before[0] = 0
+
+    delay = rng.exponential(1e-3, count) + np.where(rng.random(count) < 0.01, 20e-3, 0.0)
+    arrival = np.maximum.accumulate(sample_host_s + PACKET_TRANSMISSION_S + delay)[keep]
+    receive = np.empty_like(arrival)
+    start = 0
+    for k, lag in enumerate(np.diff(arrival, append=np.inf)):
+        if k - start == 2 or lag > 16e-3 or rng.random() < 0.5:
+            receive[start : k + 1] = arrival[k]
+            start = k + 1
+    return Stream(ticks[keep], sample_host_s[keep], receive, missing_before)
+
+
+def _feed(sync: EnvelopeClockSync, stream: Stream) -> np.ndarray:
+    """Update with every packet, return each packet's mapped time right after its update."""
+    mapped = np.empty(stream.receive_s.size)
+    host = stream.receive_s - PACKET_TRANSMISSION_S
+    for k, (device, received) in enumerate(
+        zip(stream.device_s.tolist(), host.tolist(), strict=True)
+    ):
+        sync.update(device, received)
+        mapped[k] = sync.to_host(device)
+    return mapped
+
+
+# ---- accuracy on synthetic streams ---------------------------------------------------------
+@pytest.mark.parametrize("drift_ppm", [100.0, -100.0])
+@pytest.mark.parametrize(
+    ("window_s", "drift_tolerance_ppm"),
+    [(60.0, 3.0), (5.0, 10.0)],  # a short window refills its hull often, but fits less time
+)
+def test_recovers_sample_times_and_drift(drift_ppm, window_s, drift_tolerance_ppm):
+    stream = simulate(90.0, drift_ppm, seed=round(window_s) + (drift_ppm > 0))
+    sync = EnvelopeClockSync(window_s=window_s)
+    error = _feed(sync, stream) - stream.sample_host_s
+    assert np.abs(error[stream.seconds() > 5.0]).max() < 0.2e-3
+    assert sync.skew * 1e6 == pytest.approx(drift_ppm, abs=drift_tolerance_ppm)
+    assert sync.ready and sync.resets == 0
+    assert sync.points == np.count_nonzero(stream.device_s >= stream.device_s[-1] - window_s)
+    assert 0.0 < sync.mean_delay_s < sync.jitter_s < 10e-3
+
+
+def test_follows_a_drift_change_within_a_window():
+    stream = simulate(120.0, 100.0, seed=7, drift_after_ppm=-50.0)
+    sync = EnvelopeClockSync(window_s=20.0)
+    error = _feed(sync, stream) - stream.sample_host_s
+    assert sync.skew * 1e6 == pytest.approx(-50.0, abs=3.0)
+    assert np.abs(error[stream.seconds() > stream.seconds()[-1] - 20.0]).max() < 0.2e-3
+
+
+def test_offset_only_until_ready_then_the_line():
+    sync = EnvelopeClockSync(min_points=3)
+    with pytest.raises(RuntimeError):
+        sync.to_host(0.0)
+    assert math.isnan(sync.offset_s) and sync.skew == 0.0 and not sync.ready
+    sync.update(10.0, 110.5)
+    assert sync.to_host(12.0) == 112.5 and sync.offset_s == 100.5
+    sync.update(11.0, 111.5 - 1e-3)  # the lowest delay so far, no slope yet
+    assert sync.to_host(12.0) == pytest.approx(112.5 - 1e-3) and sync.skew == 0.0
+    assert not sync.ready
+    sync.update(13.0, 113.5)
+    assert sync.ready and sync.points == 3
+    assert sync.skew == pytest.approx(0.5e-3)  # the edge (11, 100.499)-(13, 100.5) spans 11.33
+    assert sync.to_host(13.0) == pytest.approx(113.5)
+    assert sync.offset_s == pytest.approx(100.499 - 11 * 0.5e-3)
+
+
+def test_repeated_sensor_time_keeps_the_first_pair():
+    sync = EnvelopeClockSync()
+    sync.update(1.0, 5.0)
+    sync.update(1.0, 4.0)
+    assert sync.points == 1 and sync.to_host(1.0) == 5.0 and sync.resets == 0
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf])
+def test_rejects_non_finite_input(bad):
+    with pytest.raises(ValueError):
+        EnvelopeClockSync().update(bad, 1.0)
+    with pytest.raises(ValueError):
+        EnvelopeClockSync().update(1.0, bad)
+
+
+# ---- invariants ----------------------------------------------------------------------------
+def _best_supporting_value(x: np.ndarray, d: np.ndarray, x_at: float) -> float:
+    """Brute force: the highest value at ``x_at`` of a line through two points below all."""
+    i, j = np.triu_indices(x.size, 1)
+    slope = (d[j] - d[i]) / (x[j] - x[i])
+    lines = d[i, None] + slope[:, None] * (x[None, :] - x[i, None])
+    below_all = np.all(lines <= d[None, :] + 1e-12, axis=1)
+    return float(np.max((d[i] + slope * (x_at - x[i]))[below_all]))
+
+
+steps = st.lists(
+    st.tuples(
+        st.floats(1e-3, 1.0),  # sensor-time step [s]
+        st.floats(0.0, 0.05),  # receive delay [s]
+    ),
+    min_size=1,
+    max_size=40,
+)
+
+
+@settings(max_examples=150, deadline=None, derandomize=True)
+@given(
+    steps,
+    st.floats(-1e-3, 1e-3),
+    st.floats(0.5, 5.0),
+    st.floats(-1e3, 1e3),
+    st.integers(1, 8),
+)
+def test_line_is_the_lowest_envelope_of_the_window(pairs, skew, window_s, start_s, min_points):
+    sync = EnvelopeClockSync(window_s=window_s, min_points=min_points, max_jump_s=2.0)
+    sensor = start_s + np.cumsum([dx for dx, _ in pairs])
+    host = 30.0 + (1.0 + skew) * sensor + np.array([delay for _, delay in pairs])
+    since_first = sensor - sensor[0]  # the window is [newest - window_s, newest], as the class
+    for k in range(sensor.size):  # computes it (relative to the first point)
+        sync.update(float(sensor[k]), float(host[k]))
+        inside = slice(int(np.searchsorted(since_first, since_first[k] - window_s)), k + 1)
+        x, d = sensor[inside], host[inside] - sensor[inside]
+        line = np.array([sync.to_host(float(s)) for s in x]) - x
+        assert sync.points == x.size and sync.ready == (x.size >= min_points)
+        assert np.all(line <= d + 1e-9)  # never above a point of the window
+        x_mean = float(x.mean())
+        if x.size < max(min_points, 2):
+            best = float(d.min())  # offset only, through the lowest point
+        else:  # the supporting line with the least mean distance to the points
+            best = _best_supporting_value(x - x[0], d, x_mean - x[0])
+        assert sync.to_host(x_mean) - x_mean == pytest.approx(best, abs=1e-9)
+        assert sync.mean_delay_s == pytest.approx(float(np.mean(d - line)), abs=1e-9)
+        assert sync.jitter_s**2 == pytest.approx(float(np.mean((d - line) ** 2)), abs=1e-14)
+
+
+@settings(max_examples=100, deadline=None, derandomize=True)
+@given(steps, st.floats(1e-6, 100.0), st.floats(0.0, 1.0))
+def test_backwards_step_or_jump_restarts(pairs, back_s, host_s):
+    sync = EnvelopeClockSync(max_jump_s=10.0)
+    sensor = np.cumsum([dx for dx, _ in pairs])
+    for s, (_, delay) in zip(sensor.tolist(), pairs, strict=True):
+        sync.update(s, s + delay)
+    assert sync.resets == 0
+    sync.update(float(sensor[-1]) - back_s, host_s)
+    assert sync.resets == 1 and sync.points == 1
+    assert sync.to_host(float(sensor[-1]) - back_s) == pytest.approx(host_s)
+    sync.update(float(sensor[-1]) + 10.0 + back_s, host_s)  # a jump of over max_jump_s
+    assert sync.resets == 2 and sync.points == 1
+    sync.reset()
+    assert sync.resets == 3 and sync.points == 0 and not sync.ready

@@ -1,0 +1,22 @@
+"""docs/parameters.md lists every declared node parameter with its default."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from imu400cc_driver.node import PARAMETERS as IMU_PARAMETERS
+
+REPO = Path(__file__).resolve().parents[1]
+NODES = {"imu400cc_node": IMU_PARAMETERS}
+
+
+@pytest.mark.parametrize("node", sorted(NODES))
+def test_every_parameter_is_documented_with_its_default(node):
+    text = (REPO / "docs" / "parameters.md").read_text()
+    section = text.split(f"## {node}\n", 1)[1].split("\n## ", 1)[0]
+    for spec in NODES[node]:
+        default = f"`{spec.default}`" if isinstance(spec.default, str) else str(spec.default)
+        assert f"| `{spec.name}` | {default} |" in section, spec.name
+        assert spec.description in section, spec.name

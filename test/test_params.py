@@ -1,0 +1,67 @@
+"""gnss_ins_common.params: the pure parameter specs shared by nodes and offline tools."""
+
+from __future__ import annotations
+
+import pytest
+
+from gnss_ins_common.params import Param, ParameterValueError, load_yaml, validate, validate_all
+
+SPECS = (
+    Param("rate", 5.0, "a rate [Hz]", 0.1, 100.0),
+    Param("count", 3, "a count", 1, 10),
+    Param("mode", "a", "a mode", choices=("a", "b")),
+    Param("flag", True, "a flag"),
+    Param(
+        "gains", [1.0, 2.0, 3.0], "gains", 0.0, 10.0, check=lambda v: None if len(v) == 3 else "3"
+    ),
+    Param("names", [], "names"),
+    Param("imu_noise.gyro_arw", 0.5, "deg/sqrt(h)", 0.0, 100.0),
+)
+
+
+@pytest.mark.parametrize(
+    ("name", "value", "message"),
+    [
+        ("rate", 0.0, "outside"),
+        ("rate", "fast", "expected float"),
+        ("count", 2.5, "expected int"),
+        ("count", True, "expected int"),
+        ("mode", "c", "not one of"),
+        ("flag", 1, "expected bool"),
+        ("gains", [1.0, 20.0, 3.0], "outside"),
+        ("gains", [1.0, 2.0], "3"),
+        ("gains", 1.0, "expected a list"),
+        ("names", [1.0], "expected a list of str"),
+    ],
+)
+def test_bad_values_name_the_parameter(name, value, message):
+    spec = next(s for s in SPECS if s.name == name)
+    with pytest.raises(ParameterValueError, match=f"parameter '{name}'.*{message}"):
+        validate(spec, value)
+
+
+def test_ints_are_widened_where_floats_are_expected():
+    assert validate(SPECS[0], 7) == 7.0 and isinstance(validate(SPECS[0], 7), float)
+    assert validate(SPECS[4], [1, 2, 3]) == [1.0, 2.0, 3.0]
+    assert validate(SPECS[5], []) == []
+
+
+def test_validate_all_fills_defaults_and_rejects_unknown_names():
+    values = validate_all(SPECS, {"rate": 10})
+    assert values["rate"] == 10.0 and values["mode"] == "a" and values["gains"] == [1.0, 2.0, 3.0]
+    with pytest.raises(ParameterValueError, match="unknown parameter"):
+        validate_all(SPECS, {"rat": 1.0})
+
+
+def test_load_yaml_reads_a_ros_parameter_file_with_nested_names(tmp_path):
+    path = tmp_path / "p.yaml"
+    path.write_text(
+        "my_node:\n  ros__parameters:\n    count: 4\n    imu_noise:\n      gyro_arw: 1.5\n"
+    )
+    values = load_yaml(path, "my_node", SPECS)
+    assert values["count"] == 4 and values["imu_noise.gyro_arw"] == 1.5
+    path.write_text("my_node:\n  ros__parameters:\n    count: 40\n")
+    with pytest.raises(ParameterValueError, match="count"):
+        load_yaml(path, "my_node", SPECS)
+    with pytest.raises(ParameterValueError, match="cannot read"):
+        load_yaml(tmp_path / "missing.yaml", "my_node", SPECS)
