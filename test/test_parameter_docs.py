@@ -6,10 +6,11 @@ from pathlib import Path
 
 import pytest
 
+from gnss_driver.node import PARAMETERS as GNSS_PARAMETERS
 from imu400cc_driver.node import PARAMETERS as IMU_PARAMETERS
 
 REPO = Path(__file__).resolve().parents[1]
-NODES = {"imu400cc_node": IMU_PARAMETERS}
+NODES = {"imu400cc_node": IMU_PARAMETERS, "gnss_node": GNSS_PARAMETERS}
 
 
 @pytest.mark.parametrize("node", sorted(NODES))

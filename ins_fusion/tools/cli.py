@@ -14,6 +14,7 @@ import sys
 #: sub-command name -> (module under ins_fusion.tools, one-line help)
 SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "emulate-imu": ("emulate_imu", "emulated IMU400CC on a pseudo-terminal"),
+    "emulate-gnss": ("emulate_gnss", "emulated Leica RTK rover or ADU5 on a pseudo-terminal"),
     "imu-demo": ("imu_demo", "run imu400cc_node on an emulated device and print what it publishes"),
     "import-qfree": ("import_qfree", "Q-Free OBU GNSS/MEMS text logs to a rosbag2 bag"),
     "record": ("record", "record ROS 2 topics to a rosbag2 bag (MCAP or sqlite3)"),

@@ -1,0 +1,395 @@
+"""gnss_node: one NMEA GNSS receiver (Leica RTK rover, Ashtech ADU5, generic) on the host clock.
+
+Serial bytes are read on the link's thread and handed to the ROS-free ``GnssDriver``, which
+groups the sentences into epochs and stamps each with its UTC time mapped onto the host clock;
+results are published straight from that thread (an epoch ended by an idle line is published
+from a timer). Publishes ``gnss/fix`` (NavSatFix), ``gnss/vel`` (TwistWithCovarianceStamped,
+ENU), ``gnss/attitude`` (Imu with orientation only), ``gnss/time_reference`` (TimeReference)
+and ``/diagnostics``. docs/gnss.md describes parameters, topics and covariance rules.
+"""
+
+from __future__ import annotations
+
+import collections
+import math
+import threading
+import time
+from typing import Any
+
+from geometry_msgs.msg import TwistWithCovarianceStamped
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import Imu, NavSatFix, TimeReference
+
+from gnss_driver.attitude import DEFAULT_SIGMA_RPY_DEG, UNKNOWN_VARIANCE, AttitudeConfig
+from gnss_driver.commands import Answer, CommandResult, command_error, run_setup
+from gnss_driver.driver import GPS_UTC_LEAP_S, DriverConfig, EpochOutput, GnssDriver
+from gnss_driver.profiles import (
+    CAR_OFFSETS_DEG,
+    CAR_VECTORS_M,
+    PROFILES,
+    Adu5Setup,
+    Receiver,
+    default_setup_commands,
+)
+from gnss_driver.solution import FixType, SolutionConfig, UereTable
+from gnss_ins_common import ros_diagnostics as diag
+from gnss_ins_common.params import Param
+from gnss_ins_common.ros_node_main import run_node
+from gnss_ins_common.ros_params import declare_parameters
+from gnss_ins_common.serial_link import LinkSettings, SerialLink
+
+
+def _commands_error(commands: list[str]) -> str | None:
+    for command in commands:
+        problem = command_error(command)
+        if problem:
+            return f"{command!r}: {problem}"
+    return None
+
+
+def _length(n: int, what: str) -> Any:
+    return lambda values: None if len(values) == n else f"needs {n} values ({what})"
+
+
+_UERE = UereTable()
+PARAMETERS = (
+    Param("port", "/dev/ttyUSB0", "serial device of the receiver"),
+    Param("baud", 9600, "serial baud rate, 8N1 (Leica 9600, notes §7.2)", 1200, 921600),
+    Param(
+        "receiver",
+        "leica",
+        "receiver profile: leica (GGA/VTG/LLQ), adu5 (PASHR PAT/ATT), generic (any NMEA 0183)",
+        choices=tuple(r.value for r in Receiver),
+    ),
+    Param("frame_id", "gnss_link", "frame_id of the published messages (the antenna)"),
+    Param(
+        "setup_commands",
+        [],
+        "commands sent after each (re)open, CR LF appended; empty: the profile's defaults",
+        check=_commands_error,
+    ),
+    Param("setup_answer_timeout", 0.5, "wait for each command's ACK/NAK [s]", 0.0, 10.0),
+    Param("allow_missing_checksum", False, "accept sentences without *hh (still counted)"),
+    Param("uere_sps", _UERE.sps, "UERE of an SPS fix [m], x HDOP/VDOP", 0.001, 100.0),
+    Param("uere_dgps", _UERE.dgps, "UERE of a DGPS fix [m]", 0.001, 100.0),
+    Param("uere_rtk_float", _UERE.rtk_float, "UERE of an RTK float fix [m]", 0.001, 100.0),
+    Param("uere_rtk_fixed", _UERE.rtk_fixed, "UERE of an RTK fixed fix [m]", 0.001, 100.0),
+    Param(
+        "velocity_sigma",
+        SolutionConfig().velocity_sigma_m_s,
+        "1-sigma of each horizontal velocity component [m/s] (notes (7.15))",
+        0.001,
+        100.0,
+    ),
+    Param(
+        "attitude_sigma_rpy",
+        list(DEFAULT_SIGMA_RPY_DEG),
+        "1-sigma of roll, pitch, yaw at nominal PAT quality [deg] (notes §7.3)",
+        0.001,
+        180.0,
+        check=_length(3, "roll, pitch, yaw"),
+    ),
+    Param("attitude_mrms_limit", 0.005, "MRMS above this scales the sigmas up [m]", 1e-4, 1.0),
+    Param("attitude_brms_limit", 0.04, "BRMS above this scales the sigmas up [m]", 1e-4, 10.0),
+    Param(
+        "adu5_vectors",
+        [v for vector in CAR_VECTORS_M for v in vector],
+        "ADU5 antenna vectors V12, V13, V14 as x right, y forward, z up [m] ($PASHS,3DF,Vxx)",
+        -200.0,
+        200.0,
+        check=_length(9, "3 vectors x, y, z"),
+    ),
+    Param(
+        "adu5_offsets",
+        list(CAR_OFFSETS_DEG),
+        "ADU5 offset angles heading, pitch, roll of the antenna frame on the vehicle [deg]",
+        -180.0,
+        360.0,
+        check=_length(3, "heading, pitch, roll"),
+    ),
+    Param(
+        "adu5_offsets_in_receiver",
+        True,
+        "true: send the offsets with $PASHS,3DF,OFS; false: send zeros, the driver removes them",
+    ),
+    Param("adu5_elevation_mask", 15, "ADU5 elevation mask [deg] (notes §7.3)", 0, 90),
+    Param("adu5_period", 0.2, "ADU5 NMEA output period [s] (0.2 s = 5 Hz)", 0.2, 999.0),
+    Param("adu5_port", "A", "ADU5 port this node is connected to", choices=("A", "B")),
+    Param("latency", 0.0, "fixed delay from the epoch's UTC time to its first byte [s]", 0.0, 2.0),
+    Param("gps_utc_leap_seconds", GPS_UTC_LEAP_S, "GPS - UTC for PASHR,ATT times [s]", 0, 100),
+    Param(
+        "epoch_idle_timeout",
+        0.5,
+        "a quiet line for this long ends an epoch [s]; below the gap between epochs",
+        0.01,
+        5.0,
+    ),
+    Param("stall_timeout", 3.0, "reconnect when no byte arrives for this long [s]", 0.2, 60.0),
+    Param("diagnostics_period", 1.0, "period of the /diagnostics status [s]", 0.1, 60.0),
+)
+
+#: Latency samples averaged for the diagnostics.
+_LATENCY_WINDOW = 50
+
+
+class GnssNode(Node):
+    """The driver node; see the module docstring."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        """Declare and validate the parameters, open the port in the background."""
+        super().__init__("gnss_node", **kwargs)
+        p = declare_parameters(self, PARAMETERS)
+        self.params = p
+        self._receiver = Receiver(p["receiver"])
+        self._frame_id = p["frame_id"]
+        offsets = (p["adu5_offsets"][0], p["adu5_offsets"][1], p["adu5_offsets"][2])
+        zeros = (0.0, 0.0, 0.0)
+        in_receiver = p["adu5_offsets_in_receiver"]
+        vectors = p["adu5_vectors"]
+        adu5 = Adu5Setup(
+            vectors_m=tuple((vectors[i], vectors[i + 1], vectors[i + 2]) for i in (0, 3, 6)),
+            offsets_deg=offsets if in_receiver else zeros,
+            elevation_mask_deg=p["adu5_elevation_mask"],
+            period_s=p["adu5_period"],
+            port=p["adu5_port"],
+        )
+        self._commands = p["setup_commands"] or default_setup_commands(self._receiver, adu5)
+        self._rate_hz = (
+            1.0 / p["adu5_period"]
+            if self._receiver is Receiver.ADU5
+            else PROFILES[self._receiver].rate_hz
+        )
+        sigma = p["attitude_sigma_rpy"]
+        self._driver = GnssDriver(
+            DriverConfig(
+                baud=p["baud"],
+                allow_missing_checksum=p["allow_missing_checksum"],
+                latency_s=p["latency"],
+                epoch_idle_s=p["epoch_idle_timeout"],
+                gps_utc_leap_s=p["gps_utc_leap_seconds"],
+                solution=SolutionConfig(
+                    UereTable(
+                        p["uere_sps"], p["uere_dgps"], p["uere_rtk_float"], p["uere_rtk_fixed"]
+                    ),
+                    p["velocity_sigma"],
+                ),
+                attitude=AttitudeConfig(
+                    sigma_rpy_deg=(sigma[0], sigma[1], sigma[2]),
+                    offsets_deg=zeros if in_receiver else offsets,
+                    mrms_limit_m=p["attitude_mrms_limit"],
+                    brms_limit_m=p["attitude_brms_limit"],
+                ),
+            )
+        )
+        self._lock = threading.Lock()
+        self._setup_results: list[CommandResult] = []
+        self._latencies: collections.deque[float] = collections.deque(maxlen=_LATENCY_WINDOW)
+        self._last_fix_type = "none"
+        self._last_date_source = "none"
+        self._rate_window: tuple[float, int] = (time.monotonic(), 0)
+        self._attitude_problems = (0, 0)  # resets, degraded at the last diagnostics
+
+        qos = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
+        self._fix_pub = self.create_publisher(NavSatFix, "gnss/fix", qos)
+        self._vel_pub = self.create_publisher(TwistWithCovarianceStamped, "gnss/vel", qos)
+        self._att_pub = self.create_publisher(Imu, "gnss/attitude", qos)
+        self._time_pub = self.create_publisher(TimeReference, "gnss/time_reference", qos)
+        self._diagnostics = diag.DiagnosticsPublisher(self)
+        self.create_timer(p["diagnostics_period"], self._publish_diagnostics)
+        self.create_timer(p["epoch_idle_timeout"] / 2.0, self._flush_idle)
+
+        self._link = SerialLink(
+            LinkSettings(port=p["port"], baud=p["baud"], stall_timeout_s=p["stall_timeout"]),
+            on_open=self._on_open,
+            on_data=self._on_data,
+            now=self._now,
+            log=self.get_logger().warning,
+            info=self.get_logger().info,
+        )
+        self._link.start()
+        self.get_logger().info(
+            f"reading {self._receiver.value} on {p['port']} at {p['baud']} baud,"
+            f" {len(self._commands)} set-up commands"
+        )
+
+    # ---- serial side (link thread) ----------------------------------------------------------
+    def _now(self) -> float:
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    def _on_open(self, port: Any) -> None:
+        results = run_setup(
+            port,
+            self._commands,
+            answer_timeout_s=self.params["setup_answer_timeout"],
+            log=self.get_logger().info,
+        )
+        for result in results:
+            if result.answer is Answer.NAK:
+                self.get_logger().error(f"receiver rejected {result.command}")
+        with self._lock:
+            self._setup_results = results
+            self._driver.reset()
+
+    def _on_data(self, chunk: bytes, received_s: float) -> None:
+        with self._lock:
+            outputs = self._driver.feed(chunk, received_s)
+            self._publish(outputs)
+
+    def _flush_idle(self) -> None:
+        with self._lock:
+            self._publish(self._driver.flush_idle(self._now()))
+
+    # ---- messages -----------------------------------------------------------------------------
+    def _header(self, msg: Any, seconds: float) -> None:
+        sec = math.floor(seconds)
+        msg.header.stamp.sec = sec
+        msg.header.stamp.nanosec = min(999_999_999, round((seconds - sec) * 1e9))
+        msg.header.frame_id = self._frame_id
+
+    def _publish(self, outputs: list[EpochOutput]) -> None:
+        for out in outputs:
+            if out.fix is not None:
+                self._publish_fix(out)
+            if out.velocity is not None:
+                self._publish_velocity(out)
+            if out.attitude is not None:
+                self._publish_attitude(out)
+            if out.utc is not None:
+                msg = TimeReference()
+                self._header(msg, out.stamp_s)
+                sec = math.floor(out.utc.utc_s)
+                msg.time_ref.sec = sec
+                msg.time_ref.nanosec = min(999_999_999, round((out.utc.utc_s - sec) * 1e9))
+                msg.source = self._receiver.value
+                self._time_pub.publish(msg)
+                self._last_date_source = out.utc.date_source.value
+            self._latencies.append(self._now() - out.stamp_s)
+
+    def _publish_fix(self, out: EpochOutput) -> None:
+        fix = out.fix
+        assert fix is not None
+        msg = NavSatFix()
+        self._header(msg, out.stamp_s)
+        msg.status.status = int(fix.status)
+        msg.status.service = fix.service
+        msg.latitude, msg.longitude, msg.altitude = fix.lat_deg, fix.lon_deg, fix.alt_m
+        msg.position_covariance = [float(v) for v in fix.cov_enu_m2]
+        msg.position_covariance_type = int(fix.cov_type)
+        self._fix_pub.publish(msg)
+        self._last_fix_type = fix.fix_type.name
+
+    def _publish_velocity(self, out: EpochOutput) -> None:
+        vel = out.velocity
+        assert vel is not None
+        msg = TwistWithCovarianceStamped()
+        self._header(msg, out.stamp_s)
+        linear = msg.twist.twist.linear
+        linear.x, linear.y, linear.z = vel.vel_enu_m_s
+        covariance = [0.0] * 36
+        for row in range(3):
+            for col in range(3):
+                covariance[6 * row + col] = vel.cov_enu[3 * row + col]
+            covariance[7 * (row + 3)] = UNKNOWN_VARIANCE  # angular velocity: not measured
+        msg.twist.covariance = covariance
+        self._vel_pub.publish(msg)
+
+    def _publish_attitude(self, out: EpochOutput) -> None:
+        attitude = out.attitude
+        assert attitude is not None
+        msg = Imu()
+        self._header(msg, out.stamp_s)
+        q = msg.orientation
+        q.x, q.y, q.z, q.w = attitude.orientation.quat_enu_flu_xyzw
+        msg.orientation_covariance = list(attitude.orientation.cov_rpy_rad2)
+        msg.angular_velocity_covariance[0] = -1.0
+        msg.linear_acceleration_covariance[0] = -1.0
+        self._att_pub.publish(msg)
+
+    # ---- diagnostics (executor side) --------------------------------------------------------
+    def _publish_diagnostics(self) -> None:
+        now = time.monotonic()
+        with self._lock:
+            driver = self._driver
+            reader, solver = driver.reader.stats, driver.solver.stats
+            assembler = driver.assembler.stats
+            epochs = driver.stats.epochs
+            values: dict[str, object] = {
+                "port": self.params["port"],
+                "receiver": self._receiver.value,
+                "epochs": epochs,
+                "sentences": reader.sentences,
+                **reader.rejected(),
+                "empty_fields": solver.empty_fields,
+                "bad_fields": solver.bad_fields,
+                "bad_times": driver.stats.bad_times,
+                "late_sentences": assembler.late_sentences,
+                "duplicate_sentences": assembler.duplicate_sentences,
+                "untimed_epochs": assembler.untimed_epochs,
+                "last_fix_type": self._last_fix_type,
+                **{f"fixes_{name.lower()}": n for name, n in solver.fixes.items()},
+                "attitudes": solver.attitudes,
+                "attitude_resets": solver.attitude_resets,
+                "attitude_degraded": solver.attitude_degraded,
+                "date_source": self._last_date_source,
+                "midnight_rollovers": driver.utc.rollovers,
+                "clock_ready": driver.clock.ready,
+                "clock_offset_ms": driver.clock_offset_s() * 1e3,
+                "clock_skew_ppm": driver.clock.skew * 1e6,
+                "receive_delay_ms": driver.clock.mean_delay_s * 1e3,
+                "receive_jitter_ms": driver.clock.jitter_s * 1e3,
+                "clock_resets": driver.clock.resets,
+                "latency_ms": _mean(self._latencies) * 1e3,
+                "setup": _setup_summary(self._setup_results),
+                "acks": driver.stats.acks,
+                "naks": driver.stats.naks,
+            }
+            no_fix = self._last_fix_type == FixType.NO_FIX.name
+            naks = sum(r.answer is Answer.NAK for r in self._setup_results)
+            problems = (solver.attitude_resets, solver.attitude_degraded)
+        resets, degraded = (a - b for a, b in zip(problems, self._attitude_problems, strict=True))
+        self._attitude_problems = problems
+        start, start_epochs = self._rate_window
+        rate = (epochs - start_epochs) / max(now - start, 1e-9)
+        self._rate_window = (now, epochs)
+        link = self._link.stats
+        values.update(
+            rate_hz=rate,
+            reconnects=link.reconnects,
+            stalls=link.stalls,
+            last_error=link.last_error,
+        )
+        if not self._link.is_open:
+            level, message = diag.ERROR, f"port closed: {link.last_error or 'opening'}"
+        elif rate < 0.5 * self._rate_hz:
+            level, message = diag.WARN, f"{rate:.1f} epochs/s, expected {self._rate_hz:g}"
+        elif no_fix:
+            level, message = diag.WARN, "no fix"
+        elif resets or degraded:
+            level = diag.WARN
+            message = f"attitude: {resets} reset, {degraded} above MRMS/BRMS limits"
+        elif naks:
+            level, message = diag.WARN, f"receiver rejected {naks} set-up command(s)"
+        else:
+            level, message = diag.OK, f"{self._last_fix_type} fix"
+        name = f"{self.get_name()}: GNSS {self._receiver.value}"
+        hardware_id = f"{self._receiver.value} {self.params['port']}"
+        self._diagnostics.publish(diag.make_status(name, hardware_id, level, message, values))
+
+    def close(self) -> None:
+        """Stop the reader thread and close the port."""
+        self._link.stop()
+
+
+def _mean(values: collections.deque[float]) -> float:
+    return sum(values) / len(values) if values else math.nan
+
+
+def _setup_summary(results: list[CommandResult]) -> str:
+    counts = collections.Counter(r.answer.value for r in results)
+    return ", ".join(f"{n} {answer}" for answer, n in counts.items()) or "none"
+
+
+def main(args: list[str] | None = None) -> int:
+    """Console-script entry point (``ros2 run gnss_ins gnss_node``)."""
+    return run_node(GnssNode, args)

@@ -1,0 +1,524 @@
+"""One epoch's sentences -> the best fix, velocity and attitude it holds (no ROS).
+
+Position: GGA, else PASHR,PAT, else RMC, else GLL. Fix type from GGA quality (1 SPS, 2 DGPS,
+3 PPS, 4 RTK fixed, 5 RTK float), else the RMC/GLL mode letter, else SPS for a PAT position.
+Quality 0, 6 (dead reckoning), 7 (manual) and 8 (simulator), status 'V' or mode 'N' are NO_FIX:
+published as such, with NaN position and no covariance, never a made-up position.
+
+Altitude: height above the WGS-84 ellipsoid = GGA altitude (mean sea level) + geoid separation;
+NaN when the separation is missing (unknowable without a geoid model). PAT's altitude is taken as
+ellipsoidal [external: Ashtech's PAT reports the WGS-84 solution; verify on the receiver].
+
+Covariance, ENU [m^2], each of the horizontal and vertical parts from the first source present:
+1. GST: σ_lat, σ_lon, σ_alt as the N, E, U standard deviations; with the error ellipse
+   (semi-axes, orientation from north) also the E-N correlation of the ellipse -> KNOWN, else
+   diagonal -> DIAGONAL_KNOWN. (Receivers do not always make the ellipse and the σ fields agree,
+   so the σ fields set the variances.)
+2. LLQ coordinate quality CQ = σ_h + σ_v with σ_h = sqrt(σ_E² + σ_N²) (notes §7.2, (7.1)),
+   split by the nominal RTK ratio 2 cm : 3 cm (notes §7.2): σ_h = 0.4 CQ, σ_v = 0.6 CQ,
+   σ_E² = σ_N² = σ_h² / 2 -> DIAGONAL_KNOWN.
+3. HDOP x UERE (per fix type): σ_E² = σ_N² = (HDOP·UERE)² / 2; σ_U = VDOP·UERE with VDOP from
+   GSA, else 2·HDOP [external: typical geometry] -> APPROXIMATED. No HDOP at all counts as 1.
+The covariance type is the weaker of the two parts'.
+
+Velocity: VTG, else RMC: speed and course over ground -> ENU (v_E, v_N, 0); the vertical is
+not measured (notes §7.2: no down velocity), so its variance is ``UNKNOWN_VARIANCE``.
+
+Attitude: PASHR,PAT, else PASHR,ATT (see ``attitude``), else HDT (heading only). A reset flag of
+1 means "rough estimate or bad attitude" (notes §7.3): not published, counted.
+"""
+
+from __future__ import annotations
+
+import datetime
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from enum import IntEnum
+from typing import TypeVar
+
+import pynmea2
+
+from gnss_driver.attitude import UNKNOWN_VARIANCE, AttitudeConverter, Orientation
+from gnss_driver.epoch import Epoch
+from gnss_driver.sentences import (
+    ASHRATT,
+    ASHRPAT,
+    LLQ,
+    FieldError,
+    date,
+    integer,
+    lat_lon_deg,
+    number,
+    sentence_id,
+    text,
+    zda_date,
+)
+
+T = TypeVar("T")
+
+_KNOTS_TO_M_S = 1852.0 / 3600.0
+#: Fraction of the LLQ coordinate quality that is horizontal: 2 cm of 2 + 3 cm (notes §7.2).
+LLQ_HORIZONTAL_FRACTION = 0.4
+#: VDOP / HDOP when no GSA gives VDOP [external: typical satellite geometry].
+VDOP_PER_HDOP = 2.0
+
+
+class FixType(IntEnum):
+    """GGA quality indicator values."""
+
+    NO_FIX = 0
+    SPS = 1
+    DGPS = 2
+    PPS = 3
+    RTK_FIXED = 4
+    RTK_FLOAT = 5
+    ESTIMATED = 6
+    MANUAL = 7
+    SIMULATION = 8
+
+
+#: Fix types that are measured positions.
+VALID_FIX_TYPES = frozenset(
+    {FixType.SPS, FixType.DGPS, FixType.PPS, FixType.RTK_FIXED, FixType.RTK_FLOAT}
+)
+
+#: RMC / GLL / VTG mode letters (NMEA 2.3+) -> fix type.
+_MODE_FIX = {
+    "A": FixType.SPS,
+    "D": FixType.DGPS,
+    "P": FixType.PPS,
+    "R": FixType.RTK_FIXED,
+    "F": FixType.RTK_FLOAT,
+    "E": FixType.ESTIMATED,
+    "M": FixType.MANUAL,
+    "S": FixType.SIMULATION,
+    "N": FixType.NO_FIX,
+}
+
+
+class NavSatStatus(IntEnum):
+    """sensor_msgs/NavSatStatus status values."""
+
+    NO_FIX = -1
+    FIX = 0
+    SBAS_FIX = 1
+    GBAS_FIX = 2
+
+
+#: Fix type -> NavSatStatus, as ros-drivers' nmea_navsat_driver maps GGA quality: DGPS counts as
+#: SBAS-augmented, RTK as ground-based augmentation.
+NAV_SAT_STATUS = {
+    FixType.SPS: NavSatStatus.FIX,
+    FixType.PPS: NavSatStatus.FIX,
+    FixType.DGPS: NavSatStatus.SBAS_FIX,
+    FixType.RTK_FLOAT: NavSatStatus.GBAS_FIX,
+    FixType.RTK_FIXED: NavSatStatus.GBAS_FIX,
+}
+
+#: sensor_msgs/NavSatStatus service bits per NMEA talker; GN (combined), proprietary and
+#: unknown talkers name no system, and an epoch naming none is taken as GPS.
+SERVICE_GPS = 1
+_TALKER_SERVICE = {"GP": SERVICE_GPS, "GL": 2, "GB": 4, "BD": 4, "GA": 8}
+
+
+class CovarianceType(IntEnum):
+    """sensor_msgs/NavSatFix position_covariance_type values."""
+
+    UNKNOWN = 0
+    APPROXIMATED = 1
+    DIAGONAL_KNOWN = 2
+    KNOWN = 3
+
+
+@dataclass(frozen=True)
+class UereTable:
+    """User equivalent range error per fix type [m], 1 sigma, multiplied by the DOPs.
+
+    Defaults: RTK fixed 0.02 m (2 cm horizontal at HDOP ~1, notes §7.2 [KMS 2003]); RTK float
+    0.5 m, DGPS 1.0 m [external: typical]; SPS 6.0 m (the (6 m)² fallback of
+    gnss-ins-ntnu-notes.md D8 / Table 4.9 at HDOP ~1). PPS uses the SPS value.
+    """
+
+    sps: float = 6.0
+    dgps: float = 1.0
+    rtk_float: float = 0.5
+    rtk_fixed: float = 0.02
+
+    def for_fix(self, fix_type: FixType) -> float:
+        """UERE [m] of a valid fix type."""
+        return {
+            FixType.DGPS: self.dgps,
+            FixType.RTK_FLOAT: self.rtk_float,
+            FixType.RTK_FIXED: self.rtk_fixed,
+        }.get(fix_type, self.sps)
+
+
+@dataclass(frozen=True)
+class SolutionConfig:
+    """Accuracy model of a receiver."""
+
+    uere: UereTable = UereTable()
+    #: 1-sigma of each horizontal velocity component [m/s] (R of (7.15), notes §10).
+    velocity_sigma_m_s: float = 0.05
+
+
+@dataclass(frozen=True, slots=True)
+class GnssFix:
+    """A position fix. ``lat_deg``/``lon_deg`` north/east positive, ``alt_m`` above the WGS-84
+    ellipsoid (NaN when unknown); all NaN with ``NO_FIX``. ``cov_enu_m2``: row-major 3x3."""
+
+    fix_type: FixType
+    lat_deg: float
+    lon_deg: float
+    alt_m: float
+    cov_enu_m2: tuple[float, ...]
+    cov_type: CovarianceType
+    accuracy_source: str
+    position_source: str
+    satellites: int | None
+    service: int
+
+    @property
+    def status(self) -> NavSatStatus:
+        """NavSatStatus status of the fix type."""
+        return NAV_SAT_STATUS.get(self.fix_type, NavSatStatus.NO_FIX)
+
+
+@dataclass(frozen=True, slots=True)
+class GnssVelocity:
+    """Velocity over ground in ENU [m/s] with its row-major 3x3 covariance [m^2/s^2]."""
+
+    vel_enu_m_s: tuple[float, float, float]
+    cov_enu: tuple[float, ...]
+    source: str
+
+
+@dataclass(frozen=True, slots=True)
+class GnssAttitude:
+    """Vehicle orientation from the ADU5 (or a heading sentence) and where it came from."""
+
+    orientation: Orientation
+    source: str
+
+
+@dataclass(slots=True)
+class SolutionStats:
+    """Counters since start-up."""
+
+    empty_fields: int = 0
+    bad_fields: int = 0
+    no_fix: int = 0
+    fixes: dict[str, int] = field(default_factory=dict)
+    attitudes: int = 0
+    attitude_resets: int = 0
+    attitude_degraded: int = 0
+
+
+@dataclass(frozen=True, slots=True)
+class EpochSolution:
+    """What one epoch yields; ``date`` is its own UTC date if it had RMC / ZDA / LLQ."""
+
+    fix: GnssFix | None
+    velocity: GnssVelocity | None
+    attitude: GnssAttitude | None
+    date: datetime.date | None
+
+
+_NAN = math.nan
+_NO_FIX_COV = (0.0,) * 9
+
+
+class EpochSolver:
+    """Turns epochs into ``EpochSolution``; keeps the latest GSA DOPs across epochs."""
+
+    def __init__(self, config: SolutionConfig, attitude: AttitudeConverter) -> None:
+        """``attitude`` converts ADU5 angles."""
+        self.config = config
+        self.attitude = attitude
+        self.stats = SolutionStats()
+        self._hdop_gsa: float | None = None
+        self._vdop_gsa: float | None = None
+
+    def note_gsa(self, gsa: pynmea2.GSA) -> None:
+        """Remember the DOPs of a GSA sentence (GSA is timeless and may repeat per epoch)."""
+        hdop = self._read(number, gsa, "hdop")
+        vdop = self._read(number, gsa, "vdop")
+        if hdop is not None and hdop > 0.0:
+            self._hdop_gsa = hdop
+        if vdop is not None and vdop > 0.0:
+            self._vdop_gsa = vdop
+
+    def solve(self, epoch: Epoch) -> EpochSolution:
+        """Everything ``epoch`` tells (see the module docstring)."""
+        fix = self._fix(epoch)
+        if fix is not None:
+            name = fix.fix_type.name
+            self.stats.fixes[name] = self.stats.fixes.get(name, 0) + 1
+            if fix.fix_type is FixType.NO_FIX:
+                self.stats.no_fix += 1
+        return EpochSolution(fix, self._velocity(epoch), self._attitude(epoch), self._date(epoch))
+
+    # ---- field access with counting ----------------------------------------------------------
+    def _read(
+        self,
+        reader: Callable[[pynmea2.NMEASentence, str], T | None],
+        sentence: pynmea2.NMEASentence,
+        name: str,
+    ) -> T | None:
+        try:
+            return reader(sentence, name)
+        except FieldError:
+            self.stats.bad_fields += 1
+            return None
+
+    def _required(
+        self,
+        reader: Callable[[pynmea2.NMEASentence, str], T | None],
+        sentence: pynmea2.NMEASentence,
+        name: str,
+    ) -> T | None:
+        value = self._read(reader, sentence, name)
+        if value is None:
+            self.stats.empty_fields += 1
+        return value
+
+    def _position(self, sentence: pynmea2.NMEASentence) -> tuple[float, float] | None:
+        try:
+            position = lat_lon_deg(sentence)
+        except FieldError:
+            self.stats.bad_fields += 1
+            return None
+        if position is None:
+            self.stats.empty_fields += 1
+        return position
+
+    # ---- position ---------------------------------------------------------------------------
+    def _fix(self, epoch: Epoch) -> GnssFix | None:
+        gga = epoch.get(pynmea2.GGA)
+        pat = epoch.get(ASHRPAT)
+        rmc = epoch.get(pynmea2.RMC)
+        gll = epoch.get(pynmea2.GLL)
+        mode = self._mode_fix_type(rmc) if rmc is not None else None
+        if mode is None and gll is not None:
+            mode = self._mode_fix_type(gll)
+        if gga is not None:
+            quality = self._required(integer, gga, "gps_qual")
+            fix_type = _fix_type(quality) if quality is not None else FixType.NO_FIX
+            source: pynmea2.NMEASentence = gga
+        elif pat is not None:
+            fix_type, source = (FixType.SPS if mode is None else mode), pat
+        elif rmc is not None or gll is not None:
+            source = rmc if rmc is not None else gll
+            fix_type = FixType.NO_FIX if mode is None else mode
+        else:
+            return None
+        name = sentence_id(source)
+        service = _service(epoch)
+        if fix_type not in VALID_FIX_TYPES:
+            return _no_fix(name, service)
+        position = self._position(source)
+        if position is None:
+            return _no_fix(name, service)
+        alt = self._altitude(source)
+        cov, cov_type, accuracy = self._covariance(epoch, gga, fix_type)
+        sats = self._read(integer, gga, "num_sats") if gga is not None else None
+        return GnssFix(fix_type, *position, alt, cov, cov_type, accuracy, name, sats, service)
+
+    def _mode_fix_type(self, sentence: pynmea2.NMEASentence) -> FixType | None:
+        """Fix type from RMC/GLL status and mode letter; None when neither says anything."""
+        status = text(sentence, "status")
+        if status == "V":
+            return FixType.NO_FIX
+        mode = text(sentence, "mode_indicator" if isinstance(sentence, pynmea2.RMC) else "faa_mode")
+        if mode is not None:
+            return _MODE_FIX.get(mode[0], FixType.NO_FIX)
+        return FixType.SPS if status == "A" else None
+
+    def _altitude(self, source: pynmea2.NMEASentence) -> float:
+        if isinstance(source, ASHRPAT):
+            alt = self._required(number, source, "altitude")
+            return _NAN if alt is None else alt
+        if not isinstance(source, pynmea2.GGA):
+            return _NAN
+        msl = self._required(number, source, "altitude")
+        separation = self._required(number, source, "geo_sep")
+        if msl is None or separation is None:
+            return _NAN
+        return msl + separation
+
+    def _covariance(
+        self, epoch: Epoch, gga: pynmea2.GGA | None, fix_type: FixType
+    ) -> tuple[tuple[float, ...], CovarianceType, str]:
+        horizontal: tuple[tuple[float, float, float], CovarianceType, str] | None = None
+        vertical: tuple[float, CovarianceType] | None = None
+        gst = epoch.get(pynmea2.GST)
+        if gst is not None:
+            horizontal, vertical = self._gst(gst)
+        llq = epoch.get(LLQ)
+        cq = self._positive(llq, "coord_quality") if llq is not None else None
+        if cq is not None:
+            sigma_h = LLQ_HORIZONTAL_FRACTION * cq
+            if horizontal is None:
+                h2 = sigma_h * sigma_h / 2.0
+                horizontal = (h2, h2, 0.0), CovarianceType.DIAGONAL_KNOWN, "LLQ"
+            if vertical is None:
+                vertical = (cq - sigma_h) ** 2, CovarianceType.DIAGONAL_KNOWN
+        if horizontal is None or vertical is None:
+            hdop = self._positive(gga, "horizontal_dil") if gga is not None else None
+            hdop = hdop or self._hdop_gsa or 1.0
+            vdop = self._vdop_gsa or VDOP_PER_HDOP * hdop
+            uere = self.config.uere.for_fix(fix_type)
+            h2 = (hdop * uere) ** 2 / 2.0
+            if horizontal is None:
+                horizontal = (h2, h2, 0.0), CovarianceType.APPROXIMATED, "HDOP"
+            if vertical is None:
+                vertical = (vdop * uere) ** 2, CovarianceType.APPROXIMATED
+        (ee, nn, en), h_type, accuracy = horizontal
+        up, v_type = vertical
+        cov = (ee, en, 0.0, en, nn, 0.0, 0.0, 0.0, up)
+        return cov, min(h_type, v_type), accuracy
+
+    def _gst(
+        self, gst: pynmea2.GST
+    ) -> tuple[
+        tuple[tuple[float, float, float], CovarianceType, str] | None,
+        tuple[float, CovarianceType] | None,
+    ]:
+        sigma_n = self._positive(gst, "std_dev_latitude")
+        sigma_e = self._positive(gst, "std_dev_longitude")
+        sigma_u = self._positive(gst, "std_dev_altitude")
+        vertical = None if sigma_u is None else (sigma_u * sigma_u, CovarianceType.KNOWN)
+        if sigma_n is None or sigma_e is None:
+            return None, vertical
+        major = self._positive(gst, "std_dev_major")
+        minor = self._positive(gst, "std_dev_minor")
+        orientation = self._read(number, gst, "orientation")
+        if major is None or minor is None or orientation is None:
+            diagonal = (sigma_e * sigma_e, sigma_n * sigma_n, 0.0)
+            return (diagonal, CovarianceType.DIAGONAL_KNOWN, "GST"), vertical
+        # Semi-major axis along azimuth θ (clockwise from north): u = (sin θ, cos θ) in (E, N);
+        # only its E-N correlation is used, the variances stay those of the σ fields.
+        theta = math.radians(orientation)
+        ue, un = math.sin(theta), math.cos(theta)
+        a2, b2 = major * major, minor * minor
+        ee = a2 * ue * ue + b2 * un * un
+        nn = a2 * un * un + b2 * ue * ue
+        rho = (a2 - b2) * ue * un / math.sqrt(ee * nn)
+        full = (sigma_e * sigma_e, sigma_n * sigma_n, rho * sigma_e * sigma_n)
+        return (full, CovarianceType.KNOWN, "GST"), vertical
+
+    def _positive(self, sentence: pynmea2.NMEASentence, name: str) -> float | None:
+        """A strictly positive number field; zero or negative counts as a bad field."""
+        value = self._read(number, sentence, name)
+        if value is not None and value <= 0.0:
+            self.stats.bad_fields += 1
+            return None
+        return value
+
+    # ---- velocity ---------------------------------------------------------------------------
+    def _velocity(self, epoch: Epoch) -> GnssVelocity | None:
+        vtg = epoch.get(pynmea2.VTG)
+        rmc = epoch.get(pynmea2.RMC)
+        if vtg is not None and text(vtg, "faa_mode") != "N":
+            kmph = self._read(number, vtg, "spd_over_grnd_kmph")
+            knots = self._read(number, vtg, "spd_over_grnd_kts")
+            speed = kmph / 3.6 if kmph is not None else _scaled(knots, _KNOTS_TO_M_S)
+            return self._enu_velocity(speed, self._read(number, vtg, "true_track"), "VTG")
+        if rmc is not None and self._mode_fix_type(rmc) in VALID_FIX_TYPES:
+            knots = self._read(number, rmc, "spd_over_grnd")
+            course = self._read(number, rmc, "true_course")
+            return self._enu_velocity(_scaled(knots, _KNOTS_TO_M_S), course, "RMC")
+        return None
+
+    def _enu_velocity(
+        self, speed: float | None, course_deg: float | None, source: str
+    ) -> GnssVelocity | None:
+        if speed is None or (course_deg is None and speed != 0.0):
+            self.stats.empty_fields += 1
+            return None
+        course = math.radians(course_deg or 0.0)
+        vel = (speed * math.sin(course), speed * math.cos(course), 0.0)
+        var = self.config.velocity_sigma_m_s**2
+        cov = (var, 0.0, 0.0, 0.0, var, 0.0, 0.0, 0.0, UNKNOWN_VARIANCE)
+        return GnssVelocity(vel, cov, source)
+
+    # ---- attitude ---------------------------------------------------------------------------
+    def _attitude(self, epoch: Epoch) -> GnssAttitude | None:
+        sentence: ASHRPAT | ASHRATT | None = epoch.get(ASHRPAT) or epoch.get(ASHRATT)
+        if sentence is None:
+            hdt = epoch.get(pynmea2.HDT)
+            heading = self._required(number, hdt, "heading") if hdt is not None else None
+            if heading is None:
+                return None
+            self.stats.attitudes += 1
+            return GnssAttitude(self.attitude.convert_heading(heading), "HDT")
+        reset_flag = self._required(integer, sentence, "reset_flag")
+        if reset_flag is None:
+            return None
+        if reset_flag != 0:
+            self.stats.attitude_resets += 1
+            return None
+        angles = [self._required(number, sentence, n) for n in ("heading", "pitch", "roll")]
+        if None in angles:
+            return None
+        heading, pitch, roll = (float(a or 0.0) for a in angles)
+        mrms = self._read(number, sentence, "mrms")
+        brms = self._read(number, sentence, "brms")
+        orientation = self.attitude.convert(heading, pitch, roll, mrms, brms)
+        self.stats.attitudes += 1
+        if orientation.scale > 1.0:
+            self.stats.attitude_degraded += 1
+        return GnssAttitude(orientation, sentence_id(sentence))
+
+    # ---- date -------------------------------------------------------------------------------
+    def _date(self, epoch: Epoch) -> datetime.date | None:
+        zda = epoch.get(pynmea2.ZDA)
+        if zda is not None:
+            try:
+                found = zda_date(zda)
+            except FieldError:
+                self.stats.bad_fields += 1
+                found = None
+            if found is not None:
+                return found
+        for cls in (pynmea2.RMC, LLQ):
+            sentence = epoch.get(cls)
+            found = self._read(date, sentence, "datestamp") if sentence is not None else None
+            if found is not None:
+                return found
+        return None
+
+
+def _fix_type(quality: int) -> FixType:
+    try:
+        return FixType(quality)
+    except ValueError:
+        return FixType.NO_FIX
+
+
+def _scaled(value: float | None, factor: float) -> float | None:
+    return None if value is None else value * factor
+
+
+def _service(epoch: Epoch) -> int:
+    """NavSatStatus service bits of the talkers in the epoch (GPS when none names a system)."""
+    bits = 0
+    for sentence in epoch.sentences:
+        bits |= _TALKER_SERVICE.get(getattr(sentence, "talker", ""), 0)
+    return bits or SERVICE_GPS
+
+
+def _no_fix(source: str, service: int) -> GnssFix:
+    return GnssFix(
+        FixType.NO_FIX,
+        _NAN,
+        _NAN,
+        _NAN,
+        _NO_FIX_COV,
+        CovarianceType.UNKNOWN,
+        "none",
+        source,
+        None,
+        service,
+    )
