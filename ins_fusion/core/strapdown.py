@@ -1,0 +1,254 @@
+"""Strapdown mechanization on WGS-84: NED velocity, geodetic position, body->NED quaternion.
+
+The body frame b of the mechanization is the IMU's own frame in FRD (x forward, y right, z down);
+REP-145 data (imu_link, FLU) is converted with rotation.flu_to_frd. The update follows the
+two-sample increment algorithm of Shin (2001) as implemented in KF-GINS (velocity, then position,
+then attitude, with a predictor-corrector midpoint for the earth/transport rates and gravity):
+
+- navigation equation dv/dt = C_nb f - (2ω_ie + ω_en) × v + g (Aalborg notes §5.3, C-1.14),
+- position rates (C-1.15)-(C-1.17), normal gravity and rates from core.earth,
+- rotation compensation dθ×dv/2 + dθ×(dθ×dv)/6 and two-sample sculling and coning corrections
+  generalised to unequal intervals, so any (jittered) dt is handled.
+
+The per-sample path uses plain floats (see core.rotation): numpy on 3-vectors would cost more than
+the arithmetic. Errors of the algorithm are third order in dt for smooth motion.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ins_fusion.core import earth
+from ins_fusion.core.rotation import (
+    FloatArray,
+    Vec3,
+    euler_from_quat,
+    ned_to_enu,
+    quat_enu_flu_from_nb,
+    quat_from_rotvec,
+    quat_multiply,
+    quat_nb_from_enu_flu,
+    quat_normalize,
+    quat_rotate,
+)
+
+
+@dataclass(frozen=True, slots=True)
+class NavState:
+    """Navigation state of the IMU.
+
+    lat_rad, lon_rad, height_m: WGS-84 geodetic position (ellipsoidal height).
+    vel_ned_m_s: velocity relative to the earth in NED, shape (3,).
+    quat_nb: body (FRD) -> NED unit quaternion, scalar last (x, y, z, w), shape (4,).
+    """
+
+    lat_rad: float
+    lon_rad: float
+    height_m: float
+    vel_ned_m_s: FloatArray
+    quat_nb: FloatArray
+
+    @property
+    def mat_nb(self) -> FloatArray:
+        """Body (FRD) -> NED rotation matrix."""
+        x, y, z, w = self.quat_nb.tolist()
+        return np.array(
+            [
+                [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+            ]
+        )
+
+    @property
+    def euler_rad(self) -> FloatArray:
+        """(roll, pitch, yaw) of the FRD body in NED [rad]."""
+        return euler_from_quat(self.quat_nb)
+
+    @property
+    def vel_enu_m_s(self) -> FloatArray:
+        """Velocity relative to the earth in ENU (REP-103) [m/s]."""
+        return ned_to_enu(self.vel_ned_m_s)
+
+    @property
+    def quat_enu_flu(self) -> FloatArray:
+        """Body (FLU) -> ENU quaternion, scalar last: the REP-103 orientation."""
+        return quat_enu_flu_from_nb(self.quat_nb)
+
+    @classmethod
+    def from_enu_flu(
+        cls,
+        lat_rad: float,
+        lon_rad: float,
+        height_m: float,
+        vel_enu_m_s: Sequence[float] | FloatArray,
+        quat_enu_flu: Sequence[float] | FloatArray,
+    ) -> NavState:
+        """State from a REP-103 velocity (ENU) and orientation (FLU body in ENU)."""
+        return cls(
+            lat_rad,
+            lon_rad,
+            height_m,
+            ned_to_enu(np.asarray(vel_enu_m_s, dtype=np.float64)),
+            quat_nb_from_enu_flu(np.asarray(quat_enu_flu, dtype=np.float64)),
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class ImuIncrement:
+    """IMU output integrated over one interval of dt_s seconds, in the FRD body frame.
+
+    dtheta_rad: angle increment ∫ω_ib dt [rad]; dvel_m_s: velocity increment ∫f dt [m/s].
+    """
+
+    dt_s: float
+    dtheta_rad: Vec3
+    dvel_m_s: Vec3
+
+
+class SampleIntegrator:
+    """Turns instantaneous IMU samples (rate and specific force, FRD) into increments.
+
+    The increment over [t_{k-1}, t_k] integrates the quadratic through the last three samples
+    (weights -1/12, 8/12, 5/12 for equal spacing; exact for any spacing), and the trapezoid for
+    the first interval after a reset. The trapezoid alone leaves an error of dt²/12·dω/dt per
+    interval that the rotating body frame does not let cancel: about 1e-7 rad of tilt per
+    rolling turn at 134 Hz, i.e. decimetres after ten minutes of free inertial navigation.
+    """
+
+    def __init__(self) -> None:
+        self._samples: list[tuple[float, Vec3, Vec3]] = []
+
+    def reset(self) -> None:
+        """Forget the history (after a data gap or a time jump)."""
+        self._samples.clear()
+
+    def push(
+        self,
+        t_s: float,
+        rate_rad_s: Sequence[float] | FloatArray,
+        specific_force_m_s2: Sequence[float] | FloatArray,
+    ) -> ImuIncrement | None:
+        """Add a sample; returns the increment since the previous sample (None for the first)."""
+        wx, wy, wz = (float(c) for c in rate_rad_s)
+        fx, fy, fz = (float(c) for c in specific_force_m_s2)
+        samples = self._samples
+        samples.append((t_s, (wx, wy, wz), (fx, fy, fz)))
+        if len(samples) == 1:
+            return None
+        if len(samples) == 4:
+            del samples[0]
+        t1, w1, f1 = samples[-2]
+        h2 = t_s - t1
+        if len(samples) == 2:
+            c0, c1, c2 = 0.0, 0.5 * h2, 0.5 * h2
+            w0, f0 = w1, f1
+        else:
+            t0, w0, f0 = samples[0]
+            h1 = t1 - t0
+            c0 = -(h2**3) / (6.0 * h1 * (h1 + h2))
+            c1 = h2 * h2 / (6.0 * h1) + 0.5 * h2
+            c2 = (h2 * h2 / 3.0 + 0.5 * h1 * h2) / (h1 + h2)
+        return ImuIncrement(
+            h2,
+            (
+                c0 * w0[0] + c1 * w1[0] + c2 * wx,
+                c0 * w0[1] + c1 * w1[1] + c2 * wy,
+                c0 * w0[2] + c1 * w1[2] + c2 * wz,
+            ),
+            (
+                c0 * f0[0] + c1 * f1[0] + c2 * fx,
+                c0 * f0[1] + c1 * f1[1] + c2 * fy,
+                c0 * f0[2] + c1 * f1[2] + c2 * fz,
+            ),
+        )
+
+
+def _cross(a: Vec3, b: Vec3) -> Vec3:
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+def _velocity_change(dvel_n: Vec3, vel: Vec3, lat: float, height: float, dt: float) -> Vec3:
+    """Velocity change over dt: the NED-resolved specific-force increment dvel_n corrected for the
+    rotation of the NED frame over half the interval, plus gravity and Coriolis over dt, with the
+    rates and gravity evaluated at (lat, height, vel)."""
+    w_ie = earth.earth_rate_ned_rad_s(lat)
+    w_en = earth.transport_rate_ned_rad_s(lat, height, vel[0], vel[1])
+    g = earth.normal_gravity_m_s2(lat, height)
+    half_zeta = (
+        0.5 * dt * (w_ie[0] + w_en[0]),
+        0.5 * dt * w_en[1],
+        0.5 * dt * (w_ie[2] + w_en[2]),
+    )
+    frame_rot = _cross(half_zeta, dvel_n)
+    coriolis = _cross((2.0 * w_ie[0] + w_en[0], w_en[1], 2.0 * w_ie[2] + w_en[2]), vel)
+    return (
+        dvel_n[0] - frame_rot[0] - coriolis[0] * dt,
+        dvel_n[1] - frame_rot[1] - coriolis[1] * dt,
+        dvel_n[2] - frame_rot[2] + (g - coriolis[2]) * dt,
+    )
+
+
+def propagate(state: NavState, inc: ImuIncrement, prev: ImuIncrement | None = None) -> NavState:
+    """Advance the state over one IMU increment (FRD body).
+
+    ``prev`` is the increment of the preceding interval, used for the two-sample coning and
+    sculling corrections; pass None for the first sample or after a data gap.
+    """
+    dt = inc.dt_s
+    dth = inc.dtheta_rad
+    dv = inc.dvel_m_s
+    lat, lon, height = state.lat_rad, state.lon_rad, state.height_m
+    vn, ve, vd = state.vel_ned_m_s.tolist()
+    qx, qy, qz, qw = state.quat_nb.tolist()
+
+    # Specific-force increment in b(k-1): rotation compensation to third order plus sculling;
+    # rotation vector with coning. Linear rate and specific force over both intervals (equal dt
+    # gives the usual 1/12 coefficient).
+    rot1 = _cross(dth, dv)
+    rot2 = _cross(dth, rot1)
+    dvb = [dv[i] + 0.5 * rot1[i] + rot2[i] / 6.0 for i in range(3)]
+    rotvec = list(dth)
+    if prev is not None:
+        k = dt * dt / (6.0 * prev.dt_s * (dt + prev.dt_s))
+        scul1 = _cross(prev.dtheta_rad, dv)
+        scul2 = _cross(prev.dvel_m_s, dth)
+        coning = _cross(prev.dtheta_rad, dth)
+        for i in range(3):
+            dvb[i] += k * (scul1[i] + scul2[i])
+            rotvec[i] += k * coning[i]
+    quat = (qx, qy, qz, qw)
+    dvel_n = quat_rotate(quat, (dvb[0], dvb[1], dvb[2]))
+
+    # Velocity: predictor at the start of the interval, corrector at the extrapolated midpoint.
+    r_meridian, _ = earth.radii_m(lat)
+    change = _velocity_change(dvel_n, (vn, ve, vd), lat, height, dt)
+    vel_mid = (vn + 0.5 * change[0], ve + 0.5 * change[1], vd + 0.5 * change[2])
+    lat_mid = lat + 0.5 * dt * vel_mid[0] / (r_meridian + height)
+    height_mid = height - 0.5 * dt * vel_mid[2]
+    change = _velocity_change(dvel_n, vel_mid, lat_mid, height_mid, dt)
+    vn_new, ve_new, vd_new = vn + change[0], ve + change[1], vd + change[2]
+
+    # Position: trapezoidal velocity, radii at the midpoint.
+    vn_bar, ve_bar, vd_bar = 0.5 * (vn + vn_new), 0.5 * (ve + ve_new), 0.5 * (vd + vd_new)
+    height_mid = height - 0.5 * dt * vd_bar
+    lat_mid = lat + 0.5 * dt * vn_bar / (r_meridian + height_mid)
+    r_meridian, r_prime_vertical = earth.radii_m(lat_mid)
+    lat_new = lat + dt * vn_bar / (r_meridian + height_mid)
+    lon_new = lon + dt * ve_bar / ((r_prime_vertical + height_mid) * math.cos(lat_mid))
+    height_new = height - dt * vd_bar
+
+    # Attitude: body rotation (with coning) and NED-frame rotation over dt at the midpoint.
+    w_ie = earth.earth_rate_ned_rad_s(lat_mid)
+    w_en = earth.transport_rate_ned_rad_s(lat_mid, height_mid, vn_bar, ve_bar)
+    q_bb = quat_from_rotvec(rotvec[0], rotvec[1], rotvec[2])
+    q_nn = quat_from_rotvec(-(w_ie[0] + w_en[0]) * dt, -w_en[1] * dt, -(w_ie[2] + w_en[2]) * dt)
+    quat_new = quat_normalize(quat_multiply(q_nn, quat_multiply(quat, q_bb)))
+
+    return NavState(
+        lat_new, lon_new, height_new, np.array((vn_new, ve_new, vd_new)), np.array(quat_new)
+    )

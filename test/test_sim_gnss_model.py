@@ -1,0 +1,124 @@
+"""GNSS error model: noise levels, outages, fix types, latency, outliers, ADU5 attitude."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from ins_fusion.core import earth
+from ins_fusion.core.rotation import euler_from_quat, quat_nb_from_enu_flu
+from ins_fusion.sim.gnss_model import (
+    FIX_NOISE,
+    PROFILES,
+    FixType,
+    GnssErrorModel,
+    GnssFix,
+    GnssSchedule,
+)
+from ins_fusion.sim.scenarios import SURVEY_CAR, seed_test_pattern
+from ins_fusion.sim.vehicle import VehicleTruth
+
+TRUTH = VehicleTruth(seed_test_pattern(), SURVEY_CAR)
+
+
+def _errors_ned(fixes: list[GnssFix]) -> np.ndarray:
+    out = []
+    for fix in fixes:
+        truth = TRUTH.gnss_truth(fix.t_s)
+        r_m, r_n = earth.radii_m(truth.lat_rad)
+        out.append(
+            [
+                (fix.lat_rad - truth.lat_rad) * (r_m + truth.height_m),
+                (fix.lon_rad - truth.lon_rad) * (r_n + truth.height_m) * math.cos(truth.lat_rad),
+                truth.height_m - fix.height_m,
+            ]
+        )
+    return np.array(out)
+
+
+def test_rtk_fixes_have_centimetre_noise_and_no_vertical_velocity():
+    model = GnssErrorModel(TRUTH.gnss_truth, PROFILES["leica_rtk"], seed=1)
+    fixes = list(model.fixes(0.0, 240.0))
+    assert [f.t_s for f in fixes] == pytest.approx(np.arange(240.0))
+    assert all(f.fix_type == FixType.RTK_FIXED for f in fixes)
+    assert all(f.arrival_t_s == pytest.approx(f.t_s + 0.053) for f in fixes)
+    errors = _errors_ned([f for f in fixes if not f.outlier])
+    rms = np.sqrt((errors**2).mean(axis=0))
+    # 2 cm / 3 cm (Aalborg notes §7.2), loosely: 240 correlated samples.
+    assert rms[:2] == pytest.approx([0.02, 0.02], rel=0.5)
+    assert rms[2] == pytest.approx(0.03, rel=0.5)
+    assert fixes[0].position_sigma_enu_m == pytest.approx([0.0198, 0.0198, 0.0297], abs=1e-4)
+    assert fixes[0].velocity_sigma_enu_m_s[:2] == pytest.approx([0.05, 0.05])
+    assert all(math.isnan(f.vel_enu_m_s[2]) for f in fixes)
+
+
+def test_outage_then_float_until_reconverged_then_scheduled_fix_changes():
+    schedule = GnssSchedule(
+        outages=((100.0, 20.0),), fix_changes=((200.0, FixType.DGPS), (220.0, FixType.NONE))
+    )
+    model = GnssErrorModel(TRUTH.gnss_truth, PROFILES["leica_rtk"], schedule, seed=2)
+    fixes = {round(f.t_s): f for f in model.fixes(0.0, 240.0)}
+    assert not any(100 <= t < 120 for t in fixes)
+    assert fixes[99].fix_type == FixType.RTK_FIXED
+    assert {fixes[t].fix_type for t in range(120, 150)} == {FixType.RTK_FLOAT}
+    assert fixes[150].fix_type == FixType.RTK_FIXED
+    assert fixes[200].fix_type == FixType.DGPS
+    assert max(fixes) == 219
+
+
+def test_stand_alone_errors_are_metres_and_time_correlated():
+    model = GnssErrorModel(TRUTH.gnss_truth, PROFILES["qfree_obu"], seed=3)
+    fixes = [f for f in model.fixes(0.0, 240.0) if not f.outlier]
+    assert fixes[0].arrival_t_s - fixes[0].t_s == pytest.approx(1.24)  # NTNU notes §3
+    north = _errors_ned(fixes)[:, 0]
+    assert 0.3 < np.abs(north).max() < 20.0
+    lag1 = np.corrcoef(north[:-1], north[1:])[0, 1]
+    assert lag1 > 0.9  # a 300 s Gauss-Markov wander dominates the white part
+
+
+def test_outliers_occur_at_the_configured_rate():
+    profile = PROFILES["qfree_obu"]
+    still = TRUTH.gnss_truth(30.0)
+    model = GnssErrorModel(lambda t: still, profile, seed=4)
+    fixes = list(model.fixes(0.0, 3000.0))
+    rate = np.mean([f.outlier for f in fixes])
+    assert rate == pytest.approx(profile.outlier_probability, abs=0.01)
+
+
+def test_adu5_attitude_noise():
+    profile = PROFILES["adu5"]
+    model = GnssErrorModel(TRUTH.gnss_truth, profile, seed=5)
+    fixes = list(model.fixes(60.0, 180.0))
+    assert len(fixes) == 5 * 120
+    diffs = []
+    for fix in fixes:
+        assert fix.quat_enu_flu is not None
+        true_q = quat_nb_from_enu_flu(TRUTH.gnss_truth(fix.t_s).quat_enu_flu)
+        diff = euler_from_quat(quat_nb_from_enu_flu(fix.quat_enu_flu)) - euler_from_quat(true_q)
+        diffs.append((diff + math.pi) % (2 * math.pi) - math.pi)
+    std = np.degrees(np.std(diffs, axis=0))
+    assert std == pytest.approx([0.24, 0.14, 0.1], rel=0.1)  # Aalborg notes §7.3
+    assert Rotation.from_quat(fixes[0].quat_enu_flu).magnitude() > 0.0
+
+
+def test_reproducible_and_independent_of_how_the_epochs_are_requested():
+    schedule = GnssSchedule(outages=((30.0, 5.0),))
+    one = GnssErrorModel(TRUTH.gnss_truth, PROFILES["adu5"], schedule, seed=9)
+    two = GnssErrorModel(TRUTH.gnss_truth, PROFILES["adu5"], schedule, seed=9)
+    whole = list(one.fixes(0.0, 60.0))
+    pieces = list(two.fixes(0.0, 12.3)) + list(two.fixes(12.3, 60.0))
+    assert [f.lat_rad for f in whole] == [f.lat_rad for f in pieces]
+    assert all(
+        np.array_equal(a.quat_enu_flu, b.quat_enu_flu) for a, b in zip(whole, pieces, strict=True)
+    )
+    other = list(GnssErrorModel(TRUTH.gnss_truth, PROFILES["adu5"], schedule, seed=10).fixes(0, 60))
+    assert [f.lat_rad for f in other] != [f.lat_rad for f in whole]
+
+
+def test_fix_noise_table_is_ordered_by_quality():
+    order = [FixType.RTK_FIXED, FixType.RTK_FLOAT, FixType.DGPS, FixType.SPS]
+    sigmas = [FIX_NOISE[f].position_sigma_ned_m[0] for f in order]
+    assert sigmas == sorted(sigmas)
