@@ -23,7 +23,6 @@ from __future__ import annotations
 import datetime
 import math
 import re
-import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -35,7 +34,7 @@ from gnss_driver.driver import BITS_PER_CHARACTER, GPS_UTC_LEAP_S
 from gnss_driver.profiles import PROFILES, Receiver
 from gnss_driver.reader import frame_sentence
 from gnss_driver.utc import SECONDS_PER_WEEK
-from gnss_ins_common.pty_device import PtyDevice
+from gnss_ins_common.pty_device import PtyEmulator
 
 _KNOTS_PER_M_S = 3600.0 / 1852.0
 #: GPS time 0, 1980-01-06T00:00:00Z, in Unix seconds.
@@ -228,8 +227,10 @@ _ADU5_COMMAND = re.compile(
 )
 
 
-class GnssEmulator:
+class GnssEmulator(PtyEmulator):
     """A running emulated receiver on a pty; ``path`` is what the driver opens."""
+
+    thread_name = "gnss-emulator"
 
     def __init__(
         self,
@@ -240,14 +241,13 @@ class GnssEmulator:
         on_epoch: Callable[[float, Truth], None] | None = None,
     ) -> None:
         """``on_epoch(utc_s, truth)`` is called after each epoch's last sentence was written."""
+        super().__init__(link_path)
         self.config = config or EmulatorConfig()
         profile = PROFILES[self.config.receiver]
         self.baud = self.config.baud or profile.baud
         self._source = source or constant_velocity()
         self._on_epoch = on_epoch
-        self.pty = PtyDevice(link_path)
         self.epochs_sent = 0
-        self._lock = threading.Lock()
         self._faults = _Faults()
         self._degraded_mrms_m = self.config.mrms_m
         self._adu5 = _Adu5State(
@@ -255,13 +255,6 @@ class GnssEmulator:
             period_s=1.0 / (self.config.rate_hz or profile.rate_hz),
         )
         self._line = bytearray()
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
-
-    @property
-    def path(self) -> str:
-        """Serial port path for the driver (a stable symlink to the pty)."""
-        return self.pty.path
 
     @property
     def commands(self) -> list[str]:
@@ -273,27 +266,6 @@ class GnssEmulator:
     def offsets_deg(self) -> tuple[float, float, float]:
         """The offset angles the receiver currently removes (heading, pitch, roll) [deg]."""
         return self._adu5.offsets_deg
-
-    # ---- life cycle -------------------------------------------------------------------------
-    def start(self) -> GnssEmulator:
-        """Run the receiver on a background thread."""
-        self._stop.clear()
-        self._thread = threading.Thread(target=self._run, name="gnss-emulator", daemon=True)
-        self._thread.start()
-        return self
-
-    def stop(self) -> None:
-        """Stop and remove the pty."""
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=2.0)
-        self.pty.close()
-
-    def __enter__(self) -> GnssEmulator:
-        return self.start()
-
-    def __exit__(self, *exc: object) -> None:
-        self.stop()
 
     # ---- faults -----------------------------------------------------------------------------
     def corrupt_checksums(self, count: int = 1) -> None:

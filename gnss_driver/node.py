@@ -37,7 +37,8 @@ from gnss_ins_common import ros_diagnostics as diag
 from gnss_ins_common.params import Param
 from gnss_ins_common.ros_node_main import run_node
 from gnss_ins_common.ros_params import declare_parameters
-from gnss_ins_common.serial_link import LinkSettings, SerialLink
+from gnss_ins_common.ros_serial import node_time_s, set_header, start_serial_link
+from gnss_ins_common.serial_link import LinkSettings
 
 
 def _commands_error(commands: list[str]) -> str | None:
@@ -199,24 +200,18 @@ class GnssNode(Node):
         self.create_timer(p["diagnostics_period"], self._publish_diagnostics)
         self.create_timer(p["epoch_idle_timeout"] / 2.0, self._flush_idle)
 
-        self._link = SerialLink(
+        self._link = start_serial_link(
+            self,
             LinkSettings(port=p["port"], baud=p["baud"], stall_timeout_s=p["stall_timeout"]),
-            on_open=self._on_open,
-            on_data=self._on_data,
-            now=self._now,
-            log=self.get_logger().warning,
-            info=self.get_logger().info,
+            self._on_open,
+            self._on_data,
         )
-        self._link.start()
         self.get_logger().info(
             f"reading {self._receiver.value} on {p['port']} at {p['baud']} baud,"
             f" {len(self._commands)} set-up commands"
         )
 
     # ---- serial side (link thread) ----------------------------------------------------------
-    def _now(self) -> float:
-        return self.get_clock().now().nanoseconds * 1e-9
-
     def _on_open(self, port: Any) -> None:
         results = run_setup(
             port,
@@ -238,15 +233,9 @@ class GnssNode(Node):
 
     def _flush_idle(self) -> None:
         with self._lock:
-            self._publish(self._driver.flush_idle(self._now()))
+            self._publish(self._driver.flush_idle(node_time_s(self)))
 
     # ---- messages -----------------------------------------------------------------------------
-    def _header(self, msg: Any, seconds: float) -> None:
-        sec = math.floor(seconds)
-        msg.header.stamp.sec = sec
-        msg.header.stamp.nanosec = min(999_999_999, round((seconds - sec) * 1e9))
-        msg.header.frame_id = self._frame_id
-
     def _publish(self, outputs: list[EpochOutput]) -> None:
         for out in outputs:
             if out.fix is not None:
@@ -257,20 +246,20 @@ class GnssNode(Node):
                 self._publish_attitude(out)
             if out.utc is not None:
                 msg = TimeReference()
-                self._header(msg, out.stamp_s)
+                set_header(msg, out.stamp_s, self._frame_id)
                 sec = math.floor(out.utc.utc_s)
                 msg.time_ref.sec = sec
                 msg.time_ref.nanosec = min(999_999_999, round((out.utc.utc_s - sec) * 1e9))
                 msg.source = self._receiver.value
                 self._time_pub.publish(msg)
                 self._last_date_source = out.utc.date_source.value
-            self._latencies.append(self._now() - out.stamp_s)
+            self._latencies.append(node_time_s(self) - out.stamp_s)
 
     def _publish_fix(self, out: EpochOutput) -> None:
         fix = out.fix
         assert fix is not None
         msg = NavSatFix()
-        self._header(msg, out.stamp_s)
+        set_header(msg, out.stamp_s, self._frame_id)
         msg.status.status = int(fix.status)
         msg.status.service = fix.service
         msg.latitude, msg.longitude, msg.altitude = fix.lat_deg, fix.lon_deg, fix.alt_m
@@ -283,7 +272,7 @@ class GnssNode(Node):
         vel = out.velocity
         assert vel is not None
         msg = TwistWithCovarianceStamped()
-        self._header(msg, out.stamp_s)
+        set_header(msg, out.stamp_s, self._frame_id)
         linear = msg.twist.twist.linear
         linear.x, linear.y, linear.z = vel.vel_enu_m_s
         covariance = [0.0] * 36
@@ -298,7 +287,7 @@ class GnssNode(Node):
         attitude = out.attitude
         assert attitude is not None
         msg = Imu()
-        self._header(msg, out.stamp_s)
+        set_header(msg, out.stamp_s, self._frame_id)
         q = msg.orientation
         q.x, q.y, q.z, q.w = attitude.orientation.quat_enu_flu_xyzw
         msg.orientation_covariance = list(attitude.orientation.cov_rpy_rad2)

@@ -19,6 +19,7 @@ import tempfile
 import threading
 import tty
 from pathlib import Path
+from typing import Self
 
 
 class PtyDevice:
@@ -119,3 +120,46 @@ class PtyDevice:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+class PtyEmulator:
+    """Base of the device emulators: a ``PtyDevice``, ``_run`` on a background thread until
+    ``stop``, and a lock guarding the fault requests that other threads make."""
+
+    thread_name = "pty-emulator"
+
+    def __init__(self, link_path: str | Path | None = None) -> None:
+        """Create the pty (the device is not running until ``start``)."""
+        self.pty = PtyDevice(link_path)
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    @property
+    def path(self) -> str:
+        """Serial port path for the driver (a stable symlink to the pty)."""
+        return self.pty.path
+
+    def _run(self) -> None:
+        """The device: runs on the background thread until ``self._stop`` is set."""
+        raise NotImplementedError
+
+    def start(self) -> Self:
+        """Run the device on a background thread."""
+        self._stop.clear()
+        self._thread = threading.Thread(target=self._run, name=self.thread_name, daemon=True)
+        self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        """Stop the device and remove its pty."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=2.0)
+        self.pty.close()
+
+    def __enter__(self) -> Self:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()

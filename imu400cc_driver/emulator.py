@@ -12,7 +12,6 @@ polled mode, when it is plugged back).
 
 from __future__ import annotations
 
-import threading
 import time
 from collections import Counter
 from collections.abc import Callable
@@ -20,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from gnss_ins_common.pty_device import PtyDevice
+from gnss_ins_common.pty_device import PtyEmulator
 from imu400cc_driver.axes import DEFAULT_AXIS_SPEC, AxisMap, measurement_to_packet
 from imu400cc_driver.device_clock import NOMINAL_RATE_HZ, NOMINAL_TICK_S, PACKET_TRANSMISSION_S
 from imu400cc_driver.protocol import (
@@ -81,8 +80,10 @@ class SentPacket:
     written_wall_s: float
 
 
-class Imu400ccEmulator:
+class Imu400ccEmulator(PtyEmulator):
     """A running emulated IMU400CC on a pty; ``path`` is what the driver opens."""
+
+    thread_name = "imu400cc-emulator"
 
     def __init__(
         self,
@@ -93,52 +94,23 @@ class Imu400ccEmulator:
         on_packet: Callable[[SentPacket], None] | None = None,
     ) -> None:
         """``on_packet(SentPacket)`` is called after each packet is written."""
+        super().__init__(link_path)
         self.config = config or EmulatorConfig()
         self._source = source or resting_source()
         self._axis_map = AxisMap.from_spec(list(self.config.axis_spec))
         self._on_packet = on_packet
         self._wall_minus_monotonic = time.time() - time.monotonic()
-        self.pty = PtyDevice(link_path)
         self.commands: Counter[str] = Counter()
         self.packets_sent = 0
-        self._lock = threading.Lock()
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
         self._corrupt_next = 0
         self._drop_next = 0
         self._silent_until = 0.0
         self._power_up()
 
     @property
-    def path(self) -> str:
-        """Serial port path for the driver (a stable symlink to the pty)."""
-        return self.pty.path
-
-    @property
     def streaming(self) -> bool:
         """True in continuous mode."""
         return self._streaming
-
-    # ---- life cycle -------------------------------------------------------------------------
-    def start(self) -> Imu400ccEmulator:
-        """Run the device on a background thread."""
-        self._stop.clear()
-        self._thread = threading.Thread(target=self._run, name="imu400cc-emulator", daemon=True)
-        self._thread.start()
-        return self
-
-    def stop(self) -> None:
-        """Stop the device and remove its pty."""
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=2.0)
-        self.pty.close()
-
-    def __enter__(self) -> Imu400ccEmulator:
-        return self.start()
-
-    def __exit__(self, *exc: object) -> None:
-        self.stop()
 
     # ---- faults -----------------------------------------------------------------------------
     def corrupt_packets(self, count: int = 1) -> None:

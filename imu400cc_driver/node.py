@@ -21,7 +21,8 @@ from gnss_ins_common import ros_diagnostics as diag
 from gnss_ins_common.params import Param
 from gnss_ins_common.ros_node_main import run_node
 from gnss_ins_common.ros_params import declare_parameters
-from gnss_ins_common.serial_link import LinkSettings, SerialLink
+from gnss_ins_common.ros_serial import set_header, start_serial_link
+from gnss_ins_common.serial_link import LinkSettings
 from imu400cc_driver.axes import DEFAULT_AXIS_SPEC, AxisMap, packet_to_measurement
 from imu400cc_driver.device_clock import NOMINAL_RATE_HZ, NOMINAL_TICK_S, DeviceClock
 from imu400cc_driver.framer import PacketFramer
@@ -144,7 +145,8 @@ class Imu400ccNode(Node):
         if not self._continuous:
             self.create_timer(1.0 / p["poll_rate"], self._poll)
 
-        self._link = SerialLink(
+        self._link = start_serial_link(
+            self,
             LinkSettings(
                 port=p["port"],
                 baud=p["baud"],
@@ -152,21 +154,14 @@ class Imu400ccNode(Node):
                 if not self._continuous
                 else p["stall_timeout"],
             ),
-            on_open=self._on_open,
-            on_data=self._on_data,
-            now=self._now,
-            log=self.get_logger().warning,
-            info=self.get_logger().info,
+            self._on_open,
+            self._on_data,
         )
-        self._link.start()
         self.get_logger().info(
             f"reading IMU400CC on {p['port']} at {p['baud']} baud, {p['mode']} mode"
         )
 
     # ---- serial side (link thread) ----------------------------------------------------------
-    def _now(self) -> float:
-        return self.get_clock().now().nanoseconds * 1e-9
-
     def _on_open(self, port: Any) -> None:
         info = configure_device(port, self._continuous, log=self.get_logger().warning)
         self._serial_number = info.serial_number
@@ -191,15 +186,9 @@ class Imu400ccNode(Node):
             if count % self._temperature_every == 0:
                 self._publish_temperature(stamp.host_stamp_s, meas.temperature_c)
 
-    def _stamp(self, msg: Imu | Temperature, seconds: float) -> None:
-        sec = math.floor(seconds)
-        msg.header.stamp.sec = sec
-        msg.header.stamp.nanosec = min(999_999_999, round((seconds - sec) * 1e9))
-        msg.header.frame_id = self._frame_id
-
     def _publish(self, stamp_s: float, rate: Any, force: Any) -> None:
         msg = Imu()
-        self._stamp(msg, stamp_s)
+        set_header(msg, stamp_s, self._frame_id)
         msg.orientation_covariance[0] = -1.0
         msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z = map(float, rate)
         lin = msg.linear_acceleration
@@ -211,7 +200,7 @@ class Imu400ccNode(Node):
 
     def _publish_temperature(self, stamp_s: float, celsius: float) -> None:
         msg = Temperature()
-        self._stamp(msg, stamp_s)
+        set_header(msg, stamp_s, self._frame_id)
         msg.temperature = float(celsius)
         # One count of (D-4) is 0.054 degC; the conversion itself is only as good as the formula.
         msg.variance = 0.054**2

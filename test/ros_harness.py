@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
 import threading
 import time
 from collections import defaultdict
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from pathlib import Path
 from typing import Any
 
 import rclpy
@@ -92,3 +95,20 @@ def stamp_s(msg: Any) -> float:
 def diagnostic_values(array: Any) -> dict[str, str]:
     """Key/values of the first status of a DiagnosticArray."""
     return {kv.key: kv.value for kv in array.status[0].values}
+
+
+def node_executable(name: str) -> Path:
+    """The console script of a node, next to this interpreter (the venv's bin/)."""
+    return Path(sys.executable).parent / name
+
+
+def assert_executable_refuses(name: str, parameter: str, value: str) -> None:
+    """The node executable exits with code 2 and names the parameter when given a bad value."""
+    result = subprocess.run(
+        [node_executable(name), "--ros-args", "-p", f"{parameter}:={value}"],
+        capture_output=True,
+        text=True,
+        timeout=30,
+    )
+    assert result.returncode == 2, result.stderr
+    assert f"parameter '{parameter}'" in result.stderr

@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 import os
 import subprocess
-import sys
 import threading
 import time
 from pathlib import Path
@@ -17,7 +16,16 @@ import rclpy
 import yaml
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import TwistWithCovarianceStamped
-from ros_harness import Collector, diagnostic_values, overrides, spinning, stamp_s, wait_for
+from ros_harness import (
+    Collector,
+    assert_executable_refuses,
+    diagnostic_values,
+    node_executable,
+    overrides,
+    spinning,
+    stamp_s,
+    wait_for,
+)
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import Imu, NavSatFix, NavSatStatus, TimeReference
 
@@ -295,12 +303,8 @@ def test_bad_parameters_are_rejected_with_a_clear_message(name, value, fragment)
 
 
 def test_executable_with_the_adu5_config_and_a_renamed_node():
-    exe = Path(sys.executable).parent / "gnss_node"
-    bad = subprocess.run(
-        [exe, "--ros-args", "-p", "receiver:=garmin"], capture_output=True, text=True, timeout=30
-    )
-    assert bad.returncode == 2
-    assert "parameter 'receiver'" in bad.stderr
+    assert_executable_refuses("gnss_node", "receiver", "garmin")
+    exe = node_executable("gnss_node")
     config = EmulatorConfig(receiver=Receiver.ADU5)
     with GnssEmulator(constant_velocity(VELOCITY), config) as dev:
         collector = Collector({"adu5/gnss/attitude": Imu})

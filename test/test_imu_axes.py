@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
+from imu_strategies import raw_packets
 from scipy.spatial.transform import Rotation
 
 from imu400cc_driver.axes import (
@@ -33,16 +34,6 @@ ACCEL_COUNT_M_S2 = float(SCALING.accel_g(1)) * G  # one accelerometer count [m/s
 #: Frame changes, both proper rotations: FRD -> FLU body and NED -> ENU world.
 FLU_FROM_FRD = np.diag([1.0, -1.0, -1.0])
 ENU_FROM_NED = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
-
-int16s = st.integers(-(2**15), 2**15 - 1)
-uint16s = st.integers(0, 2**16 - 1)
-raw_packets = st.builds(
-    RawPacket,
-    rates=st.tuples(int16s, int16s, int16s),
-    accels=st.tuples(int16s, int16s, int16s),
-    temperature=uint16s,
-    timer=uint16s,
-)
 
 
 def _device_packet(gravity_direction_frd_g, rates_frd_dps=(0.0, 0.0, 0.0)) -> RawPacket:

@@ -9,6 +9,7 @@ import random
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
+from imu_strategies import raw_packets
 
 from imu400cc_driver.framer import FramerStats, PacketFramer
 from imu400cc_driver.protocol import PACKET_LENGTH, RawPacket, decode_packet, encode_packet
@@ -24,15 +25,6 @@ GOLDEN = [
 ]
 GOLDEN_PACKETS = [decode_packet(p) for p in GOLDEN]
 
-int16s = st.integers(-(2**15), 2**15 - 1)
-uint16s = st.integers(0, 2**16 - 1)
-raw_packets = st.builds(
-    RawPacket,
-    rates=st.tuples(int16s, int16s, int16s),
-    accels=st.tuples(int16s, int16s, int16s),
-    temperature=uint16s,
-    timer=uint16s,
-)
 garbage_without_header = st.binary(max_size=40).map(lambda b: b.replace(b"\xff", b"\x00"))
 packet_bytes = raw_packets.map(encode_packet)
 # Arbitrary bytes mixed with what makes framing hard: whole, cut and corrupted packets, 0xFF runs.

@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 import os
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -14,7 +13,16 @@ import pytest
 import rclpy
 import yaml
 from diagnostic_msgs.msg import DiagnosticArray
-from ros_harness import Collector, diagnostic_values, overrides, spinning, stamp_s, wait_for
+from ros_harness import (
+    Collector,
+    assert_executable_refuses,
+    diagnostic_values,
+    node_executable,
+    overrides,
+    spinning,
+    stamp_s,
+    wait_for,
+)
 from sensor_msgs.msg import Imu, Temperature
 
 from gnss_ins_common.params import ParameterValueError
@@ -185,12 +193,8 @@ def test_bad_parameters_are_rejected_with_a_clear_message(name, value, fragment)
 
 
 def test_executable_runs_against_the_emulator_and_refuses_bad_parameters():
-    exe = Path(sys.executable).parent / "imu400cc_node"
-    bad = subprocess.run(
-        [exe, "--ros-args", "-p", "mode:=fast"], capture_output=True, text=True, timeout=30
-    )
-    assert bad.returncode == 2
-    assert "parameter 'mode'" in bad.stderr
+    assert_executable_refuses("imu400cc_node", "mode", "fast")
+    exe = node_executable("imu400cc_node")
     with Imu400ccEmulator() as dev:
         collector = Collector({"imu/data_raw": Imu})
         proc = subprocess.Popen(

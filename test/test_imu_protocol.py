@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
+from imu_strategies import int16s, raw_packets, uint16s
 
 from imu400cc_driver.protocol import (
     HEADER,
@@ -72,16 +73,6 @@ ROW5_TEMPERATURE, ROW5_TIME, ROW5_CHECKSUM = 21.027, 3959, 81
 
 PRINTED_9_DECIMALS = 0.5e-9 + 1e-15
 PRINTED_3_DECIMALS = 0.5e-3 + 1e-12
-
-int16s = st.integers(-(2**15), 2**15 - 1)
-uint16s = st.integers(0, 2**16 - 1)
-raw_packets = st.builds(
-    RawPacket,
-    rates=st.tuples(int16s, int16s, int16s),
-    accels=st.tuples(int16s, int16s, int16s),
-    temperature=uint16s,
-    timer=uint16s,
-)
 
 
 @pytest.mark.parametrize(("hex_bytes", "rates", "accels", "temp", "time", "check"), GOLDEN_ROWS)
