@@ -9,10 +9,10 @@ clock mapping). The real receivers send 6 and 10 sentences/s.
 
 from __future__ import annotations
 
-import itertools
 import time
 
 import numpy as np
+from byte_streams import chunks, corrupt
 
 from gnss_driver.driver import DriverConfig, GnssDriver
 from gnss_driver.emulator import EmulatorConfig, adu5_sentences, constant_velocity, leica_sentences
@@ -20,7 +20,6 @@ from gnss_driver.profiles import Receiver
 from gnss_driver.reader import NmeaReader, frame_sentence
 
 SECONDS = 3600
-CORRUPT_FRACTION = 0.01
 START_UTC_S = 1_700_000_000.0
 SEED = 1
 
@@ -41,21 +40,6 @@ def adu5_stream() -> bytes:
 
 def _stream(epochs: list[list[str]]) -> bytes:
     return b"".join(frame_sentence(body) for bodies in epochs for body in bodies)
-
-
-def corrupt(stream: bytes, rng: np.random.Generator) -> bytes:
-    data = np.frombuffer(stream, dtype=np.uint8).copy()
-    where = rng.choice(data.size, int(data.size * CORRUPT_FRACTION), replace=False)
-    data[where] = rng.integers(0, 256, where.size)
-    return data.tobytes()
-
-
-def chunks(stream: bytes, rng: np.random.Generator) -> list[bytes]:
-    sizes = rng.integers(1, 65, len(stream) // 16)
-    bounds = np.concatenate(([0], np.cumsum(sizes)))
-    return [
-        stream[a:b] for a, b in itertools.pairwise([*bounds[bounds < len(stream)], len(stream)])
-    ]
 
 
 def run(name: str, stream: bytes, rng: np.random.Generator, baud: int, rate_hz: float) -> None:

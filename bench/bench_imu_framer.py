@@ -9,16 +9,15 @@ the 8-bit checksum).
 
 from __future__ import annotations
 
-import itertools
 import time
 
 import numpy as np
+from byte_streams import chunks, corrupt
 
 from imu400cc_driver.framer import PacketFramer
 from imu400cc_driver.protocol import PACKET_LENGTH, RawPacket, encode_packet
 
 PACKETS = 100_000
-CORRUPT_FRACTION = 0.01
 DEVICE_RATE_HZ = 134.0
 SEED = 1
 
@@ -36,21 +35,6 @@ def make_stream(rng: np.random.Generator) -> bytes:
         for i, (r, a) in enumerate(zip(rates, accels, strict=True))
     )
     return b"".join(encode_packet(p) for p in packets)
-
-
-def corrupt(stream: bytes, rng: np.random.Generator) -> bytes:
-    data = np.frombuffer(stream, dtype=np.uint8).copy()
-    where = rng.choice(data.size, int(data.size * CORRUPT_FRACTION), replace=False)
-    data[where] = rng.integers(0, 256, where.size)
-    return data.tobytes()
-
-
-def chunks(stream: bytes, rng: np.random.Generator) -> list[bytes]:
-    sizes = rng.integers(1, 65, len(stream) // 16)
-    bounds = np.concatenate(([0], np.cumsum(sizes)))
-    return [
-        stream[a:b] for a, b in itertools.pairwise([*bounds[bounds < len(stream)], len(stream)])
-    ]
 
 
 def run(

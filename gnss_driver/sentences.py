@@ -41,6 +41,17 @@ def _mmddyy(text: str) -> datetime.date:
     return datetime.datetime.strptime(text, "%m%d%y").date()
 
 
+#: The attitude fields PAT and ATT share, in order (notes §7.3).
+_ATTITUDE_FIELDS = (
+    ("Heading (deg)", "heading", float),
+    ("Pitch (deg)", "pitch", float),
+    ("Roll (deg)", "roll", float),
+    ("Attitude phase measurement RMS error MRMS (m)", "mrms", float),
+    ("Attitude baseline length RMS error BRMS (m)", "brms", float),
+    ("Attitude reset flag", "reset_flag", int),
+)
+
+
 class ASHRPAT(ash.ASH):  # type: ignore[misc]
     """``$PASHR,PAT``: ADU5 position of antenna 1 and attitude (notes §7.3, Fig. F-5).
 
@@ -58,12 +69,7 @@ class ASHRPAT(ash.ASH):  # type: ignore[misc]
         ("Longitude", "lon"),
         ("Longitude Direction", "lon_dir"),
         ("Altitude (m)", "altitude", float),
-        ("Heading (deg)", "heading", float),
-        ("Pitch (deg)", "pitch", float),
-        ("Roll (deg)", "roll", float),
-        ("Attitude phase measurement RMS error MRMS (m)", "mrms", float),
-        ("Attitude baseline length RMS error BRMS (m)", "brms", float),
-        ("Attitude reset flag", "reset_flag", int),
+        *_ATTITUDE_FIELDS,
     )
 
 
@@ -74,12 +80,7 @@ class ASHRATT(ash.ASH):  # type: ignore[misc]
         ("R", "_r"),
         ("Subtype", "subtype"),
         ("GPS time of week (s)", "time_of_week", float),
-        ("Heading (deg)", "heading", float),
-        ("Pitch (deg)", "pitch", float),
-        ("Roll (deg)", "roll", float),
-        ("Attitude phase measurement RMS error MRMS (m)", "mrms", float),
-        ("Attitude baseline length RMS error BRMS (m)", "brms", float),
-        ("Attitude reset flag", "reset_flag", int),
+        *_ATTITUDE_FIELDS,
     )
 
 
