@@ -28,6 +28,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from gnss_ins_common.message_fields import UNKNOWN_VARIANCE
+
 #: BRF -> FLU axes: a +90° turn about up.
 R_BRF_FLU = Rotation.from_euler("z", 90.0, degrees=True)
 
@@ -37,8 +39,6 @@ DEFAULT_SIGMA_RPY_DEG = (0.24, 0.14, 0.07)
 #: PAT quality limits MRMS <= 5 mm, BRMS <= 4 cm (notes §7.3, [Thales 2002, p. 167]) [m].
 MRMS_LIMIT_M = 0.005
 BRMS_LIMIT_M = 0.04
-#: Variance standing for "not measured" (e.g. roll and pitch from a heading-only HDT) [rad^2].
-UNKNOWN_VARIANCE = 1.0e6
 
 
 def brf_rotation(heading_deg: float, pitch_deg: float, roll_deg: float) -> Rotation:

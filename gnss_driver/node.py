@@ -21,7 +21,7 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, NavSatFix, TimeReference
 
-from gnss_driver.attitude import DEFAULT_SIGMA_RPY_DEG, UNKNOWN_VARIANCE, AttitudeConfig
+from gnss_driver.attitude import DEFAULT_SIGMA_RPY_DEG, AttitudeConfig
 from gnss_driver.commands import Answer, CommandResult, command_error, run_setup
 from gnss_driver.driver import GPS_UTC_LEAP_S, DriverConfig, EpochOutput, GnssDriver
 from gnss_driver.profiles import (
@@ -32,12 +32,18 @@ from gnss_driver.profiles import (
     Receiver,
     default_setup_commands,
 )
-from gnss_driver.solution import FixType, SolutionConfig, UereTable
+from gnss_driver.solution import FixType, SolutionConfig, UereTable, fill_gnss_fix
 from gnss_ins_common import ros_diagnostics as diag
+from gnss_ins_common.message_fields import (
+    fill_orientation,
+    fill_time_reference,
+    fill_velocity,
+    stamp_ns,
+)
 from gnss_ins_common.params import Param
 from gnss_ins_common.ros_node_main import run_node
 from gnss_ins_common.ros_params import declare_parameters
-from gnss_ins_common.ros_serial import node_time_s, set_header, start_serial_link
+from gnss_ins_common.ros_serial import node_time_s, start_serial_link
 from gnss_ins_common.serial_link import LinkSettings
 
 
@@ -245,12 +251,13 @@ class GnssNode(Node):
             if out.attitude is not None:
                 self._publish_attitude(out)
             if out.utc is not None:
-                msg = TimeReference()
-                set_header(msg, out.stamp_s, self._frame_id)
-                sec = math.floor(out.utc.utc_s)
-                msg.time_ref.sec = sec
-                msg.time_ref.nanosec = min(999_999_999, round((out.utc.utc_s - sec) * 1e9))
-                msg.source = self._receiver.value
+                msg = fill_time_reference(
+                    TimeReference(),
+                    stamp_ns(out.stamp_s),
+                    self._frame_id,
+                    stamp_ns(out.utc.utc_s),
+                    self._receiver.value,
+                )
                 self._time_pub.publish(msg)
                 self._last_date_source = out.utc.date_source.value
             self._latencies.append(node_time_s(self) - out.stamp_s)
@@ -258,41 +265,33 @@ class GnssNode(Node):
     def _publish_fix(self, out: EpochOutput) -> None:
         fix = out.fix
         assert fix is not None
-        msg = NavSatFix()
-        set_header(msg, out.stamp_s, self._frame_id)
-        msg.status.status = int(fix.status)
-        msg.status.service = fix.service
-        msg.latitude, msg.longitude, msg.altitude = fix.lat_deg, fix.lon_deg, fix.alt_m
-        msg.position_covariance = [float(v) for v in fix.cov_enu_m2]
-        msg.position_covariance_type = int(fix.cov_type)
-        self._fix_pub.publish(msg)
+        self._fix_pub.publish(
+            fill_gnss_fix(NavSatFix(), stamp_ns(out.stamp_s), self._frame_id, fix)
+        )
         self._last_fix_type = fix.fix_type.name
 
     def _publish_velocity(self, out: EpochOutput) -> None:
         vel = out.velocity
         assert vel is not None
-        msg = TwistWithCovarianceStamped()
-        set_header(msg, out.stamp_s, self._frame_id)
-        linear = msg.twist.twist.linear
-        linear.x, linear.y, linear.z = vel.vel_enu_m_s
-        covariance = [0.0] * 36
-        for row in range(3):
-            for col in range(3):
-                covariance[6 * row + col] = vel.cov_enu[3 * row + col]
-            covariance[7 * (row + 3)] = UNKNOWN_VARIANCE  # angular velocity: not measured
-        msg.twist.covariance = covariance
+        msg = fill_velocity(
+            TwistWithCovarianceStamped(),
+            stamp_ns(out.stamp_s),
+            self._frame_id,
+            vel.vel_enu_m_s,
+            vel.cov_enu,
+        )
         self._vel_pub.publish(msg)
 
     def _publish_attitude(self, out: EpochOutput) -> None:
         attitude = out.attitude
         assert attitude is not None
-        msg = Imu()
-        set_header(msg, out.stamp_s, self._frame_id)
-        q = msg.orientation
-        q.x, q.y, q.z, q.w = attitude.orientation.quat_enu_flu_xyzw
-        msg.orientation_covariance = list(attitude.orientation.cov_rpy_rad2)
-        msg.angular_velocity_covariance[0] = -1.0
-        msg.linear_acceleration_covariance[0] = -1.0
+        msg = fill_orientation(
+            Imu(),
+            stamp_ns(out.stamp_s),
+            self._frame_id,
+            attitude.orientation.quat_enu_flu_xyzw,
+            attitude.orientation.cov_rpy_rad2,
+        )
         self._att_pub.publish(msg)
 
     # ---- diagnostics (executor side) --------------------------------------------------------

@@ -35,11 +35,11 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from enum import IntEnum
-from typing import TypeVar
+from typing import Any, TypeVar
 
 import pynmea2
 
-from gnss_driver.attitude import UNKNOWN_VARIANCE, AttitudeConverter, Orientation
+from gnss_driver.attitude import AttitudeConverter, Orientation
 from gnss_driver.epoch import Epoch
 from gnss_driver.sentences import (
     ASHRATT,
@@ -54,6 +54,7 @@ from gnss_driver.sentences import (
     text,
     zda_date,
 )
+from gnss_ins_common.message_fields import UNKNOWN_VARIANCE, fill_navsatfix
 
 T = TypeVar("T")
 
@@ -521,4 +522,20 @@ def _no_fix(source: str, service: int) -> GnssFix:
         source,
         None,
         service,
+    )
+
+
+def fill_gnss_fix(msg: Any, time_ns: int, frame_id: str, fix: GnssFix) -> Any:
+    """gnss/fix (sensor_msgs/NavSatFix) from a fix: status from its fix type, NaN when none."""
+    return fill_navsatfix(
+        msg,
+        time_ns,
+        frame_id,
+        int(fix.status),
+        fix.service,
+        fix.lat_deg,
+        fix.lon_deg,
+        fix.alt_m,
+        fix.cov_enu_m2,
+        int(fix.cov_type),
     )

@@ -1,11 +1,8 @@
-"""What the serial driver nodes share on the ROS side: the link on the node's clock and logger,
-and message headers stamped from seconds."""
+"""What the serial driver nodes share on the ROS side: the link on the node's clock and logger."""
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
-from typing import Any
 
 import serial
 from rclpy.node import Node
@@ -36,11 +33,3 @@ def start_serial_link(
     )
     link.start()
     return link
-
-
-def set_header(msg: Any, seconds: float, frame_id: str) -> None:
-    """Fill ``msg.header`` with a stamp of ``seconds`` since the epoch and ``frame_id``."""
-    sec = math.floor(seconds)
-    msg.header.stamp.sec = sec
-    msg.header.stamp.nanosec = min(999_999_999, round((seconds - sec) * 1e9))
-    msg.header.frame_id = frame_id

@@ -18,16 +18,17 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, Temperature
 
 from gnss_ins_common import ros_diagnostics as diag
+from gnss_ins_common.message_fields import fill_imu, fill_temperature, stamp_ns
 from gnss_ins_common.params import Param
 from gnss_ins_common.ros_node_main import run_node
 from gnss_ins_common.ros_params import declare_parameters
-from gnss_ins_common.ros_serial import set_header, start_serial_link
+from gnss_ins_common.ros_serial import start_serial_link
 from gnss_ins_common.serial_link import LinkSettings
 from imu400cc_driver.axes import DEFAULT_AXIS_SPEC, AxisMap, packet_to_measurement
 from imu400cc_driver.device_clock import NOMINAL_RATE_HZ, NOMINAL_TICK_S, DeviceClock
 from imu400cc_driver.framer import PacketFramer
 from imu400cc_driver.link import configure_device, stop_stream
-from imu400cc_driver.protocol import PACKET_LENGTH, Command, Scaling
+from imu400cc_driver.protocol import PACKET_LENGTH, TEMPERATURE_VARIANCE_C2, Command, Scaling
 
 
 def _axis_map_error(spec: list[str]) -> str | None:
@@ -187,23 +188,15 @@ class Imu400ccNode(Node):
                 self._publish_temperature(stamp.host_stamp_s, meas.temperature_c)
 
     def _publish(self, stamp_s: float, rate: Any, force: Any) -> None:
-        msg = Imu()
-        set_header(msg, stamp_s, self._frame_id)
-        msg.orientation_covariance[0] = -1.0
-        msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z = map(float, rate)
-        lin = msg.linear_acceleration
-        lin.x, lin.y, lin.z = map(float, force)
-        for i in range(3):
-            msg.angular_velocity_covariance[4 * i] = self._gyro_cov[i]
-            msg.linear_acceleration_covariance[4 * i] = self._accel_cov[i]
+        msg = fill_imu(
+            Imu(), stamp_ns(stamp_s), self._frame_id, rate, force, self._gyro_cov, self._accel_cov
+        )
         self._imu_pub.publish(msg)
 
     def _publish_temperature(self, stamp_s: float, celsius: float) -> None:
-        msg = Temperature()
-        set_header(msg, stamp_s, self._frame_id)
-        msg.temperature = float(celsius)
-        # One count of (D-4) is 0.054 degC; the conversion itself is only as good as the formula.
-        msg.variance = 0.054**2
+        msg = fill_temperature(
+            Temperature(), stamp_ns(stamp_s), self._frame_id, celsius, TEMPERATURE_VARIANCE_C2
+        )
         self._temp_pub.publish(msg)
 
     # ---- executor side ----------------------------------------------------------------------

@@ -229,6 +229,9 @@ ADC_MAX_COUNT: Final = 4095
 #: Temperature sensor: degC = (volts - 1.375) * 44.44, (D-4) (notes §2.4).
 TEMPERATURE_OFFSET_V: Final = 1.375
 TEMPERATURE_C_PER_V: Final = 44.44
+#: Variance of a temperature reading [degC^2]: one count of (D-4), 5/4096 * 44.44 = 0.054 degC
+#: (notes §2.4); the formula itself is only as good as the report's calibration of it.
+TEMPERATURE_VARIANCE_C2: Final = (ADC_VOLTS_PER_COUNT * TEMPERATURE_C_PER_V) ** 2
 
 _TEMPERATURE: Final = _Channel(
     ADC_VOLTS_PER_COUNT * TEMPERATURE_C_PER_V,

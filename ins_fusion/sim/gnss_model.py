@@ -332,16 +332,28 @@ class GnssErrorModel:
     def epochs(self, t_start_s: float, t_end_s: float) -> Iterator[GnssEpoch]:
         """Every epoch in [t_start_s, t_end_s), with its fix or None."""
         period = 1.0 / self.profile.rate_hz
-        first = max(
-            self._next_epoch, math.ceil((t_start_s + self._phase_s) / period - _TIME_TOLERANCE_S)
-        )
-        epoch = first
-        while epoch * period - self._phase_s < t_end_s - _TIME_TOLERANCE_S:
-            t = epoch * period - self._phase_s
+        for epoch in range(*self._epoch_range(t_start_s, t_end_s)):
             dt = period * (epoch - self._next_epoch + 1) if self._next_epoch else period
             self._next_epoch = epoch + 1
-            epoch += 1
-            yield self._epoch_at(t, dt)
+            yield self._epoch_at(epoch * period - self._phase_s, dt)
+
+    def epoch_times(self, t_start_s: float, t_end_s: float) -> FloatArray:
+        """Times [s] of the epochs ``epochs(t_start_s, t_end_s)`` would yield now (e.g. to
+        compute their truth in one batch)."""
+        period = 1.0 / self.profile.rate_hz
+        epochs = np.arange(*self._epoch_range(t_start_s, t_end_s), dtype=np.float64)
+        return np.asarray(epochs * period - self._phase_s, dtype=np.float64)
+
+    def _epoch_range(self, t_start_s: float, t_end_s: float) -> tuple[int, int]:
+        """Epoch indices [first, stop) with times in [t_start_s, t_end_s), none before the next
+        epoch due."""
+        period = 1.0 / self.profile.rate_hz
+
+        def index(t_s: float) -> int:
+            return math.ceil((t_s + self._phase_s) / period - _TIME_TOLERANCE_S)
+
+        first = max(self._next_epoch, index(t_start_s))
+        return first, max(first, index(t_end_s))
 
     def _epoch_at(self, t_s: float, dt_s: float) -> GnssEpoch:
         profile, rng = self.profile, self._rng

@@ -17,9 +17,9 @@ The per-sample std of the white part is density/sqrt(dt), so a profile works at 
 Optionally (``ImuErrorModel(band_limited=True)``) the white noise passes through a first-order
 low-pass of the sensor's noise bandwidth (noise.BandLimitedNoise): the density below the corner is
 kept and the per-sample std becomes density·sqrt(bandwidth), as measured on a band-limited unit.
-The sensor temperature (for the driver's temperature topic) is a constant with a per-power-up
-offset plus a slow Gauss-Markov wander; it does not change the errors (Aalborg notes §1.2: no
-measurable bias change between 5 and 27 °C).
+The sensor temperature (for the driver's temperature topic) starts at a seeded power-up value and
+drifts smoothly (first order) to a seeded settled value; it does not change the errors (Aalborg
+notes §1.2: no measurable bias change between 5 and 27 °C).
 Profiles are written in the user-facing units of the datasheets through core.units.
 """
 
@@ -99,8 +99,9 @@ class TriadErrors:
 
 @dataclass(frozen=True)
 class TemperatureSpec:
-    """Sensor temperature [°C]: mean, std of the per-power-up offset, and a slow drift as a
-    first-order Gauss-Markov wander (stationary std [°C], correlation time [s])."""
+    """Sensor temperature [°C]: the power-up value is mean + N(0, turn_on_sigma²); it drifts as
+    a first-order lag with time constant drift_time_s [s] to a settled value mean +
+    N(0, drift_sigma²)."""
 
     mean_c: float = 25.0
     turn_on_sigma_c: float = 0.0
@@ -140,7 +141,7 @@ def _deg_s_per_g(value: float) -> float:
 #: and 3/32768 g per count, ±150 °/s and ±3 g readable. Misalignment was not measured (§3.4: ignored
 #: for MEMS). Noise bandwidths 25 Hz / 75 Hz (§1.2, the bandwidths (5.21) divides by, §1.3).
 #: Temperature about 28 °C on the drives (§7.1.3, Fig. 8-3); the ±0.5 °C power-up spread and the
-#: 1 °C, 30 min wander are assumptions (the unit stayed within 24-28 °C in the lab, §4).
+#: drift to within ±1 °C over 30 min are assumptions (the unit stayed within 24-28 °C, §4).
 #: Axes are imu_link FLU; the driver owns the device's own sign conventions.
 IMU400CC = ImuProfile(
     name="imu400cc",
@@ -316,21 +317,15 @@ class _TemperatureModel:
     """Seeded sensor temperature of one power-up (see TemperatureSpec)."""
 
     def __init__(self, spec: TemperatureSpec, seed: np.random.SeedSequence) -> None:
-        rng = np.random.default_rng(seed)
-        self._level = spec.mean_c + spec.turn_on_sigma_c * rng.standard_normal()
-        self._drift = GaussMarkov(
-            np.array([spec.drift_sigma_c]), np.array([spec.drift_time_s]), rng
-        )
-        self._last_t_s: float | None = None
+        start, settled = np.random.default_rng(seed).standard_normal(2)
+        self._start_c = spec.mean_c + spec.turn_on_sigma_c * start
+        self._settled_c = spec.mean_c + spec.drift_sigma_c * settled
+        self._time_constant_s = spec.drift_time_s
 
     def sample(self, t_s: FloatArray) -> FloatArray:
-        """Temperature [°C] at non-decreasing times t_s (n,)."""
-        t = np.atleast_1d(np.asarray(t_s, dtype=np.float64))
-        dt = np.diff(t, prepend=t[0] if self._last_t_s is None else self._last_t_s)
-        if np.any(dt < 0.0):
-            raise ValueError("temperature times must not decrease")
-        self._last_t_s = float(t[-1])
-        return np.asarray(self._level + self._drift.sample(dt)[:, 0], dtype=np.float64)
+        """Temperature [°C] at times t_s [s] since power-up."""
+        decay = np.exp(-np.asarray(t_s, dtype=np.float64) / self._time_constant_s)
+        return np.asarray(self._settled_c + (self._start_c - self._settled_c) * decay)
 
 
 class ImuErrorModel:
@@ -357,7 +352,7 @@ class ImuErrorModel:
         return self.gyro.noise_sigma(dt), self.accel.noise_sigma(dt)
 
     def temperature_c(self, t_s: FloatArray) -> FloatArray:
-        """Sensor temperature [°C] at non-decreasing times t_s (its own random stream)."""
+        """Sensor temperature [°C] at times t_s [s] (its own random draws)."""
         return self._temperature.sample(t_s)
 
     def apply(

@@ -63,11 +63,6 @@ class BandLimitedNoise:
         )
         self._white = WhiteNoise(density, rng)
 
-    @property
-    def sample_sigma(self) -> FloatArray:
-        """Stationary per-sample std N sqrt(B) [u] (for B dt < 1)."""
-        return self._white.density * math.sqrt(self.bandwidth_hz)
-
     def sample(self, dt_s: FloatArray) -> FloatArray:
         """Values for intervals dt_s (n,) -> (n, axes)."""
         white = self._white.sample(dt_s)

@@ -238,14 +238,15 @@ class Route:
     def build(
         self, roll_per_lateral_accel_deg_per_m_s2: float = 0.5, duration_s: float | None = None
     ) -> Trajectory:
-        """Trajectory of the route (optionally extended in time at the final speed/heading).
+        """Trajectory of the route over duration_s (default: the route's own length): a longer
+        one holds the final speed and heading, a shorter one is the start of the route.
 
         roll_per_lateral_accel: suspension roll gradient (body rolls out of the turn); typical
         cars 3-6 deg/g (assumption, not from the references).
         """
         end = self.t_s if duration_s is None else duration_s
-        if end < self.t_s:
-            raise ValueError("duration shorter than the route")
+        if end <= 0.0:
+            raise ValueError("a trajectory needs a positive duration")
         return Trajectory(
             self.start,
             end,

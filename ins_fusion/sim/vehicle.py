@@ -3,17 +3,22 @@
 ``VehicleTruth.imu_truth(t)`` gives what a perfect IMU in imu_link reads (REP-145: FLU, specific
 force with +g up at rest, rate in rad/s); ``VehicleTruth.gnss_truth(t)`` gives the GNSS antenna's
 position and velocity and the base_link attitude. Batch forms over arrays of times serve the bag
-writer; the scalar forms serve the real-time emulators.
+writer; the scalar forms serve the real-time emulators and the GNSS error model, through a
+``TruthCache`` where speed matters.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Generic, TypeVar
 
 import numpy as np
 
 from ins_fusion.core.rotation import FloatArray
 from ins_fusion.sim.trajectory import FrameTruth, Mounting, Trajectory
+
+T = TypeVar("T")
 
 
 @dataclass(frozen=True)
@@ -60,19 +65,68 @@ class VehicleTruth:
         perfect REP-145 IMU reads."""
         return self.trajectory.frame_truth(t_s, self.setup.imu)
 
+    def antenna(self, t_s: FloatArray) -> FrameTruth:
+        """Truth of the GNSS antenna phase centre at times t_s (its frame has base_link's
+        orientation)."""
+        return self.trajectory.frame_truth(t_s, self._antenna)
+
+    def imu_truths(self, t_s: FloatArray) -> list[tuple[FloatArray, FloatArray]]:
+        """``imu_truth`` at each of the times t_s, from one batch evaluation."""
+        truth = self.imu(t_s)
+        return list(zip(truth.rate_flu_rad_s, truth.specific_force_flu_m_s2, strict=True))
+
     def imu_truth(self, t_s: float) -> tuple[FloatArray, FloatArray]:
         """(rate_flu_rad_s, specific_force_flu_m_s2) of a perfect IMU at one time, shape (3,)."""
-        truth = self.imu(np.array([t_s]))
-        return truth.rate_flu_rad_s[0], truth.specific_force_flu_m_s2[0]
+        return self.imu_truths(np.array([t_s]))[0]
+
+    def gnss_truths(self, t_s: FloatArray) -> list[GnssTruth]:
+        """``gnss_truth`` at each of the times t_s, from one batch evaluation."""
+        a = self.antenna(t_s)
+        return [
+            GnssTruth(float(t), float(lat), float(lon), float(h), vel, quat)
+            for t, lat, lon, h, vel, quat in zip(
+                a.t_s, a.lat_rad, a.lon_rad, a.height_m, a.vel_enu_m_s, a.quat_enu_flu, strict=True
+            )
+        ]
 
     def gnss_truth(self, t_s: float) -> GnssTruth:
         """Antenna position/velocity and base_link attitude at one time."""
-        antenna = self.trajectory.frame_truth(np.array([t_s]), self._antenna)
-        return GnssTruth(
-            t_s=float(t_s),
-            lat_rad=float(antenna.lat_rad[0]),
-            lon_rad=float(antenna.lon_rad[0]),
-            height_m=float(antenna.height_m[0]),
-            vel_enu_m_s=antenna.vel_enu_m_s[0],
-            quat_enu_flu=antenna.quat_enu_flu[0],
-        )
+        return self.gnss_truths(np.array([t_s]))[0]
+
+
+class TruthCache(Generic[T]):
+    """A scalar truth callable (``imu_truth``, ``gnss_truth``) answered from batches.
+
+    ``fill(t_s)`` evaluates the batch form at times t_s, replacing the previous batch; a call at
+    one of those times (to 1 µs) is a look-up, any other time is computed on its own, or, with
+    ``ahead`` (offsets [s]), starts a new batch at ``t + ahead``. A single evaluation costs about
+    1 ms; a batch of a second of IMU samples about 2 ms (bench/bench_simulate.py).
+    """
+
+    def __init__(
+        self,
+        batch: Callable[[FloatArray], Sequence[T]],
+        single: Callable[[float], T],
+        ahead: FloatArray | None = None,
+    ) -> None:
+        self._batch = batch
+        self._single = single
+        self._ahead = ahead
+        self._table: dict[int, T] = {}
+
+    def fill(self, t_s: FloatArray) -> None:
+        """Compute the truth at times t_s [s] in one batch."""
+        self._table = dict(zip(_microseconds(t_s), self._batch(t_s), strict=True))
+
+    def __call__(self, t_s: float) -> T:
+        value = self._table.get(round(t_s * 1e6))
+        if value is not None:
+            return value
+        if self._ahead is None:
+            return self._single(t_s)
+        self.fill(t_s + self._ahead)
+        return self._table[round(t_s * 1e6)]
+
+
+def _microseconds(t_s: FloatArray) -> list[int]:
+    return [int(k) for k in np.rint(np.asarray(t_s, dtype=np.float64) * 1e6)]

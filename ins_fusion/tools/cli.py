@@ -1,8 +1,8 @@
 """`gnss_ins` command-line tool: one sub-command per module in ins_fusion/tools.
 
 Each sub-command module defines ``add_arguments(parser)`` and ``run(args) -> int``; register it
-in ``SUBCOMMANDS`` below. Imports are lazy so ``gnss_ins --help`` stays fast and a sub-command
-that needs rclpy does not slow down one that does not.
+in ``SUBCOMMANDS`` below. Only the chosen sub-command's module is imported, so ``gnss_ins --help``
+stays fast and a sub-command that needs rclpy does not slow down one that does not.
 """
 
 from __future__ import annotations
@@ -19,24 +19,28 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "import-qfree": ("import_qfree", "Q-Free OBU GNSS/MEMS text logs to a rosbag2 bag"),
     "record": ("record", "record ROS 2 topics to a rosbag2 bag (MCAP or sqlite3)"),
     "play": ("play", "publish a rosbag2 bag with its timing and /clock"),
+    "simulate": ("simulate", "simulated drive to a rosbag2 bag, or live on emulated devices"),
 }
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """Parser with every registered sub-command (their modules are imported here)."""
+def build_parser(command: str | None) -> argparse.ArgumentParser:
+    """Parser listing every sub-command; only ``command``'s module is imported for its options."""
     parser = argparse.ArgumentParser(prog="gnss_ins", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name, (module_name, help_text) in SUBCOMMANDS.items():
-        module = importlib.import_module(f"ins_fusion.tools.{module_name}")
         sub_parser = sub.add_parser(name, help=help_text, description=help_text)
-        module.add_arguments(sub_parser)
-        sub_parser.set_defaults(_module=module)
+        if name == command:
+            module = importlib.import_module(f"ins_fusion.tools.{module_name}")
+            module.add_arguments(sub_parser)
+            sub_parser.set_defaults(_module=module)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``gnss_ins`` console script."""
-    args = build_parser().parse_args(argv)
+    argv = sys.argv[1:] if argv is None else argv
+    command = next((arg for arg in argv if not arg.startswith("-")), None)
+    args = build_parser(command).parse_args(argv)
     try:
         return int(args._module.run(args))
     except KeyboardInterrupt:

@@ -1,0 +1,85 @@
+"""Empty rosbags messages to fill with the nodes' own ``fill_*`` functions (no ROS).
+
+``new_message("sensor_msgs/msg/Imu")`` gives a Jazzy message with every field zero; the
+``fill_*`` functions (defined once in ``gnss_ins_common.message_fields``, used by the nodes too, and
+re-exported here for the simulator's convenience) set its fields exactly as the nodes do.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from functools import cache
+from typing import Any
+
+import numpy as np
+from rosbags.interfaces import Nodetype
+from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys.store import Typestore
+
+from gnss_driver.solution import fill_gnss_fix
+from gnss_ins_common.message_fields import (
+    fill_imu,
+    fill_navsatfix,
+    fill_orientation,
+    fill_temperature,
+    fill_time_reference,
+    fill_velocity,
+    set_header,
+    stamp_ns,
+)
+
+__all__ = [
+    "fill_gnss_fix",
+    "fill_imu",
+    "fill_navsatfix",
+    "fill_orientation",
+    "fill_temperature",
+    "fill_time_reference",
+    "fill_velocity",
+    "new_message",
+    "set_header",
+    "stamp_ns",
+]
+
+_STRINGS = ("string", "wstring")
+#: ROS base types numpy does not name the same way.
+_NUMPY_TYPES = {"bool": np.dtype(np.bool_), "byte": np.dtype(np.uint8), "char": np.dtype(np.uint8)}
+
+
+@cache
+def _typestore() -> Typestore:
+    return get_typestore(Stores.ROS2_JAZZY)
+
+
+def new_message(msgtype: str) -> Any:
+    """A rosbags message of ``msgtype`` (``pkg/msg/Name``, Jazzy) with every field zero/empty."""
+    return _factory(msgtype)()
+
+
+@cache
+def _factory(msgtype: str) -> Callable[[], Any]:
+    """Constructor of zero messages of a type (field makers resolved once)."""
+    store = _typestore()
+    cls = store.types[msgtype]
+    makers = [_zero_factory(kind, detail) for _, (kind, detail) in store.fielddefs[msgtype][1]]
+    return lambda: cls(*[make() for make in makers])
+
+
+def _zero_factory(kind: Nodetype, detail: Any) -> Callable[[], Any]:
+    """Maker of the zero value of a field described as the typestore does (kind, detail)."""
+    if kind == Nodetype.NAME:
+        return _factory(detail)
+    if kind == Nodetype.BASE:
+        name = detail[0]
+        if name in _STRINGS:
+            value: object = ""
+        else:
+            value = 0.0 if name.startswith("float") else (False if name == "bool" else 0)
+        return lambda: value
+    (element_kind, element), length = detail
+    count = length if kind == Nodetype.ARRAY else 0
+    if element_kind == Nodetype.BASE and element[0] not in _STRINGS:
+        dtype = _NUMPY_TYPES.get(element[0], np.dtype(element[0]))
+        return lambda: np.zeros(count, dtype=dtype)
+    make = _zero_factory(element_kind, element)
+    return lambda: [make() for _ in range(count)]
