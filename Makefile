@@ -7,7 +7,8 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 ROS_SYSTEM := $(shell [ "$$ROS_DISTRO" = "jazzy" ] && $(PYTHON) -c 'import rclpy' 2>/dev/null && echo yes)
 # Pure cores (no rclpy import) checked by mypy --strict; ROS modules are node.py / ros_*.py.
-MYPY_TARGETS := gnss_ins_common imu400cc_driver gnss_driver ins_fusion/core ins_fusion/sim
+MYPY_TARGETS := gnss_ins_common imu400cc_driver gnss_driver ins_fusion/core ins_fusion/sim \
+	ins_fusion/qfree.py ins_fusion/tools/bag_io.py ins_fusion/tools/progress.py
 
 .PHONY: all venv demo test lint typecheck pytest bench colcon clean
 

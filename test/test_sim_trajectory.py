@@ -172,3 +172,12 @@ def test_gnss_truth_is_at_the_antenna():
     assert antenna.quat_enu_flu == pytest.approx(base.quat_enu_flu[0], abs=1e-6)
     with pytest.raises(ValueError, match="outside"):
         truth.gnss_truth(241.0)
+
+
+@pytest.mark.parametrize("duration_s", [90.0, 150.0, 240.0, 500.0])
+def test_a_short_or_odd_test_pattern_still_drives_after_its_standstill(duration_s):
+    trajectory = seed_test_pattern(duration_s)
+    t = np.array([30.0, 59.0, 60.0 + 0.75 * (min(duration_s, 240.0) - 60.0)])
+    speed = np.linalg.norm(trajectory.frame_truth(t, Mounting()).vel_ned_m_s, axis=1)
+    assert speed[:2] == pytest.approx([0.0, 0.0], abs=1e-9)
+    assert speed[2] > 2.0

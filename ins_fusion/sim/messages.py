@@ -13,8 +13,6 @@ from typing import Any
 
 import numpy as np
 from rosbags.interfaces import Nodetype
-from rosbags.typesys import Stores, get_typestore
-from rosbags.typesys.store import Typestore
 
 from gnss_driver.solution import fill_gnss_fix
 from gnss_ins_common.message_fields import (
@@ -27,6 +25,7 @@ from gnss_ins_common.message_fields import (
     set_header,
     stamp_ns,
 )
+from ins_fusion.tools.bag_io import jazzy_typestore
 
 __all__ = [
     "fill_gnss_fix",
@@ -46,11 +45,6 @@ _STRINGS = ("string", "wstring")
 _NUMPY_TYPES = {"bool": np.dtype(np.bool_), "byte": np.dtype(np.uint8), "char": np.dtype(np.uint8)}
 
 
-@cache
-def _typestore() -> Typestore:
-    return get_typestore(Stores.ROS2_JAZZY)
-
-
 def new_message(msgtype: str) -> Any:
     """A rosbags message of ``msgtype`` (``pkg/msg/Name``, Jazzy) with every field zero/empty."""
     return _factory(msgtype)()
@@ -59,7 +53,7 @@ def new_message(msgtype: str) -> Any:
 @cache
 def _factory(msgtype: str) -> Callable[[], Any]:
     """Constructor of zero messages of a type (field makers resolved once)."""
-    store = _typestore()
+    store = jazzy_typestore()
     cls = store.types[msgtype]
     makers = [_zero_factory(kind, detail) for _, (kind, detail) in store.fielddefs[msgtype][1]]
     return lambda: cls(*[make() for make in makers])

@@ -50,10 +50,11 @@ def seed_test_pattern(
     duration_s: float | None = None, start: GeodeticStart = AALBORG_START
 ) -> Trajectory:
     """The test pattern of the reference drives (Aalborg notes §8.1): 60 s standstill, then 180 s
-    of urban driving; repeated 180 s drives fill a longer duration (600 s = 60 + 3 × 180)."""
+    of urban driving; repeated 180 s drives fill a longer duration (600 s = 60 + 3 × 180), and a
+    duration that ends within a drive ends the pattern there (150 s = standstill + 90 s drive)."""
     total = 240.0 if duration_s is None else duration_s
     route = Route(start).stand(60.0)
-    while route.t_s + 180.0 <= total + 1e-9:
+    while route.t_s < total - 1e-9:
         _urban_drive(route)
     return route.build(duration_s=total)
 

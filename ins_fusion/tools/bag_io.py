@@ -167,7 +167,7 @@ class BagSummary:
             )
         gaps = self.largest_gaps()
         if not gaps:
-            lines.append(f"  no gap of {GAP_REPORT_PERIODS} mean periods or more")
+            lines.append(f"  largest gaps: none of {GAP_REPORT_PERIODS} mean periods or more")
         else:
             lines.append("  largest gaps:")
             lines.extend(
@@ -196,7 +196,8 @@ class BagWriter:
     raw bytes); a message object declares its topic on first use. Files split when the payload
     bytes of the current file would exceed ``max_file_bytes`` or when a message is
     ``max_file_duration_s`` or more after the file's first message (0 = never). Not
-    thread-safe: one thread writes.
+    thread-safe: the storage files are opened by the first ``add_topic``/``write``/``close``, and
+    that thread must do all the writing and the closing (sqlite3 connections are bound to it).
     """
 
     def __init__(
@@ -226,8 +227,8 @@ class BagWriter:
         self._part_bytes = 0
         self._part_start_ns = 0
         self._part_count = 0
+        self._closed = False
         self.path.mkdir(parents=True)
-        self._open_part()
 
     def add_topic(self, topic: str, msgtype: str, qos: Sequence[Qos] = ()) -> None:
         """Declare a topic, its type (``pkg/msg/Name``) and the QoS profiles its publishers
@@ -239,7 +240,8 @@ class BagWriter:
         if msgtype not in self.typestore.fielddefs:
             raise BagError(f"message type {msgtype} is not in the typestore")
         self._topics[topic] = _Topic(msgtype, tuple(qos))
-        self._connect(topic)
+        if self._part is not None:
+            self._connect(topic)
 
     def write(self, topic: str, log_time_ns: int, message: RawMessage | object) -> None:
         """Write one message at ``log_time_ns`` (ns since the epoch)."""
@@ -261,23 +263,32 @@ class BagWriter:
             self._open_part()
         if not self._part_count:
             self._part_start_ns = log_time_ns
-        assert self._part is not None
-        self._part.write(self._connections[topic], log_time_ns, data)
+        part = self._current_part()
+        part.write(self._connections[topic], log_time_ns, data)
         self._part_bytes += len(data)
         self._part_count += 1
         self.summary.add(topic, self._topics[topic].msgtype, log_time_ns)
 
     def close(self) -> BagSummary:
         """Finish the current file and write ``metadata.yaml``; returns the summary."""
-        if self._part is not None:
+        if not self._closed:
+            self._current_part()
             self._close_part()
             self._write_metadata()
+            self._closed = True
         return self.summary
 
-    def _connect(self, topic: str) -> None:
+    def _current_part(self) -> Writer:
+        if self._closed:
+            raise BagError(f"{self.path} is closed")
+        if self._part is None:
+            self._open_part()
         assert self._part is not None
+        return self._part
+
+    def _connect(self, topic: str) -> None:
         info = self._topics[topic]
-        self._connections[topic] = self._part.add_connection(
+        self._connections[topic] = self._current_part().add_connection(
             topic,
             info.msgtype,
             typestore=self.typestore,

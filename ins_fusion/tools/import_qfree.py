@@ -1,8 +1,9 @@
 """``gnss_ins import-qfree``: Q-Free OBU GNSS and MEMS text logs to a rosbag2 bag.
 
 Layouts, units and the reference receiver are described in ins_fusion/qfree.py and
-shared/reference/gnss-ins-ntnu-notes.md §3–5. Output topics (header.stamp = bag time = the UTC
-date/time columns of the line):
+shared/reference/gnss-ins-ntnu-notes.md §3–5. The messages are filled like the drivers' and the
+simulator's (ins_fusion/sim/messages.py, topics and frames of ins_fusion/sim/topics.py);
+header.stamp = bag time = the UTC date/time columns of the line:
 
 - ``/gnss/fix`` (sensor_msgs/NavSatFix, frame ``gnss_link``): status NO_FIX when the good flag
   (column 9) is 0, SBAS_FIX when SBAS is active (column 32), else FIX; service GPS; covariance
@@ -10,10 +11,10 @@ date/time columns of the line):
   Table 4.9); altitude = ellipsoidal height (column 13).
 - ``/gnss/vel`` (geometry_msgs/TwistWithCovarianceStamped, ENU, frame ``gnss_link``): from the
   NED velocity (columns 27–29) of good epochs that have one; linear covariance (0.43 m/s)² per
-  axis (Table 4.9), angular diagonal −1 (not measured).
+  axis (Table 4.9), angular variances 1e6 (not measured, as gnss_node).
 - ``/imu/data_raw`` (sensor_msgs/Imu, frame ``imu_link``, REP-145): specific force m/s², rate
-  rad/s, rotated by ``--mounting``; orientation_covariance[0] = −1; covariances from the bench
-  variances of Tables 4.4/4.5.
+  rad/s, rotated by ``--mounting``; orientation_covariance[0] = −1; diagonal covariances from the
+  bench variances of Tables 4.4/4.5.
 - ``/ground_truth/fix`` and ``/ground_truth/vel``: the same from equipment id 6 (the SPAN
   reference), frame ``base_link``.
 """
@@ -28,15 +29,23 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
+from gnss_driver.solution import SERVICE_GPS
 from ins_fusion import qfree
-from ins_fusion.tools.bag_io import STORAGES, BagWriter, jazzy_typestore
+from ins_fusion.sim.messages import fill_imu, fill_navsatfix, fill_velocity, new_message
+from ins_fusion.sim.topics import (
+    GNSS_FIX,
+    GNSS_FRAME,
+    GNSS_VEL,
+    IMU_DATA,
+    IMU_FRAME,
+    TOPICS,
+    TRUTH_FIX,
+    TRUTH_FRAME,
+    TRUTH_VEL,
+)
+from ins_fusion.tools.bag_io import STORAGES, BagError, BagWriter
 from ins_fusion.tools.progress import Progress
 
-GNSS_FIX, GNSS_VEL, IMU_RAW = "/gnss/fix", "/gnss/vel", "/imu/data_raw"
-TRUTH_FIX, TRUTH_VEL = "/ground_truth/fix", "/ground_truth/vel"
-GNSS_FRAME, IMU_FRAME, TRUTH_FRAME = "gnss_link", "imu_link", "base_link"
 #: Bad lines and gyro wraps printed one by one; the rest are counted.
 MAX_LISTED = 20
 
@@ -88,67 +97,44 @@ def _listed(items: Sequence[object], what: str) -> None:
         print(f"{what}: ... and {len(items) - MAX_LISTED} more", file=sys.stderr)
 
 
-def _types() -> Any:
-    """Message classes of the Jazzy typestore by name (built on first use)."""
-    return jazzy_typestore().types
-
-
-def _header(time_ns: int, frame: str) -> Any:
-    return _types()["std_msgs/msg/Header"](
-        _types()["builtin_interfaces/msg/Time"](*divmod(time_ns, 1_000_000_000)), frame
-    )
-
-
-def _vector(xyz: Sequence[float]) -> Any:
-    return _types()["geometry_msgs/msg/Vector3"](*(float(v) for v in xyz))
-
-
 def navsatfix(epoch: qfree.GnssEpoch, frame: str) -> Any:
     """sensor_msgs/NavSatFix of a GNSS epoch (status and covariance as in the module doc)."""
-    status_cls, fix_cls = (
-        _types()["sensor_msgs/msg/NavSatStatus"],
-        _types()["sensor_msgs/msg/NavSatFix"],
-    )
-    if not epoch.good:
-        status = status_cls.STATUS_NO_FIX
-    else:
-        status = status_cls.STATUS_SBAS_FIX if epoch.sbas else status_cls.STATUS_FIX
-    covariance, known = epoch.position_covariance_enu_m2
-    return fix_cls(
-        _header(epoch.stamp.utc_ns, frame),
-        status_cls(status, status_cls.SERVICE_GPS),
+    covariance, kind = epoch.position_covariance_enu_m2
+    return fill_navsatfix(
+        new_message(TOPICS[GNSS_FIX]),
+        epoch.stamp.utc_ns,
+        frame,
+        int(epoch.status),
+        SERVICE_GPS,
         epoch.latitude_deg,
         epoch.longitude_deg,
         epoch.height_m,
-        np.array(covariance, dtype=np.float64),
-        fix_cls.COVARIANCE_TYPE_DIAGONAL_KNOWN if known else fix_cls.COVARIANCE_TYPE_APPROXIMATED,
+        covariance,
+        int(kind),
     )
 
 
 def twist_enu(epoch: qfree.GnssEpoch, vel_enu_m_s: Sequence[float], frame: str) -> Any:
     """geometry_msgs/TwistWithCovarianceStamped: ENU velocity, Table 4.9 covariance."""
-    covariance = np.zeros((6, 6))
-    covariance[:3, :3] = np.eye(3) * qfree.VELOCITY_STD_DEFAULT_M_S**2
-    covariance[3:, 3:] = -np.eye(3)
-    twist = _types()["geometry_msgs/msg/Twist"](_vector(vel_enu_m_s), _vector((0.0, 0.0, 0.0)))
-    return _types()["geometry_msgs/msg/TwistWithCovarianceStamped"](
-        _header(epoch.stamp.utc_ns, frame),
-        _types()["geometry_msgs/msg/TwistWithCovariance"](twist, covariance.ravel()),
+    return fill_velocity(
+        new_message(TOPICS[GNSS_VEL]),
+        epoch.stamp.utc_ns,
+        frame,
+        vel_enu_m_s,
+        qfree.VELOCITY_COVARIANCE_ENU_M2_S2,
     )
 
 
 def imu_message(series: qfree.ImuSeries, k: int) -> Any:
     """sensor_msgs/Imu (REP-145, no orientation) of sample ``k`` of the series."""
-    orientation_covariance = np.zeros(9)
-    orientation_covariance[0] = -1.0
-    return _types()["sensor_msgs/msg/Imu"](
-        _header(int(series.utc_ns[k]), IMU_FRAME),
-        _types()["geometry_msgs/msg/Quaternion"](0.0, 0.0, 0.0, 1.0),
-        orientation_covariance,
-        _vector(series.rate_rad_s[k]),
-        series.rate_covariance_rad2_s2.ravel(),
-        _vector(series.accel_m_s2[k]),
-        series.accel_covariance_m2_s4.ravel(),
+    return fill_imu(
+        new_message(TOPICS[IMU_DATA]),
+        int(series.utc_ns[k]),
+        IMU_FRAME,
+        series.rate_rad_s[k],
+        series.accel_m_s2[k],
+        series.rate_variance_rad2_s2,
+        series.accel_variance_m2_s4,
     )
 
 
@@ -159,49 +145,21 @@ def _read(path: Path, parse: Callable[..., qfree.ParsedLog[Any]]) -> qfree.Parse
     return log
 
 
-def run(args: argparse.Namespace) -> int:
-    """Parse the logs, write the bag, print the summary; 1 if nothing could be imported."""
-    try:
-        gnss = _read(args.gnss, qfree.parse_gnss)
-        mems = _read(args.mems, qfree.parse_mems)
-        reference = _read(args.reference, qfree.parse_gnss) if args.reference else None
-    except OSError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+#: (bag time ns, order, topic, message factory): the messages, made when written.
+Event = tuple[int, int, str, Callable[[], Any]]
 
-    epochs = gnss.records + (reference.records if reference else [])
-    is_reference = [e.stamp.equipment_id == qfree.REFERENCE_EQUIPMENT_ID for e in epochs]
-    receivers = Counter(
-        e.stamp.equipment_id for e, ref in zip(epochs, is_reference, strict=True) if not ref
-    )
-    imu_ids = Counter(s.stamp.equipment_id for s in mems.records)
 
-    def selected(equipment_id: int) -> bool:
-        if args.equipment is not None:
-            return equipment_id == args.equipment
-        return equipment_id != qfree.REFERENCE_EQUIPMENT_ID
-
-    imu_receivers = set(imu_ids) - {qfree.REFERENCE_EQUIPMENT_ID}
-    if args.equipment is None and (len(receivers) > 1 or len(imu_receivers) > 1):
-        print(
-            f"warning: several receivers share the topics (GNSS ids {sorted(receivers)},"
-            f" MEMS ids {sorted(imu_ids)}); choose one with --equipment",
-            file=sys.stderr,
-        )
-    samples = [s for s in mems.records if selected(s.stamp.equipment_id)]
-    series = qfree.imu_series(
-        samples,
-        accel_unit=args.accel_unit,
-        gyro_unit=args.gyro_unit,
-        mounting_deg=args.mounting,
-        unwrap=not args.keep_gyro_wrap,
-    )
-    _listed(series.wraps, "gyro wrap")
-
-    # (time, order, topic, message factory), written in time order
-    events: list[tuple[int, int, str, Callable[[], Any]]] = []
+def _events(
+    epochs: list[qfree.GnssEpoch],
+    series: qfree.ImuSeries,
+    selected: Callable[[int], bool],
+) -> tuple[list[Event], int]:
+    """Every message to write in time order, and the count of GNSS epochs without a usable
+    velocity (bad, or none in the log)."""
+    events: list[Event] = []
     no_velocity = 0
-    for epoch, ref in zip(epochs, is_reference, strict=True):
+    for epoch in epochs:
+        ref = epoch.stamp.equipment_id == qfree.REFERENCE_EQUIPMENT_ID
         if not ref and not selected(epoch.stamp.equipment_id):
             continue
         fix_topic, vel_topic = (TRUTH_FIX, TRUTH_VEL) if ref else (GNSS_FIX, GNSS_VEL)
@@ -213,37 +171,75 @@ def run(args: argparse.Namespace) -> int:
             no_velocity += 1
             continue
         events.append((t, len(events), vel_topic, partial(twist_enu, epoch, vel, frame)))
-    for k in range(len(samples)):
-        events.append(
-            (int(series.utc_ns[k]), len(events), IMU_RAW, partial(imu_message, series, k))
+    for k, t in enumerate(series.utc_ns.tolist()):
+        events.append((t, len(events), IMU_DATA, partial(imu_message, series, k)))
+    events.sort(key=lambda event: event[:2])
+    return events, no_velocity
+
+
+def run(args: argparse.Namespace) -> int:
+    """Parse the logs, write the bag, print the summary. 2 if a file cannot be read or the bag
+    exists, 1 if nothing could be imported."""
+    try:
+        logs = [_read(args.gnss, qfree.parse_gnss), _read(args.mems, qfree.parse_mems)]
+        if args.reference:
+            logs.append(_read(args.reference, qfree.parse_gnss))
+    except OSError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    gnss, mems, *reference = logs
+    epochs: list[qfree.GnssEpoch] = [e for log in (gnss, *reference) for e in log.records]
+
+    def selected(equipment_id: int) -> bool:
+        if args.equipment is not None:
+            return bool(equipment_id == args.equipment)
+        return equipment_id != qfree.REFERENCE_EQUIPMENT_ID
+
+    receivers = {e.stamp.equipment_id for e in epochs} | {
+        s.stamp.equipment_id for s in mems.records
+    }
+    if args.equipment is None and len(receivers - {qfree.REFERENCE_EQUIPMENT_ID}) > 1:
+        print(
+            f"warning: receivers {sorted(receivers)} share the topics; choose with --equipment",
+            file=sys.stderr,
         )
+    samples = [s for s in mems.records if selected(s.stamp.equipment_id)]
+    series = qfree.imu_series(
+        samples,
+        accel_unit=args.accel_unit,
+        gyro_unit=args.gyro_unit,
+        mounting_deg=args.mounting,
+        unwrap=not args.keep_gyro_wrap,
+    )
+    _listed(series.wraps, "gyro wrap")
+    events, no_velocity = _events(epochs, series, selected)
     if not events:
         print("error: no valid GNSS epoch or MEMS sample to import", file=sys.stderr)
         return 1
-    events.sort(key=lambda event: event[:2])
-
-    with (
-        BagWriter(args.output, storage=args.storage) as writer,
-        Progress("import", total=len(events), unit="msgs") as progress,
-    ):
+    try:
+        writer = BagWriter(args.output, storage=args.storage)
+    except BagError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    with writer, Progress("import", total=len(events), unit="msgs") as progress:
         for done, (t, _, topic, make) in enumerate(events, start=1):
             writer.write(topic, t, make())
             if done % 1000 == 0:
                 progress.update(done)
         progress.update(len(events))
 
-    bad = [*gnss.bad_lines, *mems.bad_lines, *(reference.bad_lines if reference else [])]
-    wrap_axes = Counter(w.axis for w in series.wraps)
     print(writer.summary.format(f"bag {args.output} ({args.storage}, files: {len(writer.files)})"))
     print(
-        f"  bad lines: {len(bad)}; GNSS epochs without usable velocity: {no_velocity};"
+        f"  bad lines: {sum(len(log.bad_lines) for log in logs)};"
+        f" GNSS epochs without usable velocity: {no_velocity};"
         f" MEMS samples of other equipment: {len(mems.records) - len(samples)}"
     )
     if series.wraps:
-        action = "kept" if args.keep_gyro_wrap else "undone"
-        per_axis = ", ".join(f"{axis} {wrap_axes[axis]}" for axis in "xyz")
+        per_axis = Counter(w.axis for w in series.wraps)
         print(
-            f"  gyro 16-bit wrap: {len(series.wraps)} jumps ({per_axis}), {action};"
+            f"  gyro 16-bit wrap: {len(series.wraps)} jumps"
+            f" ({', '.join(f'{axis} {per_axis[axis]}' for axis in 'xyz')}),"
+            f" {'kept' if args.keep_gyro_wrap else 'undone'};"
             f" first at {series.wraps[0].source}:{series.wraps[0].line}"
         )
     else:

@@ -35,8 +35,10 @@ if TYPE_CHECKING:
 DEFAULT_CLOCK_HZ = 40.0
 #: Publisher history depth.
 PUBLISHER_DEPTH = 100
-#: At the end, how long to wait for reliable subscribers to acknowledge the last messages (s).
-ACK_TIMEOUT_S = 2.0
+#: At the end, how long at most to wait for reliable subscribers to acknowledge the last
+#: messages, so lost ones can still be resent (s). Fast DDS often acknowledges only with its
+#: next periodic heartbeat, so this is usually a short linger rather than a confirmation.
+ACK_TIMEOUT_S = 0.5
 #: Poll period while waiting for subscribers (s).
 WAIT_PERIOD_S = 0.05
 
@@ -118,12 +120,11 @@ class Player:
         }
         self._clock = node.create_publisher(Clock, "/clock", 10) if clock_hz else None
 
-    def wait_for_subscribers(self) -> bool:
-        """Block until every publisher has a subscriber; False if stopped first."""
+    def wait_for_subscribers(self) -> None:
+        """Block until every publisher has a subscriber, or ``stop``."""
         while any(p.get_subscription_count() == 0 for p in self.publishers.values()):
             if self.stop.wait(WAIT_PERIOD_S):
-                return False
-        return True
+                return
 
     def publish_clock(self, bag_ns: int) -> None:
         """One /clock message at bag time ``bag_ns`` (if --clock)."""
@@ -144,12 +145,16 @@ class Player:
             return start_ns + round((wall - wall_start) * self.rate * 1e9)
 
         for msg in self.reader.messages(self.topics, start_ns=start_ns):
+            if self.stop.is_set():
+                return False
             due = wall_start + (msg.log_time_ns - start_ns) / self.rate / 1e9
             while True:
                 now = time.monotonic()
                 if self.clock_period_s is not None and next_tick <= min(due, now):
                     self.publish_clock(bag_time(now))
-                    next_tick = max(next_tick + self.clock_period_s, now)
+                    next_tick += self.clock_period_s
+                    if next_tick <= now:  # late (a slow machine): one period from now
+                        next_tick = now + self.clock_period_s
                     continue
                 wake = due if self.clock_period_s is None else min(due, next_tick)
                 if wake <= now:
@@ -160,8 +165,6 @@ class Player:
             self.summary.add(msg.topic, msg.msgtype, msg.log_time_ns)
             last_ns = msg.log_time_ns
             progress.update((last_ns - start_ns) / 1e9)
-            if self.stop.is_set():
-                return False
         self.publish_clock(last_ns)
         return True
 
@@ -170,7 +173,8 @@ class Player:
         from rclpy.duration import Duration
 
         deadline = time.monotonic() + ACK_TIMEOUT_S
-        for publisher in self.publishers.values():
+        clock = [] if self._clock is None else [self._clock]
+        for publisher in [*self.publishers.values(), *clock]:
             remaining = max(deadline - time.monotonic(), 0.0)
             publisher.wait_for_all_acked(Duration(nanoseconds=round(remaining * 1e9)))
 
@@ -190,7 +194,21 @@ def run(args: argparse.Namespace) -> int:
         if unknown := sorted(set(topics) - set(reader.topics)):
             print(f"error: {args.bag} has no topic {', '.join(unknown)}", file=sys.stderr)
             return 2
-        return _play(args, reader, topics)
+        playable = [t for t in topics if _importable(reader.topics[t].msgtype)]
+        for topic in sorted(set(topics) - set(playable)):
+            msgtype = reader.topics[topic].msgtype
+            print(f"warning: {topic}: type {msgtype} not installed, not played", file=sys.stderr)
+        if not playable:
+            return 1
+        return _play(args, reader, playable)
+
+
+def _importable(msgtype: str) -> bool:
+    try:
+        message_class(msgtype)
+    except (ImportError, AttributeError, ValueError):
+        return False
+    return True
 
 
 def _play(args: argparse.Namespace, reader: BagReader, topics: list[str]) -> int:

@@ -125,7 +125,7 @@ class Recorder:
     """Subscribes to topics as they appear and writes what they carry on a writer thread.
 
     ``topics`` None records every topic. Counters (``received``, ``lost``) are updated on the
-    executor thread; the writer thread owns ``writer`` until ``close``. ``stop`` is set by the
+    executor thread; the writer thread owns ``writer`` and closes it. ``stop`` is set by the
     owner to end the recording, or by the writer thread when writing fails.
     """
 
@@ -202,6 +202,8 @@ class Recorder:
         self.lost[topic] += int(status.total_count_change)
 
     def _write_loop(self) -> None:
+        """Write queued items until the None sentinel, then close the bag — all on this thread
+        (the storage, e.g. a sqlite3 connection, belongs to the thread that opened it)."""
         try:
             while (item := self._queue.get()) is not None:
                 if isinstance(item, _Declare):
@@ -211,6 +213,11 @@ class Recorder:
         except BaseException as exc:  # re-raised by close()
             self.error = exc
             self.stop.set()
+        finally:
+            try:
+                self.writer.close()
+            except BaseException as exc:
+                self.error = self.error or exc
 
     def spin(self, executor: Any, progress: Progress) -> None:
         """Spin until ``stop``, then take every message the middleware already received."""
@@ -228,13 +235,13 @@ class Recorder:
         """Write what is queued, close the bag; re-raises a writer-thread error."""
         self._queue.put(None)
         self._thread.join()
-        self.writer.close()
         if self.error is not None:
             raise self.error
 
 
 def run(args: argparse.Namespace) -> int:
-    """Record until Ctrl-C/SIGTERM; prints the summary. 2 on bad arguments."""
+    """Record until Ctrl-C/SIGTERM; prints the summary. 2 on bad arguments, 1 if writing
+    failed."""
     if not args.topics and not args.all:
         print("error: name topics to record or use --all", file=sys.stderr)
         return 2
@@ -263,13 +270,20 @@ def run(args: argparse.Namespace) -> int:
         signal.signal(signum, lambda *_: recorder.stop.set())
     if recorder.waiting_for:
         print(f"waiting for {', '.join(recorder.waiting_for)}", file=sys.stderr)
+    failure: Exception | None = None
     try:
         with Progress("recorded", unit="msgs") as progress:
             recorder.spin(executor, progress)
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
-        recorder.close()
+        try:
+            recorder.close()
+        except Exception as exc:  # raised on the writer thread (disk full, ...)
+            failure = exc
+    if failure is not None:
+        print(f"error: writing {args.output} failed: {failure!r}", file=sys.stderr)
+        return 1
     print(writer.summary.format(f"bag {args.output} ({args.storage}, files: {len(writer.files)})"))
     lost = ", ".join(f"{t} {n}" for t, n in sorted(recorder.lost.items()) if n) or "none"
     print(f"  lost in transport (reported by the middleware): {lost}")
