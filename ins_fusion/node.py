@@ -1,15 +1,155 @@
-"""ins_fusion_node entry point.
+"""ins_fusion_node: GNSS-aided INS on ROS 2, a thin layer over ``ins_fusion.core.engine``.
 
-The fusion node (error-state filter over imu/data_raw + gnss/*) is issue 5 and not written yet;
-until then the executable says so and exits with an error instead of pretending to navigate.
+Subscribes ``imu/data_raw`` (sensor_msgs/Imu), ``gnss/fix`` (NavSatFix), ``gnss/vel``
+(TwistWithCovarianceStamped, ENU) and ``gnss/attitude`` (Imu orientation); publishes
+``ins/odometry`` (nav_msgs/Odometry in ``map`` = ENU tangent plane at the datum, child
+``base_link``), ``ins/fix`` (NavSatFix of base_link), ``ins/imu`` (orientation of base_link with
+bias-corrected rates) and ``/diagnostics``. Outputs are published from the IMU callback as soon
+as the sample is processed, at most at ``output_rate`` (by stamp). All callbacks run on one
+executor thread, so the engine needs no locking; measurements are applied at their own stamps by
+the engine (late GNSS data are rolled back and re-propagated there).
 """
 
 from __future__ import annotations
 
-import sys
+import math
+from typing import Any
+
+import numpy as np
+from geometry_msgs.msg import TwistWithCovarianceStamped
+from nav_msgs.msg import Odometry
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import Imu, NavSatFix
+
+from gnss_ins_common import ros_diagnostics as diag
+from gnss_ins_common.message_fields import fill_orientation, stamp_ns
+from gnss_ins_common.ros_node_main import run_node
+from gnss_ins_common.ros_params import declare_parameters
+from ins_fusion import messages_in
+from ins_fusion.core.config import FusionConfig
+from ins_fusion.core.engine import InsEngine, InsSolution
+from ins_fusion.fusion_params import PARAMETERS as FUSION_PARAMETERS
+from ins_fusion.solution_out import fill_fused_fix, fill_odometry
+
+#: Nominal IMU rate used for the published rate covariance (density^2 x rate) [Hz].
+_IMU_RATE_HZ = 134.0
+
+#: One table for the node and `gnss_ins replay` (ins_fusion/fusion_params.py).
+PARAMETERS = FUSION_PARAMETERS
+
+
+class InsFusionNode(Node):
+    """The fusion node; see the module docstring."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        """Declare and validate the parameters, build the engine, subscribe and advertise."""
+        super().__init__("ins_fusion_node", **kwargs)
+        values = declare_parameters(self, PARAMETERS)
+        self.params = values
+        config = FusionConfig.from_parameters(values)
+        self.engine = InsEngine(config)
+        self._map_frame = config.map_frame
+        self._base_frame = config.base_frame
+        self._output_period_s = 1.0 / config.output_rate_hz
+        self._last_output_s = -math.inf
+        self._rate_variance = float(np.mean(np.square(config.imu_noise.gyro_arw))) * _IMU_RATE_HZ
+        self._published = 0
+
+        sensor_qos = QoSProfile(depth=200, reliability=ReliabilityPolicy.RELIABLE)
+        self.create_subscription(Imu, "imu/data_raw", self._on_imu, sensor_qos)
+        self.create_subscription(NavSatFix, "gnss/fix", self._on_fix, 20)
+        self.create_subscription(TwistWithCovarianceStamped, "gnss/vel", self._on_velocity, 20)
+        self.create_subscription(Imu, "gnss/attitude", self._on_attitude, 20)
+        self._odom_pub = self.create_publisher(Odometry, "ins/odometry", 50)
+        self._fix_pub = self.create_publisher(NavSatFix, "ins/fix", 50)
+        self._imu_pub = self.create_publisher(Imu, "ins/imu", 50)
+        self._diagnostics = diag.DiagnosticsPublisher(self)
+        self.create_timer(values["diagnostics_period"], self._publish_diagnostics)
+        self.get_logger().info(
+            f"fusing imu/data_raw + gnss/* into ins/odometry at {config.output_rate_hz:g} Hz"
+        )
+
+    # ---- inputs -------------------------------------------------------------------------------
+    def _on_imu(self, msg: Imu) -> None:
+        sample = messages_in.imu_sample(msg)
+        self.engine.add_imu(*sample)
+        if sample.t_s < self._last_output_s:  # time jumped back (a bag restarted): the engine
+            self._last_output_s = -math.inf  # has reset; start the output clock anew
+        # Build the solution (not free) only when an output is due by the sample's stamp.
+        if sample.t_s - self._last_output_s >= self._output_period_s:
+            solution = self.engine.solution()
+            if solution is not None:
+                self._last_output_s = sample.t_s
+                self._publish(solution)
+
+    def _on_fix(self, msg: NavSatFix) -> None:
+        self.engine.add_gnss_fix(messages_in.fix_measurement(msg))
+
+    def _on_velocity(self, msg: TwistWithCovarianceStamped) -> None:
+        self.engine.add_gnss_velocity(messages_in.velocity_measurement(msg))
+
+    def _on_attitude(self, msg: Imu) -> None:
+        self.engine.add_attitude(messages_in.attitude_measurement(msg))
+
+    # ---- outputs ------------------------------------------------------------------------------
+    def _publish(self, solution: InsSolution) -> None:
+        odom = fill_odometry(
+            Odometry(), solution, self._map_frame, self._base_frame, self._rate_variance
+        )
+        self._odom_pub.publish(odom)
+        self._fix_pub.publish(fill_fused_fix(NavSatFix(), solution, self._base_frame))
+
+        imu = fill_orientation(
+            Imu(),
+            stamp_ns(solution.t_s),
+            self._base_frame,
+            solution.quat_enu_flu_xyzw,
+            solution.cov_att_enu_rad2.ravel(),
+        )
+        imu.angular_velocity = odom.twist.twist.angular  # bias-corrected, base_link
+        imu.angular_velocity_covariance = np.eye(3).ravel() * self._rate_variance
+        self._imu_pub.publish(imu)
+        self._published += 1
+
+    def _publish_diagnostics(self) -> None:
+        status = self.engine.status()
+        solution = self.engine.solution()
+        level = {"navigating": diag.OK, "aligning": diag.WARN}.get(status.state, diag.WARN)
+        if status.state == "degraded":
+            message = "degraded: no GNSS for too long"
+        elif status.last_reset_reason:
+            message = f"{status.state}; last reset: {status.last_reset_reason}"
+        else:
+            message = status.state
+        values: dict[str, object] = {
+            "state": status.state,
+            "imu_samples": status.imu_samples,
+            "imu_gaps": status.imu_gaps,
+            "imu_duplicates": status.imu_duplicates,
+            "resets": status.resets,
+            "rollbacks": status.rollbacks,
+            "stationary": status.stationary,
+            "outputs_published": self._published,
+        }
+        for name, counters in status.measurements.items():
+            for counter, count in counters.items():
+                values[f"{name}.{counter}"] = count
+        for name, nis in status.nis.items():
+            values[f"{name}.last_nis"] = nis
+        if solution is not None:
+            for axis, value in zip("xyz", solution.gyro_bias_flu_rad_s, strict=True):
+                values[f"gyro_bias_{axis}_deg_h"] = math.degrees(value) * 3600.0
+            for axis, value in zip("xyz", solution.accel_bias_flu_m_s2, strict=True):
+                values[f"accel_bias_{axis}_mg"] = value / 9.80665 * 1000.0
+            values["horizontal_sigma_m"] = math.sqrt(
+                solution.cov_pos_enu_m2[0, 0] + solution.cov_pos_enu_m2[1, 1]
+            )
+        self._diagnostics.publish(
+            diag.make_status(f"{self.get_name()}: INS", "gnss_ins", level, message, values)
+        )
 
 
 def main(args: list[str] | None = None) -> int:
     """Console-script entry point (``ros2 run gnss_ins ins_fusion_node``)."""
-    print("ins_fusion_node is not available yet (see issue 5).", file=sys.stderr)
-    return 1
+    return run_node(InsFusionNode, args)

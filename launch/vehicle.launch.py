@@ -1,47 +1,50 @@
-"""Launch the gnss_ins drivers on a machine with a full ROS 2 Jazzy install.
+"""Launch the gnss_ins vehicle on a machine with a full ROS 2 Jazzy install.
 
     ros2 launch gnss_ins vehicle.launch.py imu_port:=/dev/ttyUSB0 \
         leica_port:=/dev/ttyUSB1 adu5_port:=/dev/ttyUSB2
 
-Parameters come from the installed config/*.yaml; the port arguments override them. Each GNSS
-receiver runs in its own namespace (``leica/gnss/fix``, ``adu5/gnss/attitude``, ...).
+The nodes, namespaces and remappings come from ins_fusion.vehicle_nodes (the same table as
+`gnss_ins launch` and the demo); parameters from the installed config/*.yaml, the port arguments
+override them. Each GNSS receiver runs in its own namespace (``leica/gnss/fix``,
+``adu5/gnss/attitude``); ins_fusion_node reads those.
 """
 
-import os
-
-from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
+from gnss_ins_common.paths import config_file
+from ins_fusion.vehicle_nodes import DEFAULT_PORTS, VEHICLE
+
 
 def generate_launch_description() -> LaunchDescription:
-    """IMU400CC, Leica RTK rover and ADU5 driver nodes with their configuration files."""
-    config = os.path.join(get_package_share_directory("gnss_ins"), "config")
-    ports = {name: LaunchConfiguration(f"{name}_port") for name in ("imu", "leica", "adu5")}
-    defaults = {"imu": "/dev/ttyUSB0", "leica": "/dev/ttyUSB1", "adu5": "/dev/ttyUSB2"}
-    drivers = [
-        ("imu400cc_node", "imu400cc_node", "", "imu400cc.yaml", "imu"),
-        ("gnss_node", "leica_gnss", "leica", "gnss_leica.yaml", "leica"),
-        ("gnss_node", "adu5_gnss", "adu5", "gnss_adu5.yaml", "adu5"),
+    """The IMU400CC, Leica, ADU5 and fusion nodes with their configuration files."""
+    arguments = [
+        DeclareLaunchArgument(f"{role}_port", default_value=port)
+        for role, port in DEFAULT_PORTS.items()
     ]
-    return LaunchDescription(
-        [
-            *(
-                DeclareLaunchArgument(f"{name}_port", default_value=default)
-                for name, default in defaults.items()
-            ),
-            *(
-                Node(
-                    package="gnss_ins",
-                    executable=executable,
-                    name=node_name,
-                    namespace=namespace,
-                    parameters=[os.path.join(config, yaml_file), {"port": ports[port]}],
-                    output="screen",
-                )
-                for executable, node_name, namespace, yaml_file, port in drivers
-            ),
-        ]
-    )
+
+    def port(role: str | None) -> list[dict[str, LaunchConfiguration]]:
+        return [{"port": LaunchConfiguration(f"{role}_port")}] if role else []
+
+    nodes = [
+        Node(
+            package="gnss_ins",
+            executable=spec.executable,
+            name=spec.name,
+            namespace=spec.namespace,
+            parameters=[
+                str(config_file(spec.config)),
+                *(
+                    [{"port": LaunchConfiguration(f"{spec.port_role}_port")}]
+                    if spec.port_role
+                    else []
+                ),
+            ],
+            remappings=list(spec.remaps),
+            output="screen",
+        )
+        for spec in VEHICLE
+    ]
+    return LaunchDescription([*arguments, *nodes])

@@ -8,9 +8,14 @@ import pytest
 
 from gnss_driver.node import PARAMETERS as GNSS_PARAMETERS
 from imu400cc_driver.node import PARAMETERS as IMU_PARAMETERS
+from ins_fusion.fusion_params import PARAMETERS as FUSION_PARAMETERS
 
 REPO = Path(__file__).resolve().parents[1]
-NODES = {"imu400cc_node": IMU_PARAMETERS, "gnss_node": GNSS_PARAMETERS}
+NODES = {
+    "imu400cc_node": IMU_PARAMETERS,
+    "gnss_node": GNSS_PARAMETERS,
+    "ins_fusion_node": FUSION_PARAMETERS,
+}
 
 
 @pytest.mark.parametrize("node", sorted(NODES))

@@ -15,10 +15,16 @@ import sys
 SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "emulate-imu": ("emulate_imu", "emulated IMU400CC on a pseudo-terminal"),
     "emulate-gnss": ("emulate_gnss", "emulated Leica RTK rover or ADU5 on a pseudo-terminal"),
+    "demo": (
+        "demo",
+        "the whole system on a simulated drive: emulators, nodes, bag, accuracy report",
+    ),
+    "launch": ("launch", "start the vehicle's nodes for real hardware (no ros2 needed)"),
     "imu-demo": ("imu_demo", "run imu400cc_node on an emulated device and print what it publishes"),
     "import-qfree": ("import_qfree", "Q-Free OBU GNSS/MEMS text logs to a rosbag2 bag"),
     "record": ("record", "record ROS 2 topics to a rosbag2 bag (MCAP or sqlite3)"),
     "play": ("play", "publish a rosbag2 bag with its timing and /clock"),
+    "replay": ("replay", "bag through the fusion core offline: accuracy report, plot, sweeps"),
     "simulate": ("simulate", "simulated drive to a rosbag2 bag, or live on emulated devices"),
 }
 

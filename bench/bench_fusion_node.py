@@ -1,0 +1,126 @@
+"""ins_fusion_node at 134 Hz: CPU and IMU-sample-to-Odometry latency. Prints numbers only.
+
+A simulated bag (imu400cc, test pattern, Leica RTK + ADU5) is played in real time with
+`gnss_ins play`; the node runs as its own executable with output_rate = 134 Hz (one Odometry
+per IMU sample). A subscriber in this process receives both imu/data_raw and ins/odometry;
+latency = receive time of the Odometry - receive time of the Imu message with the same stamp
+(the node's processing plus one DDS hop). CPU = the node process's user + system time.
+
+    .venv/bin/python bench/bench_fusion_node.py [--duration 120]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import rclpy
+from bench_imu_node import process_cpu_s
+from nav_msgs.msg import Odometry
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import Imu
+
+from ins_fusion.sim.topics import SimulationConfig
+from ins_fusion.tools.simulate import write_bag
+
+
+def _stamp_us(msg) -> int:
+    """Stamp in whole µs: the Odometry stamp went through float seconds, the Imu one did not."""
+    return round((msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec) / 1000)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--duration", type=float, default=120.0, help="bag length [s]")
+    parser.add_argument(
+        "--output-rate",
+        type=float,
+        default=134.0,
+        help="node output_rate [Hz]; 134 = one Odometry per IMU sample",
+    )
+    args = parser.parse_args()
+    os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    os.environ.setdefault("ROS_DOMAIN_ID", str(40 + os.getpid() % 50))
+    bin_dir = Path(sys.executable).parent
+
+    with tempfile.TemporaryDirectory() as tmp:
+        bag = Path(tmp) / "drive"
+        write_bag(SimulationConfig(duration_s=args.duration, seed=2), bag)
+
+        imu_rx: dict[int, float] = {}  # stamp [µs] -> receive time
+        odom_rx: dict[int, float] = {}
+        lock = threading.Lock()
+        rclpy.init()
+        listener = rclpy.create_node("bench_fusion_listener")
+        qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+
+        def store(table: dict[int, float]):
+            def callback(msg) -> None:
+                now = time.perf_counter()
+                with lock:
+                    table[_stamp_us(msg)] = now
+
+            return callback
+
+        listener.create_subscription(Imu, "imu/data_raw", store(imu_rx), qos)
+        listener.create_subscription(Odometry, "ins/odometry", store(odom_rx), qos)
+        executor = SingleThreadedExecutor()
+        executor.add_node(listener)
+        threading.Thread(target=executor.spin, daemon=True).start()
+
+        node = subprocess.Popen(
+            [bin_dir / "ins_fusion_node", "--ros-args", "-p", f"output_rate:={args.output_rate}"],
+            stderr=subprocess.DEVNULL,
+        )
+        time.sleep(3.0)  # discovery
+        cpu0, wall0 = process_cpu_s(node.pid), time.monotonic()
+        subprocess.run(
+            [
+                bin_dir / "gnss_ins",
+                "play",
+                str(bag),
+                "--wait-for-subscribers",
+                "--topics",
+                "/imu/data_raw",
+                "/gnss/fix",
+                "/gnss/vel",
+                "/gnss/attitude",
+            ],
+            check=True,
+            capture_output=True,
+        )
+        cpu1, wall1 = process_cpu_s(node.pid), time.monotonic()
+        time.sleep(0.5)
+        node.terminate()
+        node.wait(timeout=10)
+        executor.shutdown()
+        listener.destroy_node()
+        rclpy.shutdown()
+
+    with lock:
+        common = sorted(set(imu_rx) & set(odom_rx))
+        latency_ms = np.array([(odom_rx[s] - imu_rx[s]) * 1e3 for s in common])
+    print(
+        f"ins_fusion_node, {args.duration:.0f} s bag played in real time, "
+        f"output_rate {args.output_rate:g} Hz"
+    )
+    print(f"  Imu messages received {len(imu_rx)}, Odometry {len(odom_rx)}, matched {len(common)}")
+    if len(latency_ms):
+        print(
+            "  latency Imu -> Odometry [ms]: "
+            f"p50 {np.percentile(latency_ms, 50):.3f}  p99 {np.percentile(latency_ms, 99):.3f}  "
+            f"max {latency_ms.max():.3f}"
+        )
+    print(f"  node CPU: {100 * (cpu1 - cpu0) / (wall1 - wall0):.1f} % of one core")
+
+
+if __name__ == "__main__":
+    main()

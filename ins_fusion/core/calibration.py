@@ -1,0 +1,244 @@
+"""Deterministic IMU error correction from a laboratory calibration file (no ROS).
+
+Observation model of Aalborg notes §3.1, (2.1)/(2.2) (shared/reference/imu400cc-aalborg-notes.md),
+per triad in imu_link FLU axes, y = true rate or specific force:
+
+    ỹ = (I + diag(s±) + A) y + b  [+ G f for the gyros]
+
+with the scale-factor error s± chosen by the sign of each input (asymmetric scale), A the
+off-diagonal misalignment, b the bias and G the g-dependent gyro bias. The correction inverts it:
+y = (I + diag(s±) + A)⁻¹ (ỹ - b - G f), which for A = 0 is Aalborg (9.1)/(9.2) per axis. The
+sign is taken from ỹ - b. The accelerometers are corrected first; their result is the f of G f.
+
+File format (``imu_calibration:`` section; every term optional, zero when absent; the future
+``gnss_ins calibrate`` tool writes the same keys). Axes are imu_link FLU, in user units named
+by the key suffix, each term with its 1σ (the day-to-day scatter of the laboratory estimate):
+
+    imu_calibration:
+      sensor: free text
+      source: free text
+      temperature_range_c: [low, high]          # calibration valid between these temperatures
+      gyro:
+        bias_deg_s: [x, y, z]                   # and bias_sigma_deg_s
+        scale_positive_percent: [x, y, z]       # S+, and scale_positive_sigma_percent
+        scale_negative_percent: [x, y, z]       # S-, and scale_negative_sigma_percent
+        misalignment_mrad: [[..], [..], [..]]   # A[i][j]: axis i sensing input j (diagonal 0)
+        g_sensitivity_deg_s_per_g: [[..], ..]   # G[i][j]: gyro i per g on accelerometer axis j
+      accel:
+        bias_mg: [x, y, z]                      # and bias_sigma_mg
+        scale_positive_percent / scale_negative_percent / misalignment_mrad as for the gyros
+
+Each ``*_sigma_*`` key sits next to its value key (``misalignment_sigma_mrad``, ...).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from ins_fusion.core.units import STANDARD_GRAVITY_M_S2, deg_s, mg, percent
+
+Vec3 = tuple[float, float, float]
+Mat3 = tuple[Vec3, Vec3, Vec3]
+_ZERO3: Vec3 = (0.0, 0.0, 0.0)
+_ZERO33: Mat3 = (_ZERO3, _ZERO3, _ZERO3)
+
+
+class CalibrationError(ValueError):
+    """The calibration file is unreadable or malformed."""
+
+
+@dataclass(frozen=True)
+class TriadCalibration:
+    """Deterministic errors of one triad (SI, imu_link FLU axes) and their 1σ.
+
+    bias [rad/s or m/s²]; scale_positive / scale_negative: scale-factor error for positive /
+    negative input [fraction]; misalignment_rad: off-diagonal A[i][j] [rad].
+    """
+
+    bias: Vec3 = _ZERO3
+    bias_sigma: Vec3 = _ZERO3
+    scale_positive: Vec3 = _ZERO3
+    scale_positive_sigma: Vec3 = _ZERO3
+    scale_negative: Vec3 = _ZERO3
+    scale_negative_sigma: Vec3 = _ZERO3
+    misalignment_rad: Mat3 = _ZERO33
+    misalignment_sigma_rad: Mat3 = _ZERO33
+
+    @functools.cached_property
+    def _inverses(self) -> tuple[tuple[float, ...], ...]:
+        """(I + diag(s±) + A)⁻¹ row-major for the 8 sign patterns (bit i set = axis i < 0)."""
+        inverses = []
+        for signs in range(8):
+            scale = [
+                self.scale_negative[i] if signs >> i & 1 else self.scale_positive[i]
+                for i in range(3)
+            ]
+            mat = np.eye(3) + np.diag(scale) + np.array(self.misalignment_rad) * (1 - np.eye(3))
+            inverses.append(tuple(float(v) for v in np.linalg.inv(mat).ravel()))
+        return tuple(inverses)
+
+    def correct(self, measured: Vec3, extra_bias: Vec3 = _ZERO3) -> Vec3:
+        """True input from a measured triad sample; extra_bias (the G f term) is removed too."""
+        x = measured[0] - self.bias[0] - extra_bias[0]
+        y = measured[1] - self.bias[1] - extra_bias[1]
+        z = measured[2] - self.bias[2] - extra_bias[2]
+        m = self._inverses[(x < 0.0) | (y < 0.0) << 1 | (z < 0.0) << 2]
+        return (
+            m[0] * x + m[1] * y + m[2] * z,
+            m[3] * x + m[4] * y + m[5] * z,
+            m[6] * x + m[7] * y + m[8] * z,
+        )
+
+
+@dataclass(frozen=True)
+class ImuCalibration:
+    """Laboratory calibration of an IMU (see the module docstring for model and file format).
+
+    g_sensitivity: G[i][j], rate error of gyro i per m/s² of specific force on axis j
+    [(rad/s)/(m/s²)]; temperature_range_c: IMU temperatures the values are valid for [°C].
+    """
+
+    gyro: TriadCalibration = TriadCalibration()
+    accel: TriadCalibration = TriadCalibration()
+    g_sensitivity: Mat3 = _ZERO33
+    g_sensitivity_sigma: Mat3 = _ZERO33
+    temperature_range_c: tuple[float, float] | None = None
+    sensor: str = ""
+    source: str = ""
+
+    @classmethod
+    def from_yaml(cls, path: str | Path) -> ImuCalibration:
+        """Read the ``imu_calibration`` section of a calibration file."""
+        try:
+            document = yaml.safe_load(Path(path).read_text())
+        except (OSError, yaml.YAMLError) as exc:
+            raise CalibrationError(f"cannot read calibration file {path}: {exc}") from exc
+        if not isinstance(document, Mapping) or "imu_calibration" not in document:
+            raise CalibrationError(f"{path}: no 'imu_calibration' section")
+        return cls.from_mapping(document["imu_calibration"])
+
+    @classmethod
+    def from_mapping(cls, section: Mapping[str, Any]) -> ImuCalibration:
+        """Calibration from the parsed ``imu_calibration`` mapping (user units)."""
+        fields = _Fields(section, "imu_calibration")
+        gyro = _Fields(fields.mapping("gyro"), "gyro")
+        accel = _Fields(fields.mapping("accel"), "accel")
+        per_g = deg_s(1.0) / STANDARD_GRAVITY_M_S2
+        calibration = cls(
+            gyro=_triad(gyro, "bias_deg_s", deg_s(1.0)),
+            accel=_triad(accel, "bias_mg", mg(1.0)),
+            g_sensitivity=gyro.matrix("g_sensitivity_deg_s_per_g", per_g),
+            g_sensitivity_sigma=gyro.matrix("g_sensitivity_sigma_deg_s_per_g", per_g),
+            temperature_range_c=fields.temperature_range(),
+            sensor=str(section.get("sensor", "")),
+            source=str(section.get("source", "")),
+        )
+        for part in (fields, gyro, accel):
+            part.reject_unknown()
+        return calibration
+
+    def correct(self, rate_flu_rad_s: Vec3, force_flu_m_s2: Vec3) -> tuple[Vec3, Vec3]:
+        """(rate, specific force) corrected for the deterministic errors, imu_link FLU, SI."""
+        force = self.accel.correct(force_flu_m_s2)
+        g = self.g_sensitivity
+        g_term = (
+            g[0][0] * force[0] + g[0][1] * force[1] + g[0][2] * force[2],
+            g[1][0] * force[0] + g[1][1] * force[1] + g[1][2] * force[2],
+            g[2][0] * force[0] + g[2][1] * force[1] + g[2][2] * force[2],
+        )
+        return self.gyro.correct(rate_flu_rad_s, g_term), force
+
+    def in_temperature_range(self, temperature_c: float) -> bool:
+        """Whether the IMU temperature is inside the calibration's range (True when unknown)."""
+        if self.temperature_range_c is None:
+            return True
+        low, high = self.temperature_range_c
+        return low <= temperature_c <= high
+
+
+def _triad(fields: _Fields, bias_key: str, bias_unit: float) -> TriadCalibration:
+    sigma_key = bias_key.replace("bias_", "bias_sigma_")
+    pct = percent(1.0)
+    mrad = 1e-3
+    return TriadCalibration(
+        bias=fields.vector(bias_key, bias_unit),
+        bias_sigma=fields.vector(sigma_key, bias_unit),
+        scale_positive=fields.vector("scale_positive_percent", pct),
+        scale_positive_sigma=fields.vector("scale_positive_sigma_percent", pct),
+        scale_negative=fields.vector("scale_negative_percent", pct),
+        scale_negative_sigma=fields.vector("scale_negative_sigma_percent", pct),
+        misalignment_rad=fields.matrix("misalignment_mrad", mrad),
+        misalignment_sigma_rad=fields.matrix("misalignment_sigma_mrad", mrad),
+    )
+
+
+class _Fields:
+    """Typed access to one mapping of the file; remembers which keys were read."""
+
+    _TEXT = frozenset({"sensor", "source"})
+
+    def __init__(self, section: Any, where: str) -> None:
+        if not isinstance(section, Mapping):
+            raise CalibrationError(f"'{where}' must be a mapping")
+        self._section = section
+        self._where = where
+        self._used: set[str] = set(self._TEXT)
+
+    def _get(self, key: str) -> Any:
+        self._used.add(key)
+        return self._section.get(key)
+
+    def mapping(self, key: str) -> Mapping[str, Any]:
+        value = self._get(key)
+        return {} if value is None else value  # type checked by _Fields of the sub-section
+
+    def vector(self, key: str, unit: float) -> Vec3:
+        value = self._get(key)
+        if value is None:
+            return _ZERO3
+        numbers = _numbers(value, f"{self._where}.{key}")
+        if len(numbers) != 3:
+            raise CalibrationError(f"{self._where}.{key}: needs three values (x, y, z)")
+        return (numbers[0] * unit, numbers[1] * unit, numbers[2] * unit)
+
+    def matrix(self, key: str, unit: float) -> Mat3:
+        value = self._get(key)
+        if value is None:
+            return _ZERO33
+        if not isinstance(value, list) or len(value) != 3:
+            raise CalibrationError(f"{self._where}.{key}: needs three rows of three values")
+        rows = [_numbers(row, f"{self._where}.{key}") for row in value]
+        if any(len(row) != 3 for row in rows):
+            raise CalibrationError(f"{self._where}.{key}: needs three rows of three values")
+        (a, b, c) = ((r[0] * unit, r[1] * unit, r[2] * unit) for r in rows)
+        return (a, b, c)
+
+    def temperature_range(self) -> tuple[float, float] | None:
+        value = self._get("temperature_range_c")
+        if value is None:
+            return None
+        numbers = _numbers(value, f"{self._where}.temperature_range_c")
+        if len(numbers) != 2 or numbers[0] > numbers[1]:
+            raise CalibrationError(f"{self._where}.temperature_range_c: needs [low, high]")
+        return numbers[0], numbers[1]
+
+    def reject_unknown(self) -> None:
+        unknown = sorted(set(self._section) - self._used)
+        if unknown:
+            raise CalibrationError(f"{self._where}: unknown key(s) {', '.join(unknown)}")
+
+
+def _numbers(value: Any, where: str) -> list[float]:
+    if not isinstance(value, list) or not all(
+        isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in value
+    ):
+        raise CalibrationError(f"{where}: expected a list of finite numbers, got {value!r}")
+    return [float(v) for v in value]

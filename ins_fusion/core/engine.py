@@ -1,0 +1,1338 @@
+"""GNSS-aided INS engine: the pure fusion core behind ins_fusion_node and ``gnss_ins replay``.
+
+Feed it IMU samples and GNSS/attitude measurements in arrival order; ask for ``solution()`` and
+``status()``. It knows nothing of ROS, files or clocks: every time is a message stamp [s].
+
+Pipeline per IMU sample (imu_link FLU, SI, REP-145): calibration (core.calibration, Aalborg notes
+(9.1)/(9.2)) -> FRD -> increments (strapdown.SampleIntegrator, interval from the stamps) ->
+filter bias/scale correction -> mounting rotation imu_link -> base_link -> strapdown mechanization
+of the IMU point with base_link axes -> covariance propagation (core.eskf) -> pseudo-measurements
+(ZUPT, ZARU, NHC) at ``pseudo_measurement_rate``.
+
+Measurements at their own stamps: every IMU sample leaves a history entry (its increment and a
+checkpoint of the state after it) for ``history_s`` seconds. A measurement stamped t_m is applied
+at the last entry at or before t_m, with the prediction carried from that entry to t_m by the
+entry's velocity, acceleration and body rate (less than one IMU interval: the neglected terms are
+below 0.1 mm and 1e-5 rad at car dynamics). If later entries exist, the engine rolls back to that
+entry's checkpoint, applies the entry's measurements in stamp order and re-propagates the later
+samples with their own measurements, once, before the next IMU sample or output (a fix and its
+velocity share one re-propagation). Re-propagation (rather than carrying the correction forward
+with a transition matrix) is exact for any delay; it costs one ``_step`` per replayed sample,
+i.e. the latency times 134 samples per epoch: 7 for the Leica's 0.053 s, about 7 % of the
+samples (measured in bench/bench_fusion_engine.py). Measurements newer than the latest IMU
+sample wait for it.
+Duplicates (same kind and stamp) are ignored and counted; measurements older than the history
+are rejected and counted as ``too_old``; a backwards IMU stamp resets the engine.
+
+Alignment and states: 'aligning' while levelling on a standstill (no solution yet) and while the
+heading is unknown; 'navigating'; 'degraded' when no GNSS position was used for
+``degraded_after_s``. Levelling (core.alignment) averages ``alignment.duration`` seconds of a
+detected standstill for roll, pitch and the gyro-bias seed; the heading comes from the attitude
+receiver, or from the GNSS course once faster than ``alignment.course_speed`` (NTNU notes §8). A
+vehicle that is already moving aligns from attitude or course with roll = pitch = 0 ± the
+``alignment.moving_tilt_sigma``. While the heading is unknown the yaw error is kept out of the
+filter (its covariance row and column zeroed): GNSS updates are applied only near standstill,
+where the yaw does not enter them except through the lever arm, whose antenna position the
+heading initialisation then keeps.
+"""
+
+from __future__ import annotations
+
+import bisect
+import heapq
+import itertools
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any, TypeVar
+
+import numpy as np
+
+from ins_fusion.core import earth
+from ins_fusion.core.alignment import (
+    Levelling,
+    earth_rate_body_rad_s,
+    level,
+    unknown_earth_rate_rad_s,
+)
+from ins_fusion.core.calibration import ImuCalibration
+from ins_fusion.core.config import FusionConfig
+from ins_fusion.core.eskf import (
+    ATT,
+    BA,
+    BG,
+    POS,
+    VEL,
+    ErrorStateFilter,
+    StateLayout,
+    chi2_threshold,
+    skew,
+)
+from ins_fusion.core.measurements import (
+    UNKNOWN_ANGLE_VARIANCE,
+    AttitudeMeasurement,
+    GnssFixMeasurement,
+    GnssVelocityMeasurement,
+    Model,
+    Prediction,
+    attitude,
+    euler_rad,
+    gnss_position,
+    gnss_velocity,
+    ned_cov,
+    nhc,
+    wrap_angle,
+    zaru,
+    zupt,
+)
+from ins_fusion.core.rotation import (
+    MAT_ENU_NED,
+    MAT_FLU_FRD,
+    FloatArray,
+    Quat,
+    Vec3,
+    quat_from_euler,
+    quat_from_rotvec,
+    quat_multiply,
+    quat_nb_from_enu_flu,
+    quat_normalize,
+)
+from ins_fusion.core.stop_detector import GNSS_SPEED_MAX_AGE_S, StopDetector
+from ins_fusion.core.strapdown import ImuIncrement, NavState, SampleIntegrator, propagate
+
+__all__ = [
+    "MEASUREMENT_NAMES",
+    "AttitudeMeasurement",
+    "EngineStatus",
+    "FusionConfig",
+    "GnssFixMeasurement",
+    "GnssVelocityMeasurement",
+    "ImuCalibration",
+    "InsEngine",
+    "InsSolution",
+]
+
+#: Measurement kinds, as counted in ``EngineStatus.measurements``.
+MEASUREMENT_NAMES = (
+    "gnss_position",
+    "gnss_velocity",
+    "attitude",
+    "zupt",
+    "zaru",
+    "nhc",
+    "course_heading",
+)
+#: Counters kept per measurement kind ('rejected' includes 'gated' and 'too_old').
+COUNTERS = ("used", "rejected", "gated", "too_old", "duplicates")
+
+#: An IMU interval longer than this many nominal intervals is a gap (bridged, counted).
+_GAP_FACTOR = 2.5
+#: Yaw variance standing for 'heading unknown' [rad²].
+_UNKNOWN_YAW_VARIANCE = (math.pi / 2.0) ** 2
+#: While the heading is unknown, GNSS updates are applied only below this speed [m/s].
+_ALIGN_MAX_SPEED_M_S = 1.0
+#: Largest distance in time between a fix and the alignment that uses it [s].
+_ALIGN_FIX_MAX_AGE_S = 1.5
+#: A change of the receiver's reported variance by more than this factor restarts the
+#: correlated GNSS error states (another fix type).
+_GNSS_NOISE_JUMP = 1.5
+#: Most measurements waiting for a later IMU sample.
+_MAX_PENDING = 256
+#: Course-heading variance floor for side slip and antenna motion [rad²] (0.5°).
+_COURSE_EXTRA_VARIANCE = math.radians(0.5) ** 2
+#: ENU <-> NED quaternion (180° about (N+E)/√2) and FRD <-> FLU (180° about x), scalar last.
+_Q_ENU_NED: Quat = (math.sqrt(0.5), math.sqrt(0.5), 0.0, 0.0)
+_Q_FRD_FLU: Quat = (1.0, 0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class InsSolution:
+    """Fused state of base_link at the latest IMU stamp t_s [s].
+
+    lat_deg, lon_deg, height_m: WGS-84 position of the base_link origin (ellipsoidal height);
+    pos_enu_m: the same in the ENU tangent plane at ``datum``; vel_enu_m_s: base_link velocity;
+    quat_enu_flu_xyzw: base_link (FLU) in ENU; rate_flu_rad_s: bias-corrected ω_ib in base_link
+    FLU; covariances [m², m²/s², rad²] in ENU (attitude: errors about the ENU axes);
+    gyro_bias_flu_rad_s, accel_bias_flu_m_s2: estimated sensor biases in imu_link FLU (after the
+    calibration file's correction); state: 'aligning' | 'navigating' | 'degraded'.
+    """
+
+    t_s: float
+    lat_deg: float
+    lon_deg: float
+    height_m: float
+    pos_enu_m: FloatArray
+    vel_enu_m_s: FloatArray
+    quat_enu_flu_xyzw: FloatArray
+    rate_flu_rad_s: FloatArray
+    cov_pos_enu_m2: FloatArray
+    cov_vel_enu: FloatArray
+    cov_att_enu_rad2: FloatArray
+    gyro_bias_flu_rad_s: FloatArray
+    accel_bias_flu_m_s2: FloatArray
+    state: str
+
+
+@dataclass(frozen=True)
+class EngineStatus:
+    """Diagnostics: state, per-measurement counters ({name: {counter: n}}, COUNTERS), resets
+    with the reason of the last one, IMU samples/gaps/duplicate stamps, the last normalised
+    innovation squared per measurement, rollbacks and re-propagated samples for late
+    measurements, and the stop detector's decision."""
+
+    state: str
+    measurements: dict[str, dict[str, int]]
+    resets: int
+    last_reset_reason: str
+    imu_samples: int
+    imu_gaps: int
+    imu_duplicates: int
+    nis: dict[str, float]
+    rollbacks: int
+    replayed_samples: int
+    stationary: bool
+
+
+class _State:
+    """Nominal state and filter bookkeeping at one IMU stamp. Copies are history checkpoints:
+    every field is immutable or never modified in place, so a shallow copy suffices.
+
+    cov_dt, cov_dth, cov_dv, cov_vel0: IMU interval not yet in the covariance (duration [s],
+    corrected angle and velocity increments in imu FRD, NED velocity at its start).
+    """
+
+    __slots__ = (
+        "_mat_nb",
+        "accel_bias",
+        "accel_n",
+        "accel_scale",
+        "cov_dt",
+        "cov_dth",
+        "cov_dv",
+        "cov_vel0",
+        "gnss_error",
+        "gnss_variance",
+        "gyro_bias",
+        "gyro_scale",
+        "heading_known",
+        "last_position_t_s",
+        "nav",
+        "prev_inc",
+        "rate_b",
+        "rate_i",
+        "t_s",
+    )
+
+    def __init__(self, t_s: float, nav: NavState, gyro_bias: Vec3, heading_known: bool) -> None:
+        zero: Vec3 = (0.0, 0.0, 0.0)
+        self.t_s = t_s
+        self.nav = nav
+        self._mat_nb: FloatArray | None = None
+        self.gyro_bias = gyro_bias
+        self.accel_bias = self.gyro_scale = self.accel_scale = zero
+        self.prev_inc: ImuIncrement | None = None
+        self.rate_b = self.rate_i = self.accel_n = zero
+        self.heading_known = heading_known
+        self.last_position_t_s = t_s
+        self.gnss_error = self.gnss_variance = zero
+        self.cov_dt = 0.0
+        self.cov_dth = self.cov_dv = zero
+        self.cov_vel0 = nav.vel_ned_m_s
+
+    def copy(self) -> _State:
+        other = _State.__new__(_State)
+        other._mat_nb = self._mat_nb
+        other.accel_bias = self.accel_bias
+        other.accel_n = self.accel_n
+        other.accel_scale = self.accel_scale
+        other.cov_dt = self.cov_dt
+        other.cov_dth = self.cov_dth
+        other.cov_dv = self.cov_dv
+        other.cov_vel0 = self.cov_vel0
+        other.gnss_error = self.gnss_error
+        other.gnss_variance = self.gnss_variance
+        other.gyro_bias = self.gyro_bias
+        other.gyro_scale = self.gyro_scale
+        other.heading_known = self.heading_known
+        other.last_position_t_s = self.last_position_t_s
+        other.nav = self.nav
+        other.prev_inc = self.prev_inc
+        other.rate_b = self.rate_b
+        other.rate_i = self.rate_i
+        other.t_s = self.t_s
+        return other
+
+    @property
+    def mat_nb(self) -> FloatArray:
+        """Body (base_link FRD) -> NED rotation of ``nav`` (computed once per state)."""
+        if self._mat_nb is None:
+            self._mat_nb = self.nav.mat_nb
+        return self._mat_nb
+
+    def set_nav(self, nav: NavState) -> None:
+        self.nav = nav
+        self._mat_nb = None
+
+
+_M = TypeVar("_M", AttitudeMeasurement, GnssVelocityMeasurement)
+
+#: A measurement in the history: (stamp, arrival sequence, kind, payload).
+_Record = tuple[float, int, str, Any]
+
+
+class _Entry:
+    """One IMU sample in the history: its raw increment (imu FRD, calibrated), whether the
+    coning/sculling history restarts, the checkpoint after it and its measurements."""
+
+    __slots__ = ("checkpoint", "fresh", "inc", "measurements", "t_s")
+
+    def __init__(
+        self, t_s: float, inc: ImuIncrement, fresh: bool, checkpoint: tuple[_State, FloatArray]
+    ) -> None:
+        self.t_s = t_s
+        self.inc = inc
+        self.fresh = fresh
+        self.checkpoint = checkpoint
+        self.measurements: list[_Record] = []
+
+
+def _frd(v_flu: Sequence[float]) -> FloatArray:
+    return np.array([v_flu[0], -v_flu[1], -v_flu[2]], dtype=np.float64)
+
+
+def _mat_from_rpy_flu(rpy_rad: Sequence[float]) -> FloatArray:
+    """FRD -> FRD rotation of a sensor whose FLU frame has REP-103 roll, pitch, yaw in base_link."""
+    q = quat_from_euler(rpy_rad[0], rpy_rad[1], rpy_rad[2])
+    mat = NavState(0.0, 0.0, 0.0, np.zeros(3), q).mat_nb
+    return np.asarray(MAT_FLU_FRD @ mat @ MAT_FLU_FRD, dtype=np.float64)
+
+
+def _quat(values: FloatArray) -> Quat:
+    return (float(values[0]), float(values[1]), float(values[2]), float(values[3]))
+
+
+def _quat_enu_flu(quat_nb: Quat) -> Quat:
+    """REP-103 orientation (FLU in ENU) of a body (FRD) -> NED quaternion, w >= 0."""
+    return quat_normalize(quat_multiply(quat_multiply(_Q_ENU_NED, quat_nb), _Q_FRD_FLU))
+
+
+class InsEngine:
+    """Loosely coupled, closed-loop error-state GNSS/INS (see the module docstring)."""
+
+    _filter: ErrorStateFilter | None
+    _state: _State | None
+    _history: list[_Entry]
+    _history_t: list[float]
+    _pending: list[_Record]
+    _replay_from: int | None
+    _fresh: set[int]
+    _seen: dict[str, set[float]]
+    _last_t_s: float | None
+    _last_sample: tuple[Vec3, Vec3]
+    _last_fix: GnssFixMeasurement | None
+    _last_velocity: GnssVelocityMeasurement | None
+    _last_attitude: AttitudeMeasurement | None
+    _gnss_speed: tuple[float, float] | None
+    _nominal_dt_s: float
+    _next_pseudo_t_s: float
+    _zaru_sum: list[float]
+    _zaru_count: int
+    _zaru_start_s: float
+
+    def __init__(self, config: FusionConfig, calibration: ImuCalibration | None = None) -> None:
+        """``calibration`` overrides ``config.calibration_file`` (empty file name = none)."""
+        self.config = config
+        if calibration is None and config.calibration_file:
+            calibration = ImuCalibration.from_yaml(config.calibration_file)
+        self.calibration = calibration
+        noise = config.imu_noise
+        self.layout = StateLayout(
+            noise.gyro_scale_sigma > 0.0,
+            noise.accel_scale_sigma > 0.0,
+            config.gnss_correlation_time_s > 0.0,
+        )
+        self._mat_bi = _mat_from_rpy_flu(config.imu_mounting_rpy_rad)
+        self._r_bi = tuple(float(v) for v in self._mat_bi.ravel())
+        imu_arm_b = _frd(config.imu_lever_arm_flu_m)
+        self._antenna_arm_b = _frd(config.gnss_lever_arm_flu_m) - imu_arm_b
+        self._base_arm_b = -imu_arm_b
+        # Orientation of base_link from that of the attitude receiver's frame a: q_ea ⊗ q_ab.
+        q_ba = quat_from_euler(*config.attitude_mounting_rpy_rad)
+        self._q_a_base: Quat = (-q_ba[0], -q_ba[1], -q_ba[2], q_ba[3])
+        self._gates = {dof: chi2_threshold(config.gate_probability, dof) for dof in (1, 2, 3)}
+        self._pseudo_period_s = 1.0 / config.pseudo_measurement_rate_hz
+        self._gyro_psd = np.square(noise.gyro_arw)
+        self._gnss_white_var_ned = np.square(MAT_ENU_NED @ config.gnss_white_sigma_enu_m)
+        self.datum: tuple[float, float, float] | None = config.datum_deg
+        self._counters = {name: dict.fromkeys(COUNTERS, 0) for name in MEASUREMENT_NAMES}
+        self._nis = dict.fromkeys(MEASUREMENT_NAMES, math.nan)
+        self._resets = 0
+        self._last_reset_reason = ""
+        self._imu_samples = 0
+        self._imu_gaps = 0
+        self._imu_duplicates = 0
+        self._rollbacks = 0
+        self._replayed_samples = 0
+        self._sequence = itertools.count()
+        self._handlers: dict[str, Callable[[Prediction, Any, bool], None]] = {
+            "gnss_position": self._gnss_position,
+            "gnss_velocity": self._gnss_velocity,
+            "attitude": self._attitude,
+            "zupt": self._zupt,
+            "zaru": self._zaru,
+            "nhc": self._nhc,
+        }
+        self._detector = StopDetector(config.stop_detector, self._mat_bi)
+        self._levelling = Levelling()
+        self._integrator = SampleIntegrator()
+        self._clear()
+
+    # ----------------------------------------------------------------------------- inputs
+
+    def add_imu(
+        self,
+        t_s: float,
+        rate_flu_rad_s: Sequence[float] | FloatArray,
+        force_flu_m_s2: Sequence[float] | FloatArray,
+    ) -> None:
+        """One IMU sample as published by imu400cc_node: imu_link FLU, rad/s and m/s², stamp."""
+        t = float(t_s)
+        rate: Vec3 = (float(rate_flu_rad_s[0]), float(rate_flu_rad_s[1]), float(rate_flu_rad_s[2]))
+        force: Vec3 = (float(force_flu_m_s2[0]), float(force_flu_m_s2[1]), float(force_flu_m_s2[2]))
+        if not (math.isfinite(t) and all(map(math.isfinite, rate + force))):
+            self._imu_gaps += 1  # a corrupt sample is a one-sample gap
+            return
+        last = self._last_t_s
+        if last is not None and t <= last:
+            if t == last:
+                self._imu_duplicates += 1
+                return
+            self._reset(f"IMU stamp went back by {last - t:.3f} s")
+            last = None
+        self._imu_samples += 1
+        if self.calibration is not None:
+            rate, force = self.calibration.correct(rate, force)
+        rate_i: Vec3 = (rate[0], -rate[1], -rate[2])
+        force_i: Vec3 = (force[0], -force[1], -force[2])
+
+        if last is None:
+            self._start_stream(t, rate_i, force_i)
+            return
+        dt = t - last
+        fresh = dt > _GAP_FACTOR * self._nominal_dt_s
+        if fresh:
+            self._imu_gaps += 1
+            if dt > self.config.imu_gap_reset_s:
+                self._reset(f"IMU gap of {dt:.3f} s")
+                self._start_stream(t, rate_i, force_i)
+                return
+            inc = self._bridge(dt, rate_i, force_i)
+        else:
+            pushed = self._integrator.push(t, rate_i, force_i)
+            assert pushed is not None
+            inc = pushed
+            nominal = self._nominal_dt_s
+            self._nominal_dt_s = dt if nominal == math.inf else nominal + 0.01 * (dt - nominal)
+        self._last_t_s = t
+        self._last_sample = (rate_i, force_i)
+        self._detector.push(t, rate_i, force_i)
+        zs = self._zaru_sum
+        zs[0] += rate_i[0]
+        zs[1] += rate_i[1]
+        zs[2] += rate_i[2]
+        self._zaru_count += 1
+
+        if self._filter is None:
+            if self._detector.stationary:
+                self._levelling.push(t, rate_i, force_i)
+            if t >= self._next_pseudo_t_s:
+                self._align_epoch(t)
+            return
+        self._catch_up()
+        pending = self._pending
+        while pending and pending[0][0] < t:
+            self._insert(heapq.heappop(pending))
+        self._catch_up()
+        self._step(inc, fresh, t)
+        entry = _Entry(t, inc, fresh, self._checkpoint())
+        self._history.append(entry)
+        self._history_t.append(t)
+        if t >= self._next_pseudo_t_s:
+            self._pseudo_epoch(t, entry)
+            if self._filter is None:
+                return  # reset by a health check
+        if self._history_t[0] < t - self.config.history_s - 1.0:
+            keep = bisect.bisect_left(self._history_t, t - self.config.history_s)
+            del self._history[:keep]
+            del self._history_t[:keep]
+
+    def add_gnss_fix(self, fix: GnssFixMeasurement) -> None:
+        """Antenna position (gnss/fix) at its epoch ``fix.t_s``."""
+        if fix.valid and all(map(math.isfinite, (fix.lat_deg, fix.lon_deg, fix.height_m))):
+            self._last_fix = fix
+            if self.datum is None:
+                self.datum = (fix.lat_deg, fix.lon_deg, fix.height_m)
+        self._add("gnss_position", fix.t_s, fix)
+
+    def add_gnss_velocity(self, vel: GnssVelocityMeasurement) -> None:
+        """Antenna velocity (gnss/vel) at its epoch."""
+        horizontal = float(np.hypot(vel.vel_enu_m_s[0], vel.vel_enu_m_s[1]))
+        if math.isfinite(horizontal):
+            self._last_velocity = vel
+            self._gnss_speed = (vel.t_s, horizontal)
+        if self.config.use_gnss_velocity or self.config.use_course_heading:
+            self._add("gnss_velocity", vel.t_s, vel)
+
+    def add_attitude(self, att: AttitudeMeasurement) -> None:
+        """Orientation from the attitude receiver (gnss/attitude) at its epoch."""
+        if self.config.use_attitude:
+            self._last_attitude = att
+            self._add("attitude", att.t_s, att)
+
+    # ---------------------------------------------------------------------------- outputs
+
+    def solution(self) -> InsSolution | None:
+        """The fused base_link state at the latest IMU sample; None before the filter starts."""
+        self._catch_up()
+        s, P = self._state, self._filter.P if self._filter is not None else None
+        if s is None or P is None or self.datum is None:
+            return None
+        C = s.mat_nb
+        arm_n = C @ self._base_arm_b
+        nav = s.nav
+        r_m, r_n = earth.radii_m(nav.lat_rad)
+        lat = nav.lat_rad + arm_n[0] / (r_m + nav.height_m)
+        lon = nav.lon_rad + arm_n[1] / ((r_n + nav.height_m) * math.cos(nav.lat_rad))
+        height = nav.height_m - arm_n[2]
+        rate_b = self._corrected_rate_b(s)
+        rot_n = C @ (skew(rate_b) @ self._base_arm_b)
+        n = self.layout.size
+        j_pos = np.zeros((3, n))
+        j_pos[:, POS : POS + 3] = np.eye(3)
+        j_pos[:, ATT : ATT + 3] = -skew(arm_n)
+        j_vel = np.zeros((3, n))
+        j_vel[:, VEL : VEL + 3] = np.eye(3)
+        j_vel[:, ATT : ATT + 3] = -skew(rot_n)
+        j_vel[:, BG : BG + 3] = C @ skew(self._base_arm_b) @ self._mat_bi
+        enu = MAT_ENU_NED
+        lat0, lon0, h0 = self.datum
+        pos_enu = earth.geodetic_to_enu(
+            lat, lon, height, math.radians(lat0), math.radians(lon0), h0
+        )
+        att = P[ATT : ATT + 3, ATT : ATT + 3]
+        return InsSolution(
+            t_s=s.t_s,
+            lat_deg=math.degrees(lat),
+            lon_deg=math.degrees(lon),
+            height_m=height,
+            pos_enu_m=pos_enu,
+            vel_enu_m_s=enu @ (nav.vel_ned_m_s + rot_n),
+            quat_enu_flu_xyzw=np.array(_quat_enu_flu(_quat(nav.quat_nb))),
+            rate_flu_rad_s=MAT_FLU_FRD @ rate_b,
+            cov_pos_enu_m2=enu @ j_pos @ P @ j_pos.T @ enu.T,
+            cov_vel_enu=enu @ j_vel @ P @ j_vel.T @ enu.T,
+            cov_att_enu_rad2=enu @ att @ enu.T,
+            gyro_bias_flu_rad_s=MAT_FLU_FRD @ np.array(s.gyro_bias),
+            accel_bias_flu_m_s2=MAT_FLU_FRD @ np.array(s.accel_bias),
+            state=self._state_name(),
+        )
+
+    def status(self) -> EngineStatus:
+        """Counters and diagnostics (see EngineStatus)."""
+        self._catch_up()
+        return EngineStatus(
+            state=self._state_name(),
+            measurements={name: dict(c) for name, c in self._counters.items()},
+            resets=self._resets,
+            last_reset_reason=self._last_reset_reason,
+            imu_samples=self._imu_samples,
+            imu_gaps=self._imu_gaps,
+            imu_duplicates=self._imu_duplicates,
+            nis=dict(self._nis),
+            rollbacks=self._rollbacks,
+            replayed_samples=self._replayed_samples,
+            stationary=self._detector.stationary,
+        )
+
+    @property
+    def covariance(self) -> FloatArray | None:
+        """Error-state covariance (layout ``self.layout``; NED/FRD, see core.eskf) or None."""
+        self._catch_up()
+        return None if self._filter is None else self._filter.P
+
+    # --------------------------------------------------------------- stream and history
+
+    def _clear(self) -> None:
+        """Forget everything but the counters and the datum (start, reset)."""
+        self._filter = None
+        self._state = None
+        self._history = []
+        self._history_t = []
+        self._pending = []
+        self._replay_from = None
+        self._fresh = set()
+        self._seen = {name: set() for name in MEASUREMENT_NAMES}
+        self._last_t_s = None
+        self._last_sample = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+        self._nominal_dt_s = math.inf
+        self._next_pseudo_t_s = math.inf
+        self._zaru_sum = [0.0, 0.0, 0.0]
+        self._zaru_count = 0
+        self._zaru_start_s = 0.0
+        self._last_fix = None
+        self._last_velocity = None
+        self._last_attitude = None
+        self._gnss_speed = None
+        self._detector.reset()
+        self._levelling.reset()
+        self._integrator.reset()
+
+    def _reset(self, reason: str) -> None:
+        self._resets += 1
+        self._last_reset_reason = reason
+        self._clear()
+
+    def _start_stream(self, t: float, rate_i: Vec3, force_i: Vec3) -> None:
+        """First sample after start or reset: no interval yet."""
+        self._integrator.reset()
+        self._integrator.push(t, rate_i, force_i)
+        self._last_t_s = t
+        self._last_sample = (rate_i, force_i)
+        self._nominal_dt_s = math.inf
+        self._detector.push(t, rate_i, force_i)
+        self._start_pseudo_interval(t)
+
+    def _bridge(self, dt: float, rate_i: Vec3, force_i: Vec3) -> ImuIncrement:
+        """Trapezoidal increment over a gap; the integrator restarts at this sample."""
+        rate0, force0 = self._last_sample
+        h = 0.5 * dt
+        inc = ImuIncrement(
+            dt,
+            (h * (rate0[0] + rate_i[0]), h * (rate0[1] + rate_i[1]), h * (rate0[2] + rate_i[2])),
+            (
+                h * (force0[0] + force_i[0]),
+                h * (force0[1] + force_i[1]),
+                h * (force0[2] + force_i[2]),
+            ),
+        )
+        assert self._last_t_s is not None
+        self._integrator.reset()
+        self._integrator.push(self._last_t_s + dt, rate_i, force_i)
+        return inc
+
+    def _start_pseudo_interval(self, t: float) -> None:
+        self._next_pseudo_t_s = (
+            math.floor(t / self._pseudo_period_s) + 1.0
+        ) * self._pseudo_period_s
+        self._zaru_sum = [0.0, 0.0, 0.0]
+        self._zaru_count = 0
+        self._zaru_start_s = t
+
+    def _checkpoint(self) -> tuple[_State, FloatArray]:
+        assert self._state is not None and self._filter is not None
+        return self._state.copy(), self._filter.P
+
+    def _restore(self, checkpoint: tuple[_State, FloatArray]) -> None:
+        assert self._filter is not None
+        self._state = checkpoint[0].copy()
+        self._filter.P = checkpoint[1]
+        self._filter.gnss_variance = self._state.gnss_variance
+
+    def _add(self, kind: str, t_m: float, payload: Any) -> None:
+        """Route a measurement: duplicate, too old, pending, or applied at its stamp."""
+        counters = self._counters[kind]
+        seen = self._seen[kind]
+        if t_m in seen:
+            counters["duplicates"] += 1
+            return
+        if self._filter is None or not math.isfinite(t_m):
+            return  # the alignment reads the latest measurements directly
+        if t_m < self._history_t[0]:
+            counters["too_old"] += 1
+            counters["rejected"] += 1
+            return
+        seen.add(t_m)
+        if len(seen) > 4 * _MAX_PENDING:
+            oldest = self._history_t[0]
+            self._seen[kind] = {t for t in seen if t >= oldest}
+        record: _Record = (t_m, next(self._sequence), kind, payload)
+        if t_m > self._history_t[-1]:
+            if len(self._pending) >= _MAX_PENDING:
+                dropped = heapq.heappop(self._pending)
+                self._counters[dropped[2]]["rejected"] += 1
+            heapq.heappush(self._pending, record)
+            return
+        self._insert(record)
+
+    def _insert(self, record: _Record) -> None:
+        """File a measurement at the last history entry at or before its stamp: applied now
+        when it is the newest, else re-propagation from that entry is due (``_catch_up``)."""
+        k = bisect.bisect_right(self._history_t, record[0]) - 1
+        entry = self._history[k]
+        newest = not entry.measurements or entry.measurements[-1] < record
+        if self._replay_from is None and k == len(self._history) - 1 and newest:
+            entry.measurements.append(record)
+            self._apply(record, live=True)
+            return
+        bisect.insort(entry.measurements, record)
+        self._fresh.add(record[1])
+        self._replay_from = k if self._replay_from is None else min(self._replay_from, k)
+
+    def _catch_up(self) -> None:
+        """Roll back to the earliest entry with a late measurement and re-propagate; deferred
+        until the next IMU sample or output, so measurements arriving together (a fix and its
+        velocity) share one re-propagation."""
+        k = self._replay_from
+        if k is None:
+            return
+        self._replay_from = None
+        self._rollbacks += 1
+        entry = self._history[k]
+        self._restore(entry.checkpoint)
+        self._apply_entry(entry)
+        for later in self._history[k + 1 :]:
+            self._step(later.inc, later.fresh, later.t_s)
+            later.checkpoint = self._checkpoint()
+            self._apply_entry(later)
+        self._replayed_samples += len(self._history) - k - 1
+
+    def _apply_entry(self, entry: _Entry) -> None:
+        """Apply an entry's measurements in stamp order; new ones are counted."""
+        for record in entry.measurements:
+            live = record[1] in self._fresh
+            self._fresh.discard(record[1])
+            self._apply(record, live)
+
+    def _apply(self, record: _Record, live: bool) -> None:
+        """Propagate P to the current sample, apply the measurement, restart the interval."""
+        t_m, _, kind, payload = record
+        self._propagate_covariance()
+        self._handlers[kind](self._predict(t_m), payload, live)
+        assert self._state is not None
+        self._state.cov_vel0 = self._state.nav.vel_ned_m_s
+
+    # ---------------------------------------------------------------------- propagation
+
+    def _step(self, inc: ImuIncrement, fresh: bool, t: float) -> None:
+        """Correct an increment with the filter's sensor errors and mechanize; the covariance
+        follows every ``covariance_interval`` seconds."""
+        s = self._state
+        assert s is not None
+        dt = inc.dt_s
+        bg, ba, sg, sa = s.gyro_bias, s.accel_bias, s.gyro_scale, s.accel_scale
+        th, dv = inc.dtheta_rad, inc.dvel_m_s
+        ti0 = (th[0] - bg[0] * dt) / (1.0 + sg[0])
+        ti1 = (th[1] - bg[1] * dt) / (1.0 + sg[1])
+        ti2 = (th[2] - bg[2] * dt) / (1.0 + sg[2])
+        vi0 = (dv[0] - ba[0] * dt) / (1.0 + sa[0])
+        vi1 = (dv[1] - ba[1] * dt) / (1.0 + sa[1])
+        vi2 = (dv[2] - ba[2] * dt) / (1.0 + sa[2])
+        r0, r1, r2, r3, r4, r5, r6, r7, r8 = self._r_bi
+        tb = (
+            r0 * ti0 + r1 * ti1 + r2 * ti2,
+            r3 * ti0 + r4 * ti1 + r5 * ti2,
+            r6 * ti0 + r7 * ti1 + r8 * ti2,
+        )
+        vb = (
+            r0 * vi0 + r1 * vi1 + r2 * vi2,
+            r3 * vi0 + r4 * vi1 + r5 * vi2,
+            r6 * vi0 + r7 * vi1 + r8 * vi2,
+        )
+        inc_b = ImuIncrement(dt, tb, vb)
+        vel0 = s.nav.vel_ned_m_s
+        nav = propagate(s.nav, inc_b, None if fresh else s.prev_inc)
+        s.set_nav(nav)
+        inv_dt = 1.0 / dt
+        a0, a1, a2 = ((nav.vel_ned_m_s - vel0) * inv_dt).tolist()
+        s.accel_n = (a0, a1, a2)
+        s.rate_b = (tb[0] * inv_dt, tb[1] * inv_dt, tb[2] * inv_dt)
+        s.rate_i = (ti0 * inv_dt, ti1 * inv_dt, ti2 * inv_dt)
+        s.prev_inc = inc_b
+        s.t_s = t
+        cdth, cdv = s.cov_dth, s.cov_dv
+        s.cov_dth = (cdth[0] + ti0, cdth[1] + ti1, cdth[2] + ti2)
+        s.cov_dv = (cdv[0] + vi0, cdv[1] + vi1, cdv[2] + vi2)
+        s.cov_dt += dt
+        if s.cov_dt >= self.config.covariance_interval_s:
+            self._propagate_covariance()
+
+    def _propagate_covariance(self) -> None:
+        """Propagate P over the accumulated interval with its mean specific force (NED from the
+        velocity change; Coriolis, < 3e-3 m/s², left out of F)."""
+        s, kf = self._state, self._filter
+        assert s is not None and kf is not None
+        if s.cov_dt <= 0.0:
+            return
+        nav = s.nav
+        inv_dt = 1.0 / s.cov_dt
+        force_n = (nav.vel_ned_m_s - s.cov_vel0) * inv_dt
+        force_n[2] -= earth.normal_gravity_m_s2(nav.lat_rad, nav.height_m)
+        vn, ve, vd = nav.vel_ned_m_s.tolist()
+        kf.propagate(
+            s.cov_dt,
+            s.mat_nb @ self._mat_bi,
+            force_n,
+            np.array(s.cov_dv) * inv_dt,
+            np.array(s.cov_dth) * inv_dt,
+            nav.lat_rad,
+            nav.height_m,
+            (vn, ve, vd),
+        )
+        if self.layout.gp is not None:  # the estimate of a Gauss-Markov error decays
+            decay = math.exp(-s.cov_dt / self.config.gnss_correlation_time_s)
+            e = s.gnss_error
+            s.gnss_error = (e[0] * decay, e[1] * decay, e[2] * decay)
+        s.cov_dt = 0.0
+        s.cov_dth = s.cov_dv = (0.0, 0.0, 0.0)
+        s.cov_vel0 = nav.vel_ned_m_s
+        if not s.heading_known:
+            self._decouple_yaw()
+
+    def _predict(self, t_m: float) -> Prediction:
+        """The nominal state carried from the current state to t_m (< one IMU interval)."""
+        s = self._state
+        assert s is not None
+        nav, dt = s.nav, t_m - s.t_s
+        rate_b = np.array(s.rate_b)
+        if dt == 0.0:
+            return Prediction(
+                nav.lat_rad,
+                nav.lon_rad,
+                nav.height_m,
+                nav.vel_ned_m_s,
+                s.mat_nb,
+                rate_b,
+                np.array(s.rate_i),
+                self.layout,
+            )
+        vel = nav.vel_ned_m_s + np.array(s.accel_n) * dt
+        mean_vel = 0.5 * (nav.vel_ned_m_s + vel)
+        r_m, r_n = earth.radii_m(nav.lat_rad)
+        rotation = skew(rate_b * dt)
+        return Prediction(
+            lat_rad=nav.lat_rad + mean_vel[0] * dt / (r_m + nav.height_m),
+            lon_rad=nav.lon_rad + mean_vel[1] * dt / ((r_n + nav.height_m) * math.cos(nav.lat_rad)),
+            height_m=nav.height_m - mean_vel[2] * dt,
+            vel_ned_m_s=vel,
+            mat_nb=s.mat_nb @ (np.eye(3) + rotation + 0.5 * rotation @ rotation),
+            rate_b=rate_b,
+            rate_i=np.array(s.rate_i),
+            layout=self.layout,
+        )
+
+    def _corrected_rate_b(self, s: _State) -> FloatArray:
+        """The latest sample's rate, corrected for the estimated gyro errors, base_link FRD."""
+        rate_i = np.array(self._last_sample[0])
+        corrected = (rate_i - np.array(s.gyro_bias)) / (1.0 + np.array(s.gyro_scale))
+        return np.asarray(self._mat_bi @ corrected, dtype=np.float64)
+
+    # --------------------------------------------------------------------- updates
+
+    def _update(self, kind: str, model: Model, live: bool) -> bool:
+        """Gated update; inject the estimate into the nominal state."""
+        kf, s = self._filter, self._state
+        assert kf is not None and s is not None
+        z, H, R = model
+        if not s.heading_known:
+            H = H.copy()
+            H[:, ATT + 2] = 0.0
+        result = kf.update(z, H, R, self._gates[len(z)])
+        self._nis[kind] = result.nis
+        if live:
+            counters = self._counters[kind]
+            if result.accepted:
+                counters["used"] += 1
+            else:
+                counters["rejected"] += 1
+                counters["gated"] += 1
+        if result.dx is not None:
+            self._inject(result.dx)
+        return result.accepted
+
+    def _inject(self, dx: FloatArray) -> None:
+        """Closed-loop feedback of an error estimate into the nominal state."""
+        s = self._state
+        assert s is not None
+        d = dx.tolist()
+        nav = s.nav
+        r_m, r_n = earth.radii_m(nav.lat_rad)
+        q_err = quat_from_rotvec(d[ATT], d[ATT + 1], d[ATT + 2])
+        quat = quat_normalize(quat_multiply(q_err, _quat(nav.quat_nb)))
+        s.set_nav(
+            NavState(
+                nav.lat_rad + d[POS] / (r_m + nav.height_m),
+                nav.lon_rad + d[POS + 1] / ((r_n + nav.height_m) * math.cos(nav.lat_rad)),
+                nav.height_m - d[POS + 2],
+                nav.vel_ned_m_s + dx[VEL : VEL + 3],
+                np.array(quat),
+            )
+        )
+        s.gyro_bias = _add3(s.gyro_bias, d, BG)
+        s.accel_bias = _add3(s.accel_bias, d, BA)
+        if self.layout.sg is not None:
+            s.gyro_scale = _add3(s.gyro_scale, d, self.layout.sg)
+        if self.layout.sa is not None:
+            s.accel_scale = _add3(s.accel_scale, d, self.layout.sa)
+        if self.layout.gp is not None:
+            s.gnss_error = _add3(s.gnss_error, d, self.layout.gp)
+        if not s.heading_known:
+            self._decouple_yaw()
+
+    def _decouple_yaw(self) -> None:
+        """Heading unknown: the yaw error is uncorrelated and its variance fixed."""
+        kf = self._filter
+        assert kf is not None
+        P = kf.P.copy()
+        P[ATT + 2, :] = 0.0
+        P[:, ATT + 2] = 0.0
+        P[ATT + 2, ATT + 2] = _UNKNOWN_YAW_VARIANCE
+        kf.P = P
+
+    def _gnss_position(self, pred: Prediction, fix: GnssFixMeasurement, live: bool) -> None:
+        s = self._state
+        assert s is not None
+        if not (fix.valid and np.isfinite(fix.cov_enu_m2).all()):
+            if live:
+                self._counters["gnss_position"]["rejected"] += 1
+            return
+        if not s.heading_known and self._too_fast_to_align(pred, live, "gnss_position"):
+            return
+        white, correlated = self._fix_noise(fix)
+        if self.layout.gp is not None:
+            ratio = correlated / np.maximum(s.gnss_variance, 1e-12)
+            if ratio.max() > _GNSS_NOISE_JUMP or ratio.min() < 1.0 / _GNSS_NOISE_JUMP:
+                self._restart_gnss_error(correlated)
+        model = gnss_position(pred, fix, self._antenna_arm_b, white, s.gnss_error)
+        if self._update("gnss_position", model, live):
+            s.last_position_t_s = max(s.last_position_t_s, fix.t_s)
+
+    def _gnss_velocity(self, pred: Prediction, vel: GnssVelocityMeasurement, live: bool) -> None:
+        s = self._state
+        assert s is not None
+        if not s.heading_known:
+            if self.config.use_course_heading and self._fast_enough(vel):
+                self._heading_from_course(vel, live)
+                return
+            if self._too_fast_to_align(pred, live, "gnss_velocity"):
+                return
+        if not self.config.use_gnss_velocity:
+            return
+        model = gnss_velocity(pred, vel, self._antenna_arm_b, self._mat_bi)
+        if model is None:
+            if live:
+                self._counters["gnss_velocity"]["rejected"] += 1
+            return
+        self._update("gnss_velocity", model, live)
+
+    def _attitude(self, pred: Prediction, att: AttitudeMeasurement, live: bool) -> None:
+        s = self._state
+        assert s is not None
+        mat_nb = self._measured_mat_nb(att)
+        if not s.heading_known:
+            yaw_variance = float(att.cov_rpy_rad2[2, 2])
+            if math.isfinite(yaw_variance) and yaw_variance < UNKNOWN_ANGLE_VARIANCE:
+                self._set_heading(float(euler_rad(mat_nb)[2]), yaw_variance)
+                if live:
+                    self._counters["attitude"]["used"] += 1
+            return
+        model = attitude(pred, mat_nb, att.cov_rpy_rad2)
+        if model is None:
+            if live:
+                self._counters["attitude"]["rejected"] += 1
+            return
+        self._update("attitude", model, live)
+
+    def _measured_mat_nb(self, att: AttitudeMeasurement) -> FloatArray:
+        """Base_link FRD -> NED rotation from an attitude measurement and its mounting."""
+        q = tuple(float(v) for v in att.quat_enu_flu_xyzw)
+        q_enu_base = quat_multiply((q[0], q[1], q[2], q[3]), self._q_a_base)
+        quat_nb = quat_nb_from_enu_flu(np.array(q_enu_base))
+        return NavState(0.0, 0.0, 0.0, np.zeros(3), quat_nb).mat_nb
+
+    def _zupt(self, pred: Prediction, _: None, live: bool) -> None:
+        self._update("zupt", zupt(pred, self.config.zupt_sigma_m_s), live)
+
+    def _zaru(self, pred: Prediction, payload: tuple[FloatArray, float], live: bool) -> None:
+        s = self._state
+        assert s is not None
+        mean_rate_i, span_s = payload
+        earth_rate_b = earth_rate_body_rad_s(pred.mat_nb, pred.lat_rad, s.heading_known)
+        variance = self._gyro_psd / max(span_s, 1e-3) + self.config.zaru_sigma_rad_s**2
+        if not s.heading_known:
+            variance = variance + unknown_earth_rate_rad_s(pred.lat_rad) ** 2
+        model = zaru(
+            pred, mean_rate_i, self._mat_bi.T @ earth_rate_b, np.array(s.gyro_bias), variance
+        )
+        self._update("zaru", model, live)
+
+    def _nhc(self, pred: Prediction, _: None, live: bool) -> None:
+        model = nhc(pred, self._base_arm_b, self._mat_bi, self.config.nhc_sigma_m_s)
+        self._update("nhc", model, live)
+
+    def _too_fast_to_align(self, pred: Prediction, live: bool, kind: str) -> bool:
+        """Heading unknown and moving: GNSS updates would need the yaw; count them rejected."""
+        if float(np.hypot(pred.vel_ned_m_s[0], pred.vel_ned_m_s[1])) < _ALIGN_MAX_SPEED_M_S:
+            return False
+        if live:
+            self._counters[kind]["rejected"] += 1
+        return True
+
+    # ------------------------------------------------------------------- pseudo-measurements
+
+    def _pseudo_epoch(self, t: float, entry: _Entry) -> None:
+        """Stop detection, ZUPT/ZARU or NHC, health checks (live, at the pseudo rate)."""
+        s, kf = self._state, self._filter
+        assert s is not None and kf is not None
+        cfg = self.config
+        speed = float(np.linalg.norm(s.nav.vel_ned_m_s))
+        stationary = self._detector.evaluate(t, self._recent_gnss_speed(t), speed)
+        mean_rate = np.array(self._zaru_sum) / max(self._zaru_count, 1)
+        span = t - self._zaru_start_s
+        self._start_pseudo_interval(t)
+        kinds: list[tuple[str, Any]] = []
+        if stationary:
+            if cfg.use_zupt:
+                kinds.append(("zupt", None))
+            if cfg.use_zaru:
+                kinds.append(("zaru", (mean_rate, span)))
+        elif (
+            cfg.use_nhc
+            and s.heading_known
+            and float(np.hypot(*s.nav.vel_ned_m_s[:2])) > cfg.nhc_min_speed_m_s
+        ):
+            kinds.append(("nhc", None))
+        for kind, payload in kinds:
+            record: _Record = (t, next(self._sequence), kind, payload)
+            entry.measurements.append(record)
+            self._apply(record, live=True)
+        problem = kf.problem()
+        nav = s.nav
+        if problem is None and not (
+            math.isfinite(nav.lat_rad + nav.lon_rad + nav.height_m)
+            and np.isfinite(nav.vel_ned_m_s).all()
+            and np.isfinite(nav.quat_nb).all()
+        ):
+            problem = "non-finite navigation state"
+        if problem is not None:
+            self._reset(problem)
+
+    def _recent_gnss_speed(self, t: float) -> float | None:
+        if self._gnss_speed is None or abs(t - self._gnss_speed[0]) > GNSS_SPEED_MAX_AGE_S:
+            return None
+        return self._gnss_speed[1]
+
+    # ------------------------------------------------------------------------ alignment
+
+    def _align_epoch(self, t: float) -> None:
+        """Before the filter runs: stop detection, levelling, and the start when possible."""
+        cfg = self.config
+        stationary = self._detector.evaluate(t, self._recent_gnss_speed(t), None)
+        self._start_pseudo_interval(t)
+        if not stationary:
+            self._levelling.reset()
+        fix = self._last_fix
+        if fix is None or abs(t - fix.t_s) > _ALIGN_FIX_MAX_AGE_S:
+            return
+        if self._levelling.duration_s >= cfg.alignment_duration_s:
+            self._start_static(t, fix)
+            return
+        vel = self._recent(self._last_velocity, t)
+        if stationary or vel is None or not self._fast_enough(vel):
+            return
+        att = self._recent(self._last_attitude, t)
+        if att is not None and float(att.cov_rpy_rad2[2, 2]) < UNKNOWN_ANGLE_VARIANCE:
+            self._start_moving(t, fix, vel, att)
+        elif self.config.use_course_heading:
+            self._start_moving(t, fix, vel, None)
+
+    def _fast_enough(self, vel: GnssVelocityMeasurement) -> bool:
+        """GNSS speed at or above ``alignment.course_speed`` (course usable, clearly moving)."""
+        speed = float(np.hypot(vel.vel_enu_m_s[0], vel.vel_enu_m_s[1]))
+        return speed >= self.config.course_speed_m_s
+
+    @staticmethod
+    def _recent(meas: _M | None, t: float) -> _M | None:
+        return meas if meas is not None and abs(t - meas.t_s) <= _ALIGN_FIX_MAX_AGE_S else None
+
+    def _start_static(self, t: float, fix: GnssFixMeasurement) -> None:
+        """Start the filter after levelling on a standstill."""
+        noise = self.config.imu_noise
+        lev = self._levelling
+        force_b = self._mat_bi @ lev.mean_force_i
+        roll, pitch = level(force_b)
+        att = self._recent(self._last_attitude, t)
+        heading_known = att is not None and float(att.cov_rpy_rad2[2, 2]) < UNKNOWN_ANGLE_VARIANCE
+        yaw, yaw_variance = 0.0, _UNKNOWN_YAW_VARIANCE
+        if heading_known and att is not None:
+            yaw = float(euler_rad(self._measured_mat_nb(att))[2])
+            yaw_variance = float(att.cov_rpy_rad2[2, 2])
+        quat_nb = quat_from_euler(roll, pitch, yaw)
+        mat_nb = NavState(0.0, 0.0, 0.0, np.zeros(3), quat_nb).mat_nb
+        lat = math.radians(fix.lat_deg)
+        gyro_seed = lev.mean_rate_i - self._mat_bi.T @ earth_rate_body_rad_s(
+            mat_nb, lat, heading_known
+        )
+        seed_var = self._gyro_psd / max(lev.duration_s, 1.0) + np.square(
+            noise.gyro_bias_instability
+        )
+        if not heading_known:
+            seed_var = seed_var + unknown_earth_rate_rad_s(lat) ** 2
+        g = earth.normal_gravity_m_s2(lat, fix.height_m)
+        accel_var = self._accel_bias_variance()
+        tilt_var = float(accel_var.max()) / g**2
+        self._start(
+            t,
+            fix,
+            quat_nb,
+            np.zeros(3),
+            np.diag([tilt_var, tilt_var, yaw_variance]),
+            (float(gyro_seed[0]), float(gyro_seed[1]), float(gyro_seed[2])),
+            seed_var,
+            np.full(3, self.config.zupt_sigma_m_s**2),
+            heading_known,
+        )
+
+    def _start_moving(
+        self,
+        t: float,
+        fix: GnssFixMeasurement,
+        vel: GnssVelocityMeasurement,
+        att: AttitudeMeasurement | None,
+    ) -> None:
+        """Start the filter in motion: attitude from the receiver, or level + course."""
+        noise = self.config.imu_noise
+        tilt_var = self.config.moving_tilt_sigma_rad**2
+        if att is not None:
+            roll, pitch, yaw = euler_rad(self._measured_mat_nb(att))
+            cov = np.diag(att.cov_rpy_rad2).copy()
+            roll_var = float(cov[0]) if cov[0] < UNKNOWN_ANGLE_VARIANCE else tilt_var
+            pitch_var = float(cov[1]) if cov[1] < UNKNOWN_ANGLE_VARIANCE else tilt_var
+            if roll_var >= tilt_var:
+                roll = 0.0
+            if pitch_var >= tilt_var:
+                pitch = 0.0
+            att_var = np.array([roll_var, pitch_var, float(cov[2])])
+        else:
+            roll = pitch = 0.0
+            yaw, yaw_var = self._course(vel)
+            att_var = np.array([tilt_var, tilt_var, yaw_var])
+        vel_ned = np.nan_to_num(MAT_ENU_NED @ vel.vel_enu_m_s)
+        vel_var = _velocity_variance(vel)
+        gyro_var = self._turn_on_variance(
+            None if self.calibration is None else self.calibration.gyro.bias_sigma,
+            noise.gyro_turn_on_bias,
+        ) + np.square(noise.gyro_bias_instability)
+        self._start(
+            t,
+            fix,
+            quat_from_euler(roll, pitch, yaw),
+            vel_ned,
+            np.diag(att_var),
+            (0.0, 0.0, 0.0),
+            gyro_var,
+            vel_var,
+            True,
+        )
+        if att is None:
+            self._counters["course_heading"]["used"] += 1
+
+    def _start(
+        self,
+        t: float,
+        fix: GnssFixMeasurement,
+        quat_nb: FloatArray,
+        vel_ned: FloatArray,
+        att_cov: FloatArray,
+        gyro_bias: Vec3,
+        gyro_bias_var: FloatArray,
+        vel_var: FloatArray,
+        heading_known: bool,
+    ) -> None:
+        """Create the filter: position from the fix (moved to t with the velocity)."""
+        noise = self.config.imu_noise
+        nav = NavState(
+            math.radians(fix.lat_deg), math.radians(fix.lon_deg), fix.height_m, vel_ned, quat_nb
+        )
+        state = _State(t, nav, gyro_bias, heading_known)
+        self._state = state
+        offset = -(state.mat_nb @ self._antenna_arm_b) + vel_ned * (t - fix.t_s)
+        self._move(state, offset)
+        kf = ErrorStateFilter(self.layout, noise, self.config.gnss_correlation_time_s)
+        n = self.layout.size
+        P = np.zeros((n, n))
+        P[VEL : VEL + 3, VEL : VEL + 3] = np.diag(vel_var)
+        P[ATT : ATT + 3, ATT : ATT + 3] = att_cov
+        P[BG : BG + 3, BG : BG + 3] = np.diag(gyro_bias_var)
+        P[BA : BA + 3, BA : BA + 3] = np.diag(self._accel_bias_variance())
+        if self.layout.sg is not None:
+            P[self.layout.sg : self.layout.sg + 3, self.layout.sg : self.layout.sg + 3] = (
+                np.eye(3) * noise.gyro_scale_sigma**2
+            )
+        if self.layout.sa is not None:
+            P[self.layout.sa : self.layout.sa + 3, self.layout.sa : self.layout.sa + 3] = (
+                np.eye(3) * noise.accel_scale_sigma**2
+            )
+        kf.P = P
+        self._filter = kf
+        self._restart_position(fix)
+        zero: Vec3 = (0.0, 0.0, 0.0)
+        self._history = [_Entry(t, ImuIncrement(0.0, zero, zero), True, self._checkpoint())]
+        self._history_t = [t]
+
+    def _fix_noise(self, fix: GnssFixMeasurement) -> tuple[FloatArray, FloatArray]:
+        """(white covariance NED [m²], correlated variance per NED axis [m²]) of a fix: the
+        white part is the receiver's variance capped at ``gnss_noise.white_sigma`` per axis but
+        at least ``gnss_noise.white_fraction`` of it (correlations kept), the rest is the
+        time-correlated error."""
+        total = ned_cov(fix.cov_enu_m2) * self.config.gnss_position_noise_scale**2
+        if self.layout.gp is None:
+            return total, np.zeros(3)
+        variance = np.diagonal(total)
+        floor = np.maximum(self._gnss_white_var_ned, self.config.gnss_white_fraction * variance)
+        white = np.minimum(variance, floor)
+        scale = np.sqrt(white / np.maximum(variance, 1e-30))
+        return total * np.outer(scale, scale), variance - white
+
+    def _restart_position(self, fix: GnssFixMeasurement) -> None:
+        """Position error (and correlated GNSS error) as after taking the position from a fix:
+        δp = -(white + correlated error of the fix)."""
+        kf = self._filter
+        assert kf is not None
+        white, correlated = self._fix_noise(fix)
+        P = kf.P.copy()
+        _restart_block(P, POS, white + np.diag(correlated))
+        kf.P = P
+        if self.layout.gp is not None:
+            self._restart_gnss_error(correlated)
+            P = kf.P.copy()
+            gp = self.layout.gp
+            P[POS : POS + 3, gp : gp + 3] = P[gp : gp + 3, POS : POS + 3] = -np.diag(correlated)
+            kf.P = P
+
+    def _restart_gnss_error(self, correlated: FloatArray) -> None:
+        """A new correlated GNSS error process (start, or the receiver's σ jumped: another fix
+        type, e.g. RTK float after an outage): uncorrelated, at its stationary variance."""
+        s, kf = self._state, self._filter
+        assert s is not None and kf is not None and self.layout.gp is not None
+        P = kf.P.copy()
+        _restart_block(P, self.layout.gp, np.diag(correlated))
+        kf.P = P
+        s.gnss_variance = (float(correlated[0]), float(correlated[1]), float(correlated[2]))
+        s.gnss_error = (0.0, 0.0, 0.0)
+        kf.gnss_variance = s.gnss_variance
+
+    def _accel_bias_variance(self) -> FloatArray:
+        noise = self.config.imu_noise
+        return self._turn_on_variance(
+            None if self.calibration is None else self.calibration.accel.bias_sigma,
+            noise.accel_turn_on_bias,
+        ) + np.square(noise.accel_bias_instability)
+
+    @staticmethod
+    def _turn_on_variance(calibrated_sigma: Vec3 | None, default_sigma: float) -> FloatArray:
+        """Variance of the bias left after calibration (its σ) or of the datasheet bias."""
+        if calibrated_sigma is None:
+            return np.full(3, default_sigma**2)
+        return np.square(calibrated_sigma)
+
+    def _course(self, vel: GnssVelocityMeasurement) -> tuple[float, float]:
+        """Heading [rad] and its variance from the GNSS course (NTNU notes §8)."""
+        east, north = float(vel.vel_enu_m_s[0]), float(vel.vel_enu_m_s[1])
+        speed_sq = east * east + north * north
+        sigma_sq = 0.5 * float(vel.cov_enu_m2_s2[0, 0] + vel.cov_enu_m2_s2[1, 1])
+        return math.atan2(east, north), sigma_sq / speed_sq + _COURSE_EXTRA_VARIANCE
+
+    def _heading_from_course(self, vel: GnssVelocityMeasurement, live: bool) -> None:
+        """Heading unknown and fast enough: heading from the course; position and velocity
+        restart from the latest fix and this velocity (the INS ran with the wrong heading)."""
+        s, kf = self._state, self._filter
+        fix = self._last_fix
+        assert s is not None and kf is not None
+        if fix is None or abs(fix.t_s - vel.t_s) > _ALIGN_FIX_MAX_AGE_S:
+            return
+        yaw, yaw_var = self._course(vel)
+        self._set_heading(yaw, yaw_var)
+        vel_ned = np.nan_to_num(MAT_ENU_NED @ vel.vel_enu_m_s)
+        nav = s.nav
+        fix_nav = NavState(
+            math.radians(fix.lat_deg), math.radians(fix.lon_deg), fix.height_m, vel_ned, nav.quat_nb
+        )
+        s.set_nav(fix_nav)
+        self._move(s, -(s.mat_nb @ self._antenna_arm_b) + vel_ned * (s.t_s - fix.t_s))
+        P = kf.P.copy()
+        _restart_block(P, VEL, np.diag(_velocity_variance(vel)))
+        kf.P = P
+        self._restart_position(fix)
+        s.last_position_t_s = s.t_s
+        if live:
+            self._counters["course_heading"]["used"] += 1
+
+    def _set_heading(self, yaw: float, yaw_variance: float) -> None:
+        """Turn the attitude about the vertical to ``yaw`` keeping the antenna position; the
+        heading is known from now on."""
+        s, kf = self._state, self._filter
+        assert s is not None and kf is not None
+        turn = float(wrap_angle(np.array(yaw - euler_rad(s.mat_nb)[2])))
+        nav = s.nav
+        antenna_n = s.mat_nb @ self._antenna_arm_b
+        q_turn = quat_from_rotvec(0.0, 0.0, turn)
+        quat = quat_normalize(quat_multiply(q_turn, _quat(nav.quat_nb)))
+        cos_t, sin_t = math.cos(turn), math.sin(turn)
+        vn, ve, vd = nav.vel_ned_m_s.tolist()
+        s.set_nav(
+            NavState(
+                nav.lat_rad,
+                nav.lon_rad,
+                nav.height_m,
+                np.array([cos_t * vn - sin_t * ve, sin_t * vn + cos_t * ve, vd]),
+                np.array(quat),
+            )
+        )
+        self._move(s, antenna_n - s.mat_nb @ self._antenna_arm_b)
+        P = kf.P.copy()
+        P[ATT + 2, :] = 0.0
+        P[:, ATT + 2] = 0.0
+        P[ATT + 2, ATT + 2] = yaw_variance
+        kf.P = P
+        s.heading_known = True
+        s.last_position_t_s = s.t_s
+
+    @staticmethod
+    def _move(state: _State, offset_ned_m: FloatArray) -> None:
+        """Shift the nominal position by a NED offset [m]."""
+        nav = state.nav
+        r_m, r_n = earth.radii_m(nav.lat_rad)
+        state.set_nav(
+            NavState(
+                nav.lat_rad + float(offset_ned_m[0]) / (r_m + nav.height_m),
+                nav.lon_rad
+                + float(offset_ned_m[1]) / ((r_n + nav.height_m) * math.cos(nav.lat_rad)),
+                nav.height_m - float(offset_ned_m[2]),
+                nav.vel_ned_m_s,
+                nav.quat_nb,
+            )
+        )
+
+    def _state_name(self) -> str:
+        s = self._state
+        if s is None or not s.heading_known:
+            return "aligning"
+        if s.t_s - s.last_position_t_s > self.config.degraded_after_s:
+            return "degraded"
+        return "navigating"
+
+
+def _restart_block(P: FloatArray, start: int, block: FloatArray) -> None:
+    """Set a 3x3 diagonal block of P and clear its correlations (in place on a copy)."""
+    P[start : start + 3, :] = 0.0
+    P[:, start : start + 3] = 0.0
+    P[start : start + 3, start : start + 3] = block
+
+
+def _velocity_variance(vel: GnssVelocityMeasurement) -> FloatArray:
+    """Per NED axis variance of a GNSS velocity, unknown components capped at 1 m²/s²."""
+    return np.minimum(np.nan_to_num(np.diagonal(ned_cov(vel.cov_enu_m2_s2)), nan=1.0), 1.0)
+
+
+def _add3(values: Vec3, dx: list[float], start: int) -> Vec3:
+    return (values[0] + dx[start], values[1] + dx[start + 1], values[2] + dx[start + 2])

@@ -1,0 +1,260 @@
+"""Error-state Kalman filter algebra: state layout, error dynamics, discretisation, updates.
+
+Error state (closed loop: estimated, injected into the nominal state and reset to zero after each
+update), with x_true = x_nominal + δx:
+
+    δp   position error, NED [m]            δv  velocity error, NED [m/s]
+    ψ    attitude error, NED [rad]: C_nb,true = (I + [ψ×]) C_nb,nominal
+    δb_g gyro bias error, imu FRD [rad/s]   δb_a accelerometer bias error, imu FRD [m/s²]
+    δs_g, δs_a optional scale-factor errors [fraction] (imu FRD)
+    ε_g  optional time-correlated GNSS position error, NED [m] (first-order Gauss-Markov)
+
+Sensor model (imu FRD axes i): ω̃ = (1 + s_g)∘ω + b_g + n_g, f̃ = (1 + s_a)∘f + b_a + n_a, with
+b and s first-order Gauss-Markov processes (Oslo notes §2 (3.15)/(3.16), §7 F1/G1;
+shared/reference/mems-noise-oslo-notes.md). The mechanization body frame b is base_link FRD,
+C_ni = C_nb R_bi with R_bi the imu -> base_link mounting. Linearised error dynamics (the
+"phi-angle" form of Shin 2001 / KF-GINS; the position terms of order v/R, Ω v/R and ∂g/∂φ,
+below 5e-6 s⁻¹ at car speeds, are left out: they change a position error of 1 m by < 0.1 mm in a
+20 s outage; test_fusion_eskf.py checks every block against finite differences of the
+strapdown):
+
+    δṗ = δv
+    δv̇ = -[f_n×]ψ + F_vv δv + (2g/(R+h)) δp_D e_D - C_ni (δb_a + diag(f_i) δs_a) - C_ni n_a
+    ψ̇ = -[ω_in×]ψ - ∂ω_en/∂v δv - C_ni (δb_g + diag(ω_i) δs_g) - C_ni n_g
+    δḃ = -δb/T + w_b,   E[w_b²] = 2σ_b²/T (and the same for the scale factors)
+    ε̇_g = -ε_g/T_g + w_g, E[w_g²] = 2σ_g²/T_g with σ_g² from the latest fix (gnss_variance)
+
+Discretisation over an interval Δt: Φ = I + FΔt + (FΔt)²/2 and Q_d = (Φ Q_c Φᵀ + Q_c)Δt/2, both
+second-order accurate; propagated in steps of 1/134 s or 0.1 s for 10 s they agree with Van Loan's
+exact form to 0.5 % (test_fusion_eskf.py; Oslo notes "Implications" R2). The engine propagates P
+every ``covariance_interval`` (0.1 s, the pseudo-measurement period) with the interval's mean
+specific force, and always up to the stamp of a measurement before updating; per IMU sample
+instead gives the same errors and NEES at 1.6 times the CPU time (bench/bench_fusion_engine.py).
+
+Updates are Joseph form with a chi-square gate on the normalised innovation squared. filterpy's
+``KalmanFilter.update`` is not used on the hot path: it has no gate, builds an n×n I - KH for
+every scalar update and inverts S with ``inv``; the tests use filterpy's ``van_loan_discretization``
+as the reference for the discretisation.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.stats import chi2
+
+from ins_fusion.core import earth
+from ins_fusion.core.config import ImuNoise
+from ins_fusion.core.rotation import FloatArray
+
+#: First index of each always-present block of the error state.
+POS, VEL, ATT, BG, BA = 0, 3, 6, 9, 12
+_CORE_SIZE = 15
+
+
+@dataclass(frozen=True)
+class StateLayout:
+    """Named indices of the error state: the 15 core states, then the optional gyro and
+    accelerometer scale factors and the GNSS position error (NED [m], time-correlated part of
+    the receiver's error). An absent block has index None."""
+
+    gyro_scale: bool = False
+    accel_scale: bool = False
+    gnss_error: bool = False
+    sg: int | None = field(init=False)
+    sa: int | None = field(init=False)
+    gp: int | None = field(init=False)
+    size: int = field(init=False)
+
+    def __post_init__(self) -> None:
+        next_index = _CORE_SIZE
+        for name, present in (
+            ("sg", self.gyro_scale),
+            ("sa", self.accel_scale),
+            ("gp", self.gnss_error),
+        ):
+            object.__setattr__(self, name, next_index if present else None)
+            next_index += 3 * present
+        object.__setattr__(self, "size", next_index)
+
+
+def skew(v: FloatArray | tuple[float, float, float]) -> FloatArray:
+    """[v×]: the matrix with [v×] a = v × a."""
+    x, y, z = float(v[0]), float(v[1]), float(v[2])
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+
+
+def chi2_threshold(probability: float, dof: int) -> float:
+    """Gate: normalised innovation squared accepted below this (chi-square quantile)."""
+    return float(chi2.ppf(probability, dof))
+
+
+@dataclass(frozen=True)
+class UpdateResult:
+    """Outcome of one measurement update: accepted or gated, the normalised innovation
+    squared, and the error-state estimate to inject (None when gated)."""
+
+    accepted: bool
+    nis: float
+    dx: FloatArray | None
+
+
+class ErrorStateFilter:
+    """Covariance of the error state and its propagation and update (the mean is always zero
+    between updates: closed loop)."""
+
+    def __init__(
+        self, layout: StateLayout, noise: ImuNoise, gnss_correlation_time_s: float = 60.0
+    ) -> None:
+        """P starts at zero; set it before use. P arrays are replaced, never modified in place,
+        so a reference to ``P`` is a snapshot."""
+        n = layout.size
+        self.layout = layout
+        self.P: FloatArray = np.zeros((n, n))
+        self._eye = np.eye(n)
+        # F and Q are rebuilt block by block through views; constant blocks are set once.
+        F = self._F = np.zeros((n, n))
+        F[POS : POS + 3, VEL : VEL + 3] = np.eye(3)
+        Q = self._Q = np.zeros((n, n))
+        self._f_vv = F[VEL : VEL + 3, VEL : VEL + 3]
+        self._f_va = F[VEL : VEL + 3, ATT : ATT + 3]
+        self._f_vba = F[VEL : VEL + 3, BA : BA + 3]
+        self._f_av = F[ATT : ATT + 3, VEL : VEL + 3]
+        self._f_aa = F[ATT : ATT + 3, ATT : ATT + 3]
+        self._f_abg = F[ATT : ATT + 3, BG : BG + 3]
+        self._f_asg = None if layout.sg is None else F[ATT : ATT + 3, layout.sg : layout.sg + 3]
+        self._f_vsa = None if layout.sa is None else F[VEL : VEL + 3, layout.sa : layout.sa + 3]
+        self._q_vv = Q[VEL : VEL + 3, VEL : VEL + 3]
+        self._q_aa = Q[ATT : ATT + 3, ATT : ATT + 3]
+        # Gauss-Markov states: F = -1/T, continuous noise 2σ²/T.
+        t_b = noise.bias_correlation_time_s
+        markov = [(BG, t_b, noise.gyro_bias_instability), (BA, t_b, noise.accel_bias_instability)]
+        for start, sigma in (
+            (layout.sg, noise.gyro_scale_sigma),
+            (layout.sa, noise.accel_scale_sigma),
+        ):
+            if start is not None:
+                markov.append((start, t_b, (sigma, sigma, sigma)))
+        if layout.gp is not None:
+            markov.append((layout.gp, gnss_correlation_time_s, (0.0, 0.0, 0.0)))
+        self._markov_idx = np.concatenate([np.arange(m[0], m[0] + 3) for m in markov])
+        self._markov_q = np.array([2.0 * s * s / m[1] for m in markov for s in m[2]])
+        self._F[self._markov_idx, self._markov_idx] = np.repeat([-1.0 / m[1] for m in markov], 3)
+        self._gnss_rate = 2.0 / gnss_correlation_time_s
+        self._accel_psd = np.square(noise.accel_vrw)
+        self._gyro_psd = np.square(noise.gyro_arw)
+        self._gnss_variance: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    @property
+    def gnss_variance(self) -> tuple[float, float, float]:
+        """Stationary variance of the GNSS position error states per NED axis [m²]."""
+        return self._gnss_variance
+
+    @gnss_variance.setter
+    def gnss_variance(self, variance: tuple[float, float, float]) -> None:
+        self._gnss_variance = variance
+        if self.layout.gp is not None:
+            self._markov_q[-3:] = np.array(variance) * self._gnss_rate
+
+    def dynamics(
+        self,
+        mat_ni: FloatArray,
+        force_n: FloatArray,
+        force_i: FloatArray,
+        rate_i: FloatArray,
+        lat_rad: float,
+        height_m: float,
+        vel_ned_m_s: tuple[float, float, float],
+    ) -> FloatArray:
+        """The error-state matrix F (module docstring) for a rotation imu FRD -> NED, the
+        specific force in NED and the corrected force/rate in imu FRD [m/s², rad/s], position
+        and NED velocity. Returns an internal array, valid until the next call."""
+        vn, ve, vd = vel_ned_m_s
+        r_m, r_n = earth.radii_m(lat_rad)
+        rmh, rnh = r_m + height_m, r_n + height_m
+        tan_lat = math.tan(lat_rad)
+        w_ie_n, _, w_ie_d = earth.earth_rate_ned_rad_s(lat_rad)
+        # ω_en = (a v_E, b v_N, c v_E): ∂ω_en/∂v = [[0, a, 0], [b, 0, 0], [0, c, 0]].
+        a, b, c = 1.0 / rnh, -1.0 / rmh, -tan_lat / rnh
+        w_in = (w_ie_n + a * ve, b * vn, w_ie_d + c * ve)
+        cx, cy, cz = w_in[0] + w_ie_n, w_in[1], w_in[2] + w_ie_d  # 2ω_ie + ω_en
+        fx, fy, fz = force_n.tolist()
+        # δv̇: [v×] ∂ω_en/∂v - [(2ω_ie + ω_en)×]; -[f_n×]; ψ̇: -∂ω_en/∂v; -[ω_in×].
+        self._f_vv[...] = (
+            (-vd * b, ve * c + cz, -cy),
+            (-cz, vd * a - vn * c, cx),
+            (vn * b + cy, -ve * a - cx, 0.0),
+        )
+        self._F[VEL + 2, POS + 2] = (
+            2.0 * earth.normal_gravity_m_s2(lat_rad, height_m) / math.sqrt(rmh * rnh)
+        )
+        self._f_va[...] = ((0.0, fz, -fy), (-fz, 0.0, fx), (fy, -fx, 0.0))
+        self._f_av[...] = ((0.0, -a, 0.0), (-b, 0.0, 0.0), (0.0, -c, 0.0))
+        wx, wy, wz = w_in
+        self._f_aa[...] = ((0.0, wz, -wy), (-wz, 0.0, wx), (wy, -wx, 0.0))
+        np.negative(mat_ni, out=self._f_vba)
+        np.negative(mat_ni, out=self._f_abg)
+        if self._f_asg is not None:
+            np.multiply(mat_ni, -rate_i, out=self._f_asg)
+        if self._f_vsa is not None:
+            np.multiply(mat_ni, -force_i, out=self._f_vsa)
+        return self._F
+
+    def noise_density(self, mat_ni: FloatArray) -> FloatArray:
+        """Continuous process noise Q_c = G Q Gᵀ [per second] for the rotation imu -> NED."""
+        Q = self._Q
+        self._q_vv[...] = (mat_ni * self._accel_psd) @ mat_ni.T
+        self._q_aa[...] = (mat_ni * self._gyro_psd) @ mat_ni.T
+        Q[self._markov_idx, self._markov_idx] = self._markov_q
+        return Q
+
+    def propagate(
+        self,
+        dt_s: float,
+        mat_ni: FloatArray,
+        force_n: FloatArray,
+        force_i: FloatArray,
+        rate_i: FloatArray,
+        lat_rad: float,
+        height_m: float,
+        vel_ned_m_s: tuple[float, float, float],
+    ) -> None:
+        """Propagate P over an interval of dt_s [s] (one or a few IMU samples); arguments as
+        for ``dynamics`` (mean force and rate over the interval, state at its end)."""
+        f_dt = self.dynamics(mat_ni, force_n, force_i, rate_i, lat_rad, height_m, vel_ned_m_s)
+        f_dt = f_dt * dt_s
+        phi = self._eye + f_dt + 0.5 * (f_dt @ f_dt)
+        q = self.noise_density(mat_ni) * (0.5 * dt_s)
+        # Φ P Φᵀ + (Φ Q_c Φᵀ + Q_c)Δt/2 = Φ (P + Q_cΔt/2) Φᵀ + Q_cΔt/2.
+        P = phi @ (self.P + q) @ phi.T
+        P += q
+        self.P = P
+
+    def update(self, z: FloatArray, H: FloatArray, R: FloatArray, threshold: float) -> UpdateResult:
+        """Gated Joseph-form update with innovation z = measured - predicted, z ≈ H δx + v."""
+        P = self.P
+        PHt = P @ H.T
+        S = H @ PHt + R
+        try:
+            s_inv_z = np.linalg.solve(S, z)
+        except np.linalg.LinAlgError:
+            return UpdateResult(False, math.inf, None)
+        nis = float(z @ s_inv_z)
+        if not nis <= threshold:  # also rejects NaN
+            return UpdateResult(False, nis, None)
+        K = np.linalg.solve(S, PHt.T).T
+        ikh = self._eye - K @ H
+        P = ikh @ P @ ikh.T + K @ R @ K.T
+        self.P = 0.5 * (P + P.T)
+        return UpdateResult(True, nis, K @ z)
+
+    def problem(self) -> str | None:
+        """Why the covariance is unusable (non-finite, negative variance), or None."""
+        diagonal = self.P.diagonal()
+        if not np.isfinite(self.P).all():
+            return "non-finite covariance"
+        if diagonal.min() < 0.0:
+            return f"negative variance in state {int(diagonal.argmin())}"
+        return None

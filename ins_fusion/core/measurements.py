@@ -1,0 +1,258 @@
+"""Measurements of the fusion engine and their models z = h(x) + v, linearised in the error state.
+
+Every model returns (z, H, R) with the innovation z = measured - predicted, so that
+z ≈ H δx + v for the error state of core.eskf (x_true = x_nominal + δx, C_true = (I + [ψ×]) C).
+The prediction is the nominal state at the measurement's own stamp (``Prediction``). Frames:
+NED/FRD inside; the ROS-facing dataclasses use ENU/FLU (REP-103) like the messages they come
+from. Lever arms are base_link FRD vectors from the IMU (the mechanised point) to the point
+measured.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ins_fusion.core import earth
+from ins_fusion.core.eskf import ATT, BG, POS, VEL, StateLayout, skew
+from ins_fusion.core.rotation import MAT_ENU_NED, FloatArray
+
+#: A variance at or above this marks a component as not measured: GNSS vertical velocity [m²/s²]
+#: (the contract of gnss/vel) and attitude angles [rad²].
+UNKNOWN_VELOCITY_VARIANCE = 1.0e4
+UNKNOWN_ANGLE_VARIANCE = 1.0
+#: FLU <-> FRD sign flips of the (roll, pitch, yaw) errors of a REP-103 orientation covariance.
+_RPY_FLU_TO_FRD = np.diag([1.0, -1.0, -1.0])
+
+
+def _array(value: object, shape: tuple[int, ...]) -> FloatArray:
+    out = np.asarray(value, dtype=np.float64).reshape(shape)
+    out.setflags(write=False)
+    return out
+
+
+@dataclass(frozen=True)
+class GnssFixMeasurement:
+    """Antenna position (gnss/fix): WGS-84 latitude/longitude [deg], ellipsoidal height [m],
+    ENU covariance [m²] (3, 3); ``valid`` False for no-fix messages (ignored and counted)."""
+
+    t_s: float
+    lat_deg: float
+    lon_deg: float
+    height_m: float
+    cov_enu_m2: FloatArray
+    valid: bool = True
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "cov_enu_m2", _array(self.cov_enu_m2, (3, 3)))
+
+
+@dataclass(frozen=True)
+class GnssVelocityMeasurement:
+    """Antenna velocity (gnss/vel) in ENU [m/s] with its covariance [m²/s²] (3, 3); a vertical
+    variance >= UNKNOWN_VELOCITY_VARIANCE (or NaN) means 'vertical unknown'."""
+
+    t_s: float
+    vel_enu_m_s: FloatArray
+    cov_enu_m2_s2: FloatArray
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "vel_enu_m_s", _array(self.vel_enu_m_s, (3,)))
+        object.__setattr__(self, "cov_enu_m2_s2", _array(self.cov_enu_m2_s2, (3, 3)))
+
+
+@dataclass(frozen=True)
+class AttitudeMeasurement:
+    """Orientation (gnss/attitude): quaternion (x, y, z, w) of the receiver's vehicle frame
+    (FLU) in ENU and the covariance of its roll, pitch, yaw errors about the FLU axes [rad²]
+    (3, 3); a variance >= UNKNOWN_ANGLE_VARIANCE marks an angle as not measured (heading-only
+    receivers)."""
+
+    t_s: float
+    quat_enu_flu_xyzw: FloatArray
+    cov_rpy_rad2: FloatArray
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "quat_enu_flu_xyzw", _array(self.quat_enu_flu_xyzw, (4,)))
+        object.__setattr__(self, "cov_rpy_rad2", _array(self.cov_rpy_rad2, (3, 3)))
+
+
+@dataclass(frozen=True)
+class Prediction:
+    """Nominal state at a measurement stamp: IMU position (lat, lon [rad], h [m]), NED
+    velocity [m/s], body (base_link FRD) -> NED rotation, corrected body rate ω_ib [rad/s] in
+    base_link FRD and in imu FRD."""
+
+    lat_rad: float
+    lon_rad: float
+    height_m: float
+    vel_ned_m_s: FloatArray
+    mat_nb: FloatArray
+    rate_b: FloatArray
+    rate_i: FloatArray
+    layout: StateLayout = field(default_factory=StateLayout)
+
+    def ned_offset_m(self, lat_rad: float, lon_rad: float, height_m: float) -> FloatArray:
+        """NED vector [m] from the IMU position to a nearby geodetic point."""
+        r_m, r_n = earth.radii_m(self.lat_rad)
+        return np.array(
+            [
+                (lat_rad - self.lat_rad) * (r_m + self.height_m),
+                (lon_rad - self.lon_rad) * (r_n + self.height_m) * math.cos(self.lat_rad),
+                self.height_m - height_m,
+            ]
+        )
+
+    def jacobian(self, rows: int) -> FloatArray:
+        """A zero H of ``rows`` rows."""
+        return np.zeros((rows, self.layout.size))
+
+    def gyro_error_jacobian(self, mat_bi: FloatArray) -> list[tuple[int, FloatArray]]:
+        """d(ω_b)/d(δb_g, δs_g): blocks (first column, 3x3) of the rate error in base FRD."""
+        blocks = [(BG, -mat_bi)]
+        if self.layout.sg is not None:
+            blocks.append((self.layout.sg, -mat_bi * self.rate_i))
+        return blocks
+
+
+Model = tuple[FloatArray, FloatArray, FloatArray]
+
+
+def ned_cov(cov_enu: FloatArray) -> FloatArray:
+    """ENU covariance -> NED (and back: the axis swap is its own inverse)."""
+    return np.asarray(MAT_ENU_NED @ cov_enu @ MAT_ENU_NED.T, dtype=np.float64)
+
+
+def gnss_position(
+    pred: Prediction,
+    meas: GnssFixMeasurement,
+    lever_b: FloatArray,
+    white_cov_ned: FloatArray,
+    gnss_error_ned: tuple[float, float, float],
+) -> Model:
+    """Antenna position p + C_nb l plus the estimated time-correlated receiver error ε_g (when
+    it is a state). H: δp -> I, ψ -> -[(C_nb l)×], δε_g -> I; R: the white part of the
+    receiver's covariance."""
+    arm_n = pred.mat_nb @ lever_b
+    offset = pred.ned_offset_m(
+        math.radians(meas.lat_deg), math.radians(meas.lon_deg), meas.height_m
+    )
+    H = pred.jacobian(3)
+    H[:, POS : POS + 3] = np.eye(3)
+    H[:, ATT : ATT + 3] = -skew(arm_n)
+    if pred.layout.gp is not None:
+        H[:, pred.layout.gp : pred.layout.gp + 3] = np.eye(3)
+    return offset - arm_n - np.array(gnss_error_ned), H, white_cov_ned
+
+
+def gnss_velocity(
+    pred: Prediction, meas: GnssVelocityMeasurement, lever_b: FloatArray, mat_bi: FloatArray
+) -> Model | None:
+    """Antenna velocity v + C_nb (ω_b × l) (the ω_in × C l term, < 2e-4 m/s, is left out);
+    horizontal rows only when the vertical is unknown. None when the horizontal is unusable."""
+    cov = ned_cov(meas.cov_enu_m2_s2)
+    vel = np.asarray(MAT_ENU_NED @ meas.vel_enu_m_s)
+    if not (np.isfinite(vel[:2]).all() and np.isfinite(cov[:2, :2]).all()):
+        return None
+    vertical = math.isfinite(vel[2]) and cov[2, 2] < UNKNOWN_VELOCITY_VARIANCE
+    rows = 3 if vertical else 2
+    rot_n = pred.mat_nb @ (skew(pred.rate_b) @ lever_b)
+    H = pred.jacobian(3)
+    H[:, VEL : VEL + 3] = np.eye(3)
+    H[:, ATT : ATT + 3] = -skew(rot_n)
+    arm = pred.mat_nb @ skew(lever_b)
+    for start, d_rate in pred.gyro_error_jacobian(mat_bi):
+        H[:, start : start + 3] = -arm @ d_rate
+    z = vel - pred.vel_ned_m_s - rot_n
+    return z[:rows], H[:rows], cov[:rows, :rows]
+
+
+def euler_rad(mat_nb: FloatArray) -> FloatArray:
+    """(roll, pitch, yaw) [rad] of an FRD -> NED rotation matrix (Aalborg notes (7.16)-(7.18))."""
+    return np.array(
+        [
+            math.atan2(mat_nb[2, 1], mat_nb[2, 2]),
+            -math.asin(max(-1.0, min(1.0, mat_nb[2, 0]))),
+            math.atan2(mat_nb[1, 0], mat_nb[0, 0]),
+        ]
+    )
+
+
+def euler_jacobian(mat_nb: FloatArray) -> FloatArray:
+    """d(roll, pitch, yaw)/dψ for C_true = (I + [ψ×]) C (rows roll, pitch, yaw)."""
+    c = mat_nb
+    d_roll = c[2, 1] ** 2 + c[2, 2] ** 2
+    d_yaw = c[0, 0] ** 2 + c[1, 0] ** 2
+    cos_pitch = math.sqrt(d_yaw)
+    return np.array(
+        [
+            [
+                (c[2, 2] * c[1, 1] - c[2, 1] * c[1, 2]) / d_roll,
+                (c[2, 1] * c[0, 2] - c[2, 2] * c[0, 1]) / d_roll,
+                0.0,
+            ],
+            [-c[1, 0] / cos_pitch, c[0, 0] / cos_pitch, 0.0],
+            [-c[0, 0] * c[2, 0] / d_yaw, -c[1, 0] * c[2, 0] / d_yaw, 1.0],
+        ]
+    )
+
+
+def wrap_angle(angle_rad: FloatArray) -> FloatArray:
+    """Angles wrapped to [-π, π)."""
+    return np.asarray((angle_rad + math.pi) % (2.0 * math.pi) - math.pi, dtype=np.float64)
+
+
+def attitude(
+    pred: Prediction, mat_nb_measured: FloatArray, cov_rpy_flu: FloatArray
+) -> Model | None:
+    """Euler angles (roll, pitch, yaw) of base_link; angles marked unknown are dropped.
+
+    The REP-103 covariance (errors about the FLU axes) becomes the covariance of the NED Euler
+    angles by the sign flips of pitch and yaw. None when no angle is measured.
+    """
+    cov = _RPY_FLU_TO_FRD @ cov_rpy_flu @ _RPY_FLU_TO_FRD
+    diagonal = np.diagonal(cov)
+    keep = np.flatnonzero(np.isfinite(diagonal) & (diagonal < UNKNOWN_ANGLE_VARIANCE))
+    if keep.size == 0:
+        return None
+    z = wrap_angle(euler_rad(mat_nb_measured) - euler_rad(pred.mat_nb))
+    H = pred.jacobian(3)
+    H[:, ATT : ATT + 3] = euler_jacobian(pred.mat_nb)
+    return z[keep], H[keep], cov[np.ix_(keep, keep)]
+
+
+def zupt(pred: Prediction, sigma_m_s: float) -> Model:
+    """Zero velocity of the IMU point: H: δv -> I."""
+    H = pred.jacobian(3)
+    H[:, VEL : VEL + 3] = np.eye(3)
+    return -pred.vel_ned_m_s, H, np.eye(3) * sigma_m_s**2
+
+
+def zaru(
+    pred: Prediction,
+    mean_rate_i: FloatArray,
+    earth_rate_i: FloatArray,
+    gyro_bias_i: FloatArray,
+    variance: FloatArray,
+) -> Model:
+    """Zero angular rate: the mean calibrated rate (imu FRD) over an interval at rest minus the
+    earth rate and the bias estimate measures the bias error (the scale error times the earth
+    rate, < 1e-7 rad/s, is left out). H: δb_g -> I."""
+    H = pred.jacobian(3)
+    H[:, BG : BG + 3] = np.eye(3)
+    return mean_rate_i - earth_rate_i - gyro_bias_i, H, np.diag(variance)
+
+
+def nhc(pred: Prediction, arm_b: FloatArray, mat_bi: FloatArray, sigma_m_s: float) -> Model:
+    """No lateral or vertical velocity of the point ``arm_b`` (base_link origin) in base_link:
+    v_b = C_nbᵀ v + ω_b × r. H: δv -> C_nbᵀ, ψ -> C_nbᵀ [v×], gyro errors -> -[r×] dω_b."""
+    c_bn = pred.mat_nb.T
+    v_b = c_bn @ pred.vel_ned_m_s + skew(pred.rate_b) @ arm_b
+    H = pred.jacobian(3)
+    H[:, VEL : VEL + 3] = c_bn
+    H[:, ATT : ATT + 3] = c_bn @ skew(pred.vel_ned_m_s)
+    for start, d_rate in pred.gyro_error_jacobian(mat_bi):
+        H[:, start : start + 3] = -skew(arm_b) @ d_rate
+    return -v_b[1:], H[1:], np.eye(2) * sigma_m_s**2

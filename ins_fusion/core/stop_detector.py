@@ -1,0 +1,110 @@
+"""Stop (standstill) detector for ZUPT, ZARU and levelling (no ROS).
+
+NTNU notes §7 (shared/reference/gnss-ins-ntnu-notes.md): engine and road vibration make the
+accelerometer variance much larger when moving than when stopped; the thesis thresholds
+var(a_x) + var(a_y) over a 1 s window at 0.048 (m/s²)². Its detector had only false negatives
+but recommended adding the gyro variance and the GNSS speed, hysteresis and a minimum duration
+(§7, §14 items 18-19, "Implications" D6), because a false positive (ZUPT while moving) is the
+dangerous error. Here a stop needs all of:
+
+- var(f_x) + var(f_y) of base_link over the window below ``accel_variance``,
+- var(ω_x) + var(ω_y) + var(ω_z) below ``gyro_variance``,
+- the GNSS speed (when one arrived within the last two seconds) and the filter's speed (once it
+  runs) below ``speed_m_s``; the speed veto is what stops a smooth, vibration-free cruise (as in
+  simulated data) from looking like a stop,
+
+- the mean horizontal specific force of base_link over the last quarter of the window within
+  ``accel_change`` of its mean over the window (at the start of a stop) or of its value when the
+  stop began (during the stop): a standstill has a constant specific force, and this catches the
+  smooth start of a vehicle whose variance and speed are still small,
+
+for ``min_duration_s``; a stop ends as soon as one quantity exceeds ``hysteresis`` times its
+threshold.
+"""
+
+from __future__ import annotations
+
+import collections
+
+import numpy as np
+
+from ins_fusion.core.config import StopDetectorConfig
+from ins_fusion.core.rotation import FloatArray
+
+Vec3 = tuple[float, float, float]
+
+#: A GNSS speed older than this no longer vetoes or confirms a stop [s].
+GNSS_SPEED_MAX_AGE_S = 2.0
+
+
+class StopDetector:
+    """Decides standstill from a window of IMU samples and the latest speeds."""
+
+    def __init__(self, config: StopDetectorConfig, mat_bi: FloatArray) -> None:
+        """``mat_bi``: imu FRD -> base_link FRD rotation applied to the specific force."""
+        self.config = config
+        self._mat_bi_t = np.asarray(mat_bi, dtype=np.float64).T
+        self._times: collections.deque[float] = collections.deque()
+        self._samples: collections.deque[tuple[float, ...]] = collections.deque()
+        self._candidate_since: float | None = None
+        self._stop_force: FloatArray | None = None
+        self.stationary = False
+        self.accel_variance = float("nan")
+        self.gyro_variance = float("nan")
+        self.accel_change = float("nan")
+
+    def reset(self) -> None:
+        """Forget the window and the decision."""
+        self._times.clear()
+        self._samples.clear()
+        self._candidate_since = None
+        self._stop_force = None
+        self.stationary = False
+
+    def push(self, t_s: float, rate_i: Vec3, force_i: Vec3) -> None:
+        """Add a calibrated sample (imu FRD) at time t_s."""
+        times = self._times
+        times.append(t_s)
+        self._samples.append(rate_i + force_i)
+        start = t_s - self.config.window_s
+        while times[0] < start:
+            times.popleft()
+            self._samples.popleft()
+
+    def evaluate(
+        self, t_s: float, gnss_speed_m_s: float | None, ins_speed_m_s: float | None
+    ) -> bool:
+        """Update and return the decision at t_s; speeds are None when unknown."""
+        cfg = self.config
+        factor = cfg.hysteresis if self.stationary else 1.0
+        slow = all(s is None or s < cfg.speed_m_s * factor for s in (gnss_speed_m_s, ins_speed_m_s))
+        times = self._times
+        full = len(times) > 2 and times[0] <= t_s - 0.9 * cfg.window_s
+        window_force = None
+        if slow and full:  # the IMU only matters when no speed vetoes the stop
+            samples = np.array(self._samples)
+            forces = samples[:, 3:] @ self._mat_bi_t
+            horizontal = forces[:, :2]
+            window_force = horizontal.mean(axis=0)
+            reference = window_force if self._stop_force is None else self._stop_force
+            recent = horizontal[-max(1, len(horizontal) // 4) :].mean(axis=0)
+            self.accel_change = float(np.hypot(*(recent - reference)))
+            self.accel_variance = float(horizontal.var(axis=0).sum())
+            self.gyro_variance = float(samples[:, :3].var(axis=0).sum())
+        candidate = (
+            window_force is not None
+            and self.accel_variance < cfg.accel_variance * factor
+            and self.gyro_variance < cfg.gyro_variance * factor
+            and self.accel_change < cfg.accel_change_m_s2 * factor
+        )
+        if not candidate:
+            self._candidate_since = None
+            self._stop_force = None
+            self.stationary = False
+        elif not self.stationary:
+            if self._candidate_since is None:
+                self._candidate_since = t_s
+            self.stationary = t_s - self._candidate_since >= cfg.min_duration_s
+            if self.stationary:
+                self._stop_force = window_force
+        return self.stationary

@@ -1,0 +1,101 @@
+"""Incoming ROS messages -> fusion engine inputs, for rclpy and rosbags message objects alike.
+
+One definition of how ins_fusion_node and ``gnss_ins replay`` read their topics: the functions
+only read fields by attribute (rclpy messages and rosbags-deserialized ones have the same field
+names) and return the engine's plain types. No ROS import.
+
+Conventions (shared/ARCHITECTURE.md): every time is the message's ``header.stamp`` [s since the
+epoch, host clock]; REP-103 ENU world and FLU body; REP-145 IMU data; a covariance whose first
+element is -1 marks a quantity the message does not carry.
+
+| topic | type | function | InsEngine input |
+|---|---|---|---|
+| imu/data_raw | Imu | ``imu_sample`` | ``add_imu(*sample)`` |
+| gnss/fix | NavSatFix | ``fix_measurement`` | ``add_gnss_fix`` |
+| gnss/vel | TwistWithCovarianceStamped (ENU) | ``velocity_measurement`` | ``add_gnss_velocity`` |
+| gnss/attitude | Imu (orientation only) | ``attitude_measurement`` | ``add_attitude`` |
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from ins_fusion.core.measurements import (
+    AttitudeMeasurement,
+    GnssFixMeasurement,
+    GnssVelocityMeasurement,
+)
+
+Vec3 = tuple[float, float, float]
+
+#: sensor_msgs/NavSatStatus: statuses below STATUS_FIX (NO_FIX -1, UNKNOWN -2) carry no position.
+STATUS_FIX = 0
+#: sensor_msgs/NavSatFix position_covariance_type with no usable covariance.
+COVARIANCE_TYPE_UNKNOWN = 0
+
+
+class ImuSample(NamedTuple):
+    """One imu/data_raw sample: stamp [s], rate [rad/s] and specific force [m/s²] in imu_link
+    FLU (REP-145)."""
+
+    t_s: float
+    rate_flu_rad_s: Vec3
+    force_flu_m_s2: Vec3
+
+
+def stamp_s(msg: Any) -> float:
+    """``msg.header.stamp`` in seconds."""
+    stamp = msg.header.stamp
+    return float(stamp.sec) + float(stamp.nanosec) * 1e-9
+
+
+def _vec3(v: Any) -> Vec3:
+    return (float(v.x), float(v.y), float(v.z))
+
+
+def imu_sample(msg: Any) -> ImuSample:
+    """sensor_msgs/Imu of imu/data_raw -> ``ImuSample`` (angular_velocity, linear_acceleration)."""
+    return ImuSample(stamp_s(msg), _vec3(msg.angular_velocity), _vec3(msg.linear_acceleration))
+
+
+def fix_measurement(msg: Any) -> GnssFixMeasurement:
+    """sensor_msgs/NavSatFix -> antenna position with its ENU covariance [m²].
+
+    Valid only with a fix (status >= STATUS_FIX), finite latitude, longitude and altitude
+    (altitude above the WGS-84 ellipsoid, ARCHITECTURE.md), and a known, finite covariance
+    (type not UNKNOWN): a position without an accuracy cannot be weighted. Invalid fixes are
+    still handed to the engine, which ignores and counts them.
+    """
+    cov = np.asarray(msg.position_covariance, dtype=np.float64).reshape(3, 3)
+    position = (float(msg.latitude), float(msg.longitude), float(msg.altitude))
+    valid = (
+        int(msg.status.status) >= STATUS_FIX
+        and int(msg.position_covariance_type) != COVARIANCE_TYPE_UNKNOWN
+        and all(map(math.isfinite, position))
+        and bool(np.isfinite(cov).all())
+    )
+    return GnssFixMeasurement(stamp_s(msg), *position, cov, valid)
+
+
+def velocity_measurement(msg: Any) -> GnssVelocityMeasurement:
+    """geometry_msgs/TwistWithCovarianceStamped (ENU) -> velocity [m/s] and the linear 3x3
+    block of its 6x6 covariance [m²/s²] (a huge vertical variance = vertical not measured)."""
+    twist = msg.twist
+    cov = np.asarray(twist.covariance, dtype=np.float64).reshape(6, 6)[:3, :3]
+    return GnssVelocityMeasurement(stamp_s(msg), np.array(_vec3(twist.twist.linear)), cov)
+
+
+def attitude_measurement(msg: Any) -> AttitudeMeasurement:
+    """sensor_msgs/Imu of gnss/attitude -> orientation of FLU in ENU (x, y, z, w) and its
+    roll/pitch/yaw covariance [rad²]. A message without an orientation
+    (orientation_covariance[0] == -1, REP-145) gives infinite variances: no angle measured
+    (the engine counts it as rejected)."""
+    cov = np.asarray(msg.orientation_covariance, dtype=np.float64).reshape(3, 3)
+    if cov[0, 0] == -1.0:
+        cov = np.diag([math.inf] * 3)
+    q = msg.orientation
+    quat = np.array([float(q.x), float(q.y), float(q.z), float(q.w)])
+    return AttitudeMeasurement(stamp_s(msg), quat, cov)

@@ -1,0 +1,205 @@
+"""The steps of ``gnss_ins replay`` (ins_fusion/tools/replay.py parses the arguments): check the
+parameters, read the bag, replay or sweep, print, write the report, plot and fused bag.
+
+Bad input raises UsageError, printed by ``execute`` with exit status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from gnss_ins_common.params import ParameterValueError, load_yaml, validate_all
+from ins_fusion.core.calibration import CalibrationError
+from ins_fusion.core.config import NODE_NAME, FusionConfig
+from ins_fusion.core.engine import InsEngine
+from ins_fusion.fusion_params import PARAMETERS
+from ins_fusion.replay.inputs import InputError, ReplayInputs, load_bag
+from ins_fusion.replay.outages import Outage
+from ins_fusion.replay.output import write_fused_bag
+from ins_fusion.replay.pipeline import Replay, replay
+from ins_fusion.replay.plot import plot_replay
+from ins_fusion.replay.ranking import DEFAULT_RANK_BY
+from ins_fusion.replay.report import Report, format_table, to_json
+from ins_fusion.replay.settings import grid
+from ins_fusion.replay.sweep import format_sweep, run_sweep
+from ins_fusion.replay.topics import DEFAULT_REFERENCE
+from ins_fusion.tools.bag_io import BagError
+from ins_fusion.tools.progress import Progress
+
+
+class UsageError(Exception):
+    """Bad input: printed and exit status 2."""
+
+
+def execute(args: argparse.Namespace) -> int:
+    """Replay (or sweep) as the arguments say; 0 done, 1 no fused solution, 2 bad input."""
+    try:
+        return _run(args)
+    except UsageError as exc:
+        print(f"gnss_ins replay: error: {exc}", file=sys.stderr)
+        return 2
+
+
+def _parameters(args: argparse.Namespace) -> dict[str, Any]:
+    """Every parameter: defaults, the YAML file, then --set."""
+    try:
+        base = (
+            load_yaml(args.params, NODE_NAME, PARAMETERS)
+            if args.params is not None
+            else validate_all(PARAMETERS, {})
+        )
+    except ParameterValueError as exc:
+        raise UsageError(str(exc)) from None
+    return {**base, **dict(args.settings)}
+
+
+def _check_engine(parameters: dict[str, Any]) -> None:
+    """The engine accepts the parameters (and reads the calibration file they name)."""
+    try:
+        InsEngine(FusionConfig.from_parameters(parameters))
+    except (ParameterValueError, CalibrationError) as exc:
+        raise UsageError(str(exc)) from None
+
+
+def _check_usage(args: argparse.Namespace) -> None:
+    if args.sweep and (args.plot is not None or args.output is not None):
+        raise UsageError("--plot and --output are for a single replay, not with --sweep")
+    if args.rank_by is not None and not args.sweep:
+        raise UsageError("--rank-by ranks the runs of a --sweep")
+    if args.workers is not None and args.workers < 1:
+        raise UsageError("--workers must be at least 1")
+    if args.output is not None and args.output.exists():
+        raise UsageError(f"{args.output} exists already, not overwriting")
+
+
+def _load(args: argparse.Namespace) -> ReplayInputs:
+    prefix = args.reference if args.reference is not None else DEFAULT_REFERENCE
+    with Progress("read", unit="msgs") as bar:
+
+        def progress(done: int, total: int) -> None:
+            bar.total = total
+            bar.update(done)
+
+        try:
+            inputs = load_bag(
+                args.bag,
+                args.topics,
+                prefix,
+                reference_required=args.reference is not None,
+                progress=progress,
+            )
+        except InputError as exc:
+            raise UsageError(str(exc)) from None
+    for outage in args.outage:
+        if outage.start_s >= inputs.duration_s:
+            raise UsageError(
+                f"outage {outage.start_s:g}:{outage.duration_s:g} starts after the IMU data"
+                f" ends ({inputs.duration_s:.1f} s after the first IMU stamp)"
+            )
+    if inputs.reference is None and args.reference is None:
+        print(f"note: no {prefix}/fix in the bag; accuracy not evaluated", file=sys.stderr)
+    return inputs
+
+
+def _run(args: argparse.Namespace) -> int:
+    _check_usage(args)
+    parameters = _parameters(args)
+    try:
+        settings = grid(args.sweep) if args.sweep else []
+    except ParameterValueError as exc:
+        raise UsageError(str(exc)) from None
+    for setting in settings or [{}]:
+        _check_engine({**parameters, **setting})
+    inputs = _load(args)
+    reference = None if inputs.reference is None else (args.reference or DEFAULT_REFERENCE)
+    outages: list[Outage] = args.outage
+    if settings:
+        return _sweep(args, inputs, parameters, settings, outages, reference)
+    with Progress("fuse", total=len(inputs.imu), unit="samples") as bar:
+        result = replay(inputs, parameters, outages, reference, lambda done, _: bar.update(done))
+    print(format_table(result.report))
+    if args.report is not None:
+        _write_report(args.report, result.report)
+    if not len(result.run.track.t_s):
+        print(
+            "gnss_ins replay: the engine produced no solution (no alignment: is there a"
+            " standstill or GNSS course/attitude and a fix?)",
+            file=sys.stderr,
+        )
+        return 1
+    _write_outputs(args, inputs, parameters, result, outages)
+    return 0
+
+
+def _write_report(path: Path, report: Report) -> None:
+    try:
+        path.write_text(to_json(report), encoding="utf-8")
+    except OSError as exc:
+        raise UsageError(f"cannot write {path}: {exc}") from None
+    print(f"report: {path}")
+
+
+def _write_outputs(
+    args: argparse.Namespace,
+    inputs: ReplayInputs,
+    parameters: dict[str, Any],
+    result: Replay,
+    outages: list[Outage],
+) -> None:
+    if args.plot is not None:
+        title = f"gnss_ins replay {inputs.bag}"
+        if outages:
+            title += "; outages " + ", ".join(f"{o.start_s:g}:{o.duration_s:g}" for o in outages)
+        try:
+            plot_replay(args.plot, result.run.track, inputs.t0_s, result.evaluation, outages, title)
+        except (OSError, ValueError) as exc:
+            raise UsageError(f"cannot write the plot {args.plot}: {exc}") from None
+        print(f"plot: {args.plot}")
+    if args.output is not None:
+        config = FusionConfig.from_parameters(parameters)
+        # Rate variance per axis as the node publishes it: mean gyro density² x the IMU rate.
+        imu_rate_hz = (len(inputs.imu) - 1) / inputs.duration_s
+        rate_variance = float(np.mean(np.square(config.imu_noise.gyro_arw))) * imu_rate_hz
+        try:
+            summary = write_fused_bag(
+                args.output,
+                result.run.track.solutions,
+                config.map_frame,
+                config.base_frame,
+                rate_variance,
+            )
+        except BagError as exc:
+            raise UsageError(str(exc)) from None
+        print(summary.format(f"fused bag {args.output}"))
+
+
+def _sweep(
+    args: argparse.Namespace,
+    inputs: ReplayInputs,
+    parameters: dict[str, Any],
+    settings: list[dict[str, Any]],
+    outages: list[Outage],
+    reference: str | None,
+) -> int:
+    rank_by = args.rank_by or DEFAULT_RANK_BY
+    with Progress("sweep", total=len(settings), unit="runs") as bar:
+        results = run_sweep(
+            inputs,
+            parameters,
+            settings,
+            outages,
+            reference,
+            rank_by,
+            args.workers,
+            lambda done, _: bar.update(done),
+        )
+    print(format_sweep(results, rank_by))
+    if args.report is not None:
+        runs = [{"setting": r.setting, "score": r.score, "report": r.report} for r in results]
+        _write_report(args.report, {"rank_by": rank_by, "runs": runs})
+    return 0

@@ -1,0 +1,222 @@
+"""A bag's sensor topics and reference topics, read once into memory for the engine runs.
+
+The inputs keep the bag's receive (log-time) order, which is what ins_fusion_node sees: every
+GNSS/attitude measurement records how many IMU samples were received before it. Messages are
+read through ins_fusion.tools.bag_io and converted by ins_fusion.messages_in, as the node does.
+
+Reference topics (``PREFIX/fix``, ``PREFIX/attitude``, optional ``PREFIX/vel``): the true
+base_link position (NavSatFix, WGS-84, ellipsoidal height), orientation (sensor_msgs/Imu,
+FLU in ENU) and ENU velocity (TwistWithCovarianceStamped) the simulator writes.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from rosbags.highlevel import AnyReaderError
+from rosbags.rosbag2 import ReaderError
+from rosbags.serde import SerdeError
+
+from ins_fusion import messages_in
+from ins_fusion.core.measurements import (
+    AttitudeMeasurement,
+    GnssFixMeasurement,
+    GnssVelocityMeasurement,
+)
+from ins_fusion.messages_in import ImuSample
+from ins_fusion.replay.topics import (
+    DEFAULT_REFERENCE,
+    DEFAULT_TOPICS,
+    REFERENCE_TYPES,
+    SENSOR_TYPES,
+    TopicMap,
+)
+from ins_fusion.tools.bag_io import BagError, BagReader
+
+FloatArray = NDArray[np.float64]
+Measurement = GnssFixMeasurement | GnssVelocityMeasurement | AttitudeMeasurement
+
+
+class InputError(Exception):
+    """The bag or the topic selection cannot be replayed (message says why)."""
+
+
+@dataclass(frozen=True)
+class Series:
+    """Samples of a reference: stamps [s] (n,) and values (n, k)."""
+
+    t_s: FloatArray
+    values: FloatArray
+
+
+@dataclass(frozen=True)
+class Reference:
+    """The true base_link: position (lat_deg, lon_deg, height_m), orientation (x, y, z, w of
+    FLU in ENU) and, when the bag has it, ENU velocity [m/s]."""
+
+    position: Series
+    attitude: Series | None
+    velocity: Series | None
+
+
+@dataclass(frozen=True)
+class ReplayInputs:
+    """What one engine run consumes: IMU samples and measurements in receive order, the
+    reference (None: no evaluation) and where they came from.
+
+    ``measurements`` holds (k, topic role, measurement): the measurement arrived after the
+    first k IMU samples. ``read_time_s``: wall time spent reading and converting [s].
+    """
+
+    bag: str
+    topics: TopicMap
+    imu: list[ImuSample]
+    measurements: list[tuple[int, str, Measurement]]
+    reference: Reference | None
+    read_time_s: float
+
+    @property
+    def t0_s(self) -> float:
+        """First IMU stamp [s]: time 0 of outage windows and of the report's times."""
+        return self.imu[0].t_s
+
+    @property
+    def duration_s(self) -> float:
+        """Last minus first IMU stamp [s]."""
+        return self.imu[-1].t_s - self.imu[0].t_s
+
+
+def _check_types(available: dict[str, str], wanted: dict[str, tuple[str, str]], path: Path) -> None:
+    """Each wanted topic present in the bag must have its expected type."""
+    for topic, (role, expected) in wanted.items():
+        actual = available.get(topic)
+        if actual is not None and actual != expected:
+            raise InputError(f"{path}: {role} topic {topic} is {actual}, expected {expected}")
+
+
+def load_bag(
+    path: Path | str,
+    topics: TopicMap = DEFAULT_TOPICS,
+    reference_prefix: str = DEFAULT_REFERENCE,
+    *,
+    reference_required: bool = False,
+    progress: Callable[[int, int], None] | None = None,
+) -> ReplayInputs:
+    """Read the sensor and reference topics of a bag.
+
+    Raises InputError when the bag is missing or unreadable, has no IMU messages on
+    ``topics.imu``, or a selected topic has the wrong type; also when ``reference_required``
+    and ``PREFIX/fix`` is missing. Missing GNSS topics are allowed (the node treats them as
+    optional). ``progress(done, total)`` is called every few thousand messages.
+    """
+    path = Path(path)
+    start = time.perf_counter()
+    try:
+        with BagReader(path) as reader:
+            available = {name: info.msgtype for name, info in reader.topics.items()}
+            roles = {topic: role for role, topic in topics.by_role().items()}
+            prefix = reference_prefix.rstrip("/")
+            ref_topics = {f"{prefix}/{s}": s for s in REFERENCE_TYPES}
+            _check_types(
+                available,
+                {t: (f"{r!r}", SENSOR_TYPES[r]) for t, r in roles.items()},
+                path,
+            )
+            _check_types(
+                available,
+                {t: (f"reference {s!r}", REFERENCE_TYPES[s]) for t, s in ref_topics.items()},
+                path,
+            )
+            if topics.imu not in available or reader.topics[topics.imu].count == 0:
+                listing = ", ".join(f"{t} ({m})" for t, m in sorted(available.items()))
+                raise InputError(
+                    f"{path}: no IMU messages on {topics.imu} (topics: {listing or 'none'});"
+                    " choose the IMU topic with --topics imu=TOPIC"
+                )
+            if f"{prefix}/fix" not in available:
+                if reference_required:
+                    raise InputError(f"{path}: no reference topic {prefix}/fix")
+                ref_topics = {}
+            selected = [t for t in (*roles, *ref_topics) if t in available]
+            total = sum(reader.topics[t].count for t in selected)
+            imu, measurements, reference = _read(
+                reader, selected, topics.imu, roles, ref_topics, total, progress
+            )
+    except (BagError, AnyReaderError, ReaderError, SerdeError, OSError) as exc:
+        raise InputError(f"cannot read bag {path}: {exc}") from exc
+    return ReplayInputs(
+        str(path), topics, imu, measurements, reference, time.perf_counter() - start
+    )
+
+
+_CONVERTERS: dict[str, Callable[[Any], Measurement]] = {
+    "fix": messages_in.fix_measurement,
+    "vel": messages_in.velocity_measurement,
+    "attitude": messages_in.attitude_measurement,
+}
+
+
+_Read = tuple[list[ImuSample], list[tuple[int, str, Measurement]], Reference | None]
+
+
+def _read(
+    reader: BagReader,
+    selected: list[str],
+    imu_topic: str,
+    roles: dict[str, str],
+    ref_topics: dict[str, str],
+    total: int,
+    progress: Callable[[int, int], None] | None,
+) -> _Read:
+    imu: list[ImuSample] = []
+    measurements: list[tuple[int, str, Measurement]] = []
+    ref: dict[str, list[tuple[float, FloatArray]]] = {s: [] for s in REFERENCE_TYPES}
+    for done, msg in enumerate(reader.messages(selected, deserialize=True), 1):
+        if progress is not None and done % 4096 == 0:
+            progress(done, total)
+        if msg.topic == imu_topic:
+            imu.append(messages_in.imu_sample(msg.message))
+            continue
+        role = roles.get(msg.topic)
+        if role is not None:
+            measurements.append((len(imu), role, _CONVERTERS[role](msg.message)))
+        suffix = ref_topics.get(msg.topic)
+        if suffix is not None:
+            truth = _CONVERTERS[suffix](msg.message)
+            ref[suffix].append((truth.t_s, _reference_values(truth)))
+    if progress is not None:
+        progress(total, total)
+    return imu, measurements, _reference(ref)
+
+
+def _reference_values(truth: Measurement) -> FloatArray:
+    """Position (lat_deg, lon_deg, height_m), quaternion (x, y, z, w) or ENU velocity."""
+    if isinstance(truth, GnssFixMeasurement):
+        return np.array([truth.lat_deg, truth.lon_deg, truth.height_m])
+    if isinstance(truth, AttitudeMeasurement):
+        return truth.quat_enu_flu_xyzw
+    return truth.vel_enu_m_s
+
+
+def _series(samples: list[tuple[float, FloatArray]]) -> Series | None:
+    """Samples sorted by stamp (a bag is in receive order), None when there are none."""
+    if not samples:
+        return None
+    samples.sort(key=lambda item: item[0])
+    return Series(
+        np.array([t for t, _ in samples], dtype=np.float64),
+        np.array([v for _, v in samples], dtype=np.float64),
+    )
+
+
+def _reference(ref: dict[str, list[tuple[float, FloatArray]]]) -> Reference | None:
+    position = _series(ref["fix"])
+    if position is None:
+        return None
+    return Reference(position, _series(ref["attitude"]), _series(ref["vel"]))

@@ -1,0 +1,180 @@
+"""The replay report: one JSON-ready dict per run, and its short printed table.
+
+Times are seconds after the first IMU stamp; errors are estimate minus reference (see
+ins_fusion.replay.metrics). Keys (docs/replay.md describes each): bag, topics, parameters (those
+differing from the defaults), imu_samples, duration_s, read_time_s, fusion_time_s, wall_time_s,
+realtime_factor, aligned_at_s, final_state, resets, last_reset_reason, datum, reference,
+dropped_messages, measurements, evaluated_samples, position_error_m, velocity_error_m_s,
+attitude_error_deg, outages, nees.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from ins_fusion.replay import metrics
+from ins_fusion.replay.inputs import ReplayInputs
+from ins_fusion.replay.metrics import Evaluation
+from ins_fusion.replay.outages import Outage
+from ins_fusion.replay.run import FusionRun
+
+Report = dict[str, Any]
+
+
+def build_report(
+    inputs: ReplayInputs,
+    run: FusionRun,
+    evaluation: Evaluation | None,
+    outages: Sequence[Outage],
+    parameters: Mapping[str, Any],
+    reference: str | None,
+) -> Report:
+    """The report of one run (``parameters``: the settings that differ from the defaults;
+    ``reference``: the reference prefix evaluated against, None for no evaluation)."""
+    wall = inputs.read_time_s + run.fusion_time_s
+    track = run.track
+    aligned = np.flatnonzero(track.aligned)
+    report: Report = {
+        "bag": inputs.bag,
+        "topics": inputs.topics.by_role(),
+        "parameters": dict(parameters),
+        "imu_samples": len(inputs.imu),
+        "duration_s": inputs.duration_s,
+        "read_time_s": inputs.read_time_s,
+        "fusion_time_s": run.fusion_time_s,
+        "wall_time_s": wall,
+        "realtime_factor": inputs.duration_s / wall if wall > 0.0 else None,
+        "aligned_at_s": float(track.t_s[aligned[0]] - inputs.t0_s) if aligned.size else None,
+        "final_state": run.status.state,
+        "resets": run.status.resets,
+        "last_reset_reason": run.status.last_reset_reason,
+        "datum": None if run.datum is None else list(run.datum),
+        "reference": reference if evaluation is not None else None,
+        "dropped_messages": dict(run.dropped),
+        "measurements": {name: dict(c) for name, c in run.status.measurements.items()},
+    }
+    report.update(_accuracy(evaluation, outages))
+    return report
+
+
+def _accuracy(evaluation: Evaluation | None, outages: Sequence[Outage]) -> Report:
+    """The error and consistency sections (None values without a reference)."""
+    if evaluation is None:
+        empty = metrics.Errors.empty()
+        return {
+            "evaluated_samples": 0,
+            "position_error_m": metrics.position_stats(empty),
+            "velocity_error_m_s": None,
+            "attitude_error_deg": None,
+            "outages": [metrics.outage_stats(empty, o) for o in outages],
+            "nees": _nees(empty),
+        }
+    position = evaluation.position
+    return {
+        "evaluated_samples": len(position.t_rel_s),
+        "position_error_m": metrics.position_stats(position),
+        "velocity_error_m_s": None
+        if evaluation.velocity is None
+        else metrics.velocity_stats(evaluation.velocity),
+        "attitude_error_deg": None
+        if evaluation.attitude is None
+        else metrics.attitude_stats(evaluation.attitude),
+        "outages": [metrics.outage_stats(position, o) for o in outages],
+        "nees": _nees(position),
+    }
+
+
+def _nees(position: metrics.Errors) -> Report:
+    """Overall position consistency, and separately inside and outside the outages."""
+    return {
+        "dof": metrics.POSITION_DOF,
+        **metrics.consistency_stats(position),
+        "in_outage": metrics.consistency_stats(position, position.in_outage),
+        "out_of_outage": metrics.consistency_stats(position, ~position.in_outage),
+    }
+
+
+def _plain(value: Any) -> Any:
+    """JSON-safe copy: numpy scalars to Python numbers, NaN and infinities to None."""
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def to_json(report: Report) -> str:
+    """The report as indented JSON (strict: no NaN)."""
+    return json.dumps(_plain(report), indent=2, allow_nan=False) + "\n"
+
+
+def _num(value: Any, digits: int = 3) -> str:
+    return "-" if value is None else f"{value:.{digits}f}"
+
+
+def _percent(value: Any) -> str:
+    return "-" if value is None else f"{100.0 * value:.1f}%"
+
+
+def _accuracy_lines(report: Report) -> list[str]:
+    """Errors, consistency and outage rows of a report with a reference."""
+    pos, att, nees = report["position_error_m"], report["attitude_error_deg"], report["nees"]
+    lines = [
+        f"position error [m]    horizontal rms {_num(pos['horizontal_rms'])}"
+        f"  p95 {_num(pos['horizontal_p95'])}  max {_num(pos['horizontal_max'])}"
+        f"  vertical rms {_num(pos['vertical_rms'])}"
+    ]
+    if att is not None:
+        lines.append(
+            f"attitude error [deg]  roll rms {_num(att['roll_rms'])}"
+            f"  pitch rms {_num(att['pitch_rms'])}  yaw rms {_num(att['yaw_rms'])}"
+        )
+    lines.append(
+        f"position NEES (dof {nees['dof']})  mean {_num(nees['position_mean'], 2)}"
+        f" ({_percent(nees['position_within_3sigma_fraction'])} within 3σ);"
+        f" in outages {_num(nees['in_outage']['position_mean'], 2)}"
+        f" ({_percent(nees['in_outage']['position_within_3sigma_fraction'])});"
+        f" outside {_num(nees['out_of_outage']['position_mean'], 2)}"
+        f" ({_percent(nees['out_of_outage']['position_within_3sigma_fraction'])})"
+    )
+    if report["outages"]:
+        lines.append("outage  start s  length s  end horiz m  end 1σ m  max horiz m  max vert m")
+        lines.extend(
+            f"{i:>6}  {o['start_s']:>7.1f}  {o['duration_s']:>8.1f}"
+            f"  {_num(o['horizontal_error_end_m']):>11}  {_num(o['horizontal_sigma_end_m']):>8}"
+            f"  {_num(o['horizontal_error_max_m']):>11}  {_num(o['vertical_error_max_m']):>10}"
+            for i, o in enumerate(report["outages"], 1)
+        )
+    return lines
+
+
+def format_table(report: Report) -> str:
+    """A short human-readable summary of a report."""
+    lines = [
+        f"replay {report['bag']}: {report['imu_samples']} IMU samples, "
+        f"{report['duration_s']:.1f} s in {report['wall_time_s']:.2f} s "
+        f"({_num(report['realtime_factor'], 0)}x real time); aligned at "
+        f"{_num(report['aligned_at_s'], 1)} s, final state {report['final_state']}, "
+        f"{report['resets']} resets",
+    ]
+    if report["reference"] is None:
+        lines.append("no reference: accuracy not evaluated")
+    else:
+        lines += _accuracy_lines(report)
+    counters = report["measurements"]
+    width = max(len("measurement"), *(len(n) for n in counters)) if counters else 11
+    lines.append(f"{'measurement':<{width}}  {'used':>7}  {'rejected':>8}")
+    lines.extend(
+        f"{name:<{width}}  {c.get('used', 0):>7}  {c.get('rejected', 0):>8}"
+        for name, c in counters.items()
+    )
+    return "\n".join(lines)

@@ -1,0 +1,95 @@
+"""The fused solution as nav_msgs/Odometry and NavSatFix, for rclpy and rosbags messages (no ROS).
+
+One conversion for the node (rclpy messages) and the replay tool (rosbags messages), whose message
+classes differ but whose fields do not: ``fill_*`` set fields by attribute. Conventions
+(REP-103/105, nav_msgs/Odometry):
+- pose in ``map`` = the ENU tangent plane at the datum; orientation of base_link (FLU) in ENU;
+  pose covariance over (x, y, z, rotation about X, Y, Z of the parent frame), row-major 6x6;
+- twist in the child frame base_link (FLU): velocity rotated into the body, its covariance too;
+  angular rate bias-corrected, its covariance from the gyro noise density at the IMU rate;
+- NavSatFix covariance in ENU [m^2], COVARIANCE_TYPE_KNOWN.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
+
+from gnss_ins_common.message_fields import fill_navsatfix, set_header, stamp_ns
+from ins_fusion.core.engine import InsSolution
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class OdometryArrays:
+    """The numbers of one nav_msgs/Odometry (positions in m, angles in rad, rates in rad/s)."""
+
+    position_enu_m: FloatArray
+    orientation_xyzw: FloatArray
+    pose_covariance: FloatArray  # 36, row-major
+    linear_velocity_flu_m_s: FloatArray
+    angular_velocity_flu_rad_s: FloatArray
+    twist_covariance: FloatArray  # 36, row-major
+
+
+def odometry_arrays(solution: InsSolution, rate_variance_rad2_s2: float) -> OdometryArrays:
+    """Odometry numbers of ``solution``; ``rate_variance_rad2_s2``: variance of each rate axis."""
+    mat_enu_flu = Rotation.from_quat(solution.quat_enu_flu_xyzw).as_matrix()  # FLU -> ENU
+    pose_cov = np.zeros((6, 6))
+    pose_cov[:3, :3] = solution.cov_pos_enu_m2
+    pose_cov[3:, 3:] = solution.cov_att_enu_rad2
+    twist_cov = np.zeros((6, 6))
+    twist_cov[:3, :3] = mat_enu_flu.T @ solution.cov_vel_enu @ mat_enu_flu
+    twist_cov[3:, 3:] = np.eye(3) * rate_variance_rad2_s2
+    return OdometryArrays(
+        position_enu_m=np.asarray(solution.pos_enu_m, dtype=float),
+        orientation_xyzw=np.asarray(solution.quat_enu_flu_xyzw, dtype=float),
+        pose_covariance=pose_cov.ravel(),
+        linear_velocity_flu_m_s=mat_enu_flu.T @ solution.vel_enu_m_s,
+        angular_velocity_flu_rad_s=np.asarray(solution.rate_flu_rad_s, dtype=float),
+        twist_covariance=twist_cov.ravel(),
+    )
+
+
+#: sensor_msgs/NavSatStatus STATUS_NO_FIX, STATUS_FIX, SERVICE_GPS; COVARIANCE_TYPE_KNOWN.
+_STATUS_NO_FIX, _STATUS_FIX, _SERVICE_GPS, _COVARIANCE_KNOWN = -1, 0, 1, 3
+
+
+def fill_odometry(
+    msg: Any, solution: InsSolution, map_frame: str, base_frame: str, rate_variance_rad2_s2: float
+) -> Any:
+    """nav_msgs/Odometry of a solution (rclpy or rosbags message), stamped at its IMU stamp."""
+    arrays = odometry_arrays(solution, rate_variance_rad2_s2)
+    set_header(msg, stamp_ns(solution.t_s), map_frame)
+    msg.child_frame_id = base_frame
+    pose, twist = msg.pose, msg.twist
+    p, q = pose.pose.position, pose.pose.orientation
+    p.x, p.y, p.z = (float(v) for v in arrays.position_enu_m)
+    q.x, q.y, q.z, q.w = (float(v) for v in arrays.orientation_xyzw)
+    pose.covariance[:] = arrays.pose_covariance
+    v, w = twist.twist.linear, twist.twist.angular
+    v.x, v.y, v.z = (float(x) for x in arrays.linear_velocity_flu_m_s)
+    w.x, w.y, w.z = (float(x) for x in arrays.angular_velocity_flu_rad_s)
+    twist.covariance[:] = arrays.twist_covariance
+    return msg
+
+
+def fill_fused_fix(msg: Any, solution: InsSolution, base_frame: str) -> Any:
+    """sensor_msgs/NavSatFix of base_link: ENU covariance, NO_FIX while the engine aligns."""
+    return fill_navsatfix(
+        msg,
+        stamp_ns(solution.t_s),
+        base_frame,
+        _STATUS_NO_FIX if solution.state == "aligning" else _STATUS_FIX,
+        _SERVICE_GPS,
+        solution.lat_deg,
+        solution.lon_deg,
+        solution.height_m,
+        solution.cov_pos_enu_m2.ravel(),
+        _COVARIANCE_KNOWN,
+    )

@@ -1,0 +1,268 @@
+"""`gnss_ins demo`: the whole system on this machine, with a simulated vehicle instead of hardware.
+
+1. ``gnss_ins simulate --live`` drives an emulated IMU400CC, Leica RTK rover and ADU5 on
+   pseudo-terminals in real time (seed test pattern: standstill, then urban driving) and writes the
+   truth to a bag;
+2. the real nodes read them: imu400cc_node, gnss_node twice (namespaces ``leica`` and ``adu5``)
+   and ins_fusion_node (remapped to those namespaces), each in its own process;
+3. ``gnss_ins record`` records the sensor topics and the fused output;
+4. afterwards the live fused output is compared with the truth, and the recorded sensor data are
+   replayed offline through the same core (``gnss_ins replay``) with 20 s GNSS outages, giving a
+   JSON report and a plot.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import random
+import shutil
+import subprocess
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from gnss_ins_common.paths import config_file
+from ins_fusion.messages_in import stamp_s
+from ins_fusion.sim.scenarios import SURVEY_CAR
+from ins_fusion.tools.bag_io import BagReader, BagWriter
+from ins_fusion.tools.processes import ProcessGroup, gnss_ins_command
+from ins_fusion.vehicle_nodes import FUSION, VEHICLE, command
+
+#: Sensor and output topics recorded during the live run.
+RECORDED = (
+    "/imu/data_raw",
+    "/imu/temperature",
+    "/leica/gnss/fix",
+    "/leica/gnss/vel",
+    "/leica/gnss/time_reference",
+    "/adu5/gnss/attitude",
+    "/ins/odometry",
+    "/ins/fix",
+    "/diagnostics",
+)
+#: Roles of the replay inputs in the recorded bag.
+REPLAY_TOPICS = (
+    "imu=/imu/data_raw,fix=/leica/gnss/fix,vel=/leica/gnss/vel,attitude=/adu5/gnss/attitude"
+)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Demo options."""
+    parser.add_argument("--duration", type=float, default=150.0, help="simulated drive [s]")
+    parser.add_argument("--seed", type=int, default=1, help="seed of the sensor errors")
+    parser.add_argument("--output-dir", type=Path, default=Path("gnss_ins_demo"))
+    parser.add_argument(
+        "--outage",
+        action="append",
+        default=None,
+        metavar="START:DURATION",
+        help="GNSS outage injected in the offline replay [s after the first IMU sample] "
+        "(default: 20 s outages 20 s and 55 s into the drive, where the drive is long enough)",
+    )
+
+
+#: The test pattern's standstill before the drive [s] (ins_fusion.sim.scenarios).
+STANDSTILL_S = 60.0
+
+
+def _default_outages(duration_s: float) -> list[str]:
+    """20 s outages 20 s and 55 s into the drive that end at least 5 s before the data do."""
+    starts = (STANDSTILL_S + 20.0, STANDSTILL_S + 55.0)
+    return [f"{start:g}:20" for start in starts if start + 25.0 <= duration_s]
+
+
+def _read_ports(process: subprocess.Popen[str], timeout_s: float = 30.0) -> dict[str, str]:
+    """The ``name: path`` lines the live simulator prints before it starts."""
+    assert process.stdout is not None
+    ports: dict[str, str] = {}
+    deadline = time.monotonic() + timeout_s
+    while {"imu", "gnss", "adu5"} - ports.keys() and time.monotonic() < deadline:
+        line = process.stdout.readline()
+        if not line:
+            break
+        name, _, path = line.strip().partition(": ")
+        if path.startswith("/"):
+            ports[name] = path
+    missing = {"imu", "gnss", "adu5"} - ports.keys()
+    if missing:
+        raise RuntimeError(f"the live simulator did not report the ports {sorted(missing)}")
+    return ports
+
+
+def _merge(inputs: Sequence[Path], output: Path) -> None:
+    """One bag with every topic of ``inputs`` (raw messages, original log times)."""
+    with BagWriter(output) as writer:
+        for path in inputs:
+            with BagReader(path) as reader:
+                for name, topic in reader.topics.items():
+                    writer.add_topic(name, topic.msgtype, topic.qos)
+                for message in reader.messages():
+                    writer.write(message.topic, message.log_time_ns, message.message)
+
+
+def _live_errors(bag: Path, truth: Path) -> dict[str, float]:
+    """Horizontal error of the live /ins/fix against /ground_truth/fix at its stamps [m]."""
+    import pymap3d
+
+    def fixes(path: Path, topic: str) -> np.ndarray:
+        with BagReader(path) as reader:
+            if topic not in reader.topics:
+                return np.zeros((0, 4))
+            rows = [
+                (
+                    stamp_s(m.message),
+                    m.message.latitude,
+                    m.message.longitude,
+                    m.message.status.status,
+                )
+                for m in reader.messages([topic], deserialize=True)
+            ]
+        return np.array(rows) if rows else np.zeros((0, 4))
+
+    fused, reference = fixes(bag, "/ins/fix"), fixes(truth, "/ground_truth/fix")
+    fused = fused[fused[:, 3] >= 0] if len(fused) else fused
+    if len(fused) == 0 or len(reference) == 0:
+        return {}
+    inside = (fused[:, 0] >= reference[0, 0]) & (fused[:, 0] <= reference[-1, 0])
+    fused = fused[inside]
+    lat = np.interp(fused[:, 0], reference[:, 0], reference[:, 1])
+    lon = np.interp(fused[:, 0], reference[:, 0], reference[:, 2])
+    east, north, _ = pymap3d.geodetic2enu(fused[:, 1], fused[:, 2], 0.0, lat, lon, 0.0)
+    error = np.hypot(east, north)
+    return {
+        "samples": float(len(error)),
+        "horizontal_rms": float(np.sqrt(np.mean(error**2))),
+        "horizontal_p95": float(np.percentile(error, 95)),
+        "horizontal_max": float(error.max()),
+    }
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the demo; returns 0 when every stage produced its output."""
+    out: Path = args.output_dir
+    if out.exists():
+        shutil.rmtree(out)
+    (out / "logs").mkdir(parents=True)
+    env = dict(os.environ)
+    env.setdefault("ROS_DOMAIN_ID", str(random.SystemRandom().randint(1, 100)))
+    env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    processes = ProcessGroup(out / "logs", env)
+    drive, truth, merged = out / "drive", out / "truth", out / "drive_with_truth"
+    started = time.monotonic()
+    print(f"gnss_ins demo: {args.duration:.0f} s simulated drive in real time, output in {out}/")
+    try:
+        simulator = processes.start(
+            "simulate",
+            gnss_ins_command(
+                "simulate",
+                "--live",
+                "--scenario",
+                "test_pattern",
+                "--imu",
+                "imu400cc",
+                "--duration",
+                str(args.duration),
+                "--seed",
+                str(args.seed),
+                "--truth-output",
+                str(truth),
+            ),
+            stdout=subprocess.PIPE,
+        )
+        ports = _read_ports(simulator)
+        print(f"  emulated devices: {', '.join(f'{k} {v}' for k, v in ports.items())}")
+        car = SURVEY_CAR
+        lever_arms = (
+            "-p",
+            f"imu_lever_arm:={list(car.imu.lever_arm_flu_m)}",
+            "-p",
+            f"gnss_lever_arm:={list(car.gnss_antenna_flu_m)}",
+        )
+        port_of = {"imu": ports["imu"], "leica": ports["gnss"], "adu5": ports["adu5"]}
+        for spec in VEHICLE:
+            port = port_of[spec.port_role] if spec.port_role else None
+            extra = lever_arms if spec is FUSION else ()
+            processes.start(spec.name, command(spec, None, port, extra))
+        processes.start("record", gnss_ins_command("record", "-o", str(drive), *RECORDED))
+        print("  nodes running: imu400cc_node, leica/gnss_node, adu5/gnss_node, ins_fusion_node")
+        print("  recording ...", flush=True)
+        simulator.wait(timeout=args.duration + 60)
+        time.sleep(1.0)  # the last messages reach the recorder
+    finally:
+        failed = processes.stop_all()
+    if failed:
+        print(f"error: {', '.join(failed)} stopped during the run; logs in {out / 'logs'}")
+        return 1
+    live_s = time.monotonic() - started
+    print(f"  live run finished after {live_s:.0f} s; replaying offline ...", flush=True)
+
+    _merge([drive, truth], merged)
+    live = _live_errors(drive, truth)
+    outages = args.outage or _default_outages(args.duration)
+    report_path, plot_path = out / "replay_report.json", out / "replay.png"
+    replay = subprocess.run(
+        gnss_ins_command(
+            "replay",
+            str(merged),
+            "--params",
+            str(config_file("ins_fusion.yaml")),
+            "--topics",
+            REPLAY_TOPICS,
+            *[f"--outage={window}" for window in outages],
+            "--report",
+            str(report_path),
+            "--plot",
+            str(plot_path),
+        ),
+        env=env,
+        capture_output=True,
+        text=True,
+    )
+    (out / "logs" / "replay.log").write_text(replay.stdout + replay.stderr)
+    if replay.returncode != 0:
+        print(replay.stdout + replay.stderr)
+        print("replay failed; logs in", out / "logs")
+        return 1
+    report = json.loads(report_path.read_text())
+    _print_summary(live, report, out, time.monotonic() - started)
+    return 0 if live else 1
+
+
+def _print_summary(live: dict[str, float], report: dict, out: Path, total_s: float) -> None:
+    position = report["position_error_m"]
+    attitude = report["attitude_error_deg"]
+    print()
+    print("                                 horizontal [m]              vertical  yaw")
+    print("                                 rms     p95     max         rms [m]   rms [deg]")
+    if live:
+        print(
+            f"live ins_fusion_node           {live['horizontal_rms']:6.3f}  "
+            f"{live['horizontal_p95']:6.3f}  {live['horizontal_max']:6.3f}"
+        )
+    else:
+        print("live ins_fusion_node           no fused output recorded (see logs/)")
+    print(
+        f"offline replay with outages    {position['horizontal_rms']:6.3f}  "
+        f"{position['horizontal_p95']:6.3f}  {position['horizontal_max']:6.3f}      "
+        f"{position['vertical_rms']:6.3f}    {attitude['yaw_rms']:6.3f}"
+    )
+    for outage in report.get("outages", []):
+        print(
+            f"  {outage['duration_s']:.0f} s GNSS outage at {outage['start_s']:.0f} s: "
+            f"horizontal error at its end {outage['horizontal_error_end_m']:.2f} m, "
+            f"max {outage['horizontal_error_max_m']:.2f} m"
+        )
+    nees = report.get("nees", {})
+    if nees:
+        print(
+            f"  position NEES mean {nees['position_mean']:.2f} (3 dof), inside 3 sigma "
+            f"{100 * nees['position_within_3sigma_fraction']:.1f} %"
+        )
+    print(
+        f"  replay at {report['realtime_factor']:.0f}x real time; "
+        f"report {out / 'replay_report.json'}, plot {out / 'replay.png'}; total {total_s:.0f} s"
+    )

@@ -1,0 +1,65 @@
+"""Child processes of the tools (nodes, recorder, simulator), each logging to its own file."""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+
+class ProcessGroup:
+    """Processes stopped with SIGINT (a clean ROS shutdown) in reverse start order."""
+
+    def __init__(self, log_dir: Path, env: Mapping[str, str] | None = None) -> None:
+        """``log_dir`` receives NAME.log per process; ``env``: their environment (default: ours)."""
+        log_dir.mkdir(parents=True, exist_ok=True)
+        self.log_dir, self.env = log_dir, dict(env) if env is not None else None
+        self.running: list[tuple[str, subprocess.Popen[str]]] = []
+
+    def start(self, name: str, command: Sequence[str], **kwargs: Any) -> subprocess.Popen[str]:
+        """Start ``command``; its output goes to NAME.log unless ``stdout`` is given."""
+        options: dict[str, Any] = {"env": self.env, "text": True}
+        if "stdout" not in kwargs:
+            options.update(
+                stdout=(self.log_dir / f"{name}.log").open("w"), stderr=subprocess.STDOUT
+            )
+        options.update(kwargs)
+        process = subprocess.Popen(list(command), **options)
+        self.running.append((name, process))
+        return process
+
+    def exited(self) -> list[str]:
+        """Names of the processes that have ended."""
+        return [name for name, process in self.running if process.poll() is not None]
+
+    def stop_all(self) -> list[str]:
+        """Stop every process; returns the ones that had already exited with an error code."""
+        failed = [
+            f"{name} (exit code {process.returncode})"
+            for name, process in self.running
+            if process.poll() not in (None, 0)
+        ]
+        for name, process in reversed(self.running):
+            if process.poll() is None:
+                process.send_signal(signal.SIGINT)
+                try:
+                    process.wait(timeout=15)
+                except subprocess.TimeoutExpired:
+                    print(f"{name} did not stop; killing it")
+                    process.kill()
+        self.running.clear()
+        return failed
+
+
+def python_main(module: str, *args: str) -> list[str]:
+    """``module.main()`` with ARGS, run by this interpreter: works for venv, pip and colcon
+    installs alike, with no need for the console scripts on PATH."""
+    return [sys.executable, "-c", f"import sys; from {module} import main; sys.exit(main())", *args]
+
+
+def gnss_ins_command(*args: str) -> list[str]:
+    """``gnss_ins ARGS``."""
+    return python_main("ins_fusion.tools.cli", *args)

@@ -1,0 +1,109 @@
+"""`gnss_ins replay`: a bag through the fusion core offline, as fast as the CPU allows.
+
+Reads the node's input topics (imu/data_raw, gnss/fix, gnss/vel, gnss/attitude; ``--topics``
+renames them) and runs ins_fusion.core's engine over them in the bag's receive order, with the
+parameters of ins_fusion_node (``--params`` YAML, ``--set`` overrides, validated with the node's
+specs). ``--outage START:DURATION`` drops the GNSS messages stamped in the window (START in
+seconds after the first IMU stamp). With reference topics (``PREFIX/fix``, ``PREFIX/attitude``,
+``PREFIX/vel``, default prefix /ground_truth) the fused base_link solution is evaluated at the
+reference stamps. Prints a short table; ``--report`` writes the JSON report, ``--plot`` the
+figure, ``--output`` the fused /ins/odometry and /ins/fix as a bag. ``--sweep NAME=V1,V2,...``
+(repeatable: the grid of all combinations) replays every setting and ranks them by
+``--rank-by``. docs/replay.md describes the report. Exit status 2 on bad input.
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from ins_fusion.replay.outages import parse_outage
+from ins_fusion.replay.ranking import DEFAULT_RANK_BY, RANK_METRICS
+from ins_fusion.replay.settings import parse_setting, parse_sweep
+from ins_fusion.replay.topics import DEFAULT_REFERENCE, DEFAULT_TOPICS, TopicMap
+
+
+def _argument_type(parse: Callable[[str], Any]) -> Callable[[str], Any]:
+    """An argparse ``type`` from a parser raising ValueError (argparse then exits with 2)."""
+
+    def convert(text: str) -> Any:
+        try:
+            return parse(text)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+
+    convert.__name__ = parse.__name__
+    return convert
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Arguments of ``gnss_ins replay``."""
+    parser.add_argument("bag", type=Path, help="rosbag2 bag (directory or storage file)")
+    parser.add_argument(
+        "--params", type=Path, metavar="YAML", help="ROS parameter file (ins_fusion_node section)"
+    )
+    parser.add_argument(
+        "--set",
+        dest="settings",
+        type=_argument_type(parse_setting),
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="override one parameter, value as in the YAML file (repeatable)",
+    )
+    parser.add_argument(
+        "--outage",
+        type=_argument_type(parse_outage),
+        action="append",
+        default=[],
+        metavar="START:DURATION",
+        help="drop GNSS fix/velocity/attitude stamped in this window [s after the first IMU "
+        "stamp] (repeatable)",
+    )
+    parser.add_argument(
+        "--reference",
+        metavar="PREFIX",
+        help=f"reference topics PREFIX/fix, PREFIX/attitude, PREFIX/vel (default "
+        f"{DEFAULT_REFERENCE}, used when present; a given PREFIX must exist)",
+    )
+    parser.add_argument("--report", type=Path, metavar="FILE.json", help="write the JSON report")
+    parser.add_argument("--plot", type=Path, metavar="FILE.png", help="write the figure")
+    parser.add_argument(
+        "--output", type=Path, metavar="FUSED", help="write /ins/odometry and /ins/fix to this bag"
+    )
+    parser.add_argument(
+        "--topics",
+        type=_argument_type(TopicMap.parse),
+        default=DEFAULT_TOPICS,
+        metavar="ROLE=TOPIC,...",
+        help="input topics (defaults imu=/imu/data_raw,fix=/gnss/fix,vel=/gnss/vel,"
+        "attitude=/gnss/attitude)",
+    )
+    parser.add_argument(
+        "--sweep",
+        type=_argument_type(parse_sweep),
+        action="append",
+        default=[],
+        metavar="NAME=V1,V2,...",
+        help="replay every value (repeatable: every combination) and rank the settings",
+    )
+    parser.add_argument(
+        "--rank-by",
+        choices=sorted(RANK_METRICS),
+        metavar="METRIC",
+        help=f"sweep ranking metric, lower is better: {', '.join(sorted(RANK_METRICS))}"
+        f" (default {DEFAULT_RANK_BY})",
+    )
+    parser.add_argument(
+        "--workers", type=int, help="sweep processes (default: one per core)", metavar="N"
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Replay (or sweep); 0 done, 1 no fused solution, 2 bad input."""
+    # The engine, rosbags and matplotlib load here, not when `gnss_ins` builds its parser.
+    from ins_fusion.replay.command import execute
+
+    return execute(args)

@@ -1,0 +1,70 @@
+"""The vehicle's node set: one table for launch/vehicle.launch.py, `gnss_ins launch` and the demo.
+
+Each receiver's gnss_node runs in its own namespace; ins_fusion_node is remapped to read the Leica
+rover's position/velocity and the ADU5's attitude. Pure data plus command-line building (no ROS).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from gnss_ins_common.paths import config_file
+from ins_fusion.tools.processes import python_main
+
+
+@dataclass(frozen=True)
+class NodeSpec:
+    """One node of the vehicle: its name, module, namespace, parameter file, serial-port role
+    (None: no port) and topic remappings."""
+
+    name: str
+    module: str
+    executable: str
+    namespace: str
+    config: str
+    port_role: str | None
+    remaps: tuple[tuple[str, str], ...] = ()
+
+
+IMU = NodeSpec("imu400cc_node", "imu400cc_driver.node", "imu400cc_node", "", "imu400cc.yaml", "imu")
+LEICA = NodeSpec("leica_gnss", "gnss_driver.node", "gnss_node", "leica", "gnss_leica.yaml", "leica")
+ADU5 = NodeSpec("adu5_gnss", "gnss_driver.node", "gnss_node", "adu5", "gnss_adu5.yaml", "adu5")
+FUSION = NodeSpec(
+    "ins_fusion_node",
+    "ins_fusion.node",
+    "ins_fusion_node",
+    "",
+    "ins_fusion.yaml",
+    None,
+    (
+        ("gnss/fix", "/leica/gnss/fix"),
+        ("gnss/vel", "/leica/gnss/vel"),
+        ("gnss/attitude", "/adu5/gnss/attitude"),
+    ),
+)
+VEHICLE = (IMU, LEICA, ADU5, FUSION)
+#: Default serial ports per role.
+DEFAULT_PORTS = {"imu": "/dev/ttyUSB0", "leica": "/dev/ttyUSB1", "adu5": "/dev/ttyUSB2"}
+
+
+def ros_arguments(
+    spec: NodeSpec, config_dir: Path | None, port: str | None, extra: tuple[str, ...] = ()
+) -> list[str]:
+    """``--ros-args`` of a node: parameter file, port, name, namespace, remaps, extra args."""
+    config = config_dir / spec.config if config_dir is not None else config_file(spec.config)
+    args = ["--ros-args", "--params-file", str(config), "-r", f"__node:={spec.name}"]
+    if spec.namespace:
+        args += ["-r", f"__ns:=/{spec.namespace}"]
+    if port is not None:
+        args += ["-p", f"port:={port}"]
+    for source, target in spec.remaps:
+        args += ["-r", f"{source}:={target}"]
+    return [*args, *extra]
+
+
+def command(
+    spec: NodeSpec, config_dir: Path | None, port: str | None, extra: tuple[str, ...] = ()
+) -> list[str]:
+    """The node's command line with this interpreter (see ``processes.python_main``)."""
+    return python_main(spec.module, *ros_arguments(spec, config_dir, port, extra))

@@ -1,0 +1,244 @@
+"""Engine behaviour on short simulated drives: alignment and states, the solution's frames,
+measurements at their own stamps (late, out of order, duplicated, too old), IMU time problems
+and numerical failures."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pymap3d
+import pytest
+from scipy.spatial.transform import Rotation
+from test_fusion_drives import CALIBRATION, Drive, config, deliver, feed, simulate
+
+from ins_fusion.core.calibration import ImuCalibration
+from ins_fusion.core.engine import MEASUREMENT_NAMES, GnssFixMeasurement, InsEngine
+
+#: Figure-eight: 10 s standstill, then 10 m/s circles of 40 m radius.
+DURATION_S = 70.0
+FAST = {"alignment__duration": 5.0}
+
+
+@pytest.fixture(scope="module")
+def eight_adu5() -> Drive:
+    return simulate(DURATION_S, seed=5, with_attitude=True, scenario="figure_eight")
+
+
+@pytest.fixture(scope="module")
+def eight() -> Drive:
+    return simulate(DURATION_S, seed=6, scenario="figure_eight")
+
+
+def _engine(**overrides) -> InsEngine:
+    return InsEngine(config(**{**FAST, **overrides}), ImuCalibration.from_yaml(CALIBRATION))
+
+
+def test_alignment_states_and_the_solution_frames(eight_adu5):
+    engine = _engine()
+    base = eight_adu5.truth.base_link(eight_adu5.imu_t)
+    i = int(np.searchsorted(eight_adu5.imu_t, 50.0))  # in a turn at 10 m/s
+    seen: dict[str, float] = {}
+    solutions = {}
+
+    def check(k: int) -> None:
+        sol = engine.solution()
+        state = "none" if sol is None else sol.state
+        seen.setdefault(state, float(eight_adu5.imu_t[k]))
+        if k == i:
+            solutions["turn"] = sol
+
+    feed(engine, eight_adu5, after_sample=check)
+    assert list(seen) == ["none", "navigating"]  # the ADU5 gives the heading at the start
+    assert 6.0 < seen["navigating"] < 9.0
+    sol = solutions["turn"]
+    assert sol is not None and engine.datum is not None
+    # Orientation, velocity and rate of base_link against the truth (REP-103 frames).
+    truth_rot = Rotation.from_quat(base.quat_enu_flu[i])
+    angle = (Rotation.from_quat(sol.quat_enu_flu_xyzw) * truth_rot.inv()).magnitude()
+    assert math.degrees(angle) < 0.3
+    assert sol.vel_enu_m_s == pytest.approx(base.vel_enu_m_s[i], abs=0.05)
+    # One bias-corrected sample: the simulated white noise is 0.0095 rad/s per sample.
+    assert sol.rate_flu_rad_s == pytest.approx(base.rate_flu_rad_s[i], abs=0.04)
+    east, north, up = pymap3d.geodetic2enu(sol.lat_deg, sol.lon_deg, sol.height_m, *engine.datum)
+    assert sol.pos_enu_m == pytest.approx([east, north, up], abs=1e-6)
+    truth_enu = pymap3d.geodetic2enu(
+        math.degrees(base.lat_rad[i]),
+        math.degrees(base.lon_rad[i]),
+        base.height_m[i],
+        *engine.datum,
+    )
+    assert np.linalg.norm(sol.pos_enu_m - np.array(truth_enu)) < 0.1
+    for cov in (sol.cov_pos_enu_m2, sol.cov_vel_enu, sol.cov_att_enu_rad2):
+        assert np.allclose(cov, cov.T) and np.linalg.eigvalsh(cov).min() > 0.0
+    # Attitude covariance about the ENU axes: yaw (about up) is the best known angle with ADU5.
+    assert math.sqrt(sol.cov_att_enu_rad2[2, 2]) < math.radians(0.1)
+    status = engine.status()
+    assert status.state == "navigating" and status.resets == 0
+    assert set(status.measurements) == set(MEASUREMENT_NAMES)
+
+
+def test_heading_from_the_gnss_course_without_an_attitude_receiver(eight):
+    engine = _engine()
+    yaw_sigma_static = []
+
+    def check(i: int) -> None:
+        sol = engine.solution()
+        if sol is not None and eight.imu_t[i] < 10.0:
+            assert sol.state == "aligning"
+            yaw_sigma_static.append(math.sqrt(sol.cov_att_enu_rad2[2, 2]))
+
+    feed(engine, eight, after_sample=check)
+    assert yaw_sigma_static and min(yaw_sigma_static) > 1.0  # honest: heading unknown
+    status = engine.status()
+    assert status.measurements["course_heading"]["used"] == 1
+    assert status.state == "navigating"
+    sol = engine.solution()
+    truth = eight.truth.base_link(eight.imu_t[-1:])
+    angle = (
+        Rotation.from_quat(sol.quat_enu_flu_xyzw) * Rotation.from_quat(truth.quat_enu_flu[0]).inv()
+    )
+    assert math.degrees(angle.magnitude()) < 1.0
+
+
+def test_alignment_in_motion(eight):
+    # The engine starts 30 s into the drive (moving at 10 m/s): level assumption + course.
+    start = np.searchsorted(eight.imu_t, 30.0)
+    moving = Drive(
+        eight.truth,
+        eight.imu_t[start:],
+        eight.imu_rate[start:],
+        eight.imu_force[start:],
+        [e for e in eight.events if e[0] >= 30.0],
+    )
+    engine = _engine()
+    feed(engine, moving)
+    sol = engine.solution()
+    assert sol is not None and sol.state == "navigating"
+    truth = eight.truth.base_link(eight.imu_t[-1:])
+    east, north, _ = pymap3d.geodetic2enu(
+        sol.lat_deg,
+        sol.lon_deg,
+        sol.height_m,
+        math.degrees(truth.lat_rad[0]),
+        math.degrees(truth.lon_rad[0]),
+        truth.height_m[0],
+    )
+    assert math.hypot(east, north) < 0.2
+
+
+def _delayed(drive: Drive, after_s: float, delay_s: float) -> list:
+    """Events arriving after ``after_s`` delivered ``delay_s`` late, neighbours swapped and each
+    GNSS fix duplicated (the engine must not care)."""
+    early = [e for e in drive.events if e[0] < after_s]
+    late = [(t + delay_s, m) for t, m in drive.events if t >= after_s]
+    for k in range(0, len(late) - 1, 2):
+        late[k], late[k + 1] = (late[k][0], late[k + 1][1]), (late[k + 1][0], late[k][1])
+    duplicated = [e for e in late for _ in range(2 if isinstance(e[1], GnssFixMeasurement) else 1)]
+    return early + duplicated
+
+
+def test_late_out_of_order_and_duplicated_measurements_give_the_same_solution(eight_adu5):
+    # Pseudo-measurements off and P propagated per sample: the result is then a function of
+    # the set of measurements alone, whatever their arrival.
+    cfg = {"use_zupt": False, "use_zaru": False, "use_nhc": False, "covariance_interval": 0.0}
+    in_time = _engine(**cfg)
+    feed(in_time, eight_adu5)
+    late = _engine(**cfg)
+    events = _delayed(eight_adu5, after_s=20.0, delay_s=0.8)
+    feed(late, eight_adu5, events=events)
+    a, b = in_time.solution(), late.solution()
+    assert a is not None and b is not None
+    # Equal up to rounding (swapped arrivals change the order of same-stamp updates).
+    assert b.lat_deg == pytest.approx(a.lat_deg, abs=1e-10)  # 0.01 mm
+    assert b.lon_deg == pytest.approx(a.lon_deg, abs=1e-10)
+    assert b.vel_enu_m_s == pytest.approx(a.vel_enu_m_s, abs=1e-5)
+    assert b.cov_pos_enu_m2 == pytest.approx(a.cov_pos_enu_m2, abs=1e-8)
+    status = late.status()
+    fixes_late = sum(
+        1 for t, m in eight_adu5.events if t >= 20.0 and isinstance(m, GnssFixMeasurement)
+    )
+    assert status.measurements["gnss_position"]["duplicates"] == fixes_late
+    assert (
+        status.measurements["gnss_position"]["used"]
+        == in_time.status().measurements["gnss_position"]["used"]
+    )
+    assert status.replayed_samples > 100 * fixes_late  # 0.8 s = 107 samples per fix
+
+
+def test_too_old_invalid_and_outlier_fixes_are_rejected_and_counted(eight_adu5):
+    engine = _engine()
+    feed(engine, eight_adu5)
+    t_end = float(eight_adu5.imu_t[-1])
+    last_fix = next(m for _, m in reversed(eight_adu5.events) if isinstance(m, GnssFixMeasurement))
+    before = engine.status().measurements["gnss_position"]
+    engine.add_gnss_fix(dataclasses.replace(last_fix, t_s=t_end - 10.0))
+    engine.add_gnss_fix(dataclasses.replace(last_fix, t_s=t_end - 0.5, valid=False))
+    engine.add_gnss_fix(
+        dataclasses.replace(last_fix, t_s=t_end - 0.25, lat_deg=last_fix.lat_deg + 3e-4)
+    )
+    after = engine.status().measurements["gnss_position"]
+    assert after["too_old"] == before["too_old"] + 1
+    assert after["gated"] == before["gated"] + 1
+    assert after["rejected"] == before["rejected"] + 3
+    assert after["used"] == before["used"]
+    assert engine.status().nis["gnss_position"] > 1e3
+
+
+def test_imu_time_problems(eight_adu5):
+    engine = _engine()
+    t, rate, force = eight_adu5.imu_t, eight_adu5.imu_rate, eight_adu5.imu_force
+    gap = (t > 30.0) & (t < 30.3)  # a bridged 0.3 s gap
+    feed(
+        engine,
+        Drive(eight_adu5.truth, t[~gap], rate[~gap], force[~gap], eight_adu5.events),
+    )
+    status = engine.status()
+    assert status.imu_gaps == 1 and status.resets == 0
+    sol = engine.solution()
+    assert sol is not None and sol.state == "navigating"
+    engine.add_imu(t[-1], rate[-1], force[-1])  # the same stamp again
+    assert engine.status().imu_duplicates == 1
+    engine.add_imu(t[-1] + 0.0075, [math.nan, 0.0, 0.0], force[-1])  # corrupt: dropped
+    assert engine.status().imu_gaps == 2
+    engine.add_imu(t[-1] - 5.0, rate[-1], force[-1])  # the clock went back
+    status = engine.status()
+    assert status.resets == 1 and status.last_reset_reason.startswith("IMU stamp went back")
+    assert engine.solution() is None and status.state == "aligning"
+    engine.add_imu(t[-1] - 5.0 + 1.0 / 134.0, rate[-1], force[-1])  # the new stream's period
+    engine.add_imu(t[-1] - 2.0, rate[-1], force[-1])  # then a 3 s gap resets as well
+    status = engine.status()
+    assert status.resets == 2 and status.last_reset_reason.startswith("IMU gap of 2.99")
+
+
+def test_bad_numbers_reset_the_filter_with_a_reason(eight_adu5):
+    engine = _engine()
+    half = len(eight_adu5.imu_t) // 2
+    head = Drive(
+        eight_adu5.truth,
+        eight_adu5.imu_t[:half],
+        eight_adu5.imu_rate[:half],
+        eight_adu5.imu_force[:half],
+        eight_adu5.events,
+    )
+    feed(engine, head)
+    assert engine.covariance is not None
+    engine.covariance[3, 3] = math.nan  # fault injection (P is otherwise never changed in place)
+    for i in range(half, half + 30):
+        engine.add_imu(eight_adu5.imu_t[i], eight_adu5.imu_rate[i], eight_adu5.imu_force[i])
+    status = engine.status()
+    assert status.resets == 1 and status.last_reset_reason == "non-finite covariance"
+    assert engine.solution() is None
+
+
+def test_datum_and_calibration_from_the_configuration(eight_adu5):
+    engine = InsEngine(config(datum=[57.0, 10.0, 0.0], calibration_file=str(CALIBRATION), **FAST))
+    assert engine.calibration == ImuCalibration.from_yaml(CALIBRATION)
+    first_fix = next(m for _, m in eight_adu5.events if isinstance(m, GnssFixMeasurement))
+    deliver(engine, first_fix)
+    assert engine.datum == (57.0, 10.0, 0.0)
+    own = InsEngine(config(**FAST))
+    assert own.calibration is None and own.datum is None
+    deliver(own, first_fix)
+    assert own.datum == (first_fix.lat_deg, first_fix.lon_deg, first_fix.height_m)

@@ -1,0 +1,339 @@
+"""Error-state filter algebra (core.eskf, core.measurements) against independent references.
+
+- F against finite differences of the strapdown mechanization itself: perturb the true state
+  by each error state in turn, mechanize both with the same raw IMU data, and compare the
+  error after 50 ms with expm(F T) δx.
+- The second-order discretisation against filterpy's Van Loan (exact) over 10 s.
+- Joseph-form updates keep P symmetric positive definite (hypothesis) and gate outliers.
+- Every measurement Jacobian H against finite differences of its own prediction.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from filterpy.common import van_loan_discretization
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.linalg import expm
+from scipy.spatial.transform import Rotation
+
+from ins_fusion.core import earth
+from ins_fusion.core.config import FusionConfig
+from ins_fusion.core.eskf import (
+    ATT,
+    BA,
+    BG,
+    POS,
+    VEL,
+    ErrorStateFilter,
+    StateLayout,
+    chi2_threshold,
+)
+from ins_fusion.core.measurements import (
+    GnssFixMeasurement,
+    GnssVelocityMeasurement,
+    Prediction,
+    attitude,
+    euler_jacobian,
+    euler_rad,
+    gnss_position,
+    gnss_velocity,
+    nhc,
+    zupt,
+)
+from ins_fusion.core.rotation import MAT_ENU_NED, quat_from_euler
+from ins_fusion.core.strapdown import ImuIncrement, NavState, propagate
+
+NOISE = FusionConfig.default().imu_noise
+LAYOUT = StateLayout(gyro_scale=True, accel_scale=True)
+#: A car at 57° N turning left at 15 m/s on a slope, IMU yawed 90° and tilted in base_link.
+LAT, LON, HEIGHT = math.radians(57.0), math.radians(9.987), 40.0
+VEL_NED = np.array([12.0, -8.0, 0.6])
+QUAT_NB = quat_from_euler(0.03, -0.05, 2.0)
+MAT_BI = Rotation.from_euler("ZYX", [math.pi / 2, 0.02, -0.03]).as_matrix()
+RATE_I = np.array([0.01, -0.02, 0.3])  # corrected rate, imu FRD [rad/s]
+FORCE_I = np.array([0.8, -2.5, -9.7])  # corrected specific force, imu FRD [m/s²]
+
+
+def _nav() -> NavState:
+    return NavState(LAT, LON, HEIGHT, VEL_NED.copy(), QUAT_NB.copy())
+
+
+def _plus(nav: NavState, dx: np.ndarray) -> NavState:
+    """True state = nominal ⊕ δx (δp NED [m], δv, ψ with C_true = exp([ψ×]) C_nominal)."""
+    r_m, r_n = earth.radii_m(nav.lat_rad)
+    q = Rotation.from_rotvec(dx[ATT : ATT + 3]) * Rotation.from_quat(nav.quat_nb)
+    return NavState(
+        nav.lat_rad + dx[0] / (r_m + nav.height_m),
+        nav.lon_rad + dx[1] / ((r_n + nav.height_m) * math.cos(nav.lat_rad)),
+        nav.height_m - dx[2],
+        nav.vel_ned_m_s + dx[VEL : VEL + 3],
+        q.as_quat(),
+    )
+
+
+def _minus(true: NavState, nav: NavState) -> np.ndarray:
+    """δx (9) = true ⊖ nominal."""
+    r_m, r_n = earth.radii_m(nav.lat_rad)
+    rot = Rotation.from_quat(true.quat_nb) * Rotation.from_quat(nav.quat_nb).inv()
+    return np.concatenate(
+        [
+            [
+                (true.lat_rad - nav.lat_rad) * (r_m + nav.height_m),
+                (true.lon_rad - nav.lon_rad) * (r_n + nav.height_m) * math.cos(nav.lat_rad),
+                nav.height_m - true.height_m,
+            ],
+            true.vel_ned_m_s - nav.vel_ned_m_s,
+            rot.as_rotvec(),
+        ]
+    )
+
+
+def _mechanize(nav: NavState, rate_i: np.ndarray, force_i: np.ndarray, steps: int, dt: float):
+    """Strapdown with constant corrected imu rate/force, rotated into base_link."""
+    inc = ImuIncrement(dt, tuple(MAT_BI @ rate_i * dt), tuple(MAT_BI @ force_i * dt))
+    prev = None
+    for _ in range(steps):
+        nav = propagate(nav, inc, prev)
+        prev = inc
+    return nav
+
+
+def test_error_dynamics_match_finite_differences_of_the_mechanization():
+    steps, dt = 20, 0.0025
+    horizon = steps * dt
+    nav = _nav()
+    mat_ni = nav.mat_nb @ MAT_BI
+    F = (
+        ErrorStateFilter(LAYOUT, NOISE)
+        .dynamics(mat_ni, mat_ni @ FORCE_I, FORCE_I, RATE_I, LAT, HEIGHT, tuple(VEL_NED))
+        .copy()
+    )
+    transition = expm(F * horizon)
+    nominal_end = _mechanize(nav, RATE_I, FORCE_I, steps, dt)
+    sizes = [1.0] * 3 + [0.1] * 3 + [1e-3] * 3 + [1e-4] * 3 + [1e-2] * 3 + [1e-3] * 6
+    for j, size in enumerate(sizes):
+        dx = np.zeros(LAYOUT.size)
+        dx[j] = size
+        # Sensor errors: the true sensor output corrected with the nominal estimates is off
+        # by -δb (and -δs∘y): ω_true = ω̂ - δb_g - δs_g∘ω̂.
+        sg, sa = LAYOUT.sg, LAYOUT.sa
+        assert sg is not None and sa is not None
+        rate = RATE_I - dx[BG : BG + 3] - dx[sg : sg + 3] * RATE_I
+        force = FORCE_I - dx[BA : BA + 3] - dx[sa : sa + 3] * FORCE_I
+        true_end = _mechanize(_plus(nav, dx[:9]), rate, force, steps, dt)
+        measured = _minus(true_end, nominal_end)
+        predicted = (transition @ dx)[:9]
+        # Allowances: the position terms core.eskf leaves out (v/R in δṗ, ∂g/∂φ in δv̇, Ω/R
+        # in ψ̇) and the resolution of a latitude in radians (2e-16 rad ≈ 1.4e-9 m).
+        allowance = {
+            POS: 5e-6 * horizon * size + 5e-9,
+            VEL: 1e-8 * horizon * size + 1e-12,
+            ATT: 1e-11 * horizon * size + 1e-14,
+        }
+        for block in (POS, VEL, ATT):  # each block against its own change: small terms count
+            rows = slice(block, block + 3)
+            change = np.abs(predicted[rows] - dx[rows]).max()
+            error = np.abs(measured[rows] - predicted[rows]).max()
+            assert error < 0.02 * change + allowance[block], (j, block, measured, predicted)
+
+
+def _noise_root(q: np.ndarray) -> np.ndarray:
+    values, vectors = np.linalg.eigh(q)
+    return vectors * np.sqrt(np.clip(values, 0.0, None))
+
+
+@pytest.mark.parametrize("interval_s", [1.0 / 134.0, 0.1])
+def test_discretisation_matches_van_loan_over_ten_seconds(interval_s):
+    kf = ErrorStateFilter(LAYOUT, NOISE)
+    mat_ni = _nav().mat_nb @ MAT_BI
+    args = (mat_ni, mat_ni @ FORCE_I, FORCE_I, RATE_I, LAT, HEIGHT, tuple(VEL_NED))
+    F = kf.dynamics(*args).copy()
+    G = _noise_root(kf.noise_density(mat_ni).copy())
+    sigmas = [0.02] * 3 + [0.02] * 3 + [1e-3] * 3 + [1e-4] * 3 + [1e-3] * 3 + [1e-3] * 6
+    P0 = np.diag(np.square(sigmas))
+    kf.P = P0
+    steps = round(10.0 / interval_s)
+    for _ in range(steps):
+        kf.propagate(interval_s, *args)
+    phi, q = van_loan_discretization(F, G, steps * interval_s)
+    exact = phi @ P0 @ phi.T + q
+    scale = np.sqrt(np.outer(np.diag(exact), np.diag(exact)))
+    assert (np.abs(kf.P - exact) / scale).max() < 5e-3
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.integers(0, 2**32 - 1),
+    st.integers(1, 3),
+    st.floats(1e-6, 1e2),
+)
+def test_joseph_updates_keep_the_covariance_symmetric_positive_definite(seed, rows, r_scale):
+    rng = np.random.default_rng(seed)
+    n = LAYOUT.size
+    kf = ErrorStateFilter(LAYOUT, NOISE)
+    root = rng.standard_normal((n, n)) * np.logspace(-4, 1, n)
+    kf.P = root @ root.T + 1e-12 * np.eye(n)
+    for _ in range(20):
+        H = rng.standard_normal((rows, n))
+        R = np.eye(rows) * r_scale
+        prior = kf.P
+        result = kf.update(rng.standard_normal(rows) * 0.1, H, R, math.inf)
+        assert result.accepted
+        assert np.array_equal(kf.P, kf.P.T)
+        assert np.linalg.eigvalsh(kf.P).min() > -1e-12 * np.abs(prior).max()
+        assert np.trace(kf.P) <= np.trace(prior) * (1 + 1e-9)
+
+
+def test_gate_rejects_outliers_and_bad_numbers_without_touching_the_covariance():
+    kf = ErrorStateFilter(LAYOUT, NOISE)
+    kf.P = np.eye(LAYOUT.size) * 0.01
+    H = np.zeros((3, LAYOUT.size))
+    H[:, POS : POS + 3] = np.eye(3)
+    R = np.eye(3) * 0.0004
+    threshold = chi2_threshold(0.999, 3)
+    assert threshold == pytest.approx(16.27, abs=0.01)
+    before = kf.P
+    outlier = kf.update(np.array([3.0, 0.0, 0.0]), H, R, threshold)
+    assert not outlier.accepted and outlier.dx is None and outlier.nis > threshold
+    assert kf.P is before
+    assert not kf.update(np.array([math.nan, 0.0, 0.0]), H, R, threshold).accepted
+    good = kf.update(np.array([0.05, 0.0, 0.0]), H, R, threshold)
+    assert good.accepted and good.dx is not None
+    assert good.nis == pytest.approx(0.05**2 / 0.0104, rel=1e-9)
+    assert good.dx[POS] == pytest.approx(0.05 * 0.01 / 0.0104, rel=1e-9)
+
+
+def test_problem_reports_bad_numbers():
+    kf = ErrorStateFilter(LAYOUT, NOISE)
+    kf.P = np.eye(LAYOUT.size)
+    assert kf.problem() is None
+    bad = np.eye(LAYOUT.size)
+    bad[4, 4] = -1e-6
+    kf.P = bad
+    assert kf.problem() == "negative variance in state 4"
+    bad = np.eye(LAYOUT.size)
+    bad[2, 7] = math.inf
+    kf.P = bad
+    assert kf.problem() == "non-finite covariance"
+
+
+# ------------------------------------------------------------------ measurement models
+
+LAYOUT_GNSS = StateLayout(gyro_scale=True, gnss_error=True)
+
+
+def _prediction(dx: np.ndarray, layout: StateLayout = LAYOUT_GNSS) -> Prediction:
+    """Prediction of the true state nominal ⊕ δx (sensor errors make the corrected rate
+    differ from the nominal one)."""
+    nav = _plus(_nav(), dx[:9])
+    sg = dx[layout.sg : layout.sg + 3] if layout.sg is not None else 0.0
+    rate_i = RATE_I - dx[BG : BG + 3] - sg * RATE_I
+    return Prediction(
+        nav.lat_rad,
+        nav.lon_rad,
+        nav.height_m,
+        nav.vel_ned_m_s,
+        nav.mat_nb,
+        MAT_BI @ rate_i,
+        rate_i,
+        layout,
+    )
+
+
+def _check_jacobian(model, sizes, layout: StateLayout = LAYOUT_GNSS, rel: float = 1e-3):
+    """z(nominal) - z(true) = H δx to first order, column by column."""
+    z0, H, _ = model(_prediction(np.zeros(layout.size), layout), np.zeros(layout.size))
+    for j, size in enumerate(sizes):
+        dx = np.zeros(layout.size)
+        dx[j] = size
+        z1, _, _ = model(_prediction(dx, layout), dx)
+        numeric = z0 - z1
+        expected = H @ dx
+        assert np.abs(numeric - expected).max() <= rel * max(np.abs(expected).max(), 1e-6), (
+            j,
+            numeric,
+            expected,
+        )
+
+
+SIZES = [0.1] * 3 + [0.01] * 3 + [1e-4] * 3 + [1e-5] * 3 + [1e-3] * 3 + [1e-5] * 3 + [0.05] * 3
+LEVER_B = np.array([-0.8, 0.1, -0.15])  # IMU -> antenna, base_link FRD [m]
+
+
+def test_gnss_position_jacobian():
+    fix = GnssFixMeasurement(0.0, 57.0001, 9.9871, 42.0, np.eye(3) * 1e-4)
+
+    def model(pred, dx):
+        # The true correlated receiver error is the estimate (0) plus its error δε_g.
+        error = dx[LAYOUT_GNSS.gp : LAYOUT_GNSS.gp + 3]
+        return gnss_position(pred, fix, LEVER_B, np.eye(3), (error[0], error[1], error[2]))
+
+    _check_jacobian(model, SIZES)
+
+
+def test_gnss_velocity_jacobian_and_horizontal_only_when_vertical_unknown():
+    cov = np.diag([0.0025, 0.0025, 1e6])
+    vel = GnssVelocityMeasurement(0.0, np.array([-8.0, 12.0, 0.0]), cov)
+
+    def model(pred, _):
+        out = gnss_velocity(pred, vel, LEVER_B, MAT_BI)
+        assert out is not None
+        return out
+
+    z, H, R = model(_prediction(np.zeros(LAYOUT_GNSS.size)), None)
+    assert z.shape == (2,) and H.shape == (2, LAYOUT_GNSS.size) and R.shape == (2, 2)
+    full = GnssVelocityMeasurement(0.0, np.array([-8.0, 12.0, 0.0]), np.eye(3) * 0.0025)
+
+    def model3(pred, _):
+        out = gnss_velocity(pred, full, LEVER_B, MAT_BI)
+        assert out is not None
+        return out
+
+    _check_jacobian(model3, SIZES)
+    bad = GnssVelocityMeasurement(0.0, np.array([math.nan, 1.0, 0.0]), np.eye(3))
+    assert gnss_velocity(_prediction(np.zeros(LAYOUT_GNSS.size)), bad, LEVER_B, MAT_BI) is None
+
+
+def test_nhc_jacobian():
+    arm = np.array([-0.8, 0.0, 1.6])
+    _check_jacobian(lambda pred, _: nhc(pred, arm, MAT_BI, 0.05), SIZES)
+
+
+def test_zupt_is_the_negated_velocity():
+    z, H, R = zupt(_prediction(np.zeros(LAYOUT_GNSS.size)), 0.02)
+    assert z == pytest.approx(-VEL_NED)
+    assert np.array_equal(H[:, VEL : VEL + 3], np.eye(3)) and np.count_nonzero(H) == 3
+    assert np.allclose(R, np.eye(3) * 4e-4)
+
+
+def test_euler_angles_and_jacobian():
+    mat = _nav().mat_nb
+    assert euler_rad(mat) == pytest.approx([0.03, -0.05, 2.0], abs=1e-12)
+    J = euler_jacobian(mat)
+    for j in range(3):
+        psi = np.zeros(3)
+        psi[j] = 1e-7
+        turned = Rotation.from_rotvec(psi).as_matrix() @ mat
+        assert (euler_rad(turned) - euler_rad(mat)) / 1e-7 == pytest.approx(J[:, j], abs=1e-6)
+
+
+def test_attitude_model_converts_rep103_covariance_and_drops_unknown_angles():
+    pred = _prediction(np.zeros(LAYOUT_GNSS.size))
+    measured = Rotation.from_rotvec([0.0, 0.0, 0.01]).as_matrix() @ pred.mat_nb
+    cov_flu = np.array([[4e-6, 1e-6, 0.0], [1e-6, 2e-6, 0.0], [0.0, 0.0, 1e-6]])
+    z, H, R = attitude(pred, measured, cov_flu)
+    assert z == pytest.approx([0.0, 0.0, 0.01], abs=1e-12)  # a turn about down is yaw only
+    assert R[0, 1] == pytest.approx(-1e-6)  # FLU pitch is minus NED pitch
+    heading_only = attitude(pred, measured, np.diag([1e6, 1e6, 1e-6]))
+    assert heading_only is not None
+    z, H, R = heading_only
+    assert z.shape == (1,) and H.shape == (1, LAYOUT_GNSS.size)
+    assert attitude(pred, measured, np.eye(3) * 1e6) is None
+
+
+def test_ned_enu_axis_swap_is_its_own_inverse():
+    assert np.array_equal(MAT_ENU_NED @ MAT_ENU_NED, np.eye(3))

@@ -1,0 +1,158 @@
+"""ins_fusion_node as a real rclpy node, fed by `gnss_ins play` from a simulated bag."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pymap3d
+import pytest
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from nav_msgs.msg import Odometry
+from ros_harness import (
+    Collector,
+    assert_executable_refuses,
+    diagnostic_values,
+    overrides,
+    spinning,
+    stamp_s,
+    wait_for,
+)
+from sensor_msgs.msg import Imu, NavSatFix
+
+from gnss_ins_common.params import ParameterValueError
+from ins_fusion.node import PARAMETERS, InsFusionNode
+from ins_fusion.sim.topics import SimulationConfig
+from ins_fusion.tools.bag_io import BagReader
+from ins_fusion.tools.simulate import write_bag
+
+pytestmark = pytest.mark.ros
+
+DURATION_S = 90.0  # 60 s standstill (alignment) + 30 s of driving
+RATE = 5.0
+TOPICS = {
+    "ins/odometry": Odometry,
+    "ins/fix": NavSatFix,
+    "ins/imu": Imu,
+    "/diagnostics": DiagnosticArray,
+}
+
+
+@pytest.fixture(scope="module", autouse=True)
+def ros_context():
+    rclpy.init()
+    yield
+    rclpy.shutdown()
+
+
+@pytest.fixture(scope="module")
+def drive_bag(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("fusion") / "drive"
+    write_bag(SimulationConfig(duration_s=DURATION_S, seed=4), path)
+    return path
+
+
+def _truth(bag: Path) -> np.ndarray:
+    with BagReader(bag) as reader:
+        rows = [
+            (stamp_s(m.message), m.message.latitude, m.message.longitude, m.message.altitude)
+            for m in reader.messages(["/ground_truth/fix"], deserialize=True)
+        ]
+    return np.array(rows)
+
+
+def test_node_fuses_a_played_bag_into_odometry_fix_and_imu(drive_bag):
+    node = InsFusionNode(parameter_overrides=overrides(output_rate=20.0))
+    collector = Collector(TOPICS)
+    played = [
+        Path(sys.executable).parent / "gnss_ins",
+        "play",
+        str(drive_bag),
+        "--rate",
+        str(RATE),
+        "--wait-for-subscribers",
+        "--topics",
+        "/imu/data_raw",
+        "/gnss/fix",
+        "/gnss/vel",
+        "/gnss/attitude",
+    ]
+    try:
+        with spinning(node, collector.node):
+            player = subprocess.run(played, capture_output=True, text=True, timeout=120)
+            assert player.returncode == 0, player.stderr
+            assert wait_for(lambda: collector.count("/diagnostics") > 0, 5.0)
+    finally:
+        node.destroy_node()
+        collector.node.destroy_node()
+
+    odometry = collector.get("ins/odometry")
+    fixes = collector.get("ins/fix")
+    assert len(odometry) > 0.5 * (DURATION_S - 60.0) * 20.0
+    last = odometry[-1]
+    assert last.header.frame_id == "map" and last.child_frame_id == "base_link"
+    pose_cov = np.array(last.pose.covariance).reshape(6, 6)
+    assert np.allclose(pose_cov, pose_cov.T)
+    assert np.all(np.linalg.eigvalsh(pose_cov) >= 0.0)
+    assert 0.0 < pose_cov[0, 0] < 1.0  # RTK-aided: decimetres at most
+    q = last.pose.pose.orientation
+    assert q.x**2 + q.y**2 + q.z**2 + q.w**2 == pytest.approx(1.0, abs=1e-6)
+
+    # The fused fix follows the truth (base_link) to well within a metre after alignment.
+    truth = _truth(drive_bag)
+    navigating = [f for f in fixes if f.status.status >= 0]
+    assert navigating, "the node never left alignment"
+    t = np.array([stamp_s(f) for f in navigating])
+    lat = np.interp(t, truth[:, 0], truth[:, 1])
+    lon = np.interp(t, truth[:, 0], truth[:, 2])
+    east, north, _ = pymap3d.geodetic2enu(
+        [f.latitude for f in navigating], [f.longitude for f in navigating], 0.0, lat, lon, 0.0
+    )
+    horizontal = np.hypot(east, north)
+    assert np.percentile(horizontal, 95) < 0.5
+    assert navigating[-1].header.frame_id == "base_link"
+
+    imu = collector.get("ins/imu")[-1]
+    assert imu.linear_acceleration_covariance[0] == -1.0
+    assert imu.orientation_covariance[0] > 0.0
+
+    values = diagnostic_values(collector.get("/diagnostics")[-1])
+    assert values["state"] == "navigating"
+    assert int(values["gnss_position.used"]) > 20
+    assert int(values["imu_samples"]) > 0.9 * DURATION_S * 134
+
+
+def test_bad_parameters_are_rejected():
+    with pytest.raises(ParameterValueError, match="output_rate"):
+        InsFusionNode(parameter_overrides=overrides(output_rate=0.0))
+    with pytest.raises(ParameterValueError, match="gnss_lever_arm"):
+        InsFusionNode(parameter_overrides=overrides(gnss_lever_arm=[0.0, 1.0]))
+    assert_executable_refuses("ins_fusion_node", "output_rate", "-5.0")
+
+
+def test_every_fusion_parameter_is_declared_with_a_description():
+    names = [p.name for p in PARAMETERS]
+    assert len(names) == len(set(names))
+    for required in (
+        "imu_noise.gyro_arw",
+        "imu_noise.accel_vrw",
+        "imu_noise.gyro_bias_instability",
+        "imu_noise.accel_bias_instability",
+        "imu_noise.bias_correlation_time",
+        "imu_noise.gyro_scale_sigma",
+        "imu_noise.accel_scale_sigma",
+        "imu_mounting_rpy_deg",
+        "gnss_lever_arm",
+        "datum",
+        "calibration_file",
+        "use_zupt",
+        "use_nhc",
+        "use_gnss_velocity",
+        "use_attitude",
+        "output_rate",
+    ):
+        assert required in names
+    assert all(p.description for p in PARAMETERS)

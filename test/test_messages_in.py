@@ -1,0 +1,126 @@
+"""ins_fusion.messages_in: the node's and the replay's one reading of the input messages.
+
+Messages are built with the drivers' own fill functions (sim.messages, rosbags message objects)
+and as plain attribute objects holding array.array fields the way rclpy messages do.
+"""
+
+from __future__ import annotations
+
+import array
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from ins_fusion import messages_in
+from ins_fusion.replay.topics import FIX_TYPE, IMU_TYPE, VELOCITY_TYPE
+from ins_fusion.sim.messages import (
+    fill_imu,
+    fill_navsatfix,
+    fill_orientation,
+    fill_velocity,
+    new_message,
+)
+
+T_NS = 1_717_236_000_123_456_789
+T_S = 1_717_236_000 + 0.123456789
+COV3 = [0.01, 0.001, 0.0, 0.001, 0.02, 0.0, 0.0, 0.0, 0.09]
+
+
+def _fix(status=2, cov_type=2, alt=41.5, cov=COV3):
+    msg = new_message(FIX_TYPE)
+    return fill_navsatfix(msg, T_NS, "gnss_link", status, 1, 57.01, 9.98, alt, cov, cov_type)
+
+
+def test_imu_sample_reads_stamp_rate_and_specific_force():
+    msg = fill_imu(
+        new_message(IMU_TYPE),
+        T_NS,
+        "imu_link",
+        [0.01, -0.02, 0.03],
+        [0.1, 0.2, 9.81],
+        [1e-6] * 3,
+        [1e-4] * 3,
+    )
+    sample = messages_in.imu_sample(msg)
+    assert sample.t_s == pytest.approx(T_S, abs=1e-9)
+    assert sample.rate_flu_rad_s == (0.01, -0.02, 0.03)
+    assert sample.force_flu_m_s2 == (0.1, 0.2, 9.81)
+
+
+def test_valid_fix_carries_position_and_enu_covariance():
+    fix = messages_in.fix_measurement(_fix())
+    assert fix.valid
+    assert (fix.lat_deg, fix.lon_deg, fix.height_m) == (57.01, 9.98, 41.5)
+    assert fix.t_s == pytest.approx(T_S, abs=1e-9)
+    np.testing.assert_array_equal(fix.cov_enu_m2, np.reshape(COV3, (3, 3)))
+
+
+@pytest.mark.parametrize(
+    ("status", "cov_type", "alt", "cov"),
+    [
+        (-1, 2, 41.5, COV3),  # NO_FIX
+        (-2, 2, 41.5, COV3),  # STATUS_UNKNOWN
+        (0, 0, 41.5, COV3),  # covariance type UNKNOWN: cannot be weighted
+        (0, 1, math.nan, COV3),  # altitude unknown (no geoid separation)
+        (0, 2, 41.5, [math.nan] * 9),
+    ],
+    ids=["no_fix", "status_unknown", "covariance_unknown", "nan_altitude", "nan_covariance"],
+)
+def test_fix_without_usable_position_is_invalid(status, cov_type, alt, cov):
+    assert not messages_in.fix_measurement(_fix(status, cov_type, alt, cov)).valid
+
+
+def test_velocity_takes_linear_block_and_keeps_unknown_vertical():
+    cov = [0.0025, 0.0, 0.0, 0.0, 0.0025, 0.0, 0.0, 0.0, 1e6]
+    msg = fill_velocity(new_message(VELOCITY_TYPE), T_NS, "gnss_link", [3, 4, 0], cov)
+    vel = messages_in.velocity_measurement(msg)
+    np.testing.assert_array_equal(vel.vel_enu_m_s, [3.0, 4.0, 0.0])
+    np.testing.assert_array_equal(vel.cov_enu_m2_s2, np.reshape(cov, (3, 3)))
+    assert vel.t_s == pytest.approx(T_S, abs=1e-9)
+
+
+def test_attitude_reads_orientation_and_rpy_covariance():
+    quat = [0.0, 0.0, math.sqrt(0.5), math.sqrt(0.5)]
+    cov = [1.7e-5, 0, 0, 0, 6e-6, 0, 0, 0, 1.5e-6]
+    msg = fill_orientation(new_message(IMU_TYPE), T_NS, "gnss_link", quat, cov)
+    att = messages_in.attitude_measurement(msg)
+    np.testing.assert_array_equal(att.quat_enu_flu_xyzw, quat)
+    np.testing.assert_array_equal(att.cov_rpy_rad2, np.reshape(cov, (3, 3)))
+
+
+def test_imu_message_without_orientation_measures_no_angle():
+    zeros = [0.0] * 3
+    msg = fill_imu(new_message(IMU_TYPE), T_NS, "imu_link", *[zeros] * 4)
+    att = messages_in.attitude_measurement(msg)
+    assert np.isinf(np.diag(att.cov_rpy_rad2)).all()
+
+
+def _stamped(**fields):
+    stamp = SimpleNamespace(sec=1_717_236_000, nanosec=500_000_000)
+    return SimpleNamespace(header=SimpleNamespace(stamp=stamp, frame_id="x"), **fields)
+
+
+def test_rclpy_style_fields_are_read_the_same():
+    """rclpy keeps fixed-size float arrays as numpy arrays or array.array; both work."""
+    vec = SimpleNamespace
+    fix = _stamped(
+        status=SimpleNamespace(status=0, service=1),
+        latitude=1.0,
+        longitude=2.0,
+        altitude=3.0,
+        position_covariance=array.array("d", COV3),
+        position_covariance_type=3,
+    )
+    twist = _stamped(
+        twist=SimpleNamespace(
+            twist=SimpleNamespace(linear=vec(x=1.0, y=2.0, z=3.0), angular=vec(x=0, y=0, z=0)),
+            covariance=array.array("d", range(36)),
+        )
+    )
+    measured = messages_in.fix_measurement(fix)
+    assert measured.valid and measured.t_s == 1_717_236_000.5
+    np.testing.assert_array_equal(measured.cov_enu_m2, np.reshape(COV3, (3, 3)))
+    vel = messages_in.velocity_measurement(twist)
+    np.testing.assert_array_equal(vel.cov_enu_m2_s2, [[0, 1, 2], [6, 7, 8], [12, 13, 14]])

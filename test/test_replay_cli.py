@@ -1,0 +1,253 @@
+"""`gnss_ins replay` end to end on a small simulated bag, and its refusals of bad input.
+
+The bag: 90 s of the figure-eight scenario (10 s standstill, one lap of two 40 m circles at
+10 m/s, braking), imu400cc IMU, Leica RTK at 1 Hz, ADU5 at 5 Hz, truth at 50 Hz. Accuracy bounds
+are generous (bench/bench_replay.py measures them precisely).
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from ins_fusion.sim.topics import SimulationConfig
+from ins_fusion.tools import cli
+from ins_fusion.tools.bag_io import BagReader, BagWriter
+from ins_fusion.tools.simulate import write_bag
+
+DURATION_S = 90.0
+OUTAGE = (40.0, 10.0)
+
+
+@pytest.fixture(scope="module")
+def bag(tmp_path_factory):
+    path = tmp_path_factory.mktemp("replay") / "figure_eight"
+    write_bag(SimulationConfig(scenario="figure_eight", duration_s=DURATION_S, seed=3), path)
+    return path
+
+
+def _replay(capsys, *argv):
+    """(exit status, stdout, stderr) of ``gnss_ins replay ARGV``."""
+    try:
+        code = cli.main(["replay", *map(str, argv)])
+    except SystemExit as exc:  # argparse refusals
+        code = exc.code
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.fixture(scope="module")
+def replayed(bag, tmp_path_factory):
+    out = tmp_path_factory.mktemp("replay_out")
+    paths = {"report": out / "r.json", "plot": out / "p.png", "output": out / "fused"}
+    argv = [
+        "replay",
+        str(bag),
+        "--outage",
+        f"{OUTAGE[0]:g}:{OUTAGE[1]:g}",
+        *(item for key, path in paths.items() for item in (f"--{key}", str(path))),
+    ]
+    code = cli.main(argv)
+    return code, paths, json.loads(paths["report"].read_text())
+
+
+def test_replay_writes_report_plot_and_fused_bag(replayed):
+    code, paths, report = replayed
+    assert code == 0
+    for key in (
+        "imu_samples",
+        "duration_s",
+        "wall_time_s",
+        "realtime_factor",
+        "position_error_m",
+        "attitude_error_deg",
+        "outages",
+        "nees",
+        "measurements",
+    ):
+        assert key in report, key
+    assert set(report["position_error_m"]) >= {
+        "horizontal_rms",
+        "vertical_rms",
+        "horizontal_p95",
+        "horizontal_max",
+    }
+    assert set(report["attitude_error_deg"]) >= {"roll_rms", "pitch_rms", "yaw_rms"}
+    assert set(report["nees"]) >= {"position_mean", "position_within_3sigma_fraction"}
+    for part in ("in_outage", "out_of_outage"):
+        assert report["nees"][part]["samples"] > 0
+    assert report["topics"] == {
+        "imu": "/imu/data_raw",
+        "fix": "/gnss/fix",
+        "vel": "/gnss/vel",
+        "attitude": "/gnss/attitude",
+    }
+    assert report["imu_samples"] == 134 * DURATION_S
+    assert report["duration_s"] == pytest.approx(DURATION_S, abs=0.01)
+    assert report["realtime_factor"] == pytest.approx(report["duration_s"] / report["wall_time_s"])
+    (outage,) = report["outages"]
+    assert set(outage) >= {
+        "start_s",
+        "duration_s",
+        "horizontal_error_end_m",
+        "horizontal_error_max_m",
+        "vertical_error_max_m",
+    }
+    assert (outage["start_s"], outage["duration_s"]) == OUTAGE
+    # 10 s of the 1 Hz Leica fix and velocity and of the 5 Hz ADU5 attitude.
+    assert report["dropped_messages"] == {"fix": 10, "vel": 10, "attitude": 50}
+    assert report["measurements"]["gnss_position"]["used"] > 40
+    assert set(report["measurements"]["gnss_position"]) >= {"used", "rejected"}
+    assert paths["plot"].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_replay_accuracy_within_generous_bounds(replayed):
+    _, _, report = replayed
+    assert report["aligned_at_s"] < 30.0
+    assert report["position_error_m"]["horizontal_rms"] < 1.0
+    assert report["position_error_m"]["vertical_rms"] < 0.5
+    assert report["attitude_error_deg"]["yaw_rms"] < 0.5
+    assert report["outages"][0]["horizontal_error_end_m"] < 3.0
+    assert 0.5 < report["nees"]["position_mean"] < 10.0
+    assert report["nees"]["position_within_3sigma_fraction"] > 0.8
+
+
+def test_fused_bag_holds_odometry_and_fix_of_base_link(replayed):
+    _, paths, report = replayed
+    with BagReader(paths["output"]) as reader:
+        assert {t: i.msgtype for t, i in reader.topics.items()} == {
+            "/ins/odometry": "nav_msgs/msg/Odometry",
+            "/ins/fix": "sensor_msgs/msg/NavSatFix",
+        }
+        assert reader.topics["/ins/odometry"].count == reader.topics["/ins/fix"].count
+        odometry = [m.message for m in reader.messages(["/ins/odometry"], deserialize=True)]
+        fix = next(reader.messages(["/ins/fix"], deserialize=True)).message
+    stamps = np.array([o.header.stamp.sec + o.header.stamp.nanosec * 1e-9 for o in odometry])
+    assert len(stamps) > 50 * (DURATION_S - 30.0)
+    assert np.median(np.diff(stamps)) == pytest.approx(0.02, abs=0.004)  # output_rate 50 Hz
+    odometry = odometry[-1]
+    assert (odometry.header.frame_id, odometry.child_frame_id) == ("map", "base_link")
+    assert odometry.pose.covariance[0] > 0.0 and odometry.twist.covariance[0] > 0.0
+    assert fix.header.frame_id == "base_link"
+    assert fix.latitude == pytest.approx(report["datum"][0], abs=1e-3)  # within ~100 m
+
+
+def test_sweep_ranks_settings_and_applies_overrides(bag, tmp_path, capsys):
+    params = tmp_path / "params.yaml"
+    params.write_text("ins_fusion_node:\n  ros__parameters:\n    use_zaru: false\n")
+    report_path = tmp_path / "sweep.json"
+    code, out, _ = _replay(
+        capsys,
+        bag,
+        "--params",
+        params,
+        "--set",
+        "zupt_sigma=0.03",
+        "--sweep",
+        "use_attitude=true,false",
+        "--rank-by",
+        "yaw_rms",
+        "--outage",
+        "40:10",
+        "--report",
+        report_path,
+    )
+    assert code == 0
+    assert "ranked by yaw_rms" in out
+    sweep = json.loads(report_path.read_text())
+    assert sweep["rank_by"] == "yaw_rms"
+    runs = sweep["runs"]
+    assert sorted(run["setting"]["use_attitude"] for run in runs) == [False, True]
+    scores = [run["score"] for run in runs]
+    assert scores == sorted(scores)
+    for run in runs:
+        report = run["report"]
+        assert scores[runs.index(run)] == report["attitude_error_deg"]["yaw_rms"]
+        use_attitude = run["setting"]["use_attitude"]
+        assert report["parameters"] == {
+            "use_zaru": False,
+            "zupt_sigma": 0.03,
+            **({} if use_attitude else {"use_attitude": False}),
+        }
+        assert report["measurements"]["zaru"]["used"] == 0
+        assert (report["measurements"]["attitude"]["used"] > 0) == use_attitude
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--topics", "imu=/imu/other"], "no IMU messages on /imu/other"),
+        (
+            ["--topics", "imu=/gnss/time_reference"],
+            "'imu' topic /gnss/time_reference is sensor_msgs/msg/TimeReference, expected"
+            " sensor_msgs/msg/Imu",
+        ),
+        (["--topics", "imu=/gnss/fix"], "topic /gnss/fix is given for more than one role"),
+        (["--reference", "/truth"], "no reference topic /truth/fix"),
+        (["--outage", "500:10"], "starts after the IMU data ends"),
+        (["--set", "no_such=1"], "unknown parameter 'no_such'"),
+        (["--set", "zupt_sigma=-1"], "parameter 'zupt_sigma': -1 is outside"),
+        (["--set", "use_nhc=1"], "parameter 'use_nhc': expected bool"),
+        (["--outage", "50"], "START:DURATION"),
+        (["--outage=-5:20"], "START must be"),
+        (["--topics", "imu"], "ROLE=TOPIC"),
+        (["--sweep", "use_nhc=true,false", "--plot", "x.png"], "not with --sweep"),
+        (["--rank-by", "yaw_rms"], "--rank-by ranks the runs of a --sweep"),
+        (["--sweep", "use_nhc=true,false", "--sweep", "use_nhc=false"], "swept twice"),
+        (["--set", "calibration_file=/no/such.yaml"], "cannot read calibration file"),
+    ],
+)
+def test_bad_input_is_refused_with_exit_status_2(bag, capsys, argv, message):
+    code, _, err = _replay(capsys, bag, *argv)
+    assert code == 2
+    assert message in err
+
+
+def test_missing_or_unreadable_bag_is_refused(tmp_path, capsys):
+    code, _, err = _replay(capsys, tmp_path / "nothing")
+    assert (code, "no such bag" in err) == (2, True)
+    garbage = tmp_path / "garbage.mcap"
+    garbage.write_text("not a bag")
+    code, _, err = _replay(capsys, garbage)
+    assert (code, f"cannot read bag {garbage}" in err) == (2, True)
+    empty_dir = tmp_path / "empty"
+    empty_dir.mkdir()
+    code, _, err = _replay(capsys, empty_dir)
+    assert (code, "metadata.yaml" in err) == (2, True)
+
+
+def test_bad_parameter_file_and_existing_output_are_refused(bag, tmp_path, capsys):
+    params = tmp_path / "params.yaml"
+    params.write_text("ins_fusion_node:\n  ros__parameters:\n    nhc_sigma: 0.0\n")
+    code, _, err = _replay(capsys, bag, "--params", params)
+    assert (code, "parameter 'nhc_sigma'" in err) == (2, True)
+    code, _, err = _replay(capsys, bag, "--params", tmp_path / "missing.yaml")
+    assert (code, "cannot read parameter file" in err) == (2, True)
+    code, _, err = _replay(capsys, bag, "--output", tmp_path)
+    assert (code, "exists already" in err) == (2, True)
+
+
+def test_bag_without_reference_is_replayed_without_accuracy(bag, tmp_path, capsys):
+    """The first 40 s of the sensor topics only: speed, states and counters, accuracy null."""
+    sensors = tmp_path / "sensors"
+    topics = ["/imu/data_raw", "/gnss/fix", "/gnss/vel", "/gnss/attitude"]
+    with BagReader(bag) as reader, BagWriter(sensors) as writer:
+        for topic in topics:
+            writer.add_topic(topic, reader.topics[topic].msgtype)
+        end_ns = reader.start_ns + 40_000_000_000
+        for msg in reader.messages(topics):
+            if msg.log_time_ns < end_ns:
+                writer.write(msg.topic, msg.log_time_ns, msg.message)
+    report_path, plot_path = tmp_path / "r.json", tmp_path / "p.png"
+    code, out, err = _replay(capsys, sensors, "--report", report_path, "--plot", plot_path)
+    assert code == 0
+    assert "no /ground_truth/fix in the bag" in err
+    assert "accuracy not evaluated" in out
+    report = json.loads(report_path.read_text())
+    assert report["reference"] is None and report["evaluated_samples"] == 0
+    assert set(report["position_error_m"].values()) == {None}
+    assert report["nees"]["position_mean"] is None
+    assert report["measurements"]["gnss_position"]["used"] > 10
+    assert plot_path.read_bytes()[:4] == b"\x89PNG"
