@@ -111,3 +111,16 @@ def test_enu_round_trip(east, north, up):
     lat, lon, h = earth.enu_to_geodetic(np.array([east, north, up]), lat0, lon0, h0)
     enu = earth.geodetic_to_enu(float(lat), float(lon), float(h), lat0, lon0, h0)
     assert enu == pytest.approx([east, north, up], abs=1e-6)
+
+
+@given(
+    st.floats(-1.4, 1.4),
+    st.floats(-3.1, 3.1),
+    st.floats(-100.0, 3000.0),
+    st.tuples(st.floats(-5e-3, 5e-3), st.floats(-5e-3, 5e-3), st.floats(-500.0, 500.0)),
+)
+def test_tangent_plane_agrees_with_pymap3d(lat0, lon0, h0, offset):
+    plane = earth.TangentPlane(lat0, lon0, h0)
+    point = (lat0 + offset[0], lon0 + offset[1], h0 + offset[2])
+    expected = earth.geodetic_to_enu(*point, lat0, lon0, h0)
+    assert np.abs(plane.enu(*point) - expected).max() < 1e-6

@@ -24,7 +24,7 @@ from ros_harness import (
 from sensor_msgs.msg import Imu, NavSatFix
 
 from gnss_ins_common.params import ParameterValueError
-from ins_fusion.node import PARAMETERS, InsFusionNode
+from ins_fusion.node import InsFusionNode
 from ins_fusion.sim.topics import SimulationConfig
 from ins_fusion.tools.bag_io import BagReader
 from ins_fusion.tools.simulate import write_bag
@@ -131,28 +131,3 @@ def test_bad_parameters_are_rejected():
     with pytest.raises(ParameterValueError, match="gnss_lever_arm"):
         InsFusionNode(parameter_overrides=overrides(gnss_lever_arm=[0.0, 1.0]))
     assert_executable_refuses("ins_fusion_node", "output_rate", "-5.0")
-
-
-def test_every_fusion_parameter_is_declared_with_a_description():
-    names = [p.name for p in PARAMETERS]
-    assert len(names) == len(set(names))
-    for required in (
-        "imu_noise.gyro_arw",
-        "imu_noise.accel_vrw",
-        "imu_noise.gyro_bias_instability",
-        "imu_noise.accel_bias_instability",
-        "imu_noise.bias_correlation_time",
-        "imu_noise.gyro_scale_sigma",
-        "imu_noise.accel_scale_sigma",
-        "imu_mounting_rpy_deg",
-        "gnss_lever_arm",
-        "datum",
-        "calibration_file",
-        "use_zupt",
-        "use_nhc",
-        "use_gnss_velocity",
-        "use_attitude",
-        "output_rate",
-    ):
-        assert required in names
-    assert all(p.description for p in PARAMETERS)

@@ -364,6 +364,7 @@ class InsEngine:
         self._gyro_psd = np.square(noise.gyro_arw)
         self._gnss_white_var_ned = np.square(MAT_ENU_NED @ config.gnss_white_sigma_enu_m)
         self.datum: tuple[float, float, float] | None = config.datum_deg
+        self._plane: earth.TangentPlane | None = None
         self._counters = {name: dict.fromkeys(COUNTERS, 0) for name in MEASUREMENT_NAMES}
         self._nis = dict.fromkeys(MEASUREMENT_NAMES, math.nan)
         self._resets = 0
@@ -516,9 +517,10 @@ class InsEngine:
         j_vel[:, BG : BG + 3] = C @ skew(self._base_arm_b) @ self._mat_bi
         enu = MAT_ENU_NED
         lat0, lon0, h0 = self.datum
-        pos_enu = earth.geodetic_to_enu(
-            lat, lon, height, math.radians(lat0), math.radians(lon0), h0
-        )
+        datum_rad = (math.radians(lat0), math.radians(lon0), h0)
+        if self._plane is None or self._plane.datum != datum_rad:
+            self._plane = earth.TangentPlane(*datum_rad)
+        pos_enu = self._plane.enu(lat, lon, height)
         att = P[ATT : ATT + 3, ATT : ATT + 3]
         return InsSolution(
             t_s=s.t_s,
