@@ -25,12 +25,14 @@ from pathlib import Path
 
 import numpy as np
 
+from gnss_driver.profiles import Receiver
 from gnss_ins_common.paths import config_file
 from ins_fusion.messages_in import stamp_s
+from ins_fusion.sim.receivers import emulator_config
 from ins_fusion.sim.scenarios import SURVEY_CAR
 from ins_fusion.tools.bag_io import BagReader, BagWriter
 from ins_fusion.tools.processes import ProcessGroup, gnss_ins_command
-from ins_fusion.vehicle_nodes import FUSION, VEHICLE, command
+from ins_fusion.vehicle_nodes import ADU5, FUSION, LEICA, VEHICLE, command
 
 #: Sensor and output topics recorded during the live run.
 RECORDED = (
@@ -183,10 +185,16 @@ def run(args: argparse.Namespace) -> int:
             f"gnss_lever_arm:={list(car.gnss_antenna_flu_m)}",
         )
         port_of = {"imu": ports["imu"], "leica": ports["gnss"], "adu5": ports["adu5"]}
+        # The emulated receivers send each epoch output_latency_s after its UTC time; as on a
+        # real vehicle, gnss_node is told that latency so it stamps the epoch time itself.
+        extras = {
+            FUSION: lever_arms,
+            LEICA: ("-p", f"latency:={emulator_config(Receiver.LEICA).output_latency_s}"),
+            ADU5: ("-p", f"latency:={emulator_config(Receiver.ADU5).output_latency_s}"),
+        }
         for spec in VEHICLE:
             port = port_of[spec.port_role] if spec.port_role else None
-            extra = lever_arms if spec is FUSION else ()
-            processes.start(spec.name, command(spec, None, port, extra))
+            processes.start(spec.name, command(spec, None, port, extras.get(spec, ())))
         processes.start("record", gnss_ins_command("record", "-o", str(drive), *RECORDED))
         print("  nodes running: imu400cc_node, leica/gnss_node, adu5/gnss_node, ins_fusion_node")
         print("  recording ...", flush=True)
