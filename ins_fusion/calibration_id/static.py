@@ -1,0 +1,488 @@
+"""Static methods (Aalborg notes §4.1-§4.4): six-position S2, Salychev, known attitude S3,
+unknown attitude S4.
+
+Observation model (2.1)/(2.2) in imu_link FLU for a unit at rest with known up direction u
+(unit vector) and known earth rate e (both in imu_link): the true specific force is f = g u, so
+per accelerometer axis i and gyro axis i
+
+    f̃_i = B_f,i + (1 + S±_i) f_i + Σ_j≠i A_ij f_j            (2.1), S± by the sign of f_i
+    ω̃_i = B_ω,i + Σ_j G_ij f_j + e_i                          (2.2), scale × earth rate dropped
+
+(the gyro scale and misalignment multiply the earth rate only, §4.3: "too weak"). Each method
+writes one such equation per static segment and solves per axis by least squares (``lsq``):
+
+- **six-position S2**: each axis once up and once down. Accelerometer, symmetric scale:
+  (5.2)/(5.3) on the two vertical readings, B = (f̃₁ + f̃₂)/2, S = (f̃₁ - f̃₂)/(2g) - 1;
+  asymmetric scale: B from the four positions where the axis is horizontal (S1, (5.1)), then
+  (5.5)/(5.6) with α = 90° each on its own (S1 mod: S+ up, S- down). Gyro (5.9)-(5.18): with
+  the axis vertical the earth rate is ±Ω sin φ and the g-dependent bias ±g G_ii, so the pair
+  sum gives B and the difference G_ii without knowing the heading; a pair with axis j vertical
+  gives G_ij from its difference and another B from its sum. The heading is unknown, so the
+  horizontal earth rate on a horizontal axis (Ω cos φ times the cosine of its azimuth) is noise
+  of variance (Ω cos φ)²/2.
+- **Salychev** (§4.6 as executed): the same six positions with the horizontal positive axes
+  pointing south-east and south-west, so every horizontal axis sees -Ω cos φ/√2 and the earth
+  rate is known on every axis ((5.17)/(5.18) for this geometry). Accelerometer scale symmetric
+  by default, as the report chose (Fig. 5-35).
+- **known attitude S3** (Titterton): any positions with known roll, pitch and yaw; adds the
+  accelerometer misalignment A_ij; the gyro rows subtract the full earth rate.
+- **unknown attitude S4** (Shin & El-Sheimy): (5.4) |f| = g and (5.8) |ω| = Ω per position, by
+  nonlinear least squares: accelerometer bias, symmetric scale and the three non-orthogonality
+  angles (x axis and x-y plane of the accelerometer triad fix the frame, so A is lower
+  triangular); gyro bias. §4.3: asymmetry and non-linearity corrupt the accelerometer terms,
+  g-dependent bias the gyro bias.
+
+Observation noise (§4.4): the σ of each segment mean (``segments``); the attitude (level) error
+σ_θ, which moves a horizontal axis by g σ_θ and a vertical one only to second order (§4.4
+neglects it), i.e. variance σ_θ² (g² - f_i²); the bias instability (``model``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from enum import StrEnum
+
+import numpy as np
+import scipy.optimize
+import scipy.stats
+from scipy.spatial.transform import Rotation
+
+from ins_fusion.calibration_id.lsq import EstimationError, LinearFit, solve
+from ins_fusion.calibration_id.model import BiasInstability, Site
+from ins_fusion.calibration_id.record import FloatArray
+from ins_fusion.calibration_id.result import (
+    CalibrationResult,
+    Estimate,
+    FitSummary,
+    Quantity,
+    Residual,
+)
+from ins_fusion.calibration_id.segments import Segment
+from ins_fusion.core.earth import EARTH_RATE_RAD_S
+
+AXES = "xyz"
+#: An axis counts as vertical within this angle [deg]; a six-position segment must be.
+MAX_TILT_DEG = 10.0
+#: |mean specific force| of a static segment within this fraction of g.
+GRAVITY_TOLERANCE = 0.1
+#: A fit whose χ² has a smaller probability gets a warning in the report.
+CHI2_WARNING_P = 1e-3
+#: S4 estimates 9 accelerometer parameters.
+S4_MIN_POSITIONS = 9
+
+
+class Scale(StrEnum):
+    """Accelerometer scale-factor model."""
+
+    ASYMMETRIC = "asymmetric"
+    SYMMETRIC = "symmetric"
+
+
+@dataclass(frozen=True)
+class StaticOptions:
+    """Site, attitude (level) σ of the positions [rad], bias instability, scale model."""
+
+    site: Site
+    level_sigma_rad: float = math.radians(0.1)
+    instability: BiasInstability = field(default_factory=BiasInstability)
+    accel_scale: Scale = Scale.ASYMMETRIC
+
+
+@dataclass(frozen=True)
+class Position:
+    """A static segment with its known attitude: ``up`` unit vector, known earth rate [rad/s]
+    and variance of its unknown part [(rad/s)²] per axis, all in imu_link."""
+
+    segment: Segment
+    label: str
+    up: FloatArray
+    earth_rate_rad_s: FloatArray
+    earth_rate_var: FloatArray
+
+
+def axis_label(axis: int, sign: float) -> str:
+    """``+x``, ``-z``..."""
+    return f"{'+' if sign > 0 else '-'}{AXES[axis]}"
+
+
+def up_axis(segment: Segment, gravity_m_s2: float) -> tuple[int, float]:
+    """The imu_link axis (index, sign) pointing up in a static segment; EstimationError when
+    the reading is not gravity or no axis is within MAX_TILT_DEG of vertical."""
+    f = segment.means.force_m_s2
+    norm = float(np.linalg.norm(f))
+    if abs(norm / gravity_m_s2 - 1.0) > GRAVITY_TOLERANCE:
+        raise EstimationError(
+            f"{segment.where}: |f| = {norm:.3f} m/s² is not gravity ({gravity_m_s2:.4f} m/s²);"
+            " not a static reading in m/s²"
+        )
+    axis = int(np.argmax(np.abs(f)))
+    sign = math.copysign(1.0, float(f[axis]))
+    tilt = math.degrees(math.acos(min(1.0, abs(float(f[axis])) / norm)))
+    if tilt > MAX_TILT_DEG:
+        raise EstimationError(
+            f"{segment.where}: the up direction is {tilt:.0f}° from the nearest axis"
+            f" ({axis_label(axis, sign)}); every position needs an axis vertical"
+        )
+    return axis, sign
+
+
+def six_positions(segments: Sequence[Segment], site: Site, salychev: bool) -> list[Position]:
+    """The segments as six-position setups: the axis up in each (from gravity), earth rate
+    known vertically (heading unknown) or on every axis (Salychev: horizontal axes SE/SW).
+    EstimationError when a position is missing."""
+    omega_v = EARTH_RATE_RAD_S * math.sin(site.latitude_rad)
+    omega_h = EARTH_RATE_RAD_S * math.cos(site.latitude_rad)
+    positions = []
+    for s in segments:
+        axis, sign = up_axis(s, site.gravity_m_s2)
+        up = np.zeros(3)
+        up[axis] = sign
+        horizontal = 1.0 - np.abs(up)
+        if salychev:
+            earth, var = omega_v * up - omega_h / math.sqrt(2.0) * horizontal, np.zeros(3)
+        else:
+            earth, var = omega_v * up, 0.5 * omega_h * omega_h * horizontal
+        positions.append(Position(s, axis_label(axis, sign), up, earth, var))
+    found = [p.label for p in positions]
+    missing = [axis_label(a, s) for a in range(3) for s in (1.0, -1.0)]
+    missing = [m for m in missing if m not in found]
+    if missing:
+        counts = ", ".join(f"{label} ×{found.count(label)}" for label in sorted(set(found)))
+        raise EstimationError(
+            f"six-position needs every axis up and down: missing {', '.join(missing)} up"
+            f" (static segments found: {counts or 'none'})"
+        )
+    return positions
+
+
+def attitude_positions(
+    segments: Sequence[Segment], rpy_rad: Sequence[tuple[float, float, float]], site: Site
+) -> list[Position]:
+    """Segments with given roll, pitch, yaw [rad] of imu_link in ENU (REP-103: yaw 0 = x east,
+    counter-clockwise positive), in order. EstimationError when the counts differ or gravity
+    in the data is more than MAX_TILT_DEG from the attitude's up."""
+    if len(rpy_rad) != len(segments):
+        raise EstimationError(f"{len(rpy_rad)} attitudes given for {len(segments)} static segments")
+    positions = []
+    for s, (roll, pitch, yaw) in zip(segments, rpy_rad, strict=True):
+        to_body = Rotation.from_euler("ZYX", [yaw, pitch, roll]).inv()
+        up = to_body.apply([0.0, 0.0, 1.0])
+        f = s.means.force_m_s2
+        angle = math.degrees(math.acos(np.clip(up @ f / np.linalg.norm(f), -1.0, 1.0)))
+        label = "/".join(f"{math.degrees(a):.0f}" for a in (roll, pitch, yaw))
+        if angle > MAX_TILT_DEG:
+            raise EstimationError(
+                f"{s.where}: attitude {label} deg puts up {angle:.0f}° from gravity in the data"
+            )
+        earth = to_body.apply(site.earth_rate_enu_rad_s)
+        positions.append(Position(s, label, up, earth, np.zeros(3)))
+    return positions
+
+
+def _covariance(
+    positions: Sequence[Position], triad: str, axis: int, extra: FloatArray, options: StaticOptions
+) -> FloatArray:
+    segments = [p.segment for p in positions]
+    sigma = np.array(
+        [
+            (
+                p.segment.means.rate_sigma_rad_s
+                if triad == "gyro"
+                else p.segment.means.force_sigma_m_s2
+            )[axis]
+            for p in positions
+        ]
+    )
+    return np.diag(sigma * sigma + extra) + options.instability.covariance(segments, triad, axis)
+
+
+def _warn_chi2(result: CalibrationResult, name: str, fit: LinearFit | tuple[float, int]) -> None:
+    chi2, dof = (fit.chi2, fit.dof) if isinstance(fit, LinearFit) else fit
+    result.fits.append(FitSummary(name, chi2, dof))
+    if dof > 0 and scipy.stats.chi2.sf(chi2, dof) < CHI2_WARNING_P:
+        result.notes.append(
+            f"{name}: residuals larger than their σ (χ² = {chi2:.1f} for {dof} degrees of"
+            " freedom): motion, level errors or errors the method does not model; the stated"
+            " σ are optimistic"
+        )
+
+
+def fit_accel(
+    positions: Sequence[Position],
+    options: StaticOptions,
+    result: CalibrationResult,
+    misalignment: bool,
+    written: bool,
+) -> None:
+    """Accelerometer bias, scale (options.accel_scale) and optionally misalignment, per axis.
+
+    Symmetric without misalignment uses the vertical readings only ((5.2)/(5.3)); otherwise
+    every position ((5.1), (5.5)/(5.6) at α = 90°, S3)."""
+    g = options.site.gravity_m_s2
+    symmetric = options.accel_scale is Scale.SYMMETRIC
+    vertical_only = symmetric and not misalignment
+    source = (
+        "S2 (5.2)/(5.3), vertical axes"
+        if vertical_only
+        else ("S3 least squares" if misalignment else "S1 (5.1) + S1 mod (5.5)/(5.6), α = 90°")
+    )
+    bias, scale_pos, scale_neg = (np.full(3, math.nan) for _ in range(3))
+    bias_s, scale_pos_s, scale_neg_s = (np.full(3, math.nan) for _ in range(3))
+    mis, mis_s = np.zeros((3, 3)), np.zeros((3, 3))
+    for i in range(3):
+        rows = [
+            k
+            for k, p in enumerate(positions)
+            if not vertical_only or abs(p.up[i]) > math.cos(math.radians(MAX_TILT_DEG))
+        ]
+        used = [positions[k] for k in rows]
+        f = np.array([g * p.up for p in used])
+        others = [j for j in range(3) if j != i]
+        columns = [np.ones(len(used))]
+        names = [f"accel bias {AXES[i]}"]
+        if symmetric:
+            columns.append(f[:, i])
+            names.append(f"accel scale {AXES[i]}")
+        else:
+            columns += [np.maximum(f[:, i], 0.0), np.minimum(f[:, i], 0.0)]
+            names += [f"accel scale + {AXES[i]} (axis up)", f"accel scale - {AXES[i]} (axis down)"]
+        if misalignment:
+            columns += [f[:, j] for j in others]
+            names += [f"accel misalignment {AXES[i]}{AXES[j]}" for j in others]
+        level = options.level_sigma_rad**2 * np.maximum(g * g - f[:, i] ** 2, 0.0)
+        fit = solve(
+            np.stack(columns, axis=1),
+            np.array([p.segment.means.force_m_s2[i] for p in used]),
+            _covariance(used, "accel", i, level, options),
+            names,
+        )
+        x, sx = fit.params, fit.sigma
+        bias[i], bias_s[i] = x[0], sx[0]
+        scale_pos[i], scale_pos_s[i] = x[1] - 1.0, sx[1]
+        scale_neg[i], scale_neg_s[i] = (x[1], sx[1]) if symmetric else (x[2], sx[2])
+        scale_neg[i] -= 1.0
+        if misalignment:
+            mis[i, others], mis_s[i, others] = x[-2:], sx[-2:]
+        if written:
+            _warn_chi2(result, f"accelerometer {AXES[i]}", fit)
+            result.residuals += [
+                Residual(k, f"f_{AXES[i]}", r / Quantity.ACCEL_BIAS.unit, "mg", n)
+                for k, r, n in zip(rows, fit.residuals, fit.normalized, strict=True)
+            ]
+    label = f"{source}, {options.accel_scale.value} scale"
+    result.estimates += [
+        Estimate(Quantity.ACCEL_BIAS, bias, bias_s, label, written),
+        Estimate(Quantity.ACCEL_SCALE_POSITIVE, scale_pos, scale_pos_s, label, written),
+        Estimate(Quantity.ACCEL_SCALE_NEGATIVE, scale_neg, scale_neg_s, label, written),
+    ]
+    if misalignment:
+        result.estimates.append(Estimate(Quantity.ACCEL_MISALIGNMENT, mis, mis_s, label, written))
+
+
+def fit_gyro(
+    positions: Sequence[Position], options: StaticOptions, result: CalibrationResult, source: str
+) -> None:
+    """Gyro bias and g-dependent bias G per axis: ω̃_i - e_i = B_i + Σ_j G_ij g u_j."""
+    g = options.site.gravity_m_s2
+    f = np.array([g * p.up for p in positions])
+    bias, bias_s = np.zeros(3), np.zeros(3)
+    gsens, gsens_s = np.zeros((3, 3)), np.zeros((3, 3))
+    for i in range(3):
+        names = [f"gyro bias {AXES[i]}"] + [
+            f"g-dependent bias {AXES[i]}{AXES[j]}" for j in range(3)
+        ]
+        fit = solve(
+            np.hstack((np.ones((len(positions), 1)), f)),
+            np.array([p.segment.means.rate_rad_s[i] - p.earth_rate_rad_s[i] for p in positions]),
+            _covariance(
+                positions, "gyro", i, np.array([p.earth_rate_var[i] for p in positions]), options
+            ),
+            names,
+        )
+        bias[i], bias_s[i] = fit.params[0], fit.sigma[0]
+        gsens[i], gsens_s[i] = fit.params[1:], fit.sigma[1:]
+        _warn_chi2(result, f"gyro {AXES[i]}", fit)
+        result.residuals += [
+            Residual(k, f"w_{AXES[i]}", r / Quantity.GYRO_BIAS.unit, "deg/s", n)
+            for k, (r, n) in enumerate(zip(fit.residuals, fit.normalized, strict=True))
+        ]
+    result.estimates += [
+        Estimate(Quantity.GYRO_BIAS, bias, bias_s, source),
+        Estimate(Quantity.GYRO_G_SENSITIVITY, gsens, gsens_s, source),
+    ]
+
+
+def six_position(
+    segments: Sequence[Segment], options: StaticOptions, salychev: bool = False
+) -> CalibrationResult:
+    """S2 (or the Salychev procedure): accelerometer bias and scale (both scale models; the
+    chosen one is written), gyro bias and g-dependent bias (module docstring)."""
+    positions = six_positions(segments, options.site, salychev)
+    result = CalibrationResult(
+        "salychev" if salychev else "six-position",
+        [p.segment for p in positions],
+        [f"{p.label} up" for p in positions],
+    )
+    other = Scale.SYMMETRIC if options.accel_scale is Scale.ASYMMETRIC else Scale.ASYMMETRIC
+    fit_accel(positions, options, result, misalignment=False, written=True)
+    fit_accel(
+        positions,
+        StaticOptions(options.site, options.level_sigma_rad, options.instability, other),
+        result,
+        misalignment=False,
+        written=False,
+    )
+    heading = (
+        "horizontal axes SE/SW, earth rate known on every axis"
+        if salychev
+        else "heading unknown, horizontal earth rate as noise"
+    )
+    fit_gyro(positions, options, result, f"S2 (5.9)-(5.18), {heading}")
+    return result
+
+
+def known_attitude(
+    segments: Sequence[Segment],
+    rpy_rad: Sequence[tuple[float, float, float]],
+    options: StaticOptions,
+) -> CalibrationResult:
+    """S3: accelerometer bias, scale and misalignment; gyro bias and g-dependent bias."""
+    positions = attitude_positions(segments, rpy_rad, options.site)
+    result = CalibrationResult(
+        "known-attitude", [p.segment for p in positions], [p.label for p in positions]
+    )
+    fit_accel(positions, options, result, misalignment=True, written=True)
+    fit_gyro(positions, options, result, "S3 least squares, full earth rate from the attitude")
+    return result
+
+
+def _norm_fit(
+    sigma: FloatArray,
+    covariance: Callable[[int], FloatArray],
+    model: Callable[[FloatArray], FloatArray],
+    x0: FloatArray,
+    magnitude: float,
+    names: Sequence[str],
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, float]:
+    """Nonlinear least squares on |model(x)_k| = magnitude, one row per segment; ``sigma``
+    (m, 3) the σ of the segment means.
+
+    The covariance of the residuals projects each axis' covariance (``covariance(axis)``, per
+    segment) onto the directions of model(x0). Returns x, its covariance, residuals, residual
+    σ, χ²."""
+    start = model(x0)
+    directions = start / np.linalg.norm(start, axis=1, keepdims=True)
+    cov = sum(np.outer(directions[:, i], directions[:, i]) * covariance(i) for i in range(3))
+    cov = np.asarray(cov) + np.diag(np.sum((directions * sigma) ** 2, axis=1))
+    factor = np.linalg.cholesky(cov)
+
+    def whitened(x: FloatArray) -> FloatArray:
+        r = np.linalg.norm(model(x), axis=1) - magnitude
+        return np.asarray(np.linalg.solve(factor, r))
+
+    fit = scipy.optimize.least_squares(whitened, x0, method="lm", x_scale="jac")
+    jac = np.asarray(fit.jac)
+    _, singular, vt = np.linalg.svd(jac, full_matrices=False)
+    if singular[-1] <= 1e-8 * singular[0]:
+        raise EstimationError(
+            f"the positions do not determine {names[int(np.argmax(np.abs(vt[-1])))]}:"
+            " spread the attitudes (faces, edges and corners)"
+        )
+    x = np.asarray(fit.x)
+    residuals = np.linalg.norm(model(x), axis=1) - magnitude
+    white = np.asarray(fit.fun)
+    return x, np.linalg.inv(jac.T @ jac), residuals, np.sqrt(np.diag(cov)), float(white @ white)
+
+
+def unknown_attitude(segments: Sequence[Segment], options: StaticOptions) -> CalibrationResult:
+    """S4: (5.4) and (5.8) by nonlinear least squares (module docstring)."""
+    if len(segments) < S4_MIN_POSITIONS:
+        raise EstimationError(
+            f"unknown-attitude (S4) needs at least {S4_MIN_POSITIONS} static positions,"
+            f" found {len(segments)}"
+        )
+    g = options.site.gravity_m_s2
+    for s in segments:
+        up_norm = float(np.linalg.norm(s.means.force_m_s2))
+        if abs(up_norm / g - 1.0) > GRAVITY_TOLERANCE:
+            raise EstimationError(f"{s.where}: |f| = {up_norm:.3f} m/s² is not gravity")
+    result = CalibrationResult(
+        "unknown-attitude",
+        list(segments),
+        [f"position {k + 1}" for k in range(len(segments))],
+    )
+    forces = np.array([s.means.force_m_s2 for s in segments])
+    lower = [(1, 0), (2, 0), (2, 1)]
+
+    def corrected_force(x: FloatArray) -> FloatArray:
+        mat = np.eye(3) + np.diag(x[3:6])
+        for k, (i, j) in enumerate(lower):
+            mat[i, j] = x[6 + k]
+        return np.asarray(np.linalg.solve(mat, (forces - x[:3]).T).T)
+
+    names = [f"accel bias {a}" for a in AXES] + [f"accel scale {a}" for a in AXES]
+    names += [f"accel misalignment {AXES[i]}{AXES[j]}" for i, j in lower]
+    x, cov, residuals, res_sigma, chi2 = _norm_fit(
+        np.array([s.means.force_sigma_m_s2 for s in segments]),
+        lambda i: options.instability.covariance(segments, "accel", i),
+        corrected_force,
+        np.zeros(9),
+        g,
+        names,
+    )
+    sx = np.sqrt(np.diag(cov))
+    mis, mis_s = np.zeros((3, 3)), np.zeros((3, 3))
+    for k, (i, j) in enumerate(lower):
+        mis[i, j], mis_s[i, j] = x[6 + k], sx[6 + k]
+    source = "S4 (5.4) |f| = g, misalignment in the accelerometer frame"
+    result.estimates += [
+        Estimate(Quantity.ACCEL_BIAS, x[:3], sx[:3], source),
+        Estimate(Quantity.ACCEL_SCALE_POSITIVE, x[3:6], sx[3:6], source),
+        Estimate(Quantity.ACCEL_SCALE_NEGATIVE, x[3:6], sx[3:6], source),
+        Estimate(Quantity.ACCEL_MISALIGNMENT, mis, mis_s, source),
+    ]
+    _warn_chi2(result, "accelerometers |f| = g", (chi2, len(segments) - 9))
+    result.residuals += [
+        Residual(k, "|f| - g", r / Quantity.ACCEL_BIAS.unit, "mg", r / s)
+        for k, (r, s) in enumerate(zip(residuals, res_sigma, strict=True))
+    ]
+    _s4_gyro(segments, options, result)
+    return result
+
+
+def _s4_gyro(
+    segments: Sequence[Segment], options: StaticOptions, result: CalibrationResult
+) -> None:
+    """(5.8) |ω̃ - B| = Ω, when the segment means resolve the earth rate."""
+    rates = np.array([s.means.rate_rad_s for s in segments])
+    sigma = np.array([s.means.rate_sigma_rad_s for s in segments])
+    if float(np.median(sigma)) > EARTH_RATE_RAD_S / 3.0:
+        result.notes.append(
+            "gyro bias not estimated: the σ of the segment mean rates"
+            f" ({math.degrees(float(np.median(sigma))) * 3600:.1f} deg/h) is not small against"
+            " the earth rate (15.04 deg/h) that (5.8) relies on"
+        )
+        return
+    x, cov, residuals, res_sigma, chi2 = _norm_fit(
+        sigma,
+        lambda i: options.instability.covariance(segments, "gyro", i),
+        lambda b: rates - b,
+        rates.mean(axis=0),
+        EARTH_RATE_RAD_S,
+        [f"gyro bias {a}" for a in AXES],
+    )
+    result.estimates.append(
+        Estimate(
+            Quantity.GYRO_BIAS,
+            x,
+            np.sqrt(np.diag(cov)),
+            "S4 (5.8) |ω| = Ω (contains the g-dependent bias, §4.3)",
+        )
+    )
+    _warn_chi2(result, "gyros |ω| = Ω", (chi2, len(segments) - 3))
+    result.residuals += [
+        Residual(k, "|w| - Ω", r / Quantity.GYRO_BIAS.unit, "deg/s", r / s)
+        for k, (r, s) in enumerate(zip(residuals, res_sigma, strict=True))
+    ]
