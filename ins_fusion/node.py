@@ -20,7 +20,7 @@ from geometry_msgs.msg import TwistWithCovarianceStamped
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from sensor_msgs.msg import Imu, NavSatFix
+from sensor_msgs.msg import Imu, NavSatFix, Temperature
 
 from gnss_ins_common import ros_diagnostics as diag
 from gnss_ins_common.message_fields import fill_orientation, stamp_ns
@@ -61,6 +61,8 @@ class InsFusionNode(Node):
         self.create_subscription(NavSatFix, "gnss/fix", self._on_fix, 20)
         self.create_subscription(TwistWithCovarianceStamped, "gnss/vel", self._on_velocity, 20)
         self.create_subscription(Imu, "gnss/attitude", self._on_attitude, 20)
+        self.create_subscription(Temperature, "imu/temperature", self._on_temperature, 10)
+        self._temperature_c = math.nan
         self._odom_pub = self.create_publisher(Odometry, "ins/odometry", 50)
         self._fix_pub = self.create_publisher(NavSatFix, "ins/fix", 50)
         self._imu_pub = self.create_publisher(Imu, "ins/imu", 50)
@@ -92,6 +94,23 @@ class InsFusionNode(Node):
     def _on_attitude(self, msg: Imu) -> None:
         self.engine.add_attitude(messages_in.attitude_measurement(msg))
 
+    def _temperature_ok(self, celsius: float) -> bool:
+        """Inside the calibration's temperature range (True without a calibration or reading)."""
+        calibration = self.engine.calibration
+        return (
+            calibration is None or math.isnan(celsius) or calibration.in_temperature_range(celsius)
+        )
+
+    def _on_temperature(self, msg: Temperature) -> None:
+        if self._temperature_ok(self._temperature_c) and not self._temperature_ok(msg.temperature):
+            calibration = self.engine.calibration
+            assert calibration is not None
+            self.get_logger().warning(  # once per excursion, not per message
+                f"IMU temperature {msg.temperature:.1f} degC is outside the calibration's "
+                f"range {calibration.temperature_range_c} degC"
+            )
+        self._temperature_c = msg.temperature
+
     # ---- outputs ------------------------------------------------------------------------------
     def _publish(self, solution: InsSolution) -> None:
         odom = fill_odometry(
@@ -116,12 +135,15 @@ class InsFusionNode(Node):
         status = self.engine.status()
         solution = self.engine.solution()
         level = {"navigating": diag.OK, "aligning": diag.WARN}.get(status.state, diag.WARN)
+        temperature_ok = self._temperature_ok(self._temperature_c)
         if status.state == "degraded":
             message = "degraded: no GNSS for too long"
         elif status.last_reset_reason:
             message = f"{status.state}; last reset: {status.last_reset_reason}"
         else:
             message = status.state
+        if not temperature_ok:
+            level, message = diag.WARN, f"{message}; IMU temperature outside the calibration range"
         values: dict[str, object] = {
             "state": status.state,
             "imu_samples": status.imu_samples,
@@ -131,6 +153,8 @@ class InsFusionNode(Node):
             "rollbacks": status.rollbacks,
             "stationary": status.stationary,
             "outputs_published": self._published,
+            "imu_temperature_c": self._temperature_c,
+            "temperature_in_calibration_range": temperature_ok,
         }
         for name, counters in status.measurements.items():
             for counter, count in counters.items():

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +22,7 @@ from ros_harness import (
     stamp_s,
     wait_for,
 )
-from sensor_msgs.msg import Imu, NavSatFix
+from sensor_msgs.msg import Imu, NavSatFix, Temperature
 
 from gnss_ins_common.params import ParameterValueError
 from ins_fusion.node import InsFusionNode
@@ -131,3 +132,35 @@ def test_bad_parameters_are_rejected():
     with pytest.raises(ParameterValueError, match="gnss_lever_arm"):
         InsFusionNode(parameter_overrides=overrides(gnss_lever_arm=[0.0, 1.0]))
     assert_executable_refuses("ins_fusion_node", "output_rate", "-5.0")
+
+
+def test_imu_temperature_outside_the_calibration_range_is_reported():
+    calibration = Path(__file__).resolve().parents[1] / "config" / "imu400cc_calibration.yaml"
+    node = InsFusionNode(
+        parameter_overrides=overrides(calibration_file=str(calibration), diagnostics_period=0.2)
+    )
+    low, high = node.engine.calibration.temperature_range_c
+    collector = Collector({"/diagnostics": DiagnosticArray})
+    publisher = collector.node.create_publisher(Temperature, "imu/temperature", 10)
+    try:
+        with spinning(node, collector.node):
+            for celsius, expected in ((low + 0.5, "True"), (high + 7.0, "False")):
+                collector.clear()
+                for _ in range(50):  # publish until a status reflects it (discovery, timer)
+                    publisher.publish(Temperature(temperature=celsius))
+                    if _reported(collector, expected):
+                        break
+                    time.sleep(0.1)
+                assert _reported(collector, expected), (celsius, expected)
+    finally:
+        node.destroy_node()
+        collector.node.destroy_node()
+    last = collector.get("/diagnostics")[-1].status[0]
+    assert "outside the calibration range" in last.message
+
+
+def _reported(collector: Collector, in_range: str) -> bool:
+    return any(
+        diagnostic_values(array).get("temperature_in_calibration_range") == in_range
+        for array in collector.get("/diagnostics")
+    )
