@@ -13,6 +13,7 @@ import sys
 
 #: sub-command name -> (module under ins_fusion.tools, one-line help)
 SUBCOMMANDS: dict[str, tuple[str, str]] = {
+    "allan": ("allan", "IMU noise terms from a static bag (Allan deviation) as fusion parameters"),
     "calibrate": ("calibrate", "IMU laboratory calibration from bags: biases, scales, axes"),
     "emulate-imu": ("emulate_imu", "emulated IMU400CC on a pseudo-terminal"),
     "emulate-gnss": ("emulate_gnss", "emulated Leica RTK rover or ADU5 on a pseudo-terminal"),

@@ -1,0 +1,19 @@
+"""IMU noise identification from static records (``gnss_ins allan``; no ROS).
+
+- ``allan``: overlapping Allan deviation per series (allantools), the power-law noise type and the
+  equivalent degrees of freedom of every point, confidence intervals.
+- ``terms``: the IEEE 952 noise terms fitted to a curve (quantisation, white noise, Gauss-Markov
+  or flicker bias instability, random walk) with their confidence intervals, and the classic
+  flat-minimum read-off.
+- ``record``: a static IMU record (sample times, rates, specific forces), its sample clock and
+  the checks that refuse irregular, non-finite, constant or moving records.
+- ``analysis``: every gyro and accelerometer axis of a record, the user-facing units, the length
+  a record needs and what a report lacks for the requested terms.
+- ``output``: the summary table and the ROS parameter file of ins_fusion_node (imu_noise.*).
+- ``plot``: the log-log figure with the data and the fitted lines.
+- ``synthetic``: static records of a simulated IMU (ins_fusion.sim) and their bags, for the
+  tests, the benchmark and trying the tool.
+
+References are to shared/reference/: "Oslo" mems-noise-oslo-notes.md, "Aalborg"
+imu400cc-aalborg-notes.md.
+"""

@@ -1,0 +1,184 @@
+"""The summary table of a noise report, and the ROS parameter file of ins_fusion_node with the
+identified imu_noise.* values.
+
+Parameter names and units are the node's own (ins_fusion.fusion_params.PARAMETERS):
+imu_noise.gyro_arw [deg/sqrt(h)] and imu_noise.accel_vrw [m/s/sqrt(h)] (white-noise densities),
+imu_noise.gyro_bias_instability [deg/h] and imu_noise.accel_bias_instability [mg] (stationary σ
+of the Gauss-Markov biases), per imu_link axis, and one imu_noise.bias_correlation_time [s] for
+all biases: the geometric mean of the six axes' times. Every value is checked with the node's
+Param specs before it is written. The node has no random-walk or quantisation parameter; those,
+the classic read-offs and the confidence intervals are the file's comments (the summary table).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+from gnss_ins_common.params import ParameterValueError, validate
+from ins_fusion.fusion_params import PARAMETERS
+from ins_fusion.noise_id.analysis import ACCEL, GYRO, SENSORS, AxisNoise, NoiseReport, Sensor, Unit
+from ins_fusion.noise_id.terms import BiasInstability, Term
+
+NODE_NAME = "ins_fusion_node"
+_SIGNIFICANT = 4
+_SPECS = {spec.name: spec for spec in PARAMETERS}
+
+
+def yaml_number(value: float) -> str:
+    """4 significant digits, always readable back as a YAML float (1.2e-05 -> 1.2e-05, 1e-05
+    -> 1.0e-05, 3 -> 3.0)."""
+    text = f"{value:.{_SIGNIFICANT}g}"
+    if not math.isfinite(value):
+        return text
+    mantissa, _, exponent = text.partition("e")
+    if "." not in mantissa:
+        mantissa += ".0"
+    return mantissa + (f"e{exponent}" if exponent else "")
+
+
+def _rounded(value: float) -> float:
+    return float(f"{value:.{_SIGNIFICANT}g}")
+
+
+def _term_text(term: Term, unit: Unit) -> str:
+    """``value [low, high]`` in the unit (interval to 3 digits), ``< high`` if not visible."""
+    k = unit.per_si
+    if not term.visible:
+        return f"< {term.high * k:.3g}"
+    return f"{yaml_number(term.value * k)} [{term.low * k:.3g}, {term.high * k:.3g}]"
+
+
+def _rows(sensor: Sensor) -> list[tuple[str, Callable[[AxisNoise], str]]]:
+    def bias_sigma(a: AxisNoise) -> str:
+        bias = a.terms.bias
+        return "-" if bias is None else _term_text(bias.sigma, sensor.bias)
+
+    def bias_time(a: AxisNoise) -> str:
+        bias = a.terms.bias
+        return "-" if bias is None else f"{bias.time_constant_s:.0f}"
+
+    def flat_minimum(a: AxisNoise) -> str:
+        text = _term_text(a.terms.flat_minimum, sensor.bias)
+        return text if a.terms.flat_minimum.visible else text + " (last point)"
+
+    white = "ARW" if sensor is GYRO else "VRW"
+    walk = "RRW" if sensor is GYRO else "acceleration random walk"
+    return [
+        (
+            f"{white} N (-1/2 at 1 s) [{sensor.white.label}]",
+            lambda a: _term_text(a.terms.white, sensor.white),
+        ),
+        ("bias instability model", lambda a: a.terms.bias.model if a.terms.bias else "none"),
+        (f"bias instability sigma for the node [{sensor.bias.label}]", bias_sigma),
+        ("its correlation time [s]", bias_time),
+        (f"B (0, minimum / 0.664) [{sensor.bias.label}]", flat_minimum),
+        ("tau of the minimum [s]", lambda a: f"{a.terms.flat_minimum_tau_s:.0f}"),
+        (
+            f"{walk} K (+1/2 at 3 s) [{sensor.random_walk.label}]",
+            lambda a: _term_text(a.terms.random_walk, sensor.random_walk),
+        ),
+        (
+            f"quantisation Q (-1 at sqrt(3) s) [{sensor.quantization.label}]",
+            lambda a: _term_text(a.terms.quantization, sensor.quantization),
+        ),
+    ]
+
+
+def summary_table(report: NoiseReport) -> list[str]:
+    """The terms per axis, value [confidence interval], "< bound" where not visible."""
+    lines = [
+        f"source: {report.source}",
+        f"record: {report.duration_s:.1f} s, {report.n_samples} samples at "
+        f"{report.clock.rate_hz:.3f} Hz ({report.clock.missing} missing)",
+        f"intervals: {report.confidence:.1%} (chi-squared, Greenhall edf); "
+        "'< x': not visible, upper bound",
+    ]
+    for sensor in SENSORS:
+        axes = report.of(sensor)
+        rows = _rows(sensor)
+        cells = [[cell(a) for a in axes] for _, cell in rows]
+        label_width = max(len(label) for label, _ in rows) + 2
+        width = max(len(c) for row in cells for c in row)
+        lines.append(
+            f"{sensor.name:<{label_width}}  " + "  ".join(f"{a.axis:<{width}}" for a in axes)
+        )
+        lines.extend(
+            f"  {label:<{label_width - 2}}  " + "  ".join(f"{c:<{width}}" for c in row)
+            for (label, _), row in zip(rows, cells, strict=True)
+        )
+    return [line.rstrip() for line in lines]
+
+
+def _bias(axis: AxisNoise) -> BiasInstability:
+    if axis.terms.bias is None:
+        raise ParameterValueError(f"{axis.name}: no bias instability identified")
+    return axis.terms.bias
+
+
+def fusion_parameters(report: NoiseReport, terms: Sequence[str]) -> dict[str, Any]:
+    """ins_fusion_node's imu_noise.* values for the requested terms (rounded to 4 significant
+    digits), validated with the node's specs (ParameterValueError if out of range or missing)."""
+    values: dict[str, Any] = {}
+
+    def per_axis(sensor: Sensor, pick: Callable[[AxisNoise], float], unit: Unit) -> list[float]:
+        return [_rounded(pick(a) * unit.per_si) for a in report.of(sensor)]
+
+    if "white" in terms:
+        values["imu_noise.gyro_arw"] = per_axis(GYRO, lambda a: a.terms.white.value, GYRO.white)
+        values["imu_noise.accel_vrw"] = per_axis(ACCEL, lambda a: a.terms.white.value, ACCEL.white)
+    if "bias" in terms:
+        biases = [_bias(a) for a in report.axes]
+        values["imu_noise.gyro_bias_instability"] = per_axis(
+            GYRO, lambda a: _bias(a).sigma.value, GYRO.bias
+        )
+        values["imu_noise.accel_bias_instability"] = per_axis(
+            ACCEL, lambda a: _bias(a).sigma.value, ACCEL.bias
+        )
+        mean_log_time = sum(math.log(b.time_constant_s) for b in biases) / len(biases)
+        values["imu_noise.bias_correlation_time"] = _rounded(math.exp(mean_log_time))
+    return {name: validate(_SPECS[name], value) for name, value in values.items()}
+
+
+_COMMENTS = {
+    "imu_noise.gyro_arw": "[deg/sqrt(h)] white-noise density, -1/2 line at 1 s",
+    "imu_noise.accel_vrw": "[m/s/sqrt(h)] white-noise density, -1/2 line at 1 s",
+    "imu_noise.gyro_bias_instability": "[deg/h] stationary Gauss-Markov sigma (table above)",
+    "imu_noise.accel_bias_instability": "[mg] stationary Gauss-Markov sigma (table above)",
+    "imu_noise.bias_correlation_time": "[s] geometric mean of the six axes' times",
+}
+
+
+def parameter_file(report: NoiseReport, parameters: dict[str, Any]) -> str:
+    """The YAML text: provenance and the summary table as comments, then the parameters."""
+    header = [
+        "Noise of the IMU identified by `gnss_ins allan` (overlapping Allan deviation, IEEE 952",
+        "slopes fitted together; docs/allan.md). Values are noise densities and Gauss-Markov",
+        "sigmas, never per-sample sigmas, so they do not depend on the sample rate.",
+        "Use: ros2 run gnss_ins ins_fusion_node --ros-args --params-file config/ins_fusion.yaml",
+        "     --params-file THIS_FILE ;  gnss_ins replay BAG --params THIS_FILE",
+        "",
+        *summary_table(report),
+    ]
+    lines = [f"# {line}".rstrip() for line in header]
+    lines += [f"{NODE_NAME}:", "  ros__parameters:"]
+    if not parameters:
+        lines[-1] += " {}"
+    else:
+        lines.append("    imu_noise:")
+    for name, value in parameters.items():
+        key = name.split(".", 1)[1]
+        text = (
+            "[" + ", ".join(yaml_number(v) for v in value) + "]"
+            if isinstance(value, list)
+            else yaml_number(value)
+        )
+        lines.append(f"      {key}: {text}  # {_COMMENTS[name]}")
+    return "\n".join(lines) + "\n"
+
+
+def write_parameter_file(path: Path, report: NoiseReport, parameters: dict[str, Any]) -> None:
+    """Write parameter_file(report, parameters) to path."""
+    path.write_text(parameter_file(report, parameters), encoding="utf-8")

@@ -1,0 +1,81 @@
+"""Static records of a simulated IMU and their bags: known noise for the tests, the benchmark and
+trying ``gnss_ins allan`` without a unit.
+
+The truth is the simulator's survey car standing still at the Aalborg start (ins_fusion.sim:
+earth rate and normal gravity in imu_link, docs/simulator.md); the errors are an ImuErrorModel of
+any profile, sampled at any rate (its noise is stored as densities, so a record at 10 Hz has the
+same Allan deviation as one at the profile's rate for τ well above the sample period). Bags hold
+imu/data_raw as the driver publishes it (sim.messages.fill_imu), stamped k/rate after start_ns and
+logged a packet's transmission time later, like ``gnss_ins simulate``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from imu400cc_driver.device_clock import PACKET_TRANSMISSION_S
+from ins_fusion.noise_id.record import ImuRecord
+from ins_fusion.sim.imu_model import ImuErrorModel, ImuProfile
+from ins_fusion.sim.messages import fill_imu, new_message
+from ins_fusion.sim.scenarios import AALBORG_START, SURVEY_CAR
+from ins_fusion.sim.topics import DEFAULT_START_NS, IMU_DATA, IMU_FRAME, TOPICS
+from ins_fusion.sim.trajectory import Route
+from ins_fusion.sim.vehicle import VehicleTruth
+from ins_fusion.tools.bag_io import BagWriter
+
+#: Samples simulated at a time (bounds the error model's temporaries).
+_BLOCK = 200_000
+_TRANSMISSION_NS = round(PACKET_TRANSMISSION_S * 1e9)
+_ZERO3 = (0.0, 0.0, 0.0)
+
+
+def static_record(
+    profile: ImuProfile,
+    duration_s: float,
+    rate_hz: float | None = None,
+    seed: int = 0,
+    band_limited: bool = False,
+) -> ImuRecord:
+    """duration_s [s] of a resting unit of ``profile`` sampled at rate_hz (default: the
+    profile's rate), samples at k / rate_hz."""
+    rate = profile.rate_hz if rate_hz is None else rate_hz
+    n = round(duration_s * rate)
+    # Standing still, the truth is the same at every time: one second of route gives it.
+    vehicle = VehicleTruth(Route(AALBORG_START).stand(1.0).build(), SURVEY_CAR)
+    rate_truth, force_truth = vehicle.imu_truth(0.0)
+    model = ImuErrorModel(profile, seed, band_limited)
+    t = np.arange(n) / rate
+    gyro = np.empty((n, 3))
+    accel = np.empty((n, 3))
+    for start in range(0, n, _BLOCK):
+        block = t[start : start + _BLOCK]
+        ones = np.ones((len(block), 1))
+        gyro[start : start + len(block)], accel[start : start + len(block)] = model.apply(
+            block, ones * rate_truth, ones * force_truth
+        )
+    return ImuRecord(t, gyro, accel)
+
+
+def write_imu_bag(
+    path: Path,
+    record: ImuRecord,
+    topic: str = IMU_DATA,
+    start_ns: int = DEFAULT_START_NS,
+    storage: str = "mcap",
+) -> None:
+    """A bag with the record on ``topic`` (sensor_msgs/Imu, frame imu_link, covariances zero =
+    unknown)."""
+    stamps = (start_ns + np.rint(record.t_s * 1e9)).astype(np.int64).tolist()
+    msgtype = TOPICS[IMU_DATA]
+    with BagWriter(path, storage=storage) as writer:
+        writer.add_topic(topic, msgtype)
+        for stamp, rate, force in zip(
+            stamps,
+            record.rate_flu_rad_s.tolist(),
+            record.specific_force_flu_m_s2.tolist(),
+            strict=True,
+        ):
+            message = fill_imu(new_message(msgtype), stamp, IMU_FRAME, rate, force, _ZERO3, _ZERO3)
+            writer.write(topic, stamp + _TRANSMISSION_NS, message)

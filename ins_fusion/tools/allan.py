@@ -1,0 +1,188 @@
+"""`gnss_ins allan`: IMU noise terms from a static record, written as ins_fusion_node parameters.
+
+Reads sensor_msgs/Imu from a bag (header stamps as sample times), refuses records that are
+irregularly sampled, too short for the requested terms (``--terms``) or not static, computes the
+overlapping Allan deviation of the three gyros and three accelerometers and fits the IEEE 952
+terms (ins_fusion.noise_id). Prints a table of the terms per axis; ``-o`` writes the
+imu_noise.* parameters in the node's names and units, ``--plot`` the log-log figure. Exit status
+2 on a bad bag, topic or record, or when the record does not give the requested terms (the table
+and the plot are still produced then, the parameter file is not). docs/allan.md is the guide.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+from rosbags.highlevel import AnyReaderError
+
+from gnss_ins_common.params import ParameterValueError
+from ins_fusion.core.units import deg_s, mg
+from ins_fusion.noise_id.allan import ONE_SIGMA
+from ins_fusion.noise_id.analysis import (
+    AXES,
+    DEFAULT_TERMS,
+    SENSORS,
+    TERMS,
+    check_length,
+    identify,
+    shortcomings,
+)
+from ins_fusion.noise_id.output import fusion_parameters, summary_table, write_parameter_file
+from ins_fusion.noise_id.plot import plot_allan
+from ins_fusion.noise_id.record import (
+    ImuRecord,
+    RecordError,
+    StaticLimits,
+    check_static,
+    check_values,
+    sample_clock,
+)
+from ins_fusion.tools.bag_io import BagError, BagReader, utc_text
+from ins_fusion.tools.progress import Progress
+
+IMU_TYPE = "sensor_msgs/msg/Imu"
+#: Messages read between progress-bar updates.
+_PROGRESS_EVERY = 20_000
+
+
+def _terms(text: str) -> tuple[str, ...]:
+    names = tuple(dict.fromkeys(t.strip() for t in text.split(",") if t.strip()))
+    unknown = [n for n in names if n not in TERMS]
+    if unknown or not names:
+        raise argparse.ArgumentTypeError(
+            f"expected a comma-separated list of {', '.join(TERMS)}, got {text!r}"
+        )
+    return names
+
+
+def _positive(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not value > 0.0:
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+    return value
+
+
+def _probability(text: str) -> float:
+    value = _positive(text)
+    if not value < 1.0:
+        raise argparse.ArgumentTypeError(f"expected a probability between 0 and 1, got {text!r}")
+    return value
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Command-line options of ``gnss_ins allan``."""
+    parser.add_argument("bag", type=Path, help="rosbag2 bag of a static IMU record")
+    parser.add_argument("--topic", default="/imu/data_raw", help="sensor_msgs/Imu topic")
+    parser.add_argument(
+        "-o", "--output", type=Path, metavar="YAML", help="write ins_fusion_node's imu_noise.*"
+    )
+    parser.add_argument("--plot", type=Path, metavar="PNG", help="write the Allan-deviation figure")
+    parser.add_argument(
+        "--terms",
+        type=_terms,
+        default=DEFAULT_TERMS,
+        metavar="LIST",
+        help=f"terms the record must give: {', '.join(TERMS)} (default {','.join(DEFAULT_TERMS)})",
+    )
+    parser.add_argument(
+        "--confidence",
+        type=_probability,
+        default=ONE_SIGMA,
+        help="probability of the confidence intervals (default 0.683, 1 sigma)",
+    )
+    parser.add_argument(
+        "--max-rate-change",
+        type=_positive,
+        default=0.1,
+        metavar="DEG_S",
+        help="static check: largest move of the 10 s gyro means [deg/s] (default 0.1)",
+    )
+    parser.add_argument(
+        "--max-accel-change",
+        type=_positive,
+        default=10.0,
+        metavar="MG",
+        help="static check: largest move of the 10 s accelerometer means and |f| [mg] (default 10)",
+    )
+
+
+def read_imu(path: Path, topic: str) -> tuple[ImuRecord, int]:
+    """The Imu samples of ``topic`` in stamp order (times from the header stamps, relative to
+    the first) and the first stamp [ns]; BagError for a missing topic or one of another type."""
+    with BagReader(path) as reader:
+        info = reader.topics.get(topic)
+        if info is None:
+            imu_topics = sorted(t for t, i in reader.topics.items() if i.msgtype == IMU_TYPE)
+            raise BagError(
+                f"{path}: no topic {topic} (Imu topics: {', '.join(imu_topics) or 'none'})"
+            )
+        if info.msgtype != IMU_TYPE:
+            raise BagError(f"{path}: {topic} is {info.msgtype}, not {IMU_TYPE}")
+        stamps = np.empty(info.count, dtype=np.int64)
+        values = np.empty((info.count, 6))
+        count = 0
+        with Progress("read", total=info.count, unit="messages") as progress:
+            for item in reader.messages([topic], deserialize=True):
+                if count == info.count:
+                    raise BagError(f"{path}: {topic} holds more messages than its index lists")
+                msg = item.message
+                stamps[count] = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+                w, f = msg.angular_velocity, msg.linear_acceleration
+                values[count] = (w.x, w.y, w.z, f.x, f.y, f.z)
+                count += 1
+                if count % _PROGRESS_EVERY == 0:
+                    progress.update(count)
+            progress.update(count)
+    if not count:
+        raise BagError(f"{path}: {topic} has no messages")
+    # Sample order, whatever order the recorder logged them in.
+    order = np.argsort(stamps[:count], kind="stable")
+    stamps, values = stamps[order], values[order]
+    t_s = (stamps - stamps[0]) / 1e9
+    return ImuRecord(t_s, values[:, :3], values[:, 3:]), int(stamps[0])
+
+
+def _error(message: str) -> int:
+    print(f"gnss_ins allan: error: {message}", file=sys.stderr)
+    return 2
+
+
+def run(args: argparse.Namespace) -> int:
+    """Analyse, print, write; 0 done, 2 bad input or a record that does not give the terms."""
+    try:
+        record, first_ns = read_imu(args.bag, args.topic)
+        clock = sample_clock(record.t_s)
+        check_values(record)
+        check_length(record.duration_s, args.terms)
+        limits = StaticLimits(deg_s(args.max_rate_change), mg(args.max_accel_change))
+        check_static(record, clock.rate_hz, limits)
+    except (BagError, AnyReaderError, OSError, RecordError) as exc:
+        return _error(str(exc))
+    source = f"bag {args.bag}, topic {args.topic}, from {utc_text(first_ns)}"
+    axes = len(SENSORS) * len(AXES)
+    with Progress("allan", total=axes, unit="axes") as progress:
+        report = identify(record, clock, source, args.confidence, progress.update)
+    print("\n".join(summary_table(report)))
+    if args.plot is not None:
+        plot_allan(args.plot, report)
+        print(f"plot: {args.plot}")
+    problems = shortcomings(report, args.terms)
+    if problems:
+        return _error(
+            f"the record does not give the requested terms ({', '.join(args.terms)}); no "
+            "parameter file written:\n  " + "\n  ".join(problems)
+        )
+    if args.output is not None:
+        try:
+            parameters = fusion_parameters(report, args.terms)
+        except ParameterValueError as exc:
+            return _error(f"identified values outside the node's ranges: {exc}")
+        write_parameter_file(args.output, report, parameters)
+        print(f"parameters: {args.output}")
+    return 0
