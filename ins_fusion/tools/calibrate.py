@@ -12,22 +12,9 @@ Exit status 2 on bad input; ``axes`` exits 1 when the driver's mapping is wrong.
 from __future__ import annotations
 
 import argparse
-from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
-
-def _argument_type(parse: Callable[[str], Any]) -> Callable[[str], Any]:
-    """An argparse ``type`` from a parser raising ValueError (argparse then exits with 2)."""
-
-    def convert(text: str) -> Any:
-        try:
-            return parse(text)
-        except ValueError as exc:
-            raise argparse.ArgumentTypeError(str(exc)) from None
-
-    convert.__name__ = parse.__name__
-    return convert
+from ins_fusion.tools.cli import argument_type
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -57,7 +44,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     seg = parser.add_argument_group("segments")
     seg.add_argument(
         "--segments",
-        type=_argument_type(command.parse_windows),
+        type=argument_type(command.parse_windows),
         metavar="[BAG@]T0:T1,...",
         help="use these windows [s after the bag's first IMU stamp; BAG counts from 1]",
     )
@@ -99,14 +86,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     site.add_argument(
         "--positions",
-        type=_argument_type(command.parse_positions),
+        type=argument_type(command.parse_positions),
         metavar="+z,-z,...",
         help="imu_link axis up in each static segment, in order (axes: default"
         " +z,-z,+x,-x,+y,-y; six-position/salychev: checked if given)",
     )
     site.add_argument(
         "--attitudes",
-        type=_argument_type(command.parse_attitudes),
+        type=argument_type(command.parse_attitudes),
         metavar="R:P:Y,...",
         help="known-attitude: roll:pitch:yaw of imu_link in ENU per static segment [deg]",
     )

@@ -10,6 +10,8 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
+from collections.abc import Callable
+from typing import Any
 
 #: sub-command name -> (module under ins_fusion.tools, one-line help)
 SUBCOMMANDS: dict[str, tuple[str, str]] = {
@@ -29,6 +31,19 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "replay": ("replay", "bag through the fusion core offline: accuracy report, plot, sweeps"),
     "simulate": ("simulate", "simulated drive to a rosbag2 bag, or live on emulated devices"),
 }
+
+
+def argument_type(parse: Callable[[str], Any]) -> Callable[[str], Any]:
+    """An argparse ``type`` from a parser raising ValueError (argparse then exits with 2)."""
+
+    def convert(text: str) -> Any:
+        try:
+            return parse(text)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+
+    convert.__name__ = parse.__name__
+    return convert
 
 
 def build_parser(command: str | None) -> argparse.ArgumentParser:

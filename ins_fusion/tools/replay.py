@@ -15,27 +15,13 @@ figure, ``--output`` the fused /ins/odometry and /ins/fix as a bag. ``--sweep NA
 from __future__ import annotations
 
 import argparse
-from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 from ins_fusion.replay.outages import parse_outage
 from ins_fusion.replay.ranking import DEFAULT_RANK_BY, RANK_METRICS
 from ins_fusion.replay.settings import parse_setting, parse_sweep
 from ins_fusion.replay.topics import DEFAULT_REFERENCE, DEFAULT_TOPICS, TopicMap
-
-
-def _argument_type(parse: Callable[[str], Any]) -> Callable[[str], Any]:
-    """An argparse ``type`` from a parser raising ValueError (argparse then exits with 2)."""
-
-    def convert(text: str) -> Any:
-        try:
-            return parse(text)
-        except ValueError as exc:
-            raise argparse.ArgumentTypeError(str(exc)) from None
-
-    convert.__name__ = parse.__name__
-    return convert
+from ins_fusion.tools.cli import argument_type
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -47,7 +33,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--set",
         dest="settings",
-        type=_argument_type(parse_setting),
+        type=argument_type(parse_setting),
         action="append",
         default=[],
         metavar="NAME=VALUE",
@@ -55,7 +41,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--outage",
-        type=_argument_type(parse_outage),
+        type=argument_type(parse_outage),
         action="append",
         default=[],
         metavar="START:DURATION",
@@ -75,7 +61,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--topics",
-        type=_argument_type(TopicMap.parse),
+        type=argument_type(TopicMap.parse),
         default=DEFAULT_TOPICS,
         metavar="ROLE=TOPIC,...",
         help="input topics (defaults imu=/imu/data_raw,fix=/gnss/fix,vel=/gnss/vel,"
@@ -83,7 +69,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--sweep",
-        type=_argument_type(parse_sweep),
+        type=argument_type(parse_sweep),
         action="append",
         default=[],
         metavar="NAME=V1,V2,...",
