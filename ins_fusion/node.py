@@ -26,14 +26,12 @@ from gnss_ins_common import ros_diagnostics as diag
 from gnss_ins_common.message_fields import fill_orientation, stamp_ns
 from gnss_ins_common.ros_node_main import run_node
 from gnss_ins_common.ros_params import declare_parameters
+from imu400cc_driver.device_clock import NOMINAL_RATE_HZ
 from ins_fusion import messages_in
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.engine import InsEngine, InsSolution
 from ins_fusion.fusion_params import PARAMETERS as FUSION_PARAMETERS
 from ins_fusion.solution_out import fill_fused_fix, fill_odometry
-
-#: Nominal IMU rate used for the published rate covariance (density^2 x rate) [Hz].
-_IMU_RATE_HZ = 134.0
 
 #: One table for the node and `gnss_ins replay` (ins_fusion/fusion_params.py).
 PARAMETERS = FUSION_PARAMETERS
@@ -53,7 +51,9 @@ class InsFusionNode(Node):
         self._base_frame = config.base_frame
         self._output_period_s = 1.0 / config.output_rate_hz
         self._last_output_s = -math.inf
-        self._rate_variance = float(np.mean(np.square(config.imu_noise.gyro_arw))) * _IMU_RATE_HZ
+        # Variance of one bias-corrected rate sample: white-noise density^2 x the IMU rate.
+        gyro_psd = float(np.mean(np.square(config.imu_noise.gyro_arw)))
+        self._rate_variance = gyro_psd * NOMINAL_RATE_HZ
         self._published = 0
 
         sensor_qos = QoSProfile(depth=200, reliability=ReliabilityPolicy.RELIABLE)
