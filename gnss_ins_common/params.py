@@ -99,15 +99,22 @@ def validate_all(specs: Sequence[Param], values: Mapping[str, Any]) -> dict[str,
     return result
 
 
-def load_yaml(path: Path, node_name: str, specs: Sequence[Param]) -> dict[str, Any]:
-    """Validated parameters of ``node_name`` from a ROS parameter file (``ros__parameters``)."""
+def file_values(path: Path, node_name: str) -> dict[str, Any]:
+    """The parameters a ROS parameter file gives ``node_name`` (its ``NAME``, ``/NAME`` or ``/**``
+    section), nested maps flattened to dotted names; nothing validated or defaulted."""
     try:
         document = yaml.safe_load(path.read_text()) or {}
     except (OSError, yaml.YAMLError) as exc:
         raise ParameterValueError(f"cannot read parameter file {path}: {exc}") from exc
-    section = document.get(node_name, document.get(f"/{node_name}", {}))
-    values = (section or {}).get("ros__parameters", {})
-    return validate_all(specs, _flatten(values))
+    for key in (node_name, f"/{node_name}", "/**"):
+        if key in document:
+            return _flatten((document[key] or {}).get("ros__parameters", {}))
+    return {}
+
+
+def load_yaml(path: Path, node_name: str, specs: Sequence[Param]) -> dict[str, Any]:
+    """Validated parameters of ``node_name`` from a ROS parameter file (``ros__parameters``)."""
+    return validate_all(specs, file_values(path, node_name))
 
 
 def _flatten(values: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:

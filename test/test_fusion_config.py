@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import yaml
+from config_checks import assert_file_holds_defaults
 from scipy.spatial.transform import Rotation
 
 from gnss_ins_common.params import ParameterValueError, load_yaml
@@ -49,26 +49,9 @@ REQUIRED = {
 }
 
 
-def _flat(mapping: dict, prefix: str = "") -> dict:
-    out = {}
-    for key, value in mapping.items():
-        if isinstance(value, dict):
-            out.update(_flat(value, f"{prefix}{key}."))
-        else:
-            out[f"{prefix}{key}"] = value
-    return out
-
-
 def test_config_file_matches_the_declared_defaults():
-    document = yaml.safe_load(CONFIG.read_text())
-    values = _flat(document[NODE_NAME]["ros__parameters"])
+    assert_file_holds_defaults(CONFIG.name, NODE_NAME, PARAMETERS)
     declared = {p.name: p.default for p in PARAMETERS}
-    assert values.keys() == declared.keys()
-    for name, default in declared.items():
-        if isinstance(default, list) and default and isinstance(default[0], float):
-            assert values[name] == pytest.approx(default, rel=1e-9), name
-        else:
-            assert values[name] == default, name
     assert declared.keys() >= REQUIRED
     assert load_yaml(CONFIG, NODE_NAME, PARAMETERS) == declared
 

@@ -13,7 +13,7 @@ import numpy as np
 import pymap3d
 import pytest
 import rclpy
-import yaml
+from config_checks import assert_file_holds_defaults
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import TwistWithCovarianceStamped
 from ros_harness import (
@@ -351,11 +351,4 @@ PROFILE_VALUES = {
 
 @pytest.mark.parametrize("name", sorted(PROFILE_VALUES))
 def test_config_files_match_the_declared_parameters(name):
-    values = yaml.safe_load((REPO / "config" / name).read_text())["/**"]["ros__parameters"]
-    declared = {p.name: p.default for p in PARAMETERS}
-    assert values.keys() == declared.keys()
-    for key, default in {**declared, **PROFILE_VALUES[name]}.items():
-        if isinstance(default, float | list) and default and not isinstance(default, str):
-            assert values[key] == pytest.approx(default), key
-        else:
-            assert values[key] == default, key
+    assert_file_holds_defaults(name, "gnss_node", PARAMETERS, PROFILE_VALUES[name])

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import rclpy
-import yaml
+from config_checks import assert_file_holds_defaults
 from diagnostic_msgs.msg import DiagnosticArray
 from ros_harness import (
     Collector,
@@ -220,13 +220,5 @@ def test_executable_runs_against_the_emulator_and_refuses_bad_parameters():
 
 
 def test_config_file_matches_the_declared_defaults():
-    config = yaml.safe_load((REPO / "config" / "imu400cc.yaml").read_text())
-    values = config["imu400cc_node"]["ros__parameters"]
-    declared = {p.name: p.default for p in PARAMETERS}
-    assert values.keys() == declared.keys()
-    for name, default in declared.items():
-        if isinstance(default, list) and default and isinstance(default[0], float):
-            assert values[name] == pytest.approx(default, rel=1e-5), name
-        else:
-            assert values[name] == default, name
+    values = assert_file_holds_defaults("imu400cc.yaml", "imu400cc_node", PARAMETERS)
     assert math.isclose(values["gravity"], 9.80665)

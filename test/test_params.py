@@ -65,3 +65,9 @@ def test_load_yaml_reads_a_ros_parameter_file_with_nested_names(tmp_path):
         load_yaml(path, "my_node", SPECS)
     with pytest.raises(ParameterValueError, match="cannot read"):
         load_yaml(tmp_path / "missing.yaml", "my_node", SPECS)
+
+
+def test_load_yaml_reads_a_wildcard_section(tmp_path):
+    path = tmp_path / "p.yaml"
+    path.write_text("/**:\n  ros__parameters:\n    count: 7\n")
+    assert load_yaml(path, "any_node", SPECS)["count"] == 7
