@@ -41,6 +41,7 @@ from gnss_ins_common.message_fields import (
     stamp_ns,
 )
 from gnss_ins_common.params import Param
+from gnss_ins_common.ros_endpoints import Endpoints
 from gnss_ins_common.ros_node_main import run_node
 from gnss_ins_common.ros_params import declare_parameters
 from gnss_ins_common.ros_serial import node_time_s, start_serial_link
@@ -198,11 +199,12 @@ class GnssNode(Node):
         self._attitude_problems = (0, 0)  # resets, degraded at the last diagnostics
 
         qos = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
-        self._fix_pub = self.create_publisher(NavSatFix, "gnss/fix", qos)
-        self._vel_pub = self.create_publisher(TwistWithCovarianceStamped, "gnss/vel", qos)
-        self._att_pub = self.create_publisher(Imu, "gnss/attitude", qos)
-        self._time_pub = self.create_publisher(TimeReference, "gnss/time_reference", qos)
-        self._diagnostics = diag.DiagnosticsPublisher(self)
+        endpoints = Endpoints(self)
+        self._fix_pub = endpoints.publisher(NavSatFix, "gnss/fix", qos)
+        self._vel_pub = endpoints.publisher(TwistWithCovarianceStamped, "gnss/vel", qos)
+        self._att_pub = endpoints.publisher(Imu, "gnss/attitude", qos)
+        self._time_pub = endpoints.publisher(TimeReference, "gnss/time_reference", qos)
+        self._diagnostics = diag.DiagnosticsPublisher(self, endpoints)
         self.create_timer(p["diagnostics_period"], self._publish_diagnostics)
         self.create_timer(p["epoch_idle_timeout"] / 2.0, self._flush_idle)
 

@@ -7,6 +7,8 @@ from collections.abc import Mapping
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.node import Node
 
+from gnss_ins_common.ros_endpoints import Endpoints
+
 #: Status levels (one-byte ``bytes`` values, as the message field wants them).
 OK: bytes = DiagnosticStatus.OK
 WARN: bytes = DiagnosticStatus.WARN
@@ -34,15 +36,25 @@ def make_status(
 
 
 class DiagnosticsPublisher:
-    """Publishes statuses on the absolute ``/diagnostics`` topic (aggregator convention)."""
+    """Publishes statuses on the absolute ``/diagnostics`` topic (aggregator convention) and
+    reports the node's incompatible peers (see ros_endpoints) in the first status."""
 
-    def __init__(self, node: Node) -> None:
-        """Create the publisher on ``node``."""
+    def __init__(self, node: Node, endpoints: Endpoints) -> None:
+        """Create the publisher on ``node``; ``endpoints`` made the node's other endpoints."""
         self._node = node
-        self._publisher = node.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self._endpoints = endpoints
+        self._publisher = endpoints.publisher(DiagnosticArray, "/diagnostics", 10)
 
     def publish(self, *statuses: DiagnosticStatus) -> None:
-        """Publish the statuses, stamped now on the node's clock."""
+        """Publish the statuses, stamped now on the node's clock. Incompatible peers raise the
+        first status to WARN, lead its message and are counted in ``incompatible_peers``."""
+        problems = self._endpoints.problems()
+        if statuses:
+            first = statuses[0]
+            first.values.append(KeyValue(key="incompatible_peers", value=str(len(problems))))
+            if problems:
+                first.level = max(first.level, WARN)
+                first.message = f"{problems[0]}; {first.message}"
         array = DiagnosticArray(status=list(statuses))
         array.header.stamp = self._node.get_clock().now().to_msg()
         self._publisher.publish(array)

@@ -20,6 +20,7 @@ from sensor_msgs.msg import Imu, Temperature
 from gnss_ins_common import ros_diagnostics as diag
 from gnss_ins_common.message_fields import fill_imu, fill_temperature, stamp_ns
 from gnss_ins_common.params import Param
+from gnss_ins_common.ros_endpoints import Endpoints
 from gnss_ins_common.ros_node_main import run_node
 from gnss_ins_common.ros_params import declare_parameters
 from gnss_ins_common.ros_serial import start_serial_link
@@ -139,9 +140,10 @@ class Imu400ccNode(Node):
         self._serial_number: int | None = None
 
         qos = QoSProfile(depth=200, reliability=ReliabilityPolicy.RELIABLE)
-        self._imu_pub = self.create_publisher(Imu, "imu/data_raw", qos)
-        self._temp_pub = self.create_publisher(Temperature, "imu/temperature", 10)
-        self._diagnostics = diag.DiagnosticsPublisher(self)
+        endpoints = Endpoints(self)
+        self._imu_pub = endpoints.publisher(Imu, "imu/data_raw", qos)
+        self._temp_pub = endpoints.publisher(Temperature, "imu/temperature", 10)
+        self._diagnostics = diag.DiagnosticsPublisher(self, endpoints)
         self.create_timer(p["diagnostics_period"], self._publish_diagnostics)
         if not self._continuous:
             self.create_timer(1.0 / p["poll_rate"], self._poll)

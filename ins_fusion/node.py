@@ -24,6 +24,7 @@ from sensor_msgs.msg import Imu, NavSatFix, Temperature
 
 from gnss_ins_common import ros_diagnostics as diag
 from gnss_ins_common.message_fields import fill_orientation, stamp_ns
+from gnss_ins_common.ros_endpoints import Endpoints
 from gnss_ins_common.ros_node_main import run_node
 from gnss_ins_common.ros_params import declare_parameters
 from imu400cc_driver.device_clock import NOMINAL_RATE_HZ
@@ -57,16 +58,17 @@ class InsFusionNode(Node):
         self._published = 0
 
         sensor_qos = QoSProfile(depth=200, reliability=ReliabilityPolicy.RELIABLE)
-        self.create_subscription(Imu, "imu/data_raw", self._on_imu, sensor_qos)
-        self.create_subscription(NavSatFix, "gnss/fix", self._on_fix, 20)
-        self.create_subscription(TwistWithCovarianceStamped, "gnss/vel", self._on_velocity, 20)
-        self.create_subscription(Imu, "gnss/attitude", self._on_attitude, 20)
-        self.create_subscription(Temperature, "imu/temperature", self._on_temperature, 10)
+        endpoints = Endpoints(self)
+        endpoints.subscription(Imu, "imu/data_raw", self._on_imu, sensor_qos)
+        endpoints.subscription(NavSatFix, "gnss/fix", self._on_fix, 20)
+        endpoints.subscription(TwistWithCovarianceStamped, "gnss/vel", self._on_velocity, 20)
+        endpoints.subscription(Imu, "gnss/attitude", self._on_attitude, 20)
+        endpoints.subscription(Temperature, "imu/temperature", self._on_temperature, 10)
         self._temperature_c = math.nan
-        self._odom_pub = self.create_publisher(Odometry, "ins/odometry", 50)
-        self._fix_pub = self.create_publisher(NavSatFix, "ins/fix", 50)
-        self._imu_pub = self.create_publisher(Imu, "ins/imu", 50)
-        self._diagnostics = diag.DiagnosticsPublisher(self)
+        self._odom_pub = endpoints.publisher(Odometry, "ins/odometry", 50)
+        self._fix_pub = endpoints.publisher(NavSatFix, "ins/fix", 50)
+        self._imu_pub = endpoints.publisher(Imu, "ins/imu", 50)
+        self._diagnostics = diag.DiagnosticsPublisher(self, endpoints)
         self.create_timer(values["diagnostics_period"], self._publish_diagnostics)
         self.get_logger().info(
             f"fusing imu/data_raw + gnss/* into ins/odometry at {config.output_rate_hz:g} Hz"

@@ -11,8 +11,9 @@ import numpy as np
 import pymap3d
 import pytest
 import rclpy
-from diagnostic_msgs.msg import DiagnosticArray
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from nav_msgs.msg import Odometry
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from ros_harness import (
     Collector,
     assert_executable_refuses,
@@ -164,3 +165,33 @@ def _reported(collector: Collector, in_range: str) -> bool:
         diagnostic_values(array).get("temperature_in_calibration_range") == in_range
         for array in collector.get("/diagnostics")
     )
+
+
+def test_incompatible_publishers_are_reported_on_diagnostics():
+    """A best-effort IMU publisher (the node asks for reliable) and a publisher of the wrong type:
+    both logged once and reported in the node's status, which rclpy's event handlers no longer
+    do (gnss_ins_common.ros_endpoints)."""
+    node = InsFusionNode(parameter_overrides=overrides(diagnostics_period=0.2))
+    collector = Collector({"/diagnostics": DiagnosticArray})
+    best_effort = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
+    collector.node.create_publisher(Imu, "imu/data_raw", best_effort)
+    other = rclpy.Context()  # a second participant: one may not hold two types of a topic
+    rclpy.init(context=other)
+    peer = rclpy.create_node("wrong_type_peer", context=other)
+    peer.create_publisher(Temperature, "gnss/fix", 10)
+
+    def reported() -> bool:
+        arrays = collector.get("/diagnostics")
+        return bool(arrays) and diagnostic_values(arrays[-1]).get("incompatible_peers") == "2"
+
+    try:
+        with spinning(node, collector.node):
+            assert wait_for(reported, 10.0)
+    finally:
+        node.destroy_node()
+        collector.node.destroy_node()
+        peer.destroy_node()
+        rclpy.shutdown(context=other)
+    status = collector.get("/diagnostics")[-1].status[0]
+    assert status.level == DiagnosticStatus.WARN
+    assert "no messages flow" in status.message
