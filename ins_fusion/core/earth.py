@@ -42,7 +42,11 @@ def radii_m(lat_rad: F) -> tuple[F, F]:
     R_M = a(1-e²)/(1-e² sin²φ)^(3/2), R_N = a/(1-e² sin²φ)^(1/2): Aalborg notes §5.3, (C-1.18)
     and (C-1.19), where they are called R_N and R_E.
     """
-    sin_lat, _ = _sin_cos(lat_rad)
+    return radii_from_sin(_sin_cos(lat_rad)[0])
+
+
+def radii_from_sin(sin_lat: F) -> tuple[F, F]:
+    """radii_m from sin φ (the strapdown computes the sine once per sample)."""
     w = 1.0 - ECCENTRICITY_SQ * sin_lat * sin_lat
     r_prime_vertical = SEMI_MAJOR_AXIS_M / w**0.5
     return r_prime_vertical * (1.0 - ECCENTRICITY_SQ) / w, r_prime_vertical
@@ -65,6 +69,11 @@ def normal_gravity_m_s2(lat_rad: F, height_m: F) -> F:
     + 0.072e-12 h².
     """
     sin_lat, cos_lat = _sin_cos(lat_rad)
+    return normal_gravity_from_sin_cos(sin_lat, cos_lat, height_m)
+
+
+def normal_gravity_from_sin_cos(sin_lat: F, cos_lat: F, height_m: F) -> F:
+    """normal_gravity_m_s2 from sin φ and cos φ."""
     sin_sq = sin_lat * sin_lat
     sin_2lat_sq = 4.0 * sin_sq * cos_lat * cos_lat
     return (
@@ -87,9 +96,24 @@ def transport_rate_ned_rad_s(lat_rad: F, height_m: F, vel_n_m_s: F, vel_e_m_s: F
     component corrected to -v_E tan φ (notes §5.3 and §12 item 8).
     """
     sin_lat, cos_lat = _sin_cos(lat_rad)
-    r_meridian, r_prime_vertical = radii_m(lat_rad)
-    rate_e = vel_e_m_s / (r_prime_vertical + height_m)
-    return rate_e, -vel_n_m_s / (r_meridian + height_m), -rate_e * sin_lat / cos_lat
+    r_meridian, r_prime_vertical = radii_from_sin(sin_lat)
+    return transport_rate_from(
+        sin_lat, cos_lat, r_meridian, r_prime_vertical, height_m, vel_n_m_s, vel_e_m_s
+    )
+
+
+def transport_rate_from(
+    sin_lat: F,
+    cos_lat: F,
+    r_meridian_m: F,
+    r_prime_vertical_m: F,
+    height_m: F,
+    vel_n_m_s: F,
+    vel_e_m_s: F,
+) -> tuple[F, F, F]:
+    """transport_rate_ned_rad_s from sin φ, cos φ and the radii."""
+    rate_e = vel_e_m_s / (r_prime_vertical_m + height_m)
+    return rate_e, -vel_n_m_s / (r_meridian_m + height_m), -rate_e * sin_lat / cos_lat
 
 
 def mat_en(lat_rad: F, lon_rad: F) -> FloatArray:
