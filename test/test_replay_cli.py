@@ -186,6 +186,7 @@ def test_sweep_ranks_settings_and_applies_overrides(bag, tmp_path, capsys):
         ),
         (["--topics", "imu=/gnss/fix"], "topic /gnss/fix is given for more than one role"),
         (["--reference", "/truth"], "no reference topic /truth/fix"),
+        (["--reference", "/gnss"], "reference topic(s) /gnss/attitude, /gnss/fix, /gnss/vel are"),
         (["--outage", "500:10"], "starts after the IMU data ends"),
         (["--set", "no_such=1"], "unknown parameter 'no_such'"),
         (["--set", "zupt_sigma=-1"], "parameter 'zupt_sigma': -1 is outside"),

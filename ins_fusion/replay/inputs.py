@@ -2,7 +2,9 @@
 
 The inputs keep the bag's receive (log-time) order, which is what ins_fusion_node sees: every
 GNSS/attitude measurement records how many IMU samples were received before it. Messages are
-read through ins_fusion.tools.bag_io and converted by ins_fusion.messages_in, as the node does.
+read through ins_fusion.tools.bag_io and converted by ins_fusion.messages_in, as the node does
+(IMU and reference messages straight from their bytes by ins_fusion.replay.cdr_fields, for
+speed).
 
 Reference topics (``PREFIX/fix``, ``PREFIX/attitude``, optional ``PREFIX/vel``): the true
 base_link position (NavSatFix, WGS-84, ellipsoidal height), orientation (sensor_msgs/Imu,
@@ -30,6 +32,8 @@ from ins_fusion.core.measurements import (
     GnssVelocityMeasurement,
 )
 from ins_fusion.messages_in import ImuSample
+from ins_fusion.replay import cdr_fields
+from ins_fusion.replay.cdr_fields import CdrError
 from ins_fusion.replay.topics import (
     DEFAULT_REFERENCE,
     DEFAULT_TOPICS,
@@ -139,6 +143,11 @@ def load_bag(
                     f"{path}: no IMU messages on {topics.imu} (topics: {listing or 'none'});"
                     " choose the IMU topic with --topics imu=TOPIC"
                 )
+            if shared := sorted(set(ref_topics) & {*roles, topics.imu}):
+                raise InputError(
+                    f"{path}: reference topic(s) {', '.join(shared)} are also sensor topics;"
+                    " choose another --reference prefix"
+                )
             if f"{prefix}/fix" not in available:
                 if reference_required:
                     raise InputError(f"{path}: no reference topic {prefix}/fix")
@@ -148,7 +157,7 @@ def load_bag(
             imu, measurements, reference = _read(
                 reader, selected, topics.imu, roles, ref_topics, total, progress
             )
-    except (BagError, AnyReaderError, ReaderError, SerdeError, OSError) as exc:
+    except (BagError, AnyReaderError, ReaderError, SerdeError, CdrError, OSError) as exc:
         raise InputError(f"cannot read bag {path}: {exc}") from exc
     return ReplayInputs(
         str(path), topics, imu, measurements, reference, time.perf_counter() - start
@@ -159,6 +168,14 @@ _CONVERTERS: dict[str, Callable[[Any], Measurement]] = {
     "fix": messages_in.fix_measurement,
     "vel": messages_in.velocity_measurement,
     "attitude": messages_in.attitude_measurement,
+}
+
+#: Reference values from the serialized message: position (lat_deg, lon_deg, height_m),
+#: orientation (x, y, z, w of FLU in ENU), ENU velocity [m/s].
+_REFERENCE_DECODERS: dict[str, Callable[[bytes], tuple[float, tuple[float, ...]]]] = {
+    "fix": cdr_fields.position,
+    "attitude": cdr_fields.orientation,
+    "vel": cdr_fields.linear_velocity,
 }
 
 
@@ -176,35 +193,26 @@ def _read(
 ) -> _Read:
     imu: list[ImuSample] = []
     measurements: list[tuple[int, str, Measurement]] = []
-    ref: dict[str, list[tuple[float, FloatArray]]] = {s: [] for s in REFERENCE_TYPES}
-    for done, msg in enumerate(reader.messages(selected, deserialize=True), 1):
+    ref: dict[str, list[tuple[float, tuple[float, ...]]]] = {s: [] for s in REFERENCE_TYPES}
+    raw = {imu_topic, *ref_topics}
+    for done, msg in enumerate(reader.messages(selected, deserialize=True, raw_topics=raw), 1):
         if progress is not None and done % 4096 == 0:
             progress(done, total)
         if msg.topic == imu_topic:
-            imu.append(messages_in.imu_sample(msg.message))
+            imu.append(cdr_fields.imu_sample(msg.message))
             continue
         role = roles.get(msg.topic)
         if role is not None:
             measurements.append((len(imu), role, _CONVERTERS[role](msg.message)))
         suffix = ref_topics.get(msg.topic)
         if suffix is not None:
-            truth = _CONVERTERS[suffix](msg.message)
-            ref[suffix].append((truth.t_s, _reference_values(truth)))
+            ref[suffix].append(_REFERENCE_DECODERS[suffix](msg.message))
     if progress is not None:
         progress(total, total)
     return imu, measurements, _reference(ref)
 
 
-def _reference_values(truth: Measurement) -> FloatArray:
-    """Position (lat_deg, lon_deg, height_m), quaternion (x, y, z, w) or ENU velocity."""
-    if isinstance(truth, GnssFixMeasurement):
-        return np.array([truth.lat_deg, truth.lon_deg, truth.height_m])
-    if isinstance(truth, AttitudeMeasurement):
-        return truth.quat_enu_flu_xyzw
-    return truth.vel_enu_m_s
-
-
-def _series(samples: list[tuple[float, FloatArray]]) -> Series | None:
+def _series(samples: list[tuple[float, tuple[float, ...]]]) -> Series | None:
     """Samples sorted by stamp (a bag is in receive order), None when there are none."""
     if not samples:
         return None
@@ -215,7 +223,7 @@ def _series(samples: list[tuple[float, FloatArray]]) -> Series | None:
     )
 
 
-def _reference(ref: dict[str, list[tuple[float, FloatArray]]]) -> Reference | None:
+def _reference(ref: dict[str, list[tuple[float, tuple[float, ...]]]]) -> Reference | None:
     position = _series(ref["fix"])
     if position is None:
         return None

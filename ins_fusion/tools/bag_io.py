@@ -448,15 +448,20 @@ class BagReader:
         *,
         start_ns: int | None = None,
         deserialize: bool = False,
+        raw_topics: Collection[str] = (),
     ) -> Iterator[BagMessage]:
-        """Messages of ``topics`` (all if None) at or after ``start_ns``, in log-time order."""
+        """Messages of ``topics`` (all if None) at or after ``start_ns``, in log-time order;
+        with ``deserialize``, those of ``raw_topics`` still come as bytes."""
         if topics is not None and (unknown := set(topics) - set(self.topics)):
             raise BagError(f"{self.path}: no topic {', '.join(sorted(unknown))}")
         connections = [c for c in self._reader.connections if topics is None or c.topic in topics]
         if not connections:
             return
         for conn, log_time_ns, data in self._reader.messages(connections, start=start_ns):
-            message = self._reader.deserialize(data, conn.msgtype) if deserialize else bytes(data)
+            if deserialize and conn.topic not in raw_topics:
+                message = self._reader.deserialize(data, conn.msgtype)
+            else:
+                message = bytes(data)
             yield BagMessage(conn.topic, conn.msgtype, log_time_ns, message)
 
     def summary(self, topics: Collection[str] | None = None) -> BagSummary:
