@@ -94,7 +94,6 @@ from ins_fusion.core.rotation import (
     quat_from_euler,
     quat_from_rotvec,
     quat_multiply,
-    quat_nb_from_enu_flu,
     quat_normalize,
 )
 from ins_fusion.core.stop_detector import GNSS_SPEED_MAX_AGE_S, StopDetector
@@ -312,7 +311,8 @@ def _quat(values: FloatArray) -> Quat:
 
 
 def _quat_enu_flu(quat_nb: Quat) -> Quat:
-    """REP-103 orientation (FLU in ENU) of a body (FRD) -> NED quaternion, w >= 0."""
+    """REP-103 orientation (FLU in ENU) of a body (FRD) -> NED quaternion, w >= 0; also the
+    inverse map, as both frame changes are half turns (rotation.quat_nb_from_enu_flu)."""
     return quat_normalize(quat_multiply(quat_multiply(_Q_ENU_NED, quat_nb), _Q_FRD_FLU))
 
 
@@ -356,6 +356,12 @@ class InsEngine:
         imu_arm_b = _frd(config.imu_lever_arm_flu_m)
         self._antenna_arm_b = _frd(config.gnss_lever_arm_flu_m) - imu_arm_b
         self._base_arm_b = -imu_arm_b
+        self._arm_bi = skew(self._base_arm_b) @ self._mat_bi
+        # solution(): ENU position, velocity and attitude of base_link over the first 12 error
+        # states; the blocks that depend on the state are filled in per call.
+        self._j_solution = np.zeros((9, BG + 3))
+        for row, col in ((0, POS), (3, VEL), (6, ATT)):
+            self._j_solution[row : row + 3, col : col + 3] = MAT_ENU_NED
         # Orientation of base_link from that of the attitude receiver's frame a: q_ea ⊗ q_ab.
         q_ba = quat_from_euler(*config.attitude_mounting_rpy_rad)
         self._q_a_base: Quat = (-q_ba[0], -q_ba[1], -q_ba[2], q_ba[3])
@@ -493,49 +499,51 @@ class InsEngine:
     # ---------------------------------------------------------------------------- outputs
 
     def solution(self) -> InsSolution | None:
-        """The fused base_link state at the latest IMU sample; None before the filter starts."""
+        """The fused base_link state at the latest IMU sample; None before the filter starts.
+
+        The covariances come from one Jacobian over the position, velocity, attitude and gyro
+        bias states (the first 12, which the lever arm couples), rows in ENU: this runs at the
+        output rate.
+        """
         self._catch_up()
-        s, P = self._state, self._filter.P if self._filter is not None else None
-        if s is None or P is None or self.datum is None:
+        s, kf = self._state, self._filter
+        if s is None or kf is None or self.datum is None:
             return None
         C = s.mat_nb
-        arm_n = C @ self._base_arm_b
+        arm_b = self._base_arm_b
+        arm_n = C @ arm_b
         nav = s.nav
         r_m, r_n = earth.radii_m(nav.lat_rad)
         lat = nav.lat_rad + arm_n[0] / (r_m + nav.height_m)
         lon = nav.lon_rad + arm_n[1] / ((r_n + nav.height_m) * math.cos(nav.lat_rad))
         height = nav.height_m - arm_n[2]
         rate_b = self._corrected_rate_b(s)
-        rot_n = C @ (skew(rate_b) @ self._base_arm_b)
-        n = self.layout.size
-        j_pos = np.zeros((3, n))
-        j_pos[:, POS : POS + 3] = np.eye(3)
-        j_pos[:, ATT : ATT + 3] = -skew(arm_n)
-        j_vel = np.zeros((3, n))
-        j_vel[:, VEL : VEL + 3] = np.eye(3)
-        j_vel[:, ATT : ATT + 3] = -skew(rot_n)
-        j_vel[:, BG : BG + 3] = C @ skew(self._base_arm_b) @ self._mat_bi
+        rot_n = C @ (skew(rate_b) @ arm_b)
         enu = MAT_ENU_NED
+        J = self._j_solution
+        J[0:3, ATT : ATT + 3] = enu @ skew(-arm_n)
+        J[3:6, ATT : ATT + 3] = enu @ skew(-rot_n)
+        J[3:6, BG : BG + 3] = enu @ C @ self._arm_bi
+        cov = J @ kf.P[: BG + 3, : BG + 3] @ J.T
         lat0, lon0, h0 = self.datum
         datum_rad = (math.radians(lat0), math.radians(lon0), h0)
         if self._plane is None or self._plane.datum != datum_rad:
             self._plane = earth.TangentPlane(*datum_rad)
-        pos_enu = self._plane.enu(lat, lon, height)
-        att = P[ATT : ATT + 3, ATT : ATT + 3]
+        bg, ba = s.gyro_bias, s.accel_bias
         return InsSolution(
             t_s=s.t_s,
             lat_deg=math.degrees(lat),
             lon_deg=math.degrees(lon),
             height_m=height,
-            pos_enu_m=pos_enu,
+            pos_enu_m=self._plane.enu(lat, lon, height),
             vel_enu_m_s=enu @ (nav.vel_ned_m_s + rot_n),
             quat_enu_flu_xyzw=np.array(_quat_enu_flu(_quat(nav.quat_nb))),
             rate_flu_rad_s=MAT_FLU_FRD @ rate_b,
-            cov_pos_enu_m2=enu @ j_pos @ P @ j_pos.T @ enu.T,
-            cov_vel_enu=enu @ j_vel @ P @ j_vel.T @ enu.T,
-            cov_att_enu_rad2=enu @ att @ enu.T,
-            gyro_bias_flu_rad_s=MAT_FLU_FRD @ np.array(s.gyro_bias),
-            accel_bias_flu_m_s2=MAT_FLU_FRD @ np.array(s.accel_bias),
+            cov_pos_enu_m2=cov[0:3, 0:3],
+            cov_vel_enu=cov[3:6, 3:6],
+            cov_att_enu_rad2=cov[6:9, 6:9],
+            gyro_bias_flu_rad_s=np.array((bg[0], -bg[1], -bg[2])),
+            accel_bias_flu_m_s2=np.array((ba[0], -ba[1], -ba[2])),
             state=self._state_name(),
         )
 
@@ -946,10 +954,9 @@ class InsEngine:
 
     def _measured_mat_nb(self, att: AttitudeMeasurement) -> FloatArray:
         """Base_link FRD -> NED rotation from an attitude measurement and its mounting."""
-        q = tuple(float(v) for v in att.quat_enu_flu_xyzw)
-        q_enu_base = quat_multiply((q[0], q[1], q[2], q[3]), self._q_a_base)
-        quat_nb = quat_nb_from_enu_flu(np.array(q_enu_base))
-        return NavState(0.0, 0.0, 0.0, np.zeros(3), quat_nb).mat_nb
+        q_enu_base = quat_multiply(_quat(att.quat_enu_flu_xyzw), self._q_a_base)
+        quat_nb = _quat_enu_flu(q_enu_base)  # the map is its own inverse
+        return NavState(0.0, 0.0, 0.0, np.zeros(3), np.array(quat_nb)).mat_nb
 
     def _zupt(self, pred: Prediction, _: None, live: bool) -> None:
         self._update("zupt", zupt(pred, self.config.zupt_sigma_m_s), live)

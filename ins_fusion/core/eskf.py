@@ -238,13 +238,13 @@ class ErrorStateFilter:
         PHt = P @ H.T
         S = H @ PHt + R
         try:
-            s_inv_z = np.linalg.solve(S, z)
+            s_inv = np.linalg.inv(S)  # 1-3 rows: one inverse is cheaper than two solves
         except np.linalg.LinAlgError:
             return UpdateResult(False, math.inf, None)
-        nis = float(z @ s_inv_z)
+        nis = float(z @ s_inv @ z)
         if not nis <= threshold:  # also rejects NaN
             return UpdateResult(False, nis, None)
-        K = np.linalg.solve(S, PHt.T).T
+        K = PHt @ s_inv
         ikh = self._eye - K @ H
         P = ikh @ P @ ikh.T + K @ R @ K.T
         self.P = 0.5 * (P + P.T)

@@ -168,10 +168,6 @@ class SampleIntegrator:
         )
 
 
-def _cross(a: Vec3, b: Vec3) -> Vec3:
-    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
-
-
 def _velocity_change(
     dvel_n: Vec3,
     vel: Vec3,
@@ -185,15 +181,19 @@ def _velocity_change(
     rotation of the NED frame over half the interval, plus gravity and Coriolis over dt, with the
     rates and gravity evaluated at (latitude, height, vel)."""
     w_ie_n, w_ie_d = earth.EARTH_RATE_RAD_S * cos_lat, -earth.EARTH_RATE_RAD_S * sin_lat
-    w_en = earth.transport_rate_from(sin_lat, cos_lat, *radii, height, vel[0], vel[1])
+    w_en_n, w_en_e, w_en_d = earth.transport_rate_from(
+        sin_lat, cos_lat, *radii, height, vel[0], vel[1]
+    )
     g = earth.normal_gravity_from_sin_cos(sin_lat, cos_lat, height)
-    half_zeta = (0.5 * dt * (w_ie_n + w_en[0]), 0.5 * dt * w_en[1], 0.5 * dt * (w_ie_d + w_en[2]))
-    frame_rot = _cross(half_zeta, dvel_n)
-    coriolis = _cross((2.0 * w_ie_n + w_en[0], w_en[1], 2.0 * w_ie_d + w_en[2]), vel)
+    # frame rotation ζ/2 × dvel_n with ζ = (ω_ie + ω_en) dt; Coriolis (2ω_ie + ω_en) × v.
+    zx, zy, zz = 0.5 * dt * (w_ie_n + w_en_n), 0.5 * dt * w_en_e, 0.5 * dt * (w_ie_d + w_en_d)
+    cx, cy, cz = 2.0 * w_ie_n + w_en_n, w_en_e, 2.0 * w_ie_d + w_en_d
+    fx, fy, fz = dvel_n
+    vx, vy, vz = vel
     return (
-        dvel_n[0] - frame_rot[0] - coriolis[0] * dt,
-        dvel_n[1] - frame_rot[1] - coriolis[1] * dt,
-        dvel_n[2] - frame_rot[2] + (g - coriolis[2]) * dt,
+        fx - (zy * fz - zz * fy) - (cy * vz - cz * vy) * dt,
+        fy - (zz * fx - zx * fz) - (cz * vx - cx * vz) * dt,
+        fz - (zx * fy - zy * fx) + (g - (cx * vy - cy * vx)) * dt,
     )
 
 
@@ -216,21 +216,28 @@ def propagate(state: NavState, inc: ImuIncrement, prev: ImuIncrement | None = No
 
     # Specific-force increment in b(k-1): rotation compensation to third order plus sculling;
     # rotation vector with coning. Linear rate and specific force over both intervals (equal dt
-    # gives the usual 1/12 coefficient).
-    rot1 = _cross(dth, dv)
-    rot2 = _cross(dth, rot1)
-    dvb = [dv[i] + 0.5 * rot1[i] + rot2[i] / 6.0 for i in range(3)]
-    rotvec = list(dth)
+    # gives the usual 1/12 coefficient). Cross products written out: this is the hot path.
+    tx, ty, tz = dth
+    ux, uy, uz = dv
+    r1x, r1y, r1z = ty * uz - tz * uy, tz * ux - tx * uz, tx * uy - ty * ux  # dθ × dv
+    r2x, r2y, r2z = ty * r1z - tz * r1y, tz * r1x - tx * r1z, tx * r1y - ty * r1x  # dθ × (dθ × dv)
+    dvb_x = ux + 0.5 * r1x + r2x / 6.0
+    dvb_y = uy + 0.5 * r1y + r2y / 6.0
+    dvb_z = uz + 0.5 * r1z + r2z / 6.0
+    rx, ry, rz = tx, ty, tz
     if prev is not None:
         k = dt * dt / (6.0 * prev.dt_s * (dt + prev.dt_s))
-        scul1 = _cross(prev.dtheta_rad, dv)
-        scul2 = _cross(prev.dvel_m_s, dth)
-        coning = _cross(prev.dtheta_rad, dth)
-        for i in range(3):
-            dvb[i] += k * (scul1[i] + scul2[i])
-            rotvec[i] += k * coning[i]
+        px, py, pz = prev.dtheta_rad
+        wx, wy, wz = prev.dvel_m_s
+        # sculling dθ_prev × dv + dv_prev × dθ; coning dθ_prev × dθ
+        dvb_x += k * (py * uz - pz * uy + wy * tz - wz * ty)
+        dvb_y += k * (pz * ux - px * uz + wz * tx - wx * tz)
+        dvb_z += k * (px * uy - py * ux + wx * ty - wy * tx)
+        rx += k * (py * tz - pz * ty)
+        ry += k * (pz * tx - px * tz)
+        rz += k * (px * ty - py * tx)
     quat = (qx, qy, qz, qw)
-    dvel_n = quat_rotate(quat, (dvb[0], dvb[1], dvb[2]))
+    dvel_n = quat_rotate(quat, (dvb_x, dvb_y, dvb_z))
 
     # Velocity: predictor at the start of the interval, corrector at the extrapolated midpoint.
     sin_lat, cos_lat = math.sin(lat), math.cos(lat)
@@ -263,7 +270,7 @@ def propagate(state: NavState, inc: ImuIncrement, prev: ImuIncrement | None = No
     w_en = earth.transport_rate_from(sin_mid, cos_mid, *radii, height_mid, vn_bar, ve_bar)
     w_n = earth.EARTH_RATE_RAD_S * cos_mid + w_en[0]
     w_d = -earth.EARTH_RATE_RAD_S * sin_mid + w_en[2]
-    q_bb = quat_from_rotvec(rotvec[0], rotvec[1], rotvec[2])
+    q_bb = quat_from_rotvec(rx, ry, rz)
     q_nn = quat_from_rotvec(-w_n * dt, -w_en[1] * dt, -w_d * dt)
     quat_new = quat_normalize(quat_multiply(q_nn, quat_multiply(quat, q_bb)))
 
