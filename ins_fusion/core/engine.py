@@ -749,12 +749,12 @@ class InsEngine:
             r6 * vi0 + r7 * vi1 + r8 * vi2,
         )
         inc_b = ImuIncrement(dt, tb, vb)
-        vel0 = s.nav.vel_ned_m_s
+        v0n, v0e, v0d = s.nav.vel_ned_m_s.tolist()
         nav = propagate(s.nav, inc_b, None if fresh else s.prev_inc)
         s.set_nav(nav)
         inv_dt = 1.0 / dt
-        a0, a1, a2 = ((nav.vel_ned_m_s - vel0) * inv_dt).tolist()
-        s.accel_n = (a0, a1, a2)
+        v1n, v1e, v1d = nav.vel_ned_m_s.tolist()
+        s.accel_n = ((v1n - v0n) * inv_dt, (v1e - v0e) * inv_dt, (v1d - v0d) * inv_dt)
         s.rate_b = (tb[0] * inv_dt, tb[1] * inv_dt, tb[2] * inv_dt)
         s.rate_i = (ti0 * inv_dt, ti1 * inv_dt, ti2 * inv_dt)
         s.prev_inc = inc_b

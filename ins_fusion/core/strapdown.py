@@ -134,8 +134,12 @@ class SampleIntegrator:
         specific_force_m_s2: Sequence[float] | FloatArray,
     ) -> ImuIncrement | None:
         """Add a sample; returns the increment since the previous sample (None for the first)."""
-        wx, wy, wz = (float(c) for c in rate_rad_s)
-        fx, fy, fz = (float(c) for c in specific_force_m_s2)
+        wx, wy, wz = float(rate_rad_s[0]), float(rate_rad_s[1]), float(rate_rad_s[2])
+        fx, fy, fz = (
+            float(specific_force_m_s2[0]),
+            float(specific_force_m_s2[1]),
+            float(specific_force_m_s2[2]),
+        )
         samples = self._samples
         samples.append((t_s, (wx, wy, wz), (fx, fy, fz)))
         if len(samples) == 1:
