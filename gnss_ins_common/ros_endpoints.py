@@ -48,15 +48,23 @@ class Endpoints:
         return publisher
 
     def subscription(
-        self, msg_type: Any, topic: str, callback: Callable[[Any], None], qos: QoSProfile | int
+        self,
+        msg_type: Any,
+        topic: str,
+        callback: Callable[[Any], None],
+        qos: QoSProfile | int,
+        *,
+        raw: bool = False,
     ) -> Subscription:
-        """A subscription without QoS event handlers."""
+        """A subscription without QoS event handlers; ``raw``: the callback gets the serialized
+        message (bytes)."""
         subscription = self._node.create_subscription(
             msg_type,
             topic,
             callback,
             qos,
             event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False),
+            raw=raw,
         )
         self._subscriptions.append((subscription, type_name(msg_type)))
         return subscription

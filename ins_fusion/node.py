@@ -28,7 +28,8 @@ from gnss_ins_common.ros_endpoints import Endpoints
 from gnss_ins_common.ros_node_main import run_node
 from gnss_ins_common.ros_params import declare_parameters
 from imu400cc_driver.device_clock import NOMINAL_RATE_HZ
-from ins_fusion import messages_in
+from ins_fusion import cdr_fields, messages_in
+from ins_fusion.cdr_fields import CdrError
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.engine import InsEngine, InsSolution
 from ins_fusion.fusion_params import PARAMETERS as FUSION_PARAMETERS
@@ -56,10 +57,12 @@ class InsFusionNode(Node):
         gyro_psd = float(np.mean(np.square(config.imu_noise.gyro_arw)))
         self._rate_variance = gyro_psd * NOMINAL_RATE_HZ
         self._published = 0
+        self._bad_imu_messages = 0
 
         sensor_qos = QoSProfile(depth=200, reliability=ReliabilityPolicy.RELIABLE)
         endpoints = Endpoints(self)
-        endpoints.subscription(Imu, "imu/data_raw", self._on_imu, sensor_qos)
+        # Serialized: the node needs three numbers of each message (see ins_fusion.cdr_fields).
+        endpoints.subscription(Imu, "imu/data_raw", self._on_imu, sensor_qos, raw=True)
         endpoints.subscription(NavSatFix, "gnss/fix", self._on_fix, 20)
         endpoints.subscription(TwistWithCovarianceStamped, "gnss/vel", self._on_velocity, 20)
         endpoints.subscription(Imu, "gnss/attitude", self._on_attitude, 20)
@@ -75,8 +78,13 @@ class InsFusionNode(Node):
         )
 
     # ---- inputs -------------------------------------------------------------------------------
-    def _on_imu(self, msg: Imu) -> None:
-        sample = messages_in.imu_sample(msg)
+    def _on_imu(self, data: bytes) -> None:
+        try:
+            sample = cdr_fields.imu_sample(data)
+        except CdrError as exc:  # not from a conforming middleware; counted, never fatal
+            self._bad_imu_messages += 1
+            self.get_logger().error(str(exc), throttle_duration_sec=10.0)
+            return
         self.engine.add_imu(*sample)
         if sample.t_s < self._last_output_s:  # time jumped back (a bag restarted): the engine
             self._last_output_s = -math.inf  # has reset; start the output clock anew
@@ -151,6 +159,7 @@ class InsFusionNode(Node):
             "imu_samples": status.imu_samples,
             "imu_gaps": status.imu_gaps,
             "imu_duplicates": status.imu_duplicates,
+            "bad_imu_messages": self._bad_imu_messages,
             "resets": status.resets,
             "rollbacks": status.rollbacks,
             "stationary": status.stationary,

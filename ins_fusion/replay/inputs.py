@@ -3,7 +3,7 @@
 The inputs keep the bag's receive (log-time) order, which is what ins_fusion_node sees: every
 GNSS/attitude measurement records how many IMU samples were received before it. Messages are
 read through ins_fusion.tools.bag_io and converted by ins_fusion.messages_in, as the node does
-(IMU and reference messages straight from their bytes by ins_fusion.replay.cdr_fields, for
+(IMU and reference messages straight from their bytes by ins_fusion.cdr_fields, for
 speed).
 
 Reference topics (``PREFIX/fix``, ``PREFIX/attitude``, optional ``PREFIX/vel``): the true
@@ -32,8 +32,8 @@ from ins_fusion.core.measurements import (
     GnssVelocityMeasurement,
 )
 from ins_fusion.messages_in import ImuSample
-from ins_fusion.replay import cdr_fields
-from ins_fusion.replay.cdr_fields import CdrError
+from ins_fusion import cdr_fields
+from ins_fusion.cdr_fields import CdrError
 from ins_fusion.replay.topics import (
     DEFAULT_REFERENCE,
     DEFAULT_TOPICS,

@@ -7,8 +7,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from ins_fusion.replay import cdr_fields
-from ins_fusion.replay.cdr_fields import CdrError
+from ins_fusion import cdr_fields
+from ins_fusion.cdr_fields import CdrError
 from ins_fusion.tools.bag_io import jazzy_typestore
 
 TS = jazzy_typestore()
