@@ -177,6 +177,14 @@ PARAMETERS: tuple[Param, ...] = (
         0.5,
         0.999999,
     ),
+    Param(
+        "gate_recovery_count",
+        5,
+        "after this many gated rejections in a row of one measurement, widen the covariance "
+        "along what it observes until it fits, and apply it (0 = never)",
+        0,
+        1000,
+    ),
     _vector(
         "gnss_noise.white_sigma",
         [0.014, 0.014, 0.021],

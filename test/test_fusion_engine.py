@@ -15,6 +15,7 @@ from test_fusion_drives import CALIBRATION, Drive, config, deliver, feed, simula
 
 from ins_fusion.core.calibration import ImuCalibration
 from ins_fusion.core.engine import MEASUREMENT_NAMES, GnssFixMeasurement, InsEngine
+from ins_fusion.core.measurements import AttitudeMeasurement
 
 #: Figure-eight: 10 s standstill, then 10 m/s circles of 40 m radius.
 DURATION_S = 70.0
@@ -242,3 +243,62 @@ def test_datum_and_calibration_from_the_configuration(eight_adu5):
     assert own.calibration is None and own.datum is None
     deliver(own, first_fix)
     assert own.datum == (first_fix.lat_deg, first_fix.lon_deg, first_fix.height_m)
+
+
+def test_a_bridged_gap_widens_the_attitude_covariance_by_the_rate_change(eight_adu5):
+    """A gap bridged by the trapezoid adds (Δω·dt)²/12 per axis: the RMS error of a rate change
+    at an unknown instant inside the gap (InsEngine._bridge)."""
+    t, rate, force = eight_adu5.imu_t, eight_adu5.imu_rate, eight_adu5.imu_force
+    before = int(np.searchsorted(t, 40.0))
+    after = int(np.searchsorted(t, 40.3))
+    dt = float(t[after] - t[before - 1])
+    head = Drive(eight_adu5.truth, t[:before], rate[:before], force[:before], eight_adu5.events)
+    change = 0.2  # rad/s on every axis: the added covariance is then the same in any frame
+    attitude_variances = []
+    for delta in (0.0, change):
+        engine = _engine(use_nhc=False, use_zupt=False, use_zaru=False)
+        feed(engine, head)
+        engine.add_imu(t[after], rate[before - 1] + delta, force[before - 1])
+        P = engine.covariance
+        assert P is not None and engine.status().imu_gaps == 1
+        attitude_variances.append(np.diagonal(P)[6:9])
+    added = attitude_variances[1] - attitude_variances[0]
+    assert added == pytest.approx(np.full(3, (change * dt) ** 2 / 12.0), rel=0.05)
+
+
+def _yaw_offset(events: list, after_s: float, offset_deg: float) -> list:
+    """The attitude receiver's heading off by ``offset_deg`` from ``after_s`` on."""
+    turn = Rotation.from_euler("z", offset_deg, degrees=True)
+
+    def shifted(m: AttitudeMeasurement) -> AttitudeMeasurement:
+        quat = (turn * Rotation.from_quat(m.quat_enu_flu_xyzw)).as_quat()
+        return dataclasses.replace(m, quat_enu_flu_xyzw=quat)
+
+    return [
+        (t, shifted(m) if isinstance(m, AttitudeMeasurement) and m.t_s >= after_s else m)
+        for t, m in events
+    ]
+
+
+@pytest.mark.parametrize("recovery_count", [0, 5])
+def test_a_sensor_rejected_again_and_again_is_let_in_by_widening_the_covariance(
+    eight_adu5, recovery_count
+):
+    """The heading jumps by 4° (think of a state corrupted by bad IMU timing, seen from the
+    other side): without recovery every attitude measurement is gated from then on; with it,
+    the fifth in a row widens the attitude covariance and the filter follows."""
+    engine = _engine(gate_recovery_count=recovery_count)
+    feed(engine, eight_adu5, events=_yaw_offset(eight_adu5.events, 40.0, 4.0))
+    counters = engine.status().measurements["attitude"]
+    base = eight_adu5.truth.base_link(eight_adu5.imu_t[-1:])
+    sol = engine.solution()
+    assert sol is not None
+    yaw_error = (
+        Rotation.from_quat(sol.quat_enu_flu_xyzw) * Rotation.from_quat(base.quat_enu_flu[0]).inv()
+    ).as_euler("ZYX", degrees=True)[0]
+    if recovery_count == 0:
+        assert counters["recoveries"] == 0 and counters["gated"] > 100
+        assert abs(yaw_error) < 1.0  # the filter kept its own heading
+    else:
+        assert 1 <= counters["recoveries"] <= 3 and counters["gated"] < 20
+        assert yaw_error == pytest.approx(4.0, abs=0.5)  # it follows the receiver

@@ -83,6 +83,7 @@ class FusionConfig:
     use_nhc: bool
     use_course_heading: bool
     gate_probability: float
+    gate_recovery_count: int
     gnss_white_sigma_enu_m: Vec3
     gnss_white_fraction: float
     gnss_correlation_time_s: float
@@ -134,6 +135,7 @@ class FusionConfig:
             use_nhc=p["use_nhc"],
             use_course_heading=p["use_course_heading"],
             gate_probability=p["gate_probability"],
+            gate_recovery_count=p["gate_recovery_count"],
             gnss_white_sigma_enu_m=_vec(p["gnss_noise.white_sigma"]),
             gnss_white_fraction=p["gnss_noise.white_fraction"],
             gnss_correlation_time_s=p["gnss_noise.correlation_time"],

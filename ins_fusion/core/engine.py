@@ -122,7 +122,12 @@ MEASUREMENT_NAMES = (
     "course_heading",
 )
 #: Counters kept per measurement kind ('rejected' includes 'gated' and 'too_old').
-COUNTERS = ("used", "rejected", "gated", "too_old", "duplicates")
+COUNTERS = ("used", "rejected", "gated", "too_old", "duplicates", "recoveries")
+
+#: The error states a gate recovery widens, per sensor measurement (InsEngine._update); the
+#: pseudo-measurements (ZUPT, ZARU, NHC) are constraints a real vehicle can break (a skid),
+#: so their rejections stay rejections.
+_RECOVERY_BLOCKS = {"gnss_position": POS, "gnss_velocity": VEL, "attitude": ATT}
 
 #: An IMU interval longer than this many nominal intervals is a gap (bridged, counted).
 _GAP_FACTOR = 2.5
@@ -209,6 +214,7 @@ class _State:
         "cov_dth",
         "cov_dv",
         "cov_vel0",
+        "gated_runs",
         "gnss_error",
         "gnss_variance",
         "gyro_bias",
@@ -237,6 +243,7 @@ class _State:
         self.cov_dt = 0.0
         self.cov_dth = self.cov_dv = zero
         self.cov_vel0 = nav.vel_ned_m_s
+        self.gated_runs: dict[str, int] = {}  # replaced, never changed in place (copy shares it)
 
     def copy(self) -> _State:
         other = _State.__new__(_State)
@@ -250,6 +257,7 @@ class _State:
         other.cov_vel0 = self.cov_vel0
         other.gnss_error = self.gnss_error
         other.gnss_variance = self.gnss_variance
+        other.gated_runs = self.gated_runs
         other.gyro_bias = self.gyro_bias
         other.gyro_scale = self.gyro_scale
         other.heading_known = self.heading_known
@@ -279,18 +287,31 @@ _M = TypeVar("_M", AttitudeMeasurement, GnssVelocityMeasurement)
 _Record = tuple[float, int, str, Any]
 
 
+@dataclass(frozen=True, slots=True)
+class _Gap:
+    """Uncertainty of the increment that bridges missing IMU samples: variances of the angle
+    [rad²] and velocity [m²/s²] increments per imu FRD axis (see InsEngine._bridge)."""
+
+    angle_var_rad2: tuple[float, ...]
+    velocity_var_m2_s2: tuple[float, ...]
+
+
 class _Entry:
     """One IMU sample in the history: its raw increment (imu FRD, calibrated), whether the
     coning/sculling history restarts, the checkpoint after it and its measurements."""
 
-    __slots__ = ("checkpoint", "fresh", "inc", "measurements", "t_s")
+    __slots__ = ("checkpoint", "gap", "inc", "measurements", "t_s")
 
     def __init__(
-        self, t_s: float, inc: ImuIncrement, fresh: bool, checkpoint: tuple[_State, FloatArray]
+        self,
+        t_s: float,
+        inc: ImuIncrement,
+        gap: _Gap | None,
+        checkpoint: tuple[_State, FloatArray],
     ) -> None:
         self.t_s = t_s
         self.inc = inc
-        self.fresh = fresh
+        self.gap = gap
         self.checkpoint = checkpoint
         self.measurements: list[_Record] = []
 
@@ -426,14 +447,14 @@ class InsEngine:
             self._start_stream(t, rate_i, force_i)
             return
         dt = t - last
-        fresh = dt > _GAP_FACTOR * self._nominal_dt_s
-        if fresh:
+        gap: _Gap | None = None
+        if dt > _GAP_FACTOR * self._nominal_dt_s:
             self._imu_gaps += 1
             if dt > self.config.imu_gap_reset_s:
                 self._reset(f"IMU gap of {dt:.3f} s")
                 self._start_stream(t, rate_i, force_i)
                 return
-            inc = self._bridge(dt, rate_i, force_i)
+            inc, gap = self._bridge(dt, rate_i, force_i)
         else:
             pushed = self._integrator.push(t, rate_i, force_i)
             assert pushed is not None
@@ -460,8 +481,8 @@ class InsEngine:
         while pending and pending[0][0] < t:
             self._insert(heapq.heappop(pending))
         self._catch_up()
-        self._step(inc, fresh, t)
-        entry = _Entry(t, inc, fresh, self._checkpoint())
+        self._step(inc, gap, t)
+        entry = _Entry(t, inc, gap, self._checkpoint())
         self._history.append(entry)
         self._history_t.append(t)
         if t >= self._next_pseudo_t_s:
@@ -612,8 +633,11 @@ class InsEngine:
         self._detector.push(t, rate_i, force_i)
         self._start_pseudo_interval(t)
 
-    def _bridge(self, dt: float, rate_i: Vec3, force_i: Vec3) -> ImuIncrement:
-        """Trapezoidal increment over a gap; the integrator restarts at this sample."""
+    def _bridge(self, dt: float, rate_i: Vec3, force_i: Vec3) -> tuple[ImuIncrement, _Gap]:
+        """Trapezoidal increment over a gap and its uncertainty; the integrator restarts at this
+        sample. The trapezoid is exact for a rate and force that change linearly; for a change
+        at an unknown instant inside the gap (a turn starting) it errs by Δ·dt·(1/2 - τ/dt), of
+        RMS Δ·dt/√12, with Δ the change from the last sample to this one."""
         rate0, force0 = self._last_sample
         h = 0.5 * dt
         inc = ImuIncrement(
@@ -625,10 +649,15 @@ class InsEngine:
                 h * (force0[2] + force_i[2]),
             ),
         )
+        k = dt * dt / 12.0
+        gap = _Gap(
+            tuple(k * (a - b) ** 2 for a, b in zip(rate_i, rate0, strict=True)),
+            tuple(k * (a - b) ** 2 for a, b in zip(force_i, force0, strict=True)),
+        )
         assert self._last_t_s is not None
         self._integrator.reset()
         self._integrator.push(self._last_t_s + dt, rate_i, force_i)
-        return inc
+        return inc, gap
 
     def _start_pseudo_interval(self, t: float) -> None:
         self._next_pseudo_t_s = (
@@ -701,7 +730,7 @@ class InsEngine:
         self._restore(entry.checkpoint)
         self._apply_entry(entry)
         for later in self._history[k + 1 :]:
-            self._step(later.inc, later.fresh, later.t_s)
+            self._step(later.inc, later.gap, later.t_s)
             later.checkpoint = self._checkpoint()
             self._apply_entry(later)
         self._replayed_samples += len(self._history) - k - 1
@@ -723,9 +752,10 @@ class InsEngine:
 
     # ---------------------------------------------------------------------- propagation
 
-    def _step(self, inc: ImuIncrement, fresh: bool, t: float) -> None:
-        """Correct an increment with the filter's sensor errors and mechanize; the covariance
-        follows every ``covariance_interval`` seconds."""
+    def _step(self, inc: ImuIncrement, gap: _Gap | None, t: float) -> None:
+        """Correct an increment with the filter's sensor errors and mechanize (``gap``: it
+        bridges missing samples); the covariance follows every ``covariance_interval``
+        seconds."""
         s = self._state
         assert s is not None
         dt = inc.dt_s
@@ -750,7 +780,7 @@ class InsEngine:
         )
         inc_b = ImuIncrement(dt, tb, vb)
         v0n, v0e, v0d = s.nav.vel_ned_m_s.tolist()
-        nav = propagate(s.nav, inc_b, None if fresh else s.prev_inc)
+        nav = propagate(s.nav, inc_b, s.prev_inc if gap is None else None)
         s.set_nav(nav)
         inv_dt = 1.0 / dt
         v1n, v1e, v1d = nav.vel_ned_m_s.tolist()
@@ -759,6 +789,11 @@ class InsEngine:
         s.rate_i = (ti0 * inv_dt, ti1 * inv_dt, ti2 * inv_dt)
         s.prev_inc = inc_b
         s.t_s = t
+        if gap is not None:
+            assert self._filter is not None
+            mat_ni = s.mat_nb @ self._mat_bi
+            self._filter.add_noise(ATT, (mat_ni * gap.angle_var_rad2) @ mat_ni.T)
+            self._filter.add_noise(VEL, (mat_ni * gap.velocity_var_m2_s2) @ mat_ni.T)
         cdth, cdv = s.cov_dth, s.cov_dv
         s.cov_dth = (cdth[0] + ti0, cdth[1] + ti1, cdth[2] + ti2)
         s.cov_dv = (cdv[0] + vi0, cdv[1] + vi1, cdv[2] + vi2)
@@ -847,7 +882,22 @@ class InsEngine:
             H = H.copy()
             H[:, ATT + 2] = 0.0
         result = kf.update(z, H, R, self._gates[len(z)])
-        self._nis[kind] = result.nis
+        self._nis[kind] = result.nis  # as first tested, also when a recovery follows
+        gated = not result.accepted and math.isfinite(result.nis)
+        runs = s.gated_runs
+        recover = self.config.gate_recovery_count
+        block = _RECOVERY_BLOCKS.get(kind)
+        if gated and recover and block is not None and runs.get(kind, 0) + 1 >= recover:
+            # The filter has rejected this sensor `recover` times running: its state, not the
+            # sensor, is the likelier culprit (a state that went wrong and a covariance too
+            # small to admit the fix). Widen what the sensor measures until it fits, apply it.
+            kf.widen(z, H, R, block)
+            result = kf.update(z, H, R, math.inf)
+            gated = False
+            if live:
+                self._counters[kind]["recoveries"] += 1
+        if gated or runs.get(kind, 0):
+            s.gated_runs = {**runs, kind: runs.get(kind, 0) + 1 if gated else 0}
         if live:
             counters = self._counters[kind]
             if result.accepted:
@@ -1185,7 +1235,7 @@ class InsEngine:
         self._filter = kf
         self._restart_position(fix)
         zero: Vec3 = (0.0, 0.0, 0.0)
-        self._history = [_Entry(t, ImuIncrement(0.0, zero, zero), True, self._checkpoint())]
+        self._history = [_Entry(t, ImuIncrement(0.0, zero, zero), None, self._checkpoint())]
         self._history_t = [t]
 
     def _fix_noise(self, fix: GnssFixMeasurement) -> tuple[FloatArray, FloatArray]:

@@ -232,6 +232,22 @@ class ErrorStateFilter:
         P += q
         self.P = P
 
+    def add_noise(self, start: int, cov: FloatArray) -> None:
+        """Add a 3x3 covariance to the diagonal block of the states at ``start`` (noise the
+        continuous model does not hold, e.g. a bridged IMU gap). P is replaced, not changed in
+        place: the engine's history holds references to earlier P."""
+        P = self.P.copy()
+        P[start : start + 3, start : start + 3] += cov
+        self.P = P
+
+    def widen(self, z: FloatArray, H: FloatArray, R: FloatArray, start: int) -> None:
+        """Add to the 3x3 block of P at ``start`` what makes the innovation z fit: the excess
+        of each z_i² over S_ii, mapped into that block by the pseudo-inverse of its columns of
+        H, so that the new S_ii = max(S_ii, z_i²) when they have full row rank."""
+        excess = np.maximum(np.square(z) - np.diagonal(H @ self.P @ H.T + R), 0.0)
+        G = np.linalg.pinv(H[:, start : start + 3])
+        self.add_noise(start, (G * excess) @ G.T)
+
     def update(self, z: FloatArray, H: FloatArray, R: FloatArray, threshold: float) -> UpdateResult:
         """Gated Joseph-form update with innovation z = measured - predicted, z ≈ H δx + v."""
         P = self.P

@@ -25,15 +25,14 @@ from rosbags.highlevel import AnyReaderError
 from rosbags.rosbag2 import ReaderError
 from rosbags.serde import SerdeError
 
-from ins_fusion import messages_in
+from ins_fusion import cdr_fields, messages_in
+from ins_fusion.cdr_fields import CdrError
 from ins_fusion.core.measurements import (
     AttitudeMeasurement,
     GnssFixMeasurement,
     GnssVelocityMeasurement,
 )
 from ins_fusion.messages_in import ImuSample
-from ins_fusion import cdr_fields
-from ins_fusion.cdr_fields import CdrError
 from ins_fusion.replay.topics import (
     DEFAULT_REFERENCE,
     DEFAULT_TOPICS,
