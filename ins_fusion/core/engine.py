@@ -297,8 +297,9 @@ class _Gap:
 
 
 class _Entry:
-    """One IMU sample in the history: its raw increment (imu FRD, calibrated), whether the
-    coning/sculling history restarts, the checkpoint after it and its measurements."""
+    """One IMU sample in the history: its raw increment (imu FRD, calibrated), the gap it
+    bridges (None: none; after one the coning/sculling history restarts), the checkpoint after
+    it and its measurements."""
 
     __slots__ = ("checkpoint", "gap", "inc", "measurements", "t_s")
 
