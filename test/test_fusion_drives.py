@@ -1,7 +1,7 @@
 """Acceptance of the fusion engine on simulated drives (issue 5), in-process, no bags.
 
 The harness here (``simulate``, ``feed``, ``run``) is shared with test_fusion_engine.py and
-bench/bench_fusion_engine.py, which prints the precise numbers written to docs/fusion.md; the
+bench/bench_fusion_engine.py, which prints the precise numbers written to docs/accuracy.md; the
 tests assert generous bounds.
 
 Streams: the simulator's IMU (imu_link on the survey car, imu400cc or ideal profile, 134 Hz),

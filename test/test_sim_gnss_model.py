@@ -19,6 +19,7 @@ from ins_fusion.sim.gnss_model import (
     GnssSchedule,
 )
 from ins_fusion.sim.scenarios import SURVEY_CAR, seed_test_pattern
+from ins_fusion.sim.topics import GNSS_FIX, Simulation, SimulationConfig
 from ins_fusion.sim.vehicle import VehicleTruth
 
 TRUTH = VehicleTruth(seed_test_pattern(), SURVEY_CAR)
@@ -122,3 +123,41 @@ def test_fix_noise_table_is_ordered_by_quality():
     order = [FixType.RTK_FIXED, FixType.RTK_FLOAT, FixType.DGPS, FixType.SPS]
     sigmas = [FIX_NOISE[f].position_sigma_ned_m[0] for f in order]
     assert sigmas == sorted(sigmas)
+
+
+@pytest.mark.parametrize("name", ["leica_rtk", "adu5"])
+def test_noise_scale_zero_gives_exact_fixes_with_the_same_reports(name):
+    schedule = GnssSchedule(outages=((100.0, 20.0),))
+    exact, half, full = (
+        list(
+            GnssErrorModel(
+                TRUTH.gnss_truth, PROFILES[name], schedule, seed=6, noise_scale=scale
+            ).fixes(60.0, 180.0)
+        )
+        for scale in (0.0, 0.5, 1.0)
+    )
+    assert np.abs(_errors_ned(exact)).max() < 1e-6
+    assert _errors_ned(half) == pytest.approx(0.5 * _errors_ned(full), abs=1e-6)
+    for a, b in zip(exact, full, strict=True):
+        assert (a.t_s, a.fix_type, a.outlier) == (b.t_s, b.fix_type, b.outlier)
+        assert np.array_equal(a.position_sigma_enu_m, b.position_sigma_enu_m)
+        truth = TRUTH.gnss_truth(a.t_s)
+        up = a.vel_enu_m_s[2]  # NaN: the Leica outputs no vertical velocity
+        assert a.vel_enu_m_s[:2] == pytest.approx(truth.vel_enu_m_s[:2], abs=1e-9)
+        assert math.isnan(up) or up == pytest.approx(truth.vel_enu_m_s[2], abs=1e-9)
+        if a.quat_enu_flu is not None:
+            assert abs(np.dot(a.quat_enu_flu, truth.quat_enu_flu)) == pytest.approx(1.0, abs=1e-12)
+
+
+def test_simulation_gnss_noise_scale_zero_gives_the_true_antenna_position():
+    sim = Simulation(SimulationConfig(duration_s=80.0, gnss_noise_scale=0.0, seed=3, adu5=False))
+    fixes = [e.message for e in sim.gnss_events(60.0, 80.0) if e.topic == GNSS_FIX]
+    assert len(fixes) == 20
+    for fix in fixes:
+        stamp_s = fix.header.stamp.sec + fix.header.stamp.nanosec * 1e-9
+        truth = sim.vehicle.gnss_truth(stamp_s - sim.config.start_ns * 1e-9)
+        r_m, r_n = earth.radii_m(truth.lat_rad)
+        north = (math.radians(fix.latitude) - truth.lat_rad) * r_m
+        east = (math.radians(fix.longitude) - truth.lon_rad) * r_n * math.cos(truth.lat_rad)
+        assert math.hypot(north, east) < 1e-3  # NMEA prints 1e-7 arc minutes (0.2 mm)
+        assert fix.altitude == pytest.approx(truth.height_m, abs=1e-3)

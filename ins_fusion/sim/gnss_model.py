@@ -281,7 +281,9 @@ class GnssErrorModel:
     Iterate ``epochs(t_start, t_end)`` (every epoch, with or without a fix) or ``fixes(t_start,
     t_end)`` (the fixes only) in time order; calls must not go back in time. Times are simulation
     times [s]; ``utc_at_zero_s`` is the UTC time [s] of simulation time 0, which sets where the
-    whole-period UTC epochs fall.
+    whole-period UTC epochs fall. ``noise_scale`` multiplies every measurement error (position,
+    velocity, outlier jumps, attitude; 0 = exact fixes); the reported σ, fix types, outages and
+    the random sequences stay the same.
     """
 
     def __init__(
@@ -291,10 +293,12 @@ class GnssErrorModel:
         schedule: GnssSchedule = GnssSchedule(),
         seed: int = 0,
         utc_at_zero_s: float = 0.0,
+        noise_scale: float = 1.0,
     ) -> None:
         self.truth = truth
         self.profile = profile
         self.schedule = schedule
+        self.noise_scale = noise_scale
         period = 1.0 / profile.rate_hz
         phase = utc_at_zero_s - period * round(utc_at_zero_s / period)
         #: Simulation time of epoch index 0 is -phase (epoch k at k * period - phase).
@@ -387,8 +391,9 @@ class GnssErrorModel:
         err_ned = (np.array(noise.white_sigma_ned_m) * white + correlated[fix_type]) * dop_scale
         if is_outlier:
             err_ned[:2] += profile.outlier_sigma_m * jump
+        err_ned *= self.noise_scale
         r_meridian, r_prime_vertical = earth.radii_m(truth.lat_rad)
-        vel_err = ned_to_enu(np.array(noise.velocity_sigma_ned_m_s) * velocity)
+        vel_err = ned_to_enu(np.array(noise.velocity_sigma_ned_m_s) * velocity * self.noise_scale)
         vel = truth.vel_enu_m_s + vel_err
         vel_sigma = np.array(noise.velocity_sigma_ned_m_s)[_NED_TO_ENU_AXES]
         if not profile.vertical_velocity:
@@ -396,7 +401,8 @@ class GnssErrorModel:
             vel_sigma[2] = math.nan
         quat = None
         if profile.attitude_sigma_rpy_rad is not None:
-            quat = _perturb_attitude(truth.quat_enu_flu, profile.attitude_sigma_rpy_rad, attitude)
+            draws = attitude * self.noise_scale
+            quat = _perturb_attitude(truth.quat_enu_flu, profile.attitude_sigma_rpy_rad, draws)
         fix = GnssFix(
             t_s=t_s,
             arrival_t_s=arrival,

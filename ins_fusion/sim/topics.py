@@ -110,8 +110,10 @@ class SkyZoneSpec:
 @dataclass(frozen=True)
 class SimulationConfig:
     """What to simulate: a scenario and duration [s], the IMU profile (``band_limited`` white
-    noise), the position receiver (None: none) and the ADU5, scheduled outages (start, duration
-    [s]) and sky zones, truth rate [Hz], seed, and the UTC time of simulation time 0 [ns]."""
+    noise), the position receiver (None: none) and the ADU5, ``gnss_noise_scale`` multiplying
+    every error of both receivers (0 = exact fixes and attitudes, as reported σ unchanged),
+    scheduled outages (start, duration [s]) and sky zones, truth rate [Hz], seed, and the UTC time
+    of simulation time 0 [ns]."""
 
     scenario: str = "test_pattern"
     duration_s: float = 240.0
@@ -119,6 +121,7 @@ class SimulationConfig:
     band_limited: bool = True
     gnss: str | None = "leica_rtk"
     adu5: bool = True
+    gnss_noise_scale: float = 1.0
     outages: tuple[tuple[float, float], ...] = ()
     sky_zones: tuple[SkyZoneSpec, ...] = ()
     truth_rate_hz: float = 50.0
@@ -166,7 +169,12 @@ class Simulation:
         for profile, receiver, seed in receivers:
             truth = TruthCache(self.vehicle.gnss_truths, self.vehicle.gnss_truth)
             model = GnssErrorModel(
-                truth, gnss_model.PROFILES[profile], self.schedule, seed, config.start_ns / 1e9
+                truth,
+                gnss_model.PROFILES[profile],
+                self.schedule,
+                seed,
+                config.start_ns / 1e9,
+                config.gnss_noise_scale,
             )
             self.receivers.append((ReceiverModel(receiver), model, truth))
 
