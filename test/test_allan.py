@@ -186,43 +186,66 @@ def test_oslo_table_5_1_from_the_theoretical_curve():
     assert accel.flat_minimum.value == pytest.approx(2.385e-4, rel=0.05)
 
 
-def test_oslo_record_length_resolves_the_accelerometer_but_not_the_gyro_bias():
-    """On the thesis' own 10 000 s the gyro's hump (1.89 × 800 s) hides behind its random walk:
-    the tool asks for a longer record; the accelerometer (T = 150 s) is resolved."""
+def test_oslo_record_length_does_not_resolve_the_biases_to_10_percent():
+    """On the thesis' own 10 000 s the gyro's hump (1.89 × 800 s) hides behind its random walk,
+    and the accelerometer's (T = 150 s) is identified but only to about ±25 % (1σ, the Whittle
+    likelihood's bound, which holds the trade-off with the random walk): the tool asks for 2-5
+    days (σ within 10 % and T within 20 % at 95 %)."""
     report = _theory_report((OSLO_GYRO, OSLO_ACCEL), 10_000.0)
-    problems = shortcomings(report, ("white", "bias"))
-    assert {p.split(":")[0] for p in problems} == {"gyro x", "gyro y", "gyro z"}
-    assert all(a.terms.bias is not None for a in report.of(ACCEL))
+    problems = dict(p.split(": ", 1) for p in shortcomings(report, ("white", "bias")))
+    assert set(problems) == {f"{s} {a}" for s in ("gyro", "accel") for a in "xyz"}
+    for axis in "xyz":
+        assert problems[f"gyro {axis}"].startswith("no bias instability stands out")
+        needed = re.search(r"needs ≥ ([0-9.]+) (h|days)", problems[f"accel {axis}"])
+        assert needed is not None
+        hours = float(needed.group(1)) * (24.0 if needed.group(2) == "days" else 1.0)
+        assert 40.0 < hours < 120.0
+    for axis in report.of(ACCEL):
+        assert axis.terms.bias is not None and 0.15 < axis.terms.bias.errors[0] < 0.4
 
 
 def test_oslo_table_5_1_from_a_simulated_series():
-    """Table 5.1 noise simulated for 10^6 s at 1 Hz: ARW/VRW within 10 %, bias instability within
-    20 % (gyro, T = 800 s) and 10 % (accelerometer, T = 150 s)."""
+    """Table 5.1 noise simulated for 10^6 s (11.6 days) at 1 Hz: ARW/VRW within 10 %; the
+    accelerometers' bias within 10 % (1σ ≈ 2 %), accepted; the gyros' bias (1σ ≈ 9 %: its hump
+    overlaps the random walk) within 3σ of the truth, refused with the length it needs (~45
+    days)."""
     record = static_record(OSLO, 1e6, rate_hz=1.0, seed=0)
     report = identify(record, sample_clock(record.t_s), "Oslo Table 5.1, 1 Hz")
-    assert shortcomings(report, ("white", "bias")) == []
+    problems = shortcomings(report, ("white", "bias"))
+    assert {p.split(":")[0] for p in problems} == {"gyro x", "gyro y", "gyro z"}
+    assert all("needs ≥" in p for p in problems)
     for axis in report.axes:
         triad = _triad(axis, OSLO)
         bias = axis.terms.bias
         assert bias is not None and bias.model == GAUSS_MARKOV
         assert axis.terms.white.value == pytest.approx(triad.noise_density[0], rel=0.10)
-        tolerance = 0.20 if axis.sensor is GYRO else 0.10
-        assert bias.sigma.value == pytest.approx(triad.bias_instability[0], rel=tolerance)
+        error = abs(math.log(bias.sigma.value / triad.bias_instability[0]))
+        assert error <= 3.0 * bias.errors[0]
+        if axis.sensor is ACCEL:
+            assert error <= 0.10
 
 
 def test_simulated_known_noise_is_recovered(known_report):
-    """White noise within 10 %, bias instability within 15 % and its correlation time within
-    25 %, random walk within 40 % (it rests on the few longest clusters)."""
-    assert shortcomings(known_report, ("white", "bias", "rrw")) == []
+    """White noise within 10 %; bias instability σ within 10 % and T within 25 %, both within 3
+    of their stated 1σ; the random walk (1σ 17-50 % from this record) within 3σ where it stands
+    out, under its upper bound where not."""
+    assert shortcomings(known_report, ("white", "bias")) == []
     for axis in known_report.axes:
         triad, terms = _triad(axis, KNOWN), axis.terms
-        assert terms.bias is not None and terms.bias.model == GAUSS_MARKOV
+        bias = terms.bias
+        assert bias is not None and bias.model == GAUSS_MARKOV
         assert terms.white.value == pytest.approx(triad.noise_density[0], rel=0.10)
-        assert terms.bias.sigma.value == pytest.approx(triad.bias_instability[0], rel=0.15)
-        assert terms.bias.time_constant_s == pytest.approx(
-            triad.bias_correlation_time_s[0], rel=0.25
-        )
-        assert terms.random_walk.value == pytest.approx(triad.random_walk[0], rel=0.40)
+        assert bias.sigma.value == pytest.approx(triad.bias_instability[0], rel=0.10)
+        assert bias.time_constant_s == pytest.approx(triad.bias_correlation_time_s[0], rel=0.25)
+        sigma_error = abs(math.log(bias.sigma.value / triad.bias_instability[0]))
+        time_error = abs(math.log(bias.time_constant_s / triad.bias_correlation_time_s[0]))
+        assert sigma_error <= 3.0 * bias.errors[0] and time_error <= 3.0 * bias.errors[1]
+        walk = terms.random_walk
+        if walk.visible:
+            spread = math.log(walk.high / walk.value)  # 1σ, the report's 68.3 % interval
+            assert abs(math.log(walk.value / triad.random_walk[0])) <= 3.0 * spread
+        else:
+            assert triad.random_walk[0] <= walk.high
         assert not terms.quantization.visible
         assert terms.white.low < triad.noise_density[0] * 1.05
         assert terms.white.high > triad.noise_density[0] * 0.95

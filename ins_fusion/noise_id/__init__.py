@@ -7,6 +7,9 @@
   flat-minimum read-off.
 - ``record``: a static IMU record (sample times, rates, specific forces), its sample clock and
   the checks that refuse irregular, non-finite, constant or moving records.
+- ``whittle``: white noise, Gauss-Markov bias and random walk fitted to the samples by the
+  debiased Whittle likelihood of their block means, with Fisher-information errors.
+- ``likelihood``: the Allan fit's terms with the bias and random walk of the Whittle fit.
 - ``analysis``: every gyro and accelerometer axis of a record, the user-facing units, the length
   a record needs and what a report lacks for the requested terms.
 - ``output``: the summary table and the ROS parameter file of ins_fusion_node (imu_noise.*).

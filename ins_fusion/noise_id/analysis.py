@@ -8,9 +8,14 @@ walk). Quantisation is reported where visible and never required. What "enough" 
 - white: the Allan variance at τ = 1 s needs MIN_WHITE_EDF = 200 equivalent degrees of freedom
   (Allan deviation 1σ ≈ 5 %); white noise has ≈ 1.5 L/τ of them in the overlapping estimator
   (Greenhall), so L ≥ 134 s;
-- bias: MIN_BIAS_EDF = 12.5 (1σ ≈ 20 %) at the τ where it is read (Gauss-Markov hump 1.89 T or
-  the flat minimum), about 12.5 τ of record for flicker noise: hours for MEMS (Oslo notes §4:
-  STIM300 T = 800 s gyro, 150 s accelerometer, from 10 000 s; Aalborg notes §1.3: 5 h);
+- bias, Gauss-Markov: the 1σ relative error of σ at most MAX_SIGMA_ERROR = 5 % and of T at
+  most MAX_TIME_ERROR = 10 % (Fisher information of the Whittle likelihood, whittle.py), so
+  that σ is within 10 % and T within 20 % of the truth at 95 %; the errors fall as
+  1/sqrt(length), which gives the length a record needs: a day to weeks for MEMS (the bias must
+  be told from the white noise and the random walk in the few frequencies below 1/(2πT));
+- bias, flicker floor: MIN_BIAS_EDF = 200 equivalent degrees of freedom at the minimum of the
+  Allan curve (Allan deviation 1σ ≈ 5 %, the same 10 % at 95 % as a Gauss-Markov σ), about
+  150 τ_min of record;
 - rrw: its +1/2 slope must be visible.
 """
 
@@ -24,8 +29,10 @@ import numpy as np
 
 from ins_fusion.core.units import DEG, mg, to_deg_h, to_deg_sqrt_h, to_m_s_sqrt_h
 from ins_fusion.noise_id.allan import ONE_SIGMA, AllanCurve, equivalent_dof, overlapping_adev
+from ins_fusion.noise_id.likelihood import refine
 from ins_fusion.noise_id.record import ImuRecord, RecordError, SampleClock
-from ins_fusion.noise_id.terms import NoiseTerms, fit_noise_terms
+from ins_fusion.noise_id.terms import GAUSS_MARKOV, BiasInstability, NoiseTerms, fit_noise_terms
+from ins_fusion.noise_id.whittle import BIAS, LOG_TIME, SpectralModel, expected_errors
 
 #: Terms ``--terms`` accepts, with their names in messages.
 TERMS: dict[str, str] = {
@@ -40,7 +47,10 @@ WHITE_TAU_S = 1.0
 #: time of record (Greenhall: edf ≈ 1.5 L/τ - 2 for L >> τ).
 WHITE_EDF_PER_CLUSTER = 1.5
 MIN_WHITE_EDF = 200.0
-MIN_BIAS_EDF = 12.5
+MIN_BIAS_EDF = 200.0
+MAX_SIGMA_ERROR = 0.05
+MAX_TIME_ERROR = 0.10
+_LENGTH_ITERATIONS = 3
 #: Power-law exponent of flicker noise, the noise type where the bias is read.
 _FLICKER_ALPHA = -1
 
@@ -137,14 +147,18 @@ def identify(
     ):
         for i, axis in enumerate(AXES):
             curve = overlapping_adev(values[:, i], clock.rate_hz)
-            axes.append(AxisNoise(sensor, axis, fit_noise_terms(curve, confidence)))
+            terms = fit_noise_terms(curve, confidence)
+            terms = refine(terms, values[:, i], clock.rate_hz, confidence)
+            axes.append(AxisNoise(sensor, axis, terms))
             if on_axis is not None:
                 on_axis(len(axes))
     return NoiseReport(tuple(axes), clock, len(record.t_s), record.duration_s, confidence, source)
 
 
 def _hours(seconds: float) -> str:
-    return f"{seconds:.0f} s" if seconds < 3600.0 else f"{seconds / 3600.0:.1f} h"
+    if seconds < 3600.0:
+        return f"{seconds:.0f} s"
+    return f"{seconds / 3600.0:.1f} h" if seconds < 72 * 3600.0 else f"{seconds / 86400.0:.1f} days"
 
 
 def check_length(duration_s: float, terms: Sequence[str]) -> None:
@@ -155,10 +169,7 @@ def check_length(duration_s: float, terms: Sequence[str]) -> None:
         return
     lines = [f"the record is {duration_s:.1f} s; white noise (τ = 1 s) needs ≥ {needed:.0f} s"]
     if "bias" in terms:
-        lines.append(
-            f"bias instability needs ≥ {MIN_BIAS_EDF:g} × the τ of its Allan floor (hours for "
-            "a MEMS unit)"
-        )
+        lines.append("bias instability needs days for a MEMS unit")
     if "rrw" in terms:
         lines.append("random walk needs its +1/2 slope, usually many hours")
     raise RecordError("too short: " + "; ".join(lines))
@@ -173,6 +184,37 @@ def _flicker_dof(tau_s: float, curve: AllanCurve) -> float:
     return float(equivalent_dof(np.array([tau_s]), alpha, curve.rate_hz, curve.n_samples)[0])
 
 
+def _shortfall(errors: tuple[float, float]) -> float:
+    """How far the relative errors (σ, T) are from MAX_SIGMA_ERROR, MAX_TIME_ERROR (≤ 1: ok)."""
+    return max(errors[0] / MAX_SIGMA_ERROR, errors[1] / MAX_TIME_ERROR)
+
+
+def _needed_record_s(axis: AxisNoise, bias: BiasInstability) -> float:
+    """Record length [s] at which the fitted noise would give the wanted precision: the errors
+    fall about as 1/sqrt(length), refined with the expected errors of the longer record."""
+    _, white, sigma2, walk = axis.terms.coefficients
+    model = SpectralModel(white, sigma2, walk, bias.time_constant_s)
+    rate = axis.curve.rate_hz
+    length = axis.curve.record_s * _shortfall(bias.errors) ** 2
+    for _ in range(_LENGTH_ITERATIONS):
+        errors = expected_errors(model, rate, round(length * rate))
+        length *= _shortfall((errors[BIAS], errors[LOG_TIME])) ** 2
+    return length
+
+
+def _gauss_markov_shortcoming(axis: AxisNoise, bias: BiasInstability) -> str | None:
+    if _shortfall(bias.errors) <= 1.0:
+        return None
+    record_s = axis.curve.record_s
+    needed = _needed_record_s(axis, bias) if math.isfinite(_shortfall(bias.errors)) else math.inf
+    return (
+        f"{axis.name}: bias instability σ ±{bias.errors[0]:.1%}, T ±{bias.errors[1]:.1%} (1σ) "
+        f"from this {_hours(record_s)} record; σ within {2 * MAX_SIGMA_ERROR:.0%} and T within "
+        f"{2 * MAX_TIME_ERROR:.0%} (95 %) needs "
+        + (f"≥ {_hours(needed)} of record" if math.isfinite(needed) else "a far longer record")
+    )
+
+
 def _bias_shortcoming(axis: AxisNoise) -> str | None:
     bias, curve = axis.terms.bias, axis.curve
     if bias is None:
@@ -181,6 +223,8 @@ def _bias_shortcoming(axis: AxisNoise) -> str | None:
             f"{curve.tau_s[-1]:.0f} s (the longest a {_hours(curve.record_s)} record gives): "
             "neither a flat floor nor a Gauss-Markov hump; record at least twice as long"
         )
+    if bias.model == GAUSS_MARKOV:
+        return _gauss_markov_shortcoming(axis, bias)
     edf = _flicker_dof(bias.read_tau_s, curve)
     if edf >= MIN_BIAS_EDF:
         return None

@@ -58,7 +58,11 @@ def _rows(sensor: Sensor) -> list[tuple[str, Callable[[AxisNoise], str]]]:
 
     def bias_time(a: AxisNoise) -> str:
         bias = a.terms.bias
-        return "-" if bias is None else f"{bias.time_constant_s:.0f}"
+        if bias is None:
+            return "-"
+        low, high = bias.time_limits_s
+        limits = f" [{low:.0f}, {high:.0f}]" if math.isfinite(low) else ""
+        return f"{bias.time_constant_s:.0f}{limits}"
 
     def flat_minimum(a: AxisNoise) -> str:
         text = _term_text(a.terms.flat_minimum, sensor.bias)
@@ -93,8 +97,8 @@ def summary_table(report: NoiseReport) -> list[str]:
         f"source: {report.source}",
         f"record: {report.duration_s:.1f} s, {report.n_samples} samples at "
         f"{report.clock.rate_hz:.3f} Hz ({report.clock.missing} missing)",
-        f"intervals: {report.confidence:.1%} (chi-squared, Greenhall edf); "
-        "'< x': not visible, upper bound",
+        f"intervals: {report.confidence:.1%} (N, B, Q: chi-squared, Greenhall edf; Gauss-Markov "
+        "sigma, T and K: Whittle likelihood); '< x': not visible, upper bound",
     ]
     for sensor in SENSORS:
         axes = report.of(sensor)
@@ -155,8 +159,9 @@ def parameter_file(report: NoiseReport, parameters: dict[str, Any]) -> str:
     """The YAML text: provenance and the summary table as comments, then the parameters."""
     header = [
         "Noise of the IMU identified by `gnss_ins allan` (overlapping Allan deviation, IEEE 952",
-        "slopes fitted together; docs/allan.md). Values are noise densities and Gauss-Markov",
-        "sigmas, never per-sample sigmas, so they do not depend on the sample rate.",
+        "slopes fitted together; Gauss-Markov bias and random walk by the Whittle likelihood of",
+        "the samples; docs/allan.md). Values are noise densities and Gauss-Markov sigmas, never",
+        "per-sample sigmas, so they do not depend on the sample rate.",
         "Use: ros2 run gnss_ins ins_fusion_node --ros-args --params-file config/ins_fusion.yaml",
         "     --params-file THIS_FILE ;  gnss_ins replay BAG --params THIS_FILE",
         "",

@@ -47,6 +47,9 @@ def static_record(
     rate_truth, force_truth = vehicle.imu_truth(0.0)
     model = ImuErrorModel(profile, seed, band_limited)
     t = np.arange(n) / rate
+    # One sample before the record, dropped: the model takes its first interval as the
+    # profile's period, which at another rate would make the first sample an outlier.
+    model.apply(t[:1] - 1.0 / rate, rate_truth[None, :], force_truth[None, :])
     gyro = np.empty((n, 3))
     accel = np.empty((n, 3))
     for start in range(0, n, _BLOCK):

@@ -45,7 +45,10 @@ the term is best determined (largest share² · edf) is attributed to the term's
 variance there. Allan points are correlated, so the fit over many points is at least this good,
 but the interval does not hold the trade-off between neighbouring terms (a Gauss-Markov hump
 against a random walk): docs/allan.md. A term that nowhere makes 25 % of the fitted variance is
-"not visible" and is bounded by the upper confidence limits of the curve instead.
+"not visible" and is bounded by the upper confidence limits of the curve instead. The
+Gauss-Markov σ and T get the precision a record of the curve's length gives for the fitted
+noise (whittle.expected_errors, which does hold the trade-off); with the samples at hand,
+likelihood.refine replaces the bias and the random walk by their Whittle fit.
 """
 
 from __future__ import annotations
@@ -56,9 +59,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import minimize_scalar, nnls
+from scipy.stats import norm
 
 from ins_fusion.core.rotation import FloatArray
 from ins_fusion.noise_id.allan import ONE_SIGMA, AllanCurve, log_slope
+from ins_fusion.noise_id.whittle import BIAS, LOG_TIME, SpectralModel, expected_errors
 from ins_fusion.sim.noise import allan_variance
 
 #: Allan deviation of flicker bias instability B is sqrt(2 ln2/π) B = 0.664 B (Oslo (4.2)).
@@ -104,12 +109,42 @@ class Term:
 class BiasInstability:
     """The bias instability as ins_fusion_node models it: a first-order Gauss-Markov bias of
     stationary std sigma [u] and correlation time [s] (model GAUSS_MARKOV: fitted; FLICKER:
-    the flat minimum B and τ_min), read at read_tau_s [s] (the hump 1.89 T, or τ_min)."""
+    the flat minimum B and τ_min), read at read_tau_s [s] (the hump 1.89 T, or τ_min).
+    Gauss-Markov only: time_limits_s, the confidence limits of T [s]; errors, the 1σ of log σ
+    and log T (relative errors) from the Whittle likelihood's Fisher information."""
 
     model: str
     sigma: Term
     time_constant_s: float
     read_tau_s: float
+    time_limits_s: tuple[float, float] = (math.nan, math.nan)
+    errors: tuple[float, float] = (math.nan, math.nan)
+
+
+def _normal_quantile(confidence: float) -> float:
+    """z of a two-sided normal interval of probability ``confidence``."""
+    return float(norm.ppf(0.5 + confidence / 2.0))
+
+
+def log_normal_term(value: float, relative_error: float, confidence: float) -> Term:
+    """A visible term with the interval value·exp(±z·relative_error)."""
+    spread = math.exp(_normal_quantile(confidence) * relative_error)
+    return Term(value, value / spread, value * spread, True)
+
+
+def gauss_markov_bias(
+    sigma: float, time_constant_s: float, errors: tuple[float, float], confidence: float
+) -> BiasInstability:
+    """A Gauss-Markov bias of σ [u] and T [s] with the 1σ relative errors (of σ, of T)."""
+    time = log_normal_term(time_constant_s, errors[1], confidence)
+    return BiasInstability(
+        GAUSS_MARKOV,
+        log_normal_term(sigma, errors[0], confidence),
+        time_constant_s,
+        GM_PEAK_TAU_FACTOR * time_constant_s,
+        (time.low, time.high),
+        errors,
+    )
 
 
 @dataclass(frozen=True)
@@ -357,17 +392,17 @@ def fit_noise_terms(curve: AllanCurve, confidence: float = ONE_SIGMA) -> NoiseTe
         lowest < len(typed.tau_s) - 1,
     )
     tau_min = float(typed.tau_s[lowest])
+    q2, n2, bias2, k2 = (float(c) for c in fit.coefficients)
     bias: BiasInstability | None = None
     if bias_model == GAUSS_MARKOV:
-        # An identified Gauss-Markov term is visible, so it needs no bound.
-        sigma = _term(fit, 2, limits, np.array([math.inf]))
-        time_constant = fit.time_constant_s
-        bias = BiasInstability(
-            GAUSS_MARKOV, sigma, time_constant, GM_PEAK_TAU_FACTOR * time_constant
+        # What a record of this length gives (the curve alone has no better interval).
+        model = SpectralModel(n2, bias2, k2, fit.time_constant_s)
+        errors = expected_errors(model, curve.rate_hz, curve.n_samples)
+        bias = gauss_markov_bias(
+            math.sqrt(bias2), fit.time_constant_s, (errors[BIAS], errors[LOG_TIME]), confidence
         )
     elif bias_model == FLICKER:
         bias = BiasInstability(FLICKER, flat, tau_min, tau_min)
-    q2, n2, bias2, k2 = (float(c) for c in fit.coefficients)
     return NoiseTerms(
         curve=typed,
         quantization=_term(fit, 0, limits, high * typed.tau_s / math.sqrt(3.0)),
