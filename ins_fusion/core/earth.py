@@ -186,20 +186,21 @@ class TangentPlane:
         )
 
     @staticmethod
-    def _ecef(lat_rad: float, lon_rad: float, height_m: float) -> FloatArray:
+    def _ecef(lat_rad: float, lon_rad: float, height_m: float) -> tuple[float, float, float]:
         sin_lat, cos_lat = math.sin(lat_rad), math.cos(lat_rad)
         r_n = SEMI_MAJOR_AXIS_M / math.sqrt(1.0 - ECCENTRICITY_SQ * sin_lat * sin_lat)
-        return np.array(
-            [
-                (r_n + height_m) * cos_lat * math.cos(lon_rad),
-                (r_n + height_m) * cos_lat * math.sin(lon_rad),
-                (r_n * (1.0 - ECCENTRICITY_SQ) + height_m) * sin_lat,
-            ]
+        return (
+            (r_n + height_m) * cos_lat * math.cos(lon_rad),
+            (r_n + height_m) * cos_lat * math.sin(lon_rad),
+            (r_n * (1.0 - ECCENTRICITY_SQ) + height_m) * sin_lat,
         )
 
     def enu(self, lat_rad: float, lon_rad: float, height_m: float) -> FloatArray:
         """ENU position [m] of a geodetic point relative to the datum."""
-        return self._mat_enu_ecef @ (self._ecef(lat_rad, lon_rad, height_m) - self._origin)
+        x, y, z = self._ecef(lat_rad, lon_rad, height_m)
+        x0, y0, z0 = self._origin
+        enu: FloatArray = self._mat_enu_ecef @ np.array((x - x0, y - y0, z - z0))
+        return enu
 
 
 def enu_to_geodetic(

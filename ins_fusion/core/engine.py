@@ -329,7 +329,8 @@ def _mat_from_rpy_flu(rpy_rad: Sequence[float]) -> FloatArray:
 
 
 def _quat(values: FloatArray) -> Quat:
-    return (float(values[0]), float(values[1]), float(values[2]), float(values[3]))
+    x, y, z, w = values.tolist()
+    return (x, y, z, w)
 
 
 def _quat_enu_flu(quat_nb: Quat) -> Quat:
@@ -428,7 +429,8 @@ class InsEngine:
         t = float(t_s)
         rate: Vec3 = (float(rate_flu_rad_s[0]), float(rate_flu_rad_s[1]), float(rate_flu_rad_s[2]))
         force: Vec3 = (float(force_flu_m_s2[0]), float(force_flu_m_s2[1]), float(force_flu_m_s2[2]))
-        if not (math.isfinite(t) and all(map(math.isfinite, rate + force))):
+        # One test for all seven: a NaN or an infinity in any makes the sum non-finite.
+        if not math.isfinite(t + rate[0] + rate[1] + rate[2] + force[0] + force[1] + force[2]):
             self._imu_gaps += 1  # a corrupt sample is a one-sample gap
             return
         last = self._last_t_s
@@ -868,8 +870,10 @@ class InsEngine:
 
     def _corrected_rate_b(self, s: _State) -> FloatArray:
         """The latest sample's rate, corrected for the estimated gyro errors, base_link FRD."""
-        rate_i = np.array(self._last_sample[0])
-        corrected = (rate_i - np.array(s.gyro_bias)) / (1.0 + np.array(s.gyro_scale))
+        (w0, w1, w2), (b0, b1, b2), (k0, k1, k2) = self._last_sample[0], s.gyro_bias, s.gyro_scale
+        corrected = np.array(
+            ((w0 - b0) / (1.0 + k0), (w1 - b1) / (1.0 + k1), (w2 - b2) / (1.0 + k2))
+        )
         return np.asarray(self._mat_bi @ corrected, dtype=np.float64)
 
     # --------------------------------------------------------------------- updates
