@@ -57,6 +57,8 @@ class InsFusionNode(Node):
         gyro_psd = float(np.mean(np.square(config.imu_noise.gyro_arw)))
         self._rate_variance = gyro_psd * NOMINAL_RATE_HZ
         self._published = 0
+        self._rate_covariance = np.eye(3).ravel() * self._rate_variance
+        self._odom_msg, self._fix_msg, self._imu_msg = Odometry(), NavSatFix(), Imu()
         self._bad_imu_messages = 0
 
         sensor_qos = QoSProfile(depth=200, reliability=ReliabilityPolicy.RELIABLE)
@@ -123,21 +125,24 @@ class InsFusionNode(Node):
 
     # ---- outputs ------------------------------------------------------------------------------
     def _publish(self, solution: InsSolution) -> None:
+        # One message object per topic, refilled every time (every field is set; publish()
+        # serializes before it returns): building three new messages cost more than filling.
         odom = fill_odometry(
-            Odometry(), solution, self._map_frame, self._base_frame, self._rate_variance
+            self._odom_msg, solution, self._map_frame, self._base_frame, self._rate_variance
         )
         self._odom_pub.publish(odom)
-        self._fix_pub.publish(fill_fused_fix(NavSatFix(), solution, self._base_frame))
+        self._fix_pub.publish(fill_fused_fix(self._fix_msg, solution, self._base_frame))
 
         imu = fill_orientation(
-            Imu(),
+            self._imu_msg,
             stamp_ns(solution.t_s),
             self._base_frame,
             solution.quat_enu_flu_xyzw,
             solution.cov_att_enu_rad2.ravel(),
         )
-        imu.angular_velocity = odom.twist.twist.angular  # bias-corrected, base_link
-        imu.angular_velocity_covariance = np.eye(3).ravel() * self._rate_variance
+        rate, w = imu.angular_velocity, odom.twist.twist.angular  # bias-corrected, base_link
+        rate.x, rate.y, rate.z = w.x, w.y, w.z
+        imu.angular_velocity_covariance = self._rate_covariance
         self._imu_pub.publish(imu)
         self._published += 1
 

@@ -17,10 +17,10 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
 from gnss_ins_common.message_fields import fill_navsatfix, set_header, stamp_ns
 from ins_fusion.core.engine import InsSolution
+from ins_fusion.core.rotation import mat_from_quat
 
 FloatArray = NDArray[np.float64]
 
@@ -39,7 +39,7 @@ class OdometryArrays:
 
 def odometry_arrays(solution: InsSolution, rate_variance_rad2_s2: float) -> OdometryArrays:
     """Odometry numbers of ``solution``; ``rate_variance_rad2_s2``: variance of each rate axis."""
-    mat_enu_flu = Rotation.from_quat(solution.quat_enu_flu_xyzw).as_matrix()  # FLU -> ENU
+    mat_enu_flu = mat_from_quat(*solution.quat_enu_flu_xyzw.tolist())  # FLU -> ENU
     pose_cov = np.zeros((6, 6))
     pose_cov[:3, :3] = solution.cov_pos_enu_m2
     pose_cov[3:, 3:] = solution.cov_att_enu_rad2

@@ -56,6 +56,18 @@ def quat_from_rotvec(rx: float, ry: float, rz: float) -> Quat:
     return (k * rx, k * ry, k * rz, w)
 
 
+def mat_from_quat(x: float, y: float, z: float, w: float) -> FloatArray:
+    """Rotation matrix of the unit quaternion (x, y, z, w): v_a = M v_b for quat_ab (scipy's
+    ``Rotation.from_quat(q).as_matrix()`` in a tenth of the time, for per-output use)."""
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
 def quat_normalize(q: Quat) -> Quat:
     """Unit quaternion with a non-negative scalar part."""
     x, y, z, w = q

@@ -27,6 +27,7 @@ from ins_fusion.core.rotation import (
     FloatArray,
     Vec3,
     euler_from_quat,
+    mat_from_quat,
     ned_to_enu,
     quat_enu_flu_from_nb,
     quat_from_rotvec,
@@ -55,14 +56,7 @@ class NavState:
     @property
     def mat_nb(self) -> FloatArray:
         """Body (FRD) -> NED rotation matrix."""
-        x, y, z, w = self.quat_nb.tolist()
-        return np.array(
-            [
-                [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-            ]
-        )
+        return mat_from_quat(*self.quat_nb.tolist())
 
     @property
     def euler_rad(self) -> FloatArray:
