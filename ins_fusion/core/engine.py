@@ -328,6 +328,11 @@ def _mat_from_rpy_flu(rpy_rad: Sequence[float]) -> FloatArray:
     return np.asarray(MAT_FLU_FRD @ mat @ MAT_FLU_FRD, dtype=np.float64)
 
 
+def _enu_skew(x: float, y: float, z: float) -> tuple[Vec3, Vec3, Vec3]:
+    """MAT_ENU_NED @ [v×] for a NED vector v = (x, y, z): the rows of [v×] for E, N and -D."""
+    return ((z, 0.0, -x), (0.0, -z, y), (y, -x, 0.0))
+
+
 def _quat(values: FloatArray) -> Quat:
     x, y, z, w = values.tolist()
     return (x, y, z, w)
@@ -534,21 +539,29 @@ class InsEngine:
         if s is None or kf is None or self.datum is None:
             return None
         C = s.mat_nb
-        arm_b = self._base_arm_b
-        arm_n = C @ arm_b
+        (c00, c01, c02), (c10, c11, c12), (c20, c21, c22) = C.tolist()
+        ax, ay, az = self._base_arm_b.tolist()
+        # Lever arm in NED, and its velocity ω × r (body) rotated into NED; 3-vectors in plain
+        # floats (numpy per 3-vector costs more than the arithmetic at the output rate).
+        n0 = c00 * ax + c01 * ay + c02 * az
+        n1 = c10 * ax + c11 * ay + c12 * az
+        n2 = c20 * ax + c21 * ay + c22 * az
+        wx, wy, wz = self._corrected_rate_b(s)
+        ux, uy, uz = wy * az - wz * ay, wz * ax - wx * az, wx * ay - wy * ax
+        r0 = c00 * ux + c01 * uy + c02 * uz
+        r1 = c10 * ux + c11 * uy + c12 * uz
+        r2 = c20 * ux + c21 * uy + c22 * uz
         nav = s.nav
         r_m, r_n = earth.radii_m(nav.lat_rad)
-        lat = nav.lat_rad + arm_n[0] / (r_m + nav.height_m)
-        lon = nav.lon_rad + arm_n[1] / ((r_n + nav.height_m) * math.cos(nav.lat_rad))
-        height = nav.height_m - arm_n[2]
-        rate_b = self._corrected_rate_b(s)
-        rot_n = C @ (skew(rate_b) @ arm_b)
-        enu = MAT_ENU_NED
+        lat = nav.lat_rad + n0 / (r_m + nav.height_m)
+        lon = nav.lon_rad + n1 / ((r_n + nav.height_m) * math.cos(nav.lat_rad))
+        height = nav.height_m - n2
         J = self._j_solution
-        J[0:3, ATT : ATT + 3] = enu @ skew(-arm_n)
-        J[3:6, ATT : ATT + 3] = enu @ skew(-rot_n)
-        J[3:6, BG : BG + 3] = enu @ C @ self._arm_bi
+        J[0:3, ATT : ATT + 3] = _enu_skew(-n0, -n1, -n2)
+        J[3:6, ATT : ATT + 3] = _enu_skew(-r0, -r1, -r2)
+        J[3:6, BG : BG + 3] = MAT_ENU_NED @ C @ self._arm_bi
         cov = J @ kf.P[: BG + 3, : BG + 3] @ J.T
+        vn, ve, vd = nav.vel_ned_m_s.tolist()
         lat0, lon0, h0 = self.datum
         datum_rad = (math.radians(lat0), math.radians(lon0), h0)
         if self._plane is None or self._plane.datum != datum_rad:
@@ -560,9 +573,9 @@ class InsEngine:
             lon_deg=math.degrees(lon),
             height_m=height,
             pos_enu_m=self._plane.enu(lat, lon, height),
-            vel_enu_m_s=enu @ (nav.vel_ned_m_s + rot_n),
+            vel_enu_m_s=np.array((ve + r1, vn + r0, -(vd + r2))),
             quat_enu_flu_xyzw=np.array(_quat_enu_flu(_quat(nav.quat_nb))),
-            rate_flu_rad_s=MAT_FLU_FRD @ rate_b,
+            rate_flu_rad_s=np.array((wx, -wy, -wz)),
             cov_pos_enu_m2=cov[0:3, 0:3],
             cov_vel_enu=cov[3:6, 3:6],
             cov_att_enu_rad2=cov[6:9, 6:9],
@@ -868,13 +881,16 @@ class InsEngine:
             layout=self.layout,
         )
 
-    def _corrected_rate_b(self, s: _State) -> FloatArray:
+    def _corrected_rate_b(self, s: _State) -> Vec3:
         """The latest sample's rate, corrected for the estimated gyro errors, base_link FRD."""
         (w0, w1, w2), (b0, b1, b2), (k0, k1, k2) = self._last_sample[0], s.gyro_bias, s.gyro_scale
-        corrected = np.array(
-            ((w0 - b0) / (1.0 + k0), (w1 - b1) / (1.0 + k1), (w2 - b2) / (1.0 + k2))
+        c0, c1, c2 = (w0 - b0) / (1.0 + k0), (w1 - b1) / (1.0 + k1), (w2 - b2) / (1.0 + k2)
+        r = self._r_bi
+        return (
+            r[0] * c0 + r[1] * c1 + r[2] * c2,
+            r[3] * c0 + r[4] * c1 + r[5] * c2,
+            r[6] * c0 + r[7] * c1 + r[8] * c2,
         )
-        return np.asarray(self._mat_bi @ corrected, dtype=np.float64)
 
     # --------------------------------------------------------------------- updates
 
