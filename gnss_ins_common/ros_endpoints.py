@@ -17,6 +17,7 @@ from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallba
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos_overriding_options import QoSOverridingOptions
 from rclpy.subscription import Subscription
 from rclpy.topic_endpoint_info import TopicEndpointInfo
 
@@ -55,9 +56,11 @@ class Endpoints:
         qos: QoSProfile | int,
         *,
         raw: bool = False,
+        overridable: bool = False,
     ) -> Subscription:
         """A subscription without QoS event handlers; ``raw``: the callback gets the serialized
-        message (bytes)."""
+        message (bytes); ``overridable``: its history, depth and reliability can be set by the
+        standard ROS parameters ``qos_overrides.<topic>.subscription.<policy>``."""
         subscription = self._node.create_subscription(
             msg_type,
             topic,
@@ -65,6 +68,9 @@ class Endpoints:
             qos,
             event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False),
             raw=raw,
+            qos_overriding_options=(
+                QoSOverridingOptions.with_default_policies() if overridable else None
+            ),
         )
         self._subscriptions.append((subscription, type_name(msg_type)))
         return subscription

@@ -64,7 +64,11 @@ class InsFusionNode(Node):
         sensor_qos = QoSProfile(depth=200, reliability=ReliabilityPolicy.RELIABLE)
         endpoints = Endpoints(self)
         # Serialized: the node needs three numbers of each message (see ins_fusion.cdr_fields).
-        endpoints.subscription(Imu, "imu/data_raw", self._on_imu, sensor_qos, raw=True)
+        # Reliable by default (every sample counts); qos_overrides./imu/data_raw.subscription.
+        # reliability: best_effort trades that for about a point of CPU (docs/benchmarks.md).
+        endpoints.subscription(
+            Imu, "imu/data_raw", self._on_imu, sensor_qos, raw=True, overridable=True
+        )
         endpoints.subscription(NavSatFix, "gnss/fix", self._on_fix, 20)
         endpoints.subscription(TwistWithCovarianceStamped, "gnss/vel", self._on_velocity, 20)
         endpoints.subscription(Imu, "gnss/attitude", self._on_attitude, 20)

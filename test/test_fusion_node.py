@@ -195,3 +195,27 @@ def test_incompatible_publishers_are_reported_on_diagnostics():
     status = collector.get("/diagnostics")[-1].status[0]
     assert status.level == DiagnosticStatus.WARN
     assert "no messages flow" in status.message
+
+
+def test_the_imu_subscription_reliability_is_a_standard_qos_override():
+    """qos_overrides./imu/data_raw.subscription.reliability (the ROS mechanism) reaches the
+    subscription, and a best-effort IMU publisher is then no incompatible peer."""
+    node = InsFusionNode(
+        parameter_overrides=overrides(
+            **{"qos_overrides./imu/data_raw.subscription.reliability": "best_effort"},
+            diagnostics_period=0.2,
+        )
+    )
+    imu_subscriptions = [s for s in node.subscriptions if s.topic_name == "/imu/data_raw"]
+    assert [s.qos_profile.reliability for s in imu_subscriptions] == [ReliabilityPolicy.BEST_EFFORT]
+    collector = Collector({"/diagnostics": DiagnosticArray})
+    best_effort = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
+    collector.node.create_publisher(Imu, "imu/data_raw", best_effort)
+    try:
+        with spinning(node, collector.node):
+            assert wait_for(lambda: collector.count("/diagnostics") >= 3, 10.0)
+    finally:
+        node.destroy_node()
+        collector.node.destroy_node()
+    values = diagnostic_values(collector.get("/diagnostics")[-1])
+    assert values["incompatible_peers"] == "0"
