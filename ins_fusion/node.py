@@ -61,11 +61,12 @@ class InsFusionNode(Node):
         self._odom_msg, self._fix_msg, self._imu_msg = Odometry(), NavSatFix(), Imu()
         self._bad_imu_messages = 0
 
-        sensor_qos = QoSProfile(depth=200, reliability=ReliabilityPolicy.RELIABLE)
+        sensor_qos = QoSProfile(depth=200, reliability=ReliabilityPolicy.BEST_EFFORT)
         endpoints = Endpoints(self)
         # Serialized: the node needs three numbers of each message (see ins_fusion.cdr_fields).
-        # Reliable by default (every sample counts); qos_overrides./imu/data_raw.subscription.
-        # reliability: best_effort trades that for about a point of CPU (docs/benchmarks.md).
+        # Best effort, REP-2003's QoS for a sensor-data consumer (about a point of CPU less than
+        # reliable, docs/benchmarks.md); qos_overrides./imu/data_raw.subscription.reliability:
+        # reliable restores retransmission. A lost sample is bridged and counted (imu_gaps).
         endpoints.subscription(
             Imu, "imu/data_raw", self._on_imu, sensor_qos, raw=True, overridable=True
         )

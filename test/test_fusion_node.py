@@ -12,6 +12,7 @@ import pymap3d
 import pytest
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from geometry_msgs.msg import TwistWithCovarianceStamped
 from nav_msgs.msg import Odometry
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from ros_harness import (
@@ -168,13 +169,13 @@ def _reported(collector: Collector, in_range: str) -> bool:
 
 
 def test_incompatible_publishers_are_reported_on_diagnostics():
-    """A best-effort IMU publisher (the node asks for reliable) and a publisher of the wrong type:
-    both logged once and reported in the node's status, which rclpy's event handlers no longer
-    do (gnss_ins_common.ros_endpoints)."""
+    """A best-effort GNSS velocity publisher (the node asks for reliable) and a publisher of the
+    wrong type: both logged once and reported in the node's status, which rclpy's event
+    handlers no longer do (gnss_ins_common.ros_endpoints)."""
     node = InsFusionNode(parameter_overrides=overrides(diagnostics_period=0.2))
     collector = Collector({"/diagnostics": DiagnosticArray})
     best_effort = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
-    collector.node.create_publisher(Imu, "imu/data_raw", best_effort)
+    collector.node.create_publisher(TwistWithCovarianceStamped, "gnss/vel", best_effort)
     other = rclpy.Context()  # a second participant: one may not hold two types of a topic
     rclpy.init(context=other)
     peer = rclpy.create_node("wrong_type_peer", context=other)
@@ -198,24 +199,35 @@ def test_incompatible_publishers_are_reported_on_diagnostics():
 
 
 def test_the_imu_subscription_reliability_is_a_standard_qos_override():
-    """qos_overrides./imu/data_raw.subscription.reliability (the ROS mechanism) reaches the
-    subscription, and a best-effort IMU publisher is then no incompatible peer."""
+    """Best effort by default (REP-2003); qos_overrides./imu/data_raw.subscription.reliability
+    (the ROS mechanism) reaches the subscription, and a best-effort IMU publisher is then an
+    incompatible peer."""
+
+    def imu_reliability(node: InsFusionNode) -> list:
+        return [s.qos_profile.reliability for s in node.subscriptions if "imu/data" in s.topic_name]
+
+    default = InsFusionNode()
+    assert imu_reliability(default) == [ReliabilityPolicy.BEST_EFFORT]
+    default.destroy_node()
     node = InsFusionNode(
         parameter_overrides=overrides(
-            **{"qos_overrides./imu/data_raw.subscription.reliability": "best_effort"},
+            **{"qos_overrides./imu/data_raw.subscription.reliability": "reliable"},
             diagnostics_period=0.2,
         )
     )
-    imu_subscriptions = [s for s in node.subscriptions if s.topic_name == "/imu/data_raw"]
-    assert [s.qos_profile.reliability for s in imu_subscriptions] == [ReliabilityPolicy.BEST_EFFORT]
+    assert imu_reliability(node) == [ReliabilityPolicy.RELIABLE]
     collector = Collector({"/diagnostics": DiagnosticArray})
     best_effort = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
     collector.node.create_publisher(Imu, "imu/data_raw", best_effort)
     try:
         with spinning(node, collector.node):
-            assert wait_for(lambda: collector.count("/diagnostics") >= 3, 10.0)
+            assert wait_for(
+                lambda: any(
+                    diagnostic_values(a).get("incompatible_peers") == "1"
+                    for a in collector.get("/diagnostics")
+                ),
+                10.0,
+            )
     finally:
         node.destroy_node()
         collector.node.destroy_node()
-    values = diagnostic_values(collector.get("/diagnostics")[-1])
-    assert values["incompatible_peers"] == "0"
