@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gc
 import subprocess
 import sys
 import threading
@@ -58,8 +59,14 @@ def spinning(*nodes: Node) -> Iterator[SingleThreadedExecutor]:
     """Spin the nodes on a background executor for the duration of the block.
 
     Single-threaded on purpose: rclpy's MultiThreadedExecutor busy-waits while a callback group
-    is busy, holding the GIL and starving the drivers' serial reader threads.
+    is busy, holding the GIL and starving the drivers' serial reader threads. For the same
+    reason the objects of earlier tests are frozen out of the garbage collector: a full
+    collection over the pytest process's heap can hold the GIL for tens of milliseconds, and a
+    serial reader that wakes over ~45 ms late takes its packets for a whole timer wrap later
+    (docs/timing.md, "What it cannot see").
     """
+    gc.collect()
+    gc.freeze()
     executor = SingleThreadedExecutor()
     for node in nodes:
         executor.add_node(node)
