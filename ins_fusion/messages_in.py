@@ -1,6 +1,7 @@
 """Incoming ROS messages -> fusion engine inputs, for rclpy and rosbags message objects alike.
 
-One definition of how ins_fusion_node and ``gnss_ins replay`` read their topics: the functions
+One definition of how ins_fusion_node and ``gnss_ins replay`` read their topics (the IMU, at
+134 Hz, straight from its bytes with the same fields: ins_fusion.cdr_fields): the functions
 only read fields by attribute (rclpy messages and rosbags-deserialized ones have the same field
 names) and return the engine's plain types. No ROS import.
 
@@ -10,7 +11,7 @@ element is -1 marks a quantity the message does not carry.
 
 | topic | type | function | InsEngine input |
 |---|---|---|---|
-| imu/data_raw | Imu | ``imu_sample`` | ``add_imu(*sample)`` |
+| imu/data_raw | Imu | ``imu_sample`` (or ``cdr_fields.imu_sample``) | ``add_imu(*sample)`` |
 | gnss/fix | NavSatFix | ``fix_measurement`` | ``add_gnss_fix`` |
 | gnss/vel | TwistWithCovarianceStamped (ENU) | ``velocity_measurement`` | ``add_gnss_velocity`` |
 | gnss/attitude | Imu (orientation only) | ``attitude_measurement`` | ``add_attitude`` |
