@@ -91,6 +91,7 @@ from ins_fusion.core.rotation import (
     FloatArray,
     Quat,
     Vec3,
+    mat_from_quat,
     quat_from_euler,
     quat_from_rotvec,
     quat_multiply,
@@ -324,7 +325,7 @@ def _frd(v_flu: Sequence[float]) -> FloatArray:
 def _mat_from_rpy_flu(rpy_rad: Sequence[float]) -> FloatArray:
     """FRD -> FRD rotation of a sensor whose FLU frame has REP-103 roll, pitch, yaw in base_link."""
     q = quat_from_euler(rpy_rad[0], rpy_rad[1], rpy_rad[2])
-    mat = NavState(0.0, 0.0, 0.0, np.zeros(3), q).mat_nb
+    mat = mat_from_quat(*q.tolist())
     return np.asarray(MAT_FLU_FRD @ mat @ MAT_FLU_FRD, dtype=np.float64)
 
 
@@ -1027,7 +1028,7 @@ class InsEngine:
         """Base_link FRD -> NED rotation from an attitude measurement and its mounting."""
         q_enu_base = quat_multiply(_quat(att.quat_enu_flu_xyzw), self._q_a_base)
         quat_nb = _quat_enu_flu(q_enu_base)  # the map is its own inverse
-        return NavState(0.0, 0.0, 0.0, np.zeros(3), np.array(quat_nb)).mat_nb
+        return mat_from_quat(*quat_nb)
 
     def _zupt(self, pred: Prediction, _: None, live: bool) -> None:
         self._update("zupt", zupt(pred, self.config.zupt_sigma_m_s), live)
@@ -1147,7 +1148,7 @@ class InsEngine:
             yaw = float(euler_rad(self._measured_mat_nb(att))[2])
             yaw_variance = float(att.cov_rpy_rad2[2, 2])
         quat_nb = quat_from_euler(roll, pitch, yaw)
-        mat_nb = NavState(0.0, 0.0, 0.0, np.zeros(3), quat_nb).mat_nb
+        mat_nb = mat_from_quat(*quat_nb.tolist())
         lat = math.radians(fix.lat_deg)
         gyro_seed = lev.mean_rate_i - self._mat_bi.T @ earth_rate_body_rad_s(
             mat_nb, lat, heading_known
