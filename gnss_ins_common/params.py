@@ -7,6 +7,7 @@ replay tool reading the same YAML file as the fusion node) validate them with ``
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -35,6 +36,9 @@ class Param:
     check: Callable[[Any], str | None] | None = None
     #: Element type of a list parameter whose default is empty (it cannot be inferred).
     empty_list_of: Literal["str", "float"] = "str"
+    #: A list parameter that also accepts one number, meaning that value for every element
+    #: (e.g. a per-axis noise density given once for the three axes).
+    broadcast: bool = False
 
     def problem(self, value: Any) -> str | None:
         """Why ``value`` is not acceptable, or None (type, choices, range, extra check)."""
@@ -52,14 +56,20 @@ class Param:
         for item in value if isinstance(value, list) else [value]:
             if isinstance(item, str | bool):
                 continue
-            if (self.low is not None and item < self.low) or (
-                self.high is not None and item > self.high
+            if not math.isfinite(item):
+                return f"{item} is not a finite number"
+            if (self.low is not None and not item >= self.low) or (
+                self.high is not None and not item <= self.high
             ):
                 return f"{item} is outside [{self.low}, {self.high}]"
         return self.check(value) if self.check is not None else None
 
 
 _EMPTY_ELEMENT: dict[str, ParamValue] = {"str": "", "float": 0.0}
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
 
 
 def _same_type(default: Any, value: Any) -> bool:
@@ -75,6 +85,8 @@ def validate(spec: Param, value: Any) -> Any:
     """``value`` (ints widened to float where the default is a float), or ParameterValueError."""
     if isinstance(value, tuple):
         value = list(value)
+    if spec.broadcast and isinstance(spec.default, list) and _is_number(value):
+        value = [value] * len(spec.default)
     problem = spec.problem(value)
     if problem:
         raise ParameterValueError(f"parameter '{spec.name}': {problem} ({spec.description})")

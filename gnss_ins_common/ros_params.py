@@ -33,7 +33,11 @@ def descriptor(spec: Param) -> ParameterDescriptor:
     if spec.low is not None or spec.high is not None:
         constraints.append(f"range [{spec.low}, {spec.high}]")
     result = ParameterDescriptor(
-        description=spec.description, additional_constraints="; ".join(constraints), read_only=True
+        description=spec.description,
+        additional_constraints="; ".join(constraints),
+        read_only=True,
+        # A broadcast list also takes one number (validate() expands it).
+        dynamic_typing=spec.broadcast,
     )
     if spec.low is not None and spec.high is not None:
         if isinstance(spec.default, float):

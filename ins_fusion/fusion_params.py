@@ -53,8 +53,13 @@ def _datum(values: list[float]) -> str | None:
     return None if abs(lat) <= 90.0 and abs(lon) <= 180.0 else "latitude/longitude out of range"
 
 
-def _vector(name: str, default: list[float], description: str, low: float, high: float) -> Param:
-    return Param(name, default, description, low, high, check=_three)
+def _vector(
+    name: str, default: list[float], description: str, low: float, high: float, axes: bool = False
+) -> Param:
+    """A three-value parameter; ``axes``: per sensor axis, one number meaning all three."""
+    if axes:
+        description += " (one number = the same on every axis)"
+    return Param(name, default, description, low, high, check=_three, broadcast=axes)
 
 
 PARAMETERS: tuple[Param, ...] = (
@@ -65,6 +70,7 @@ PARAMETERS: tuple[Param, ...] = (
         "gyro angle random walk per axis [deg/sqrt(h)]",
         0.0,
         100.0,
+        axes=True,
     ),
     _vector(
         "imu_noise.accel_vrw",
@@ -72,6 +78,7 @@ PARAMETERS: tuple[Param, ...] = (
         "accelerometer velocity random walk per axis [m/s/sqrt(h)]",
         0.0,
         10.0,
+        axes=True,
     ),
     _vector(
         "imu_noise.gyro_bias_instability",
@@ -79,6 +86,7 @@ PARAMETERS: tuple[Param, ...] = (
         "gyro bias instability: stationary sigma of the Gauss-Markov bias per axis [deg/h]",
         0.0,
         3600.0,
+        axes=True,
     ),
     _vector(
         "imu_noise.accel_bias_instability",
@@ -86,6 +94,7 @@ PARAMETERS: tuple[Param, ...] = (
         "accelerometer bias instability: stationary sigma of the Gauss-Markov bias [mg]",
         0.0,
         100.0,
+        axes=True,
     ),
     Param(
         "imu_noise.bias_correlation_time",
@@ -192,6 +201,7 @@ PARAMETERS: tuple[Param, ...] = (
         "rest is a time-correlated error (Gauss-Markov states)",
         0.0,
         100.0,
+        axes=True,
     ),
     Param(
         "gnss_noise.white_fraction",

@@ -93,7 +93,11 @@ def test_from_parameters_converts_user_units_and_rejects_bad_values():
     assert cfg.datum_deg == (57.0, 10.0, 40.0)
     assert cfg.stop_detector.window_s == 2.0
     assert FusionConfig.default().datum_deg is None
+    scalar = FusionConfig.from_parameters({"imu_noise.gyro_arw": 60.0})  # one value: every axis
+    assert scalar.imu_noise.gyro_arw == pytest.approx((DEG, DEG, DEG))
     for bad in (
+        {"imu_noise.gyro_arw": [1.0, float("nan"), 1.0]},
+        {"imu_lever_arm": [0.0, float("inf"), 0.0]},
         {"imu_noise.gyro_arw": [1.0, 2.0]},
         {"datum": [91.0, 0.0, 0.0]},
         {"datum": [1.0, 2.0]},

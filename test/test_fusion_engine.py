@@ -302,3 +302,13 @@ def test_a_sensor_rejected_again_and_again_is_let_in_by_widening_the_covariance(
     else:
         assert 1 <= counters["recoveries"] <= 3 and counters["gated"] < 20
         assert yaw_error == pytest.approx(4.0, abs=0.5)  # it follows the receiver
+
+
+def test_all_white_gnss_noise_runs_without_gnss_error_states(eight_adu5):
+    """gnss_noise.correlation_time 0 means 'all white': no GNSS error states, no crash."""
+    engine = _engine(**{"gnss_noise.correlation_time": 0.0})
+    assert engine.layout.gp is None
+    feed(engine, eight_adu5)
+    sol = engine.solution()
+    assert sol is not None and sol.state == "navigating"
+    assert engine.status().measurements["gnss_position"]["used"] > 0

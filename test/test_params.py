@@ -16,6 +16,7 @@ SPECS = (
     ),
     Param("names", [], "names"),
     Param("imu_noise.gyro_arw", 0.5, "deg/sqrt(h)", 0.0, 100.0),
+    Param("axes", [1.0, 2.0, 3.0], "per axis", 0.0, 10.0, broadcast=True),
 )
 
 
@@ -32,6 +33,13 @@ SPECS = (
         ("gains", [1.0, 2.0], "3"),
         ("gains", 1.0, "expected a list"),
         ("names", [1.0], "expected a list of str"),
+        ("rate", float("nan"), "not a finite number"),
+        ("rate", float("inf"), "not a finite number"),
+        ("gains", [1.0, float("nan"), 3.0], "not a finite number"),
+        ("axes", [1.0, float("-inf"), 3.0], "not a finite number"),
+        ("axes", float("nan"), "not a finite number"),
+        ("axes", 20.0, "outside"),
+        ("axes", "1.0", "expected a list"),
     ],
 )
 def test_bad_values_name_the_parameter(name, value, message):
@@ -44,6 +52,13 @@ def test_ints_are_widened_where_floats_are_expected():
     assert validate(SPECS[0], 7) == 7.0 and isinstance(validate(SPECS[0], 7), float)
     assert validate(SPECS[4], [1, 2, 3]) == [1.0, 2.0, 3.0]
     assert validate(SPECS[5], []) == []
+
+
+def test_a_broadcast_list_takes_one_number_for_every_element():
+    spec = next(s for s in SPECS if s.name == "axes")
+    assert validate(spec, 0.3) == [0.3, 0.3, 0.3]
+    assert validate(spec, 2) == [2.0, 2.0, 2.0]
+    assert validate(spec, [1, 2, 3]) == [1.0, 2.0, 3.0]
 
 
 def test_validate_all_fills_defaults_and_rejects_unknown_names():

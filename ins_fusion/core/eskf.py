@@ -142,7 +142,8 @@ class ErrorStateFilter:
         self._markov_idx = np.concatenate([np.arange(m[0], m[0] + 3) for m in markov])
         self._markov_q = np.array([2.0 * s * s / m[1] for m in markov for s in m[2]])
         self._F[self._markov_idx, self._markov_idx] = np.repeat([-1.0 / m[1] for m in markov], 3)
-        self._gnss_rate = 2.0 / gnss_correlation_time_s
+        # No GNSS error states (correlation time 0 = all white): no rate either.
+        self._gnss_rate = 2.0 / gnss_correlation_time_s if layout.gp is not None else 0.0
         self._accel_psd = np.square(noise.accel_vrw)
         self._gyro_psd = np.square(noise.gyro_arw)
         self._gnss_variance: tuple[float, float, float] = (0.0, 0.0, 0.0)
