@@ -102,7 +102,8 @@ def _load(args: argparse.Namespace) -> ReplayInputs:
                 f" ends ({inputs.duration_s:.1f} s after the first IMU stamp)"
             )
     if inputs.reference is None and args.reference is None:
-        print(f"note: no {prefix}/fix in the bag; accuracy not evaluated", file=sys.stderr)
+        scored = "; outages scored against the withheld GNSS fixes" if args.outage else ""
+        print(f"note: no {prefix}/fix in the bag; accuracy not evaluated{scored}", file=sys.stderr)
     return inputs
 
 

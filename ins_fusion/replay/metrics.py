@@ -67,7 +67,7 @@ class Evaluation:
 
 
 @dataclass(frozen=True)
-class _Sampled:
+class Sampled:
     """The track interpolated at some stamps; ``valid`` marks the stamps that could be."""
 
     valid: BoolArray
@@ -75,12 +75,12 @@ class _Sampled:
     weight: FloatArray
 
 
-def _sample(track: SolutionTrack, t_s: FloatArray, max_gap_s: float) -> _Sampled:
+def sample(track: SolutionTrack, t_s: FloatArray, max_gap_s: float) -> Sampled:
     """Bracketing solutions (index of the lower one, weight of the upper one) of each stamp."""
     n = len(track.t_s)
     if n < 2:
         zeros = np.zeros(len(t_s))
-        return _Sampled(zeros.astype(np.bool_), zeros.astype(np.intp), zeros)
+        return Sampled(zeros.astype(np.bool_), zeros.astype(np.intp), zeros)
     lower = np.clip(np.searchsorted(track.t_s, t_s, side="right") - 1, 0, n - 2)
     t_lo, t_hi = track.t_s[lower], track.t_s[lower + 1]
     valid = (
@@ -91,17 +91,20 @@ def _sample(track: SolutionTrack, t_s: FloatArray, max_gap_s: float) -> _Sampled
         & track.aligned[lower + 1]
     )
     weight = np.clip((t_s - t_lo) / np.maximum(t_hi - t_lo, 1e-9), 0.0, 1.0)
-    return _Sampled(valid, lower, weight)
+    return Sampled(valid, lower, weight)
 
 
-def _lerp(values: FloatArray, s: _Sampled) -> FloatArray:
+def lerp(values: FloatArray, s: Sampled) -> FloatArray:
+    """Per-solution values (n, ...) linearly interpolated at the valid sampled stamps."""
     lo, w = s.lower[s.valid], s.weight[s.valid]
     w = w.reshape((-1,) + (1,) * (values.ndim - 1))
     result: FloatArray = (1.0 - w) * values[lo] + w * values[lo + 1]
     return result
 
 
-def _slerp(quats: FloatArray, s: _Sampled) -> Rotation:
+def slerp(quats: FloatArray, s: Sampled) -> Rotation:
+    """Per-solution orientations (n, 4) (x, y, z, w) spherically interpolated at the valid
+    sampled stamps."""
     lo, w = s.lower[s.valid], s.weight[s.valid]
     r0, r1 = Rotation.from_quat(quats[lo]), Rotation.from_quat(quats[lo + 1])
     return r0 * Rotation.from_rotvec((r0.inv() * r1).as_rotvec() * w[:, None])
@@ -132,6 +135,22 @@ def rpy_covariance(cov_att_enu_rad2: FloatArray, yaw_deg: FloatArray) -> FloatAr
     return cov
 
 
+def map_enu(geodetic: FloatArray, datum: tuple[float, float, float]) -> FloatArray:
+    """WGS-84 points (m, 3) (lat_deg, lon_deg, height_m) in the map frame: ENU [m] (m, 3) in the
+    tangent plane at ``datum`` (lat_deg, lon_deg, height_m), as the engine's pos_enu_m."""
+    lat0, lon0, h0 = datum
+    points = np.asarray(geodetic, dtype=np.float64).reshape(-1, 3)
+    enu: FloatArray = earth.geodetic_to_enu(
+        np.radians(points[:, 0]),
+        np.radians(points[:, 1]),
+        points[:, 2],
+        float(np.radians(lat0)),
+        float(np.radians(lon0)),
+        h0,
+    ).reshape(-1, 3)
+    return enu
+
+
 def _position(
     track: SolutionTrack,
     ref: Series,
@@ -140,22 +159,13 @@ def _position(
     outages: Sequence[Outage],
     max_gap_s: float,
 ) -> tuple[Errors, FloatArray]:
-    s = _sample(track, ref.t_s, max_gap_s)
-    lat0, lon0, h0 = datum
-    truth = ref.values[s.valid]
-    truth_enu = earth.geodetic_to_enu(
-        np.radians(truth[:, 0]),
-        np.radians(truth[:, 1]),
-        truth[:, 2],
-        float(np.radians(lat0)),
-        float(np.radians(lon0)),
-        h0,
-    ).reshape(-1, 3)
+    s = sample(track, ref.t_s, max_gap_s)
+    truth_enu = map_enu(ref.values[s.valid], datum)
     t_rel = ref.t_s[s.valid] - t0_s
     errors = Errors(
         t_rel,
-        _lerp(track.pos_enu_m, s) - truth_enu,
-        _lerp(track.cov_pos_enu_m2, s),
+        lerp(track.pos_enu_m, s) - truth_enu,
+        lerp(track.cov_pos_enu_m2, s),
         mask(t_rel, outages),
     )
     return errors, truth_enu
@@ -164,14 +174,14 @@ def _position(
 def _attitude(
     track: SolutionTrack, ref: Series, t0_s: float, outages: Sequence[Outage], max_gap_s: float
 ) -> Errors:
-    s = _sample(track, ref.t_s, max_gap_s)
+    s = sample(track, ref.t_s, max_gap_s)
     truth_rpy = rpy_deg(Rotation.from_quat(ref.values[s.valid]))
-    estimate_rpy = rpy_deg(_slerp(track.quat_enu_flu_xyzw, s)) if s.valid.any() else truth_rpy
+    estimate_rpy = rpy_deg(slerp(track.quat_enu_flu_xyzw, s)) if s.valid.any() else truth_rpy
     t_rel = ref.t_s[s.valid] - t0_s
     return Errors(
         t_rel,
         wrap_deg(estimate_rpy - truth_rpy),
-        rpy_covariance(_lerp(track.cov_att_enu_rad2, s), truth_rpy[:, 2]),
+        rpy_covariance(lerp(track.cov_att_enu_rad2, s), truth_rpy[:, 2]),
         mask(t_rel, outages),
     )
 
@@ -179,12 +189,12 @@ def _attitude(
 def _velocity(
     track: SolutionTrack, ref: Series, t0_s: float, outages: Sequence[Outage], max_gap_s: float
 ) -> Errors:
-    s = _sample(track, ref.t_s, max_gap_s)
+    s = sample(track, ref.t_s, max_gap_s)
     t_rel = ref.t_s[s.valid] - t0_s
     return Errors(
         t_rel,
-        _lerp(track.vel_enu_m_s, s) - ref.values[s.valid],
-        _lerp(track.cov_vel_enu, s),
+        lerp(track.vel_enu_m_s, s) - ref.values[s.valid],
+        lerp(track.cov_vel_enu, s),
         mask(t_rel, outages),
     )
 

@@ -2,7 +2,8 @@
 
 Every score is "lower is better": errors as they are, the position NEES as its distance from
 consistency |ln(mean / dof)|, the 3σ fraction as the fraction outside. None when the report
-cannot give it (no reference, no outage).
+cannot give it (no reference, no outage). ``withheld_*`` scores need no reference: they compare
+the fused antenna with the GNSS fixes the outages withheld (ins_fusion.replay.withheld).
 """
 
 from __future__ import annotations
@@ -32,6 +33,15 @@ def _worst_outage(key: str) -> Callable[[Report], float | None]:
     return metric
 
 
+def _worst_withheld(key: str) -> Callable[[Report], float | None]:
+    def metric(report: Report) -> float | None:
+        rows = report.get("withheld_fixes") or []
+        values = [o[key] for o in rows if o[key] is not None]
+        return max(values) if values else None
+
+    return metric
+
+
 def _nees_distance(report: Report) -> float | None:
     mean = report["nees"]["position_mean"]
     return None if mean is None or mean <= 0.0 else abs(math.log(mean / report["nees"]["dof"]))
@@ -56,6 +66,14 @@ RANK_METRICS: dict[str, tuple[Callable[[Report], float | None], str]] = {
         "worst horizontal error at an outage's end [m]",
     ),
     "outage_max": (_worst_outage("horizontal_error_max_m"), "worst horizontal error in an outage"),
+    "withheld_end_max": (
+        _worst_withheld("horizontal_error_end_m"),
+        "worst horizontal antenna - withheld fix at an outage's last fix [m]",
+    ),
+    "withheld_max": (
+        _worst_withheld("horizontal_error_max_m"),
+        "worst horizontal antenna - withheld fix in an outage [m]",
+    ),
     "nees": (_nees_distance, "|ln(position NEES mean / 3)|"),
     "outside_3sigma": (_outside_3sigma, "fraction of stamps outside the 3σ bounds"),
 }

@@ -5,7 +5,8 @@ ins_fusion.replay.metrics). Keys (docs/replay.md describes each): bag, topics, p
 differing from the defaults), imu_samples, duration_s, read_time_s, fusion_time_s, wall_time_s,
 realtime_factor, aligned_at_s, final_state, resets, last_reset_reason, datum, reference,
 dropped_messages, measurements, evaluated_samples, position_error_m, velocity_error_m_s,
-attitude_error_deg, outages, nees.
+attitude_error_deg, outages, nees, withheld_fixes (per outage: the fused antenna against the
+GNSS fixes the outage withheld, ins_fusion.replay.withheld; with or without a reference).
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from ins_fusion.replay.inputs import ReplayInputs
 from ins_fusion.replay.metrics import Evaluation
 from ins_fusion.replay.outages import Outage
 from ins_fusion.replay.run import FusionRun
+from ins_fusion.replay.withheld import WithheldEvaluation, withheld_stats
 
 Report = dict[str, Any]
 
@@ -33,9 +35,11 @@ def build_report(
     outages: Sequence[Outage],
     parameters: Mapping[str, Any],
     reference: str | None,
+    withheld: WithheldEvaluation | None = None,
 ) -> Report:
     """The report of one run (``parameters``: the settings that differ from the defaults;
-    ``reference``: the reference prefix evaluated against, None for no evaluation)."""
+    ``reference``: the reference prefix evaluated against, None for no evaluation;
+    ``withheld``: the comparison with the withheld fixes, None when there was none)."""
     wall = inputs.read_time_s + run.fusion_time_s
     track = run.track
     aligned = np.flatnonzero(track.aligned)
@@ -59,6 +63,8 @@ def build_report(
         "measurements": {name: dict(c) for name, c in run.status.measurements.items()},
     }
     report.update(_accuracy(evaluation, outages))
+    scored = withheld if withheld is not None else WithheldEvaluation.empty()
+    report["withheld_fixes"] = [withheld_stats(scored, o) for o in outages]
     return report
 
 
@@ -157,6 +163,27 @@ def _accuracy_lines(report: Report) -> list[str]:
     return lines
 
 
+def _withheld_lines(report: Report) -> list[str]:
+    """Per outage: the fused antenna against the withheld GNSS fixes (NEES with P + R_fix)."""
+    rows = report.get("withheld_fixes") or []
+    if not rows:
+        return []
+    lines = [
+        "withheld fixes (fused antenna - fix; the fixes carry their own error)",
+        "outage  start s  length s    fixes  end horiz m  end 1σ m  max horiz m  max vert m"
+        "  NEES (3)   in 3σ",
+    ]
+    lines.extend(
+        f"{i:>6}  {o['start_s']:>7.1f}  {o['duration_s']:>8.1f}"
+        f"  {str(o['evaluated_fixes']) + '/' + str(o['withheld_fixes']):>7}"
+        f"  {_num(o['horizontal_error_end_m']):>11}  {_num(o['horizontal_sigma_end_m']):>8}"
+        f"  {_num(o['horizontal_error_max_m']):>11}  {_num(o['vertical_error_max_m']):>10}"
+        f"  {_num(o['nees']['mean'], 2):>8}  {_percent(o['nees']['within_3sigma_fraction']):>7}"
+        for i, o in enumerate(rows, 1)
+    )
+    return lines
+
+
 def format_table(report: Report) -> str:
     """A short human-readable summary of a report."""
     lines = [
@@ -166,10 +193,13 @@ def format_table(report: Report) -> str:
         f"{_num(report['aligned_at_s'], 1)} s, final state {report['final_state']}, "
         f"{report['resets']} resets",
     ]
+    withheld = _withheld_lines(report)
     if report["reference"] is None:
-        lines.append("no reference: accuracy not evaluated")
+        note = " (withheld fixes below)" if withheld else ""
+        lines.append(f"no reference: accuracy not evaluated{note}")
     else:
         lines += _accuracy_lines(report)
+    lines += withheld
     counters = report["measurements"]
     width = max(len("measurement"), *(len(n) for n in counters)) if counters else 11
     lines.append(f"{'measurement':<{width}}  {'used':>7}  {'rejected':>8}")

@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.engine import EngineStatus, InsEngine, InsSolution
+from ins_fusion.core.measurements import GnssFixMeasurement
 from ins_fusion.replay.inputs import Measurement, ReplayInputs
 from ins_fusion.replay.outages import Outage, in_any
 
@@ -68,7 +69,9 @@ class SolutionTrack:
 class FusionRun:
     """Result of one engine run: the recorded track, the engine's final status and datum
     (lat_deg, lon_deg, height_m of the map frame; None without any fix), the GNSS messages
-    dropped by outages per topic role, the output rate [Hz] and the wall time of the run [s]."""
+    dropped by outages per topic role, the output rate [Hz], the wall time of the run [s], the
+    engine's configuration and the fixes the outages withheld (``fix`` role, valid or not, in
+    receive order)."""
 
     track: SolutionTrack
     status: EngineStatus
@@ -76,6 +79,8 @@ class FusionRun:
     dropped: dict[str, int]
     output_rate_hz: float
     fusion_time_s: float
+    config: FusionConfig
+    withheld_fixes: tuple[GnssFixMeasurement, ...] = ()
 
 
 def run_fusion(
@@ -93,9 +98,12 @@ def run_fusion(
     t0 = inputs.t0_s
     kept: list[tuple[int, str, Measurement]] = []
     dropped = {"fix": 0, "vel": 0, "attitude": 0}
+    withheld: list[GnssFixMeasurement] = []
     for item in inputs.measurements:
         if in_any(item[2].t_s - t0, outages):
             dropped[item[1]] += 1
+            if isinstance(item[2], GnssFixMeasurement):
+                withheld.append(item[2])
         else:
             kept.append(item)
     feed: dict[str, Callable[[Any], None]] = {
@@ -130,4 +138,6 @@ def run_fusion(
         dropped,
         config.output_rate_hz,
         time.perf_counter() - start,
+        config,
+        tuple(withheld),
     )

@@ -91,6 +91,7 @@ _HEADLINES = (
     ("horiz rms m", "horizontal_rms"),
     ("yaw rms deg", "yaw_rms"),
     ("outage end m", "outage_end_max"),
+    ("withheld end m", "withheld_end_max"),
 )
 
 

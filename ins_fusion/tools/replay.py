@@ -6,10 +6,11 @@ parameters of ins_fusion_node (``--params`` YAML, ``--set`` overrides, validated
 specs). ``--outage START:DURATION`` drops the GNSS messages stamped in the window (START in
 seconds after the first IMU stamp). With reference topics (``PREFIX/fix``, ``PREFIX/attitude``,
 ``PREFIX/vel``, default prefix /ground_truth) the fused base_link solution is evaluated at the
-reference stamps. Prints a short table; ``--report`` writes the JSON report, ``--plot`` the
-figure, ``--output`` the fused /ins/odometry and /ins/fix as a bag. ``--sweep NAME=V1,V2,...``
-(repeatable: the grid of all combinations) replays every setting and ranks them by
-``--rank-by``. docs/replay.md describes the report. Exit status 2 on bad input.
+reference stamps; with or without them, each outage is scored against the GNSS fixes it withheld
+(the fused antenna at each fix stamp). Prints a short table; ``--report`` writes the JSON
+report, ``--plot`` the figure, ``--output`` the fused /ins/odometry and /ins/fix as a bag.
+``--sweep NAME=V1,V2,...`` (repeatable: the grid of all combinations) replays every setting and
+ranks them by ``--rank-by``. docs/replay.md describes the report. Exit status 2 on bad input.
 """
 
 from __future__ import annotations
@@ -46,7 +47,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=[],
         metavar="START:DURATION",
         help="drop GNSS fix/velocity/attitude stamped in this window [s after the first IMU "
-        "stamp] (repeatable)",
+        "stamp] and score the fused antenna against the withheld fixes (repeatable)",
     )
     parser.add_argument(
         "--reference",

@@ -1,0 +1,82 @@
+"""The fused base_link solution moved to another frame rigidly attached to base_link.
+
+Used for the GNSS antenna (withheld fixes, ins_fusion.replay.withheld) and for references of
+the IMU (``header.frame_id`` = the IMU's frame, e.g. comma2k19's imu_link pose). A frame s is
+given by its origin r (lever arm, base_link FLU [m]) and its orientation q_base_s (REP-103 roll,
+pitch, yaw of s in base_link, the engine's ``imu_mounting_rpy_deg`` convention: z-y'-x''
+intrinsic, core.rotation.quat_from_euler). Per recorded solution, with R = R(q_enu_base):
+
+- position  p_s = p_base + R r                                    (map ENU [m])
+- orientation q_enu_s = q_enu_base ⊗ q_base_s                        (s FLU in ENU)
+- velocity  v_s = v_base + R (ω × r), ω the solution's bias-corrected ω_ib in base_link FLU
+  (ω_ib rather than ω_eb: the Earth-rate term, ≤ 7.3e-5 rad/s × |r|, is neglected)
+- position covariance P_pos + [a×] P_att [a×]^T with a = R r, P_att the attitude covariance
+  about the ENU axes (a small rotation error ψ moves the point by ψ × a). The position-attitude
+  cross-covariance is not in the solution and is left out, as are the covariances of ω and of
+  the lever arm itself; velocity and attitude covariances are kept as they are (rotating by a
+  fixed q_base_s does not change errors about the ENU axes).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import replace
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
+
+from ins_fusion.core.rotation import quat_from_euler
+from ins_fusion.replay.run import SolutionTrack
+
+FloatArray = NDArray[np.float64]
+
+
+def skew_stack(vectors: FloatArray) -> FloatArray:
+    """Cross-product matrices [v×] (n, 3, 3) of vectors (n, 3)."""
+    v = np.asarray(vectors, dtype=np.float64).reshape(-1, 3)
+    out = np.zeros((len(v), 3, 3))
+    out[:, 0, 1], out[:, 0, 2] = -v[:, 2], v[:, 1]
+    out[:, 1, 0], out[:, 1, 2] = v[:, 2], -v[:, 0]
+    out[:, 2, 0], out[:, 2, 1] = -v[:, 1], v[:, 0]
+    return out
+
+
+def lever_arm_covariance(cov_att_enu_rad2: FloatArray, arm_enu_m: FloatArray) -> FloatArray:
+    """Position covariance [m²] (n, 3, 3) that attitude errors about the ENU axes [rad²]
+    (n, 3, 3) give a point at ENU offsets ``arm_enu_m`` (n, 3) from base_link: [a×] P [a×]^T."""
+    a = skew_stack(arm_enu_m)
+    cov: FloatArray = a @ np.asarray(cov_att_enu_rad2, dtype=np.float64) @ a.transpose(0, 2, 1)
+    return cov
+
+
+def mounting_quat(rpy_rad: Sequence[float]) -> FloatArray:
+    """q_base_s (x, y, z, w) of a frame with REP-103 roll, pitch, yaw [rad] in base_link, as the
+    engine builds its IMU mounting (engine._mat_from_rpy_flu before the FLU/FRD change)."""
+    return np.asarray(quat_from_euler(rpy_rad[0], rpy_rad[1], rpy_rad[2]), dtype=np.float64)
+
+
+def moved_track(
+    track: SolutionTrack,
+    lever_arm_flu_m: Sequence[float],
+    mounting_rpy_rad: Sequence[float] = (0.0, 0.0, 0.0),
+) -> SolutionTrack:
+    """``track`` of the frame at ``lever_arm_flu_m`` (base_link FLU [m]) with orientation
+    ``mounting_rpy_rad`` in base_link (see the module docstring); ``solutions`` stay those of
+    base_link."""
+    if not len(track.t_s):
+        return track
+    r = np.asarray(lever_arm_flu_m, dtype=np.float64).reshape(3)
+    rot = Rotation.from_quat(track.quat_enu_flu_xyzw)
+    arm_enu = rot.apply(r)
+    rate = np.array([s.rate_flu_rad_s for s in track.solutions], dtype=np.float64).reshape(-1, 3)
+    quat = track.quat_enu_flu_xyzw
+    if any(angle != 0.0 for angle in mounting_rpy_rad):
+        quat = (rot * Rotation.from_quat(mounting_quat(mounting_rpy_rad))).as_quat()
+    return replace(
+        track,
+        pos_enu_m=track.pos_enu_m + arm_enu,
+        quat_enu_flu_xyzw=np.asarray(quat, dtype=np.float64),
+        vel_enu_m_s=track.vel_enu_m_s + rot.apply(np.cross(rate, r)),
+        cov_pos_enu_m2=track.cov_pos_enu_m2 + lever_arm_covariance(track.cov_att_enu_rad2, arm_enu),
+    )
