@@ -37,7 +37,7 @@ from gnss_driver.profiles import Receiver
 from imu400cc_driver.device_clock import PACKET_TRANSMISSION_S
 from imu400cc_driver.protocol import TEMPERATURE_VARIANCE_C2, Scaling
 from ins_fusion.core.rotation import FloatArray
-from ins_fusion.sim import gnss_model, imu_model
+from ins_fusion.sim import gnss_model, imu_model, vibration
 from ins_fusion.sim.gnss_model import GnssErrorModel, GnssSchedule, SkyMask, SkyZone
 from ins_fusion.sim.imu_model import ImuErrorModel
 from ins_fusion.sim.messages import (
@@ -53,6 +53,7 @@ from ins_fusion.sim.messages import (
 from ins_fusion.sim.receivers import ReceiverModel
 from ins_fusion.sim.scenarios import SCENARIOS, SURVEY_CAR
 from ins_fusion.sim.vehicle import TruthCache, VehicleTruth
+from ins_fusion.sim.vibration import Vibration
 
 IMU_DATA, IMU_TEMPERATURE = "/imu/data_raw", "/imu/temperature"
 GNSS_FIX, GNSS_VEL, GNSS_ATTITUDE = "/gnss/fix", "/gnss/vel", "/gnss/attitude"
@@ -112,8 +113,9 @@ class SimulationConfig:
     """What to simulate: a scenario and duration [s], the IMU profile (``band_limited`` white
     noise), the position receiver (None: none) and the ADU5, ``gnss_noise_scale`` multiplying
     every error of both receivers (0 = exact fixes and attitudes, as reported σ unchanged),
-    scheduled outages (start, duration [s]) and sky zones, truth rate [Hz], seed, and the UTC time
-    of simulation time 0 [ns]."""
+    scheduled outages (start, duration [s]) and sky zones, truth rate [Hz], seed, the UTC time
+    of simulation time 0 [ns], and the engine/road vibration the IMU senses (a profile of
+    sim.vibration.PROFILES: ``none``, ``car``, ``rough``)."""
 
     scenario: str = "test_pattern"
     duration_s: float = 240.0
@@ -127,6 +129,7 @@ class SimulationConfig:
     truth_rate_hz: float = 50.0
     seed: int = 0
     start_ns: int = DEFAULT_START_NS
+    vibration: str = "none"
 
 
 def _ns(t_s: FloatArray) -> FloatArray:
@@ -144,7 +147,8 @@ class Simulation:
 
     ``events(t_start_s, t_end_s)`` produces the messages of a time span (call in time order);
     ``stream()`` all of them in receive order. Also the source of the live emulators: ``vehicle``,
-    ``imu_model``, ``receivers`` (receiver, its error model, the truth cache feeding it) and
+    ``imu_model``, ``vibration_profile`` and ``vibration_seed`` (``Vibration`` of the IMU's
+    rate), ``receivers`` (receiver, its error model, the truth cache feeding it) and
     ``truth_events``.
     """
 
@@ -152,11 +156,16 @@ class Simulation:
         self.config = config
         trajectory = SCENARIOS[config.scenario](config.duration_s)
         self.vehicle = VehicleTruth(trajectory, SURVEY_CAR)
-        imu_seed, gnss_seed, adu5_seed = (
-            int(s.generate_state(1)[0]) for s in np.random.SeedSequence(config.seed).spawn(3)
+        # A fourth child leaves the first three (and so every other error source) unchanged.
+        imu_seed, gnss_seed, adu5_seed, self.vibration_seed = (
+            int(s.generate_state(1)[0]) for s in np.random.SeedSequence(config.seed).spawn(4)
         )
         self.imu_profile = imu_model.PROFILES[config.imu]
         self.imu_model = ImuErrorModel(self.imu_profile, imu_seed, config.band_limited)
+        self.vibration_profile = vibration.profile(config.vibration)
+        self.vibration = Vibration(
+            self.vibration_profile, self.imu_profile.rate_hz, self.vibration_seed
+        )
         gyro_sigma, accel_sigma = self.imu_model.noise_sigma()
         self._imu_variances = ((gyro_sigma**2).tolist(), (accel_sigma**2).tolist())
         self.schedule = GnssSchedule(
@@ -226,7 +235,12 @@ class Simulation:
         if not len(t):
             return []
         truth = self.vehicle.imu(t)
-        rate, force = self.imu_model.apply(t, truth.rate_flu_rad_s, truth.specific_force_flu_m_s2)
+        true_rate, true_force = truth.rate_flu_rad_s, truth.specific_force_flu_m_s2
+        if not self.vibration_profile.silent:
+            speed = np.linalg.norm(truth.vel_ned_m_s, axis=1)
+            vibration_rate, vibration_force = self.vibration.sample(t, speed)
+            true_rate, true_force = true_rate + vibration_rate, true_force + vibration_force
+        rate, force = self.imu_model.apply(t, true_rate, true_force)
         stamps = (self.config.start_ns + _ns(t).astype(np.int64)).tolist()
         gyro_var, accel_var = self._imu_variances
         events = [

@@ -32,7 +32,7 @@ from gnss_driver.emulator import GnssEmulator, Truth
 from gnss_driver.profiles import Receiver
 from imu400cc_driver.emulator import EmulatorConfig, Imu400ccEmulator, SentPacket
 from ins_fusion.core.rotation import FloatArray
-from ins_fusion.sim import imu_model
+from ins_fusion.sim import imu_model, vibration
 from ins_fusion.sim.gnss_model import GnssErrorModel
 from ins_fusion.sim.receivers import emulator_truth, epoch_config
 from ins_fusion.sim.scenarios import SCENARIOS
@@ -44,6 +44,7 @@ from ins_fusion.sim.topics import (
     SkyZoneSpec,
 )
 from ins_fusion.sim.vehicle import TruthCache
+from ins_fusion.sim.vibration import Vibration
 from ins_fusion.tools.bag_io import STORAGES, BagError, BagWriter
 from ins_fusion.tools.progress import Progress
 
@@ -135,6 +136,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="low-pass the IMU white noise with the sensor bandwidth (per-sample σ as measured)",
     )
     parser.add_argument(
+        "--vibration",
+        choices=sorted(vibration.PROFILES),
+        default="none",
+        help="engine/road vibration the IMU senses, growing with speed (docs/simulator.md)",
+    )
+    parser.add_argument(
         "--truth-rate", type=_positive, default=50.0, help="rate of /ground_truth/* [Hz]"
     )
     parser.add_argument(
@@ -169,6 +176,7 @@ def run(args: argparse.Namespace) -> int:
         truth_rate_hz=args.truth_rate,
         seed=args.seed,
         start_ns=args.start,
+        vibration=args.vibration,
     )
     try:
         if args.live:
@@ -198,6 +206,8 @@ def write_bag(config: SimulationConfig, path: Path, storage: str = "mcap") -> No
         f"bag {path} ({storage}): {config.scenario}, {config.duration_s:g} s, imu {config.imu},"
         f" gnss {config.gnss or 'none'}, adu5 {'on' if config.adu5 else 'off'}, seed {config.seed}"
     )
+    if config.vibration != "none":
+        title += f", vibration {config.vibration}"
     print(writer.summary.format(title))
 
 
@@ -209,7 +219,9 @@ def write_bag(config: SimulationConfig, path: Path, storage: str = "mcap") -> No
 class LiveImu:
     """Source of the IMU400CC emulator: truth plus the IMU error model at simulation time
     t = device time + offset, with the offset (start of the device clock on the host clock
-    minus the simulation start) measured on the first packet the emulator sends."""
+    minus the simulation start) measured on the first packet the emulator sends. The vibration
+    (if any) runs on the device's own sample grid at the emulator's rate, its amplitude
+    following the speed at t."""
 
     def __init__(self, simulation: Simulation, start_s: float, offset_s: float) -> None:
         """``start_s``: host time of simulation time 0 [s]; ``offset_s``: first guess."""
@@ -217,10 +229,21 @@ class LiveImu:
         duration = simulation.config.duration_s
         vehicle = simulation.vehicle
         rate_hz = EmulatorConfig().rate_hz
-        # Times clipped to the drive: the vehicle holds its final state after it.
+        self._vibration = Vibration(
+            simulation.vibration_profile, rate_hz, simulation.vibration_seed
+        )
+
+        def truths(t: FloatArray) -> list[tuple[FloatArray, FloatArray, float]]:
+            # Times clipped to the drive: the vehicle holds its final state after it.
+            truth = vehicle.imu(np.clip(t, 0.0, duration))
+            speed = np.linalg.norm(truth.vel_ned_m_s, axis=1).tolist()
+            return list(
+                zip(truth.rate_flu_rad_s, truth.specific_force_flu_m_s2, speed, strict=True)
+            )
+
         self._truth = TruthCache(
-            lambda t: vehicle.imu_truths(np.clip(t, 0.0, duration)),
-            lambda t: vehicle.imu_truth(min(max(t, 0.0), duration)),
+            truths,
+            lambda t: truths(np.array([t]))[0],
             ahead=np.arange(round(rate_hz)) / rate_hz,  # one second of streamed samples
         )
         self._start_s = start_s
@@ -231,7 +254,10 @@ class LiveImu:
     def __call__(self, device_s: float) -> tuple[FloatArray, FloatArray]:
         self._last_device_s = device_s
         t = device_s + self.offset_s
-        rate, force = self._truth(t)
+        rate, force, speed = self._truth(t)
+        if not self._vibration.profile.silent:
+            vibration_rate, vibration_force = self._vibration.sample(np.array([device_s]), speed)
+            rate, force = rate + vibration_rate[0], force + vibration_force[0]
         measured_rate, measured_force = self._model.apply(np.array([t]), rate[None], force[None])
         return measured_rate[0], measured_force[0]
 
