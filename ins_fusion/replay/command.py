@@ -18,6 +18,7 @@ from ins_fusion.core.calibration import CalibrationError
 from ins_fusion.core.config import NODE_NAME, FusionConfig
 from ins_fusion.core.engine import InsEngine
 from ins_fusion.fusion_params import PARAMETERS
+from ins_fusion.replay.frames import IMU_FRAME, comparison_frame, is_imu_frame
 from ins_fusion.replay.inputs import InputError, ReplayInputs, load_bag
 from ins_fusion.replay.outages import Outage
 from ins_fusion.replay.output import write_fused_bag
@@ -107,6 +108,26 @@ def _load(args: argparse.Namespace) -> ReplayInputs:
     return inputs
 
 
+def _frame_note(inputs: ReplayInputs, parameters: dict[str, Any]) -> None:
+    """Say on stderr how the reference's frame is handled when it is not base_link."""
+    if inputs.reference is None:
+        return
+    frame_id = inputs.reference.frame_id
+    frame = comparison_frame(frame_id, str(parameters.get("base_frame", "")), inputs.imu_frame)
+    if frame is None:
+        print(
+            f"note: the reference's frame_id {frame_id!r} is neither base_link nor the IMU's"
+            f" ({inputs.imu_frame or IMU_FRAME}); the fused base_link solution is compared as is",
+            file=sys.stderr,
+        )
+    elif is_imu_frame(frame, inputs.imu_frame):
+        print(
+            f"note: the reference is of {frame}; the fused solution is moved there by"
+            " imu_lever_arm and imu_mounting_rpy_deg before the comparison",
+            file=sys.stderr,
+        )
+
+
 def _run(args: argparse.Namespace) -> int:
     _check_usage(args)
     parameters = _parameters(args)
@@ -118,6 +139,7 @@ def _run(args: argparse.Namespace) -> int:
         _check_engine({**parameters, **setting})
     inputs = _load(args)
     reference = None if inputs.reference is None else (args.reference or DEFAULT_REFERENCE)
+    _frame_note(inputs, parameters)
     outages: list[Outage] = args.outage
     if settings:
         return _sweep(args, inputs, parameters, settings, outages, reference)
@@ -157,7 +179,9 @@ def _write_outputs(
         if outages:
             title += "; outages " + ", ".join(f"{o.start_s:g}:{o.duration_s:g}" for o in outages)
         try:
-            plot_replay(args.plot, result.run.track, inputs.t0_s, result.evaluation, outages, title)
+            plot_replay(
+                args.plot, result.compared_track, inputs.t0_s, result.evaluation, outages, title
+            )
         except (OSError, ValueError) as exc:
             raise UsageError(f"cannot write the plot {args.plot}: {exc}") from None
         print(f"plot: {args.plot}")

@@ -31,6 +31,10 @@ from ins_fusion.replay.run import SolutionTrack
 
 FloatArray = NDArray[np.float64]
 
+#: REP-105 vehicle frame and the IMU driver's frame (imu400cc_node publishes in imu_link).
+BASE_FRAME = "base_link"
+IMU_FRAME = "imu_link"
+
 
 def skew_stack(vectors: FloatArray) -> FloatArray:
     """Cross-product matrices [v×] (n, 3, 3) of vectors (n, 3)."""
@@ -80,3 +84,20 @@ def moved_track(
         vel_enu_m_s=track.vel_enu_m_s + rot.apply(np.cross(rate, r)),
         cov_pos_enu_m2=track.cov_pos_enu_m2 + lever_arm_covariance(track.cov_att_enu_rad2, arm_enu),
     )
+
+
+def comparison_frame(frame_id: str, base_frame: str, imu_frame: str) -> str | None:
+    """The frame a reference stamped ``frame_id`` is compared in: ``frame_id`` itself when it
+    names the IMU (``imu_frame``, the IMU messages' frame_id, or imu_link) or base_link
+    (``base_frame``, the node's parameter, or base_link); None for an empty or any other
+    frame_id (the caller compares base_link as is and says so)."""
+    if not frame_id:
+        return None
+    if frame_id in {imu_frame, IMU_FRAME} or frame_id in {base_frame, BASE_FRAME}:
+        return frame_id
+    return None
+
+
+def is_imu_frame(frame: str | None, imu_frame: str) -> bool:
+    """Whether a comparison frame is the IMU's (``imu_frame`` or imu_link)."""
+    return frame is not None and frame in {imu_frame, IMU_FRAME}

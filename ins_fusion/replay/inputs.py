@@ -7,12 +7,15 @@ read through ins_fusion.tools.bag_io and converted by ins_fusion.messages_in, as
 speed).
 
 Reference topics (``PREFIX/fix``, ``PREFIX/attitude``, optional ``PREFIX/vel``): the true
-base_link position (NavSatFix, WGS-84, ellipsoidal height), orientation (sensor_msgs/Imu,
-FLU in ENU) and ENU velocity (TwistWithCovarianceStamped) the simulator writes.
+position (NavSatFix, WGS-84, ellipsoidal height), orientation (sensor_msgs/Imu, FLU in ENU) and
+ENU velocity (TwistWithCovarianceStamped) of the frame the fix's ``header.frame_id`` names:
+base_link for the simulator, imu_link for a pose of the IMU (comma2k19). The IMU messages'
+frame_id is kept too, to recognise a reference of the IMU.
 """
 
 from __future__ import annotations
 
+import struct
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -60,12 +63,14 @@ class Series:
 
 @dataclass(frozen=True)
 class Reference:
-    """The true base_link: position (lat_deg, lon_deg, height_m), orientation (x, y, z, w of
-    FLU in ENU) and, when the bag has it, ENU velocity [m/s]."""
+    """The true pose of frame ``frame_id`` (the first reference fix's header.frame_id; "" when
+    not given): position (lat_deg, lon_deg, height_m), orientation (x, y, z, w of its FLU axes in
+    ENU) and, when the bag has it, ENU velocity [m/s]."""
 
     position: Series
     attitude: Series | None
     velocity: Series | None
+    frame_id: str = ""
 
 
 @dataclass(frozen=True)
@@ -83,6 +88,7 @@ class ReplayInputs:
     measurements: list[tuple[int, str, Measurement]]
     reference: Reference | None
     read_time_s: float
+    imu_frame: str = ""
 
     @property
     def t0_s(self) -> float:
@@ -153,13 +159,13 @@ def load_bag(
                 ref_topics = {}
             selected = [t for t in (*roles, *ref_topics) if t in available]
             total = sum(reader.topics[t].count for t in selected)
-            imu, measurements, reference = _read(
+            imu, measurements, reference, imu_frame = _read(
                 reader, selected, topics.imu, roles, ref_topics, total, progress
             )
     except (BagError, AnyReaderError, ReaderError, SerdeError, CdrError, OSError) as exc:
         raise InputError(f"cannot read bag {path}: {exc}") from exc
     return ReplayInputs(
-        str(path), topics, imu, measurements, reference, time.perf_counter() - start
+        str(path), topics, imu, measurements, reference, time.perf_counter() - start, imu_frame
     )
 
 
@@ -178,7 +184,17 @@ _REFERENCE_DECODERS: dict[str, Callable[[bytes], tuple[float, tuple[float, ...]]
 }
 
 
-_Read = tuple[list[ImuSample], list[tuple[int, str, Measurement]], Reference | None]
+_Read = tuple[list[ImuSample], list[tuple[int, str, Measurement]], Reference | None, str]
+
+
+def frame_id(data: bytes) -> str:
+    """header.frame_id of a serialized (CDR) message that starts with a std_msgs/Header: after
+    the 4-byte encapsulation and the stamp, a uint32 length (with the NUL) and the characters
+    (ins_fusion.cdr_fields); "" when the bytes are too short to hold it."""
+    if len(data) < 16:
+        return ""
+    (length,) = struct.unpack_from("<I" if data[1] == 1 else ">I", data, 12)
+    return bytes(data[16 : 16 + max(length - 1, 0)]).decode("utf-8", "replace")
 
 
 def _read(
@@ -193,12 +209,15 @@ def _read(
     imu: list[ImuSample] = []
     measurements: list[tuple[int, str, Measurement]] = []
     ref: dict[str, list[tuple[float, tuple[float, ...]]]] = {s: [] for s in REFERENCE_TYPES}
+    frames: dict[str, str] = {}  # first frame_id of the IMU ("imu") and the reference fix
     raw = {imu_topic, *ref_topics}
     for done, msg in enumerate(reader.messages(selected, deserialize=True, raw_topics=raw), 1):
         if progress is not None and done % 4096 == 0:
             progress(done, total)
         if msg.topic == imu_topic:
             imu.append(cdr_fields.imu_sample(msg.message))
+            if len(imu) == 1:
+                frames["imu"] = frame_id(msg.message)
             continue
         role = roles.get(msg.topic)
         if role is not None:
@@ -206,9 +225,11 @@ def _read(
         suffix = ref_topics.get(msg.topic)
         if suffix is not None:
             ref[suffix].append(_REFERENCE_DECODERS[suffix](msg.message))
+            if suffix == "fix" and len(ref["fix"]) == 1:
+                frames["fix"] = frame_id(msg.message)
     if progress is not None:
         progress(total, total)
-    return imu, measurements, _reference(ref)
+    return imu, measurements, _reference(ref, frames.get("fix", "")), frames.get("imu", "")
 
 
 def _series(samples: list[tuple[float, tuple[float, ...]]]) -> Series | None:
@@ -222,8 +243,10 @@ def _series(samples: list[tuple[float, tuple[float, ...]]]) -> Series | None:
     )
 
 
-def _reference(ref: dict[str, list[tuple[float, tuple[float, ...]]]]) -> Reference | None:
+def _reference(
+    ref: dict[str, list[tuple[float, tuple[float, ...]]]], frame: str
+) -> Reference | None:
     position = _series(ref["fix"])
     if position is None:
         return None
-    return Reference(position, _series(ref["attitude"]), _series(ref["vel"]))
+    return Reference(position, _series(ref["attitude"]), _series(ref["vel"]), frame)

@@ -1,8 +1,9 @@
 """Errors of a fused track against a reference, and their statistics.
 
-The fused base_link solution is interpolated at the reference stamps (linearly for position,
-velocity and covariances, spherically for the orientation); a stamp is evaluated when it lies
-between two aligned solutions at most ``max_gap_s`` apart. Errors are estimate minus truth:
+The fused solution (of base_link, or moved to the reference's frame by ins_fusion.replay.frames)
+is interpolated at the reference stamps (linearly for position, velocity and covariances,
+spherically for the orientation); a stamp is evaluated when it lies between two aligned
+solutions at most ``max_gap_s`` apart. Errors are estimate minus truth:
 position and velocity in the ENU tangent plane at the engine's datum [m, m/s], attitude as
 differences of the REP-103 roll, pitch, yaw angles (z-y'-x'' of FLU in ENU) [deg], wrapped to
 (-180, 180].

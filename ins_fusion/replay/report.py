@@ -4,9 +4,11 @@ Times are seconds after the first IMU stamp; errors are estimate minus reference
 ins_fusion.replay.metrics). Keys (docs/replay.md describes each): bag, topics, parameters (those
 differing from the defaults), imu_samples, duration_s, read_time_s, fusion_time_s, wall_time_s,
 realtime_factor, aligned_at_s, final_state, resets, last_reset_reason, datum, reference,
-dropped_messages, measurements, evaluated_samples, position_error_m, velocity_error_m_s,
-attitude_error_deg, outages, nees, withheld_fixes (per outage: the fused antenna against the
-GNSS fixes the outage withheld, ins_fusion.replay.withheld; with or without a reference).
+reference_frame (the frame compared in: base_link, or the IMU's for a reference of the IMU),
+reference_frame_id (the reference's own), dropped_messages, measurements, evaluated_samples,
+position_error_m, velocity_error_m_s, attitude_error_deg, outages, nees, withheld_fixes (per
+outage: the fused antenna against the GNSS fixes the outage withheld,
+ins_fusion.replay.withheld; with or without a reference).
 """
 
 from __future__ import annotations
@@ -36,10 +38,12 @@ def build_report(
     parameters: Mapping[str, Any],
     reference: str | None,
     withheld: WithheldEvaluation | None = None,
+    reference_frame: str = "base_link",
 ) -> Report:
     """The report of one run (``parameters``: the settings that differ from the defaults;
     ``reference``: the reference prefix evaluated against, None for no evaluation;
-    ``withheld``: the comparison with the withheld fixes, None when there was none)."""
+    ``withheld``: the comparison with the withheld fixes, None when there was none;
+    ``reference_frame``: the frame the fused solution was compared in)."""
     wall = inputs.read_time_s + run.fusion_time_s
     track = run.track
     aligned = np.flatnonzero(track.aligned)
@@ -59,6 +63,10 @@ def build_report(
         "last_reset_reason": run.status.last_reset_reason,
         "datum": None if run.datum is None else list(run.datum),
         "reference": reference if evaluation is not None else None,
+        "reference_frame": reference_frame if evaluation is not None else None,
+        "reference_frame_id": None
+        if evaluation is None or inputs.reference is None
+        else inputs.reference.frame_id,
         "dropped_messages": dict(run.dropped),
         "measurements": {name: dict(c) for name, c in run.status.measurements.items()},
     }
@@ -134,7 +142,11 @@ def _percent(value: Any) -> str:
 def _accuracy_lines(report: Report) -> list[str]:
     """Errors, consistency and outage rows of a report with a reference."""
     pos, att, nees = report["position_error_m"], report["attitude_error_deg"], report["nees"]
-    lines = [
+    lines = []
+    frame, frame_id = report.get("reference_frame"), report.get("reference_frame_id")
+    if frame != "base_link" or frame_id != frame:
+        lines.append(f"reference {report['reference']}: frame_id {frame_id!r}, compared in {frame}")
+    lines += [
         f"position error [m]    horizontal rms {_num(pos['horizontal_rms'])}"
         f"  p95 {_num(pos['horizontal_p95'])}  max {_num(pos['horizontal_max'])}"
         f"  vertical rms {_num(pos['vertical_rms'])}"

@@ -5,12 +5,13 @@ renames them) and runs ins_fusion.core's engine over them in the bag's receive o
 parameters of ins_fusion_node (``--params`` YAML, ``--set`` overrides, validated with the node's
 specs). ``--outage START:DURATION`` drops the GNSS messages stamped in the window (START in
 seconds after the first IMU stamp). With reference topics (``PREFIX/fix``, ``PREFIX/attitude``,
-``PREFIX/vel``, default prefix /ground_truth) the fused base_link solution is evaluated at the
-reference stamps; with or without them, each outage is scored against the GNSS fixes it withheld
-(the fused antenna at each fix stamp). Prints a short table; ``--report`` writes the JSON
-report, ``--plot`` the figure, ``--output`` the fused /ins/odometry and /ins/fix as a bag.
-``--sweep NAME=V1,V2,...`` (repeatable: the grid of all combinations) replays every setting and
-ranks them by ``--rank-by``. docs/replay.md describes the report. Exit status 2 on bad input.
+``PREFIX/vel``, default prefix /ground_truth) the fused solution is evaluated at the reference
+stamps, in the reference's frame (base_link, or the IMU when its frame_id is the IMU's); with or
+without them, each outage is scored against the GNSS fixes it withheld (the fused antenna at
+each fix stamp). Prints a short table; ``--report`` writes the JSON report, ``--plot`` the
+figure, ``--output`` the fused /ins/odometry and /ins/fix as a bag. ``--sweep NAME=V1,V2,...``
+(repeatable: the grid of all combinations) replays every setting and ranks them by
+``--rank-by``. docs/replay.md describes the report. Exit status 2 on bad input.
 """
 
 from __future__ import annotations
