@@ -151,7 +151,8 @@ def test_late_out_of_order_and_duplicated_measurements_give_the_same_solution(ei
     feed(late, eight_adu5, events=events)
     a, b = in_time.solution(), late.solution()
     assert a is not None and b is not None
-    # Equal up to rounding (swapped arrivals change the order of same-stamp updates).
+    # Equal up to rounding (measurements of one stamp are applied in one order, whatever
+    # order they arrived in).
     assert b.lat_deg == pytest.approx(a.lat_deg, abs=1e-10)  # 0.01 mm
     assert b.lon_deg == pytest.approx(a.lon_deg, abs=1e-10)
     assert b.vel_enu_m_s == pytest.approx(a.vel_enu_m_s, abs=1e-5)

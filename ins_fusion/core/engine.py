@@ -49,6 +49,7 @@ from typing import Any, TypeVar
 import numpy as np
 
 from ins_fusion.core import earth
+from ins_fusion.core.adaptation import ImuNoiseMonitor, WhiteNoiseMonitor, fading_factor
 from ins_fusion.core.alignment import (
     Levelling,
     earth_rate_body_rad_s,
@@ -141,6 +142,8 @@ _ALIGN_FIX_MAX_AGE_S = 1.5
 #: A change of the receiver's reported variance by more than this factor restarts the
 #: correlated GNSS error states (another fix type).
 _GNSS_NOISE_JUMP = 1.5
+#: Largest factor by which a fix's covariance grows when its epochs scatter more than reported.
+_MAX_GNSS_INFLATION = 100.0
 #: Most measurements waiting for a later IMU sample.
 _MAX_PENDING = 256
 #: Course-heading variance floor for side slip and antenna motion [rad²] (0.5°).
@@ -183,7 +186,8 @@ class EngineStatus:
     """Diagnostics: state, per-measurement counters ({name: {counter: n}}, COUNTERS), resets
     with the reason of the last one, IMU samples/gaps/duplicate stamps, the last normalised
     innovation squared per measurement, rollbacks and re-propagated samples for late
-    measurements, and the stop detector's decision."""
+    measurements, the stop detector's decision, and the noise the filter adapted to
+    (``adapted``, flat names with units; InsEngine.adapted_noise)."""
 
     state: str
     measurements: dict[str, dict[str, int]]
@@ -196,6 +200,7 @@ class EngineStatus:
     rollbacks: int
     replayed_samples: int
     stationary: bool
+    adapted: dict[str, float]
 
 
 class _State:
@@ -217,10 +222,13 @@ class _State:
         "cov_vel0",
         "gated_runs",
         "gnss_error",
+        "gnss_reported",
         "gnss_variance",
+        "gnss_white",
         "gyro_bias",
         "gyro_scale",
         "heading_known",
+        "imu_psd",
         "last_position_t_s",
         "nav",
         "prev_inc",
@@ -240,7 +248,9 @@ class _State:
         self.rate_b = self.rate_i = self.accel_n = zero
         self.heading_known = heading_known
         self.last_position_t_s = t_s
-        self.gnss_error = self.gnss_variance = zero
+        self.gnss_error = self.gnss_variance = self.gnss_reported = zero
+        self.gnss_white = WhiteNoiseMonitor()
+        self.imu_psd: tuple[FloatArray, FloatArray] | None = None
         self.cov_dt = 0.0
         self.cov_dth = self.cov_dv = zero
         self.cov_vel0 = nav.vel_ned_m_s
@@ -258,6 +268,9 @@ class _State:
         other.cov_vel0 = self.cov_vel0
         other.gnss_error = self.gnss_error
         other.gnss_variance = self.gnss_variance
+        other.gnss_reported = self.gnss_reported
+        other.gnss_white = self.gnss_white
+        other.imu_psd = self.imu_psd
         other.gated_runs = self.gated_runs
         other.gyro_bias = self.gyro_bias
         other.gyro_scale = self.gyro_scale
@@ -284,8 +297,11 @@ class _State:
 
 _M = TypeVar("_M", AttitudeMeasurement, GnssVelocityMeasurement)
 
-#: A measurement in the history: (stamp, arrival sequence, kind, payload).
-_Record = tuple[float, int, str, Any]
+#: A measurement in the history: (stamp, rank of its kind in MEASUREMENT_NAMES, arrival
+#: sequence, kind, payload). Records sort by stamp, then kind: measurements with the same stamp
+#: are applied in one order whatever order they arrived in.
+_Record = tuple[float, int, int, str, Any]
+_RANK = {name: rank for rank, name in enumerate(MEASUREMENT_NAMES)}
 
 
 @dataclass(frozen=True, slots=True)
@@ -299,21 +315,24 @@ class _Gap:
 
 class _Entry:
     """One IMU sample in the history: its raw increment (imu FRD, calibrated), the gap it
-    bridges (None: none; after one the coning/sculling history restarts), the checkpoint after
-    it and its measurements."""
+    bridges (None: none; after one the coning/sculling history restarts), the IMU white-noise
+    densities in force at it (InsEngine._imu_psd), the checkpoint after it and its
+    measurements."""
 
-    __slots__ = ("checkpoint", "gap", "inc", "measurements", "t_s")
+    __slots__ = ("checkpoint", "gap", "inc", "measurements", "noise", "t_s")
 
     def __init__(
         self,
         t_s: float,
         inc: ImuIncrement,
         gap: _Gap | None,
+        noise: tuple[FloatArray, FloatArray] | None,
         checkpoint: tuple[_State, FloatArray],
     ) -> None:
         self.t_s = t_s
         self.inc = inc
         self.gap = gap
+        self.noise = noise
         self.checkpoint = checkpoint
         self.measurements: list[_Record] = []
 
@@ -419,6 +438,11 @@ class InsEngine:
             "nhc": self._nhc,
         }
         self._detector = StopDetector(config.stop_detector, self._mat_bi)
+        self._imu_noise = ImuNoiseMonitor()
+        self._accel_psd_floor = np.square(noise.accel_vrw)
+        self._measured_psd: tuple[FloatArray, FloatArray] | None = None
+        self._effective_psd = (self._gyro_psd, self._accel_psd_floor)
+        self._fading = 1.0
         self._levelling = Levelling()
         self._integrator = SampleIntegrator()
         self._clear()
@@ -473,6 +497,9 @@ class InsEngine:
         self._last_t_s = t
         self._last_sample = (rate_i, force_i)
         self._detector.push(t, rate_i, force_i)
+        if gap is not None:
+            self._imu_noise.reset()
+        self._imu_noise.push(t, rate_i, force_i)
         zs = self._zaru_sum
         zs[0] += rate_i[0]
         zs[1] += rate_i[1]
@@ -490,8 +517,9 @@ class InsEngine:
         while pending and pending[0][0] < t:
             self._insert(heapq.heappop(pending))
         self._catch_up()
-        self._step(inc, gap, t)
-        entry = _Entry(t, inc, gap, self._checkpoint())
+        noise = self._imu_psd()
+        self._step(inc, gap, t, noise)
+        entry = _Entry(t, inc, gap, noise, self._checkpoint())
         self._history.append(entry)
         self._history_t.append(t)
         if t >= self._next_pseudo_t_s:
@@ -600,7 +628,28 @@ class InsEngine:
             rollbacks=self._rollbacks,
             replayed_samples=self._replayed_samples,
             stationary=self._detector.stationary,
+            adapted=self.adapted_noise(),
         )
+
+    def adapted_noise(self) -> dict[str, float]:
+        """The noise model in use after adaptation (core.adaptation), in user units: gyro ARW
+        [deg/√h] and accelerometer VRW [m/s/√h] per imu_link axis (the user's value or the
+        measured one, whichever is larger), the measured white GNSS position σ per ENU axis
+        [m] (NaN until measured) and the last fading factor of a gate recovery (1 = none)."""
+        gyro_psd, accel_psd = self._imu_psd() or (self._gyro_psd, self._accel_psd_floor)
+        s = self._state
+        share = None if s is None else s.gnss_white.share
+        white = None if s is None or share is None else share * np.array(s.gnss_reported)
+        white_enu = np.full(3, math.nan) if white is None else white[[1, 0, 2]]  # N E D -> E N U
+        values: dict[str, float] = {}
+        for k, axis in enumerate("xyz"):
+            values[f"gyro_arw_{axis}_deg_sqrt_h"] = math.degrees(math.sqrt(gyro_psd[k])) * 60.0
+        for k, axis in enumerate("xyz"):
+            values[f"accel_vrw_{axis}_m_s_sqrt_h"] = math.sqrt(accel_psd[k]) * 60.0
+        for k, axis in enumerate("enu"):
+            values[f"gnss_white_sigma_{axis}_m"] = math.sqrt(float(white_enu[k]))
+        values["fading_factor_last"] = self._fading
+        return values
 
     @property
     def covariance(self) -> FloatArray | None:
@@ -632,6 +681,7 @@ class InsEngine:
         self._last_attitude = None
         self._gnss_speed = None
         self._detector.reset()
+        self._imu_noise.reset()
         self._levelling.reset()
         self._integrator.reset()
 
@@ -711,11 +761,11 @@ class InsEngine:
         if len(seen) > 4 * _MAX_PENDING:
             oldest = self._history_t[0]
             self._seen[kind] = {t for t in seen if t >= oldest}
-        record: _Record = (t_m, next(self._sequence), kind, payload)
+        record: _Record = (t_m, _RANK[kind], next(self._sequence), kind, payload)
         if t_m > self._history_t[-1]:
             if len(self._pending) >= _MAX_PENDING:
                 dropped = heapq.heappop(self._pending)
-                self._counters[dropped[2]]["rejected"] += 1
+                self._counters[dropped[3]]["rejected"] += 1
             heapq.heappush(self._pending, record)
             return
         self._insert(record)
@@ -731,7 +781,7 @@ class InsEngine:
             self._apply(record, live=True)
             return
         bisect.insort(entry.measurements, record)
-        self._fresh.add(record[1])
+        self._fresh.add(record[2])
         self._replay_from = k if self._replay_from is None else min(self._replay_from, k)
 
     def _catch_up(self) -> None:
@@ -747,7 +797,7 @@ class InsEngine:
         self._restore(entry.checkpoint)
         self._apply_entry(entry)
         for later in self._history[k + 1 :]:
-            self._step(later.inc, later.gap, later.t_s)
+            self._step(later.inc, later.gap, later.t_s, later.noise)
             later.checkpoint = self._checkpoint()
             self._apply_entry(later)
         self._replayed_samples += len(self._history) - k - 1
@@ -755,13 +805,13 @@ class InsEngine:
     def _apply_entry(self, entry: _Entry) -> None:
         """Apply an entry's measurements in stamp order; new ones are counted."""
         for record in entry.measurements:
-            live = record[1] in self._fresh
-            self._fresh.discard(record[1])
+            live = record[2] in self._fresh
+            self._fresh.discard(record[2])
             self._apply(record, live)
 
     def _apply(self, record: _Record, live: bool) -> None:
         """Propagate P to the current sample, apply the measurement, restart the interval."""
-        t_m, _, kind, payload = record
+        t_m, _, _, kind, payload = record
         self._propagate_covariance()
         self._handlers[kind](self._predict(t_m), payload, live)
         assert self._state is not None
@@ -769,12 +819,19 @@ class InsEngine:
 
     # ---------------------------------------------------------------------- propagation
 
-    def _step(self, inc: ImuIncrement, gap: _Gap | None, t: float) -> None:
+    def _step(
+        self,
+        inc: ImuIncrement,
+        gap: _Gap | None,
+        t: float,
+        noise: tuple[FloatArray, FloatArray] | None,
+    ) -> None:
         """Correct an increment with the filter's sensor errors and mechanize (``gap``: it
-        bridges missing samples); the covariance follows every ``covariance_interval``
-        seconds."""
+        bridges missing samples; ``noise``: the IMU white-noise densities from now on, None =
+        the user's); the covariance follows every ``covariance_interval`` seconds."""
         s = self._state
         assert s is not None
+        s.imu_psd = noise
         dt = inc.dt_s
         bg, ba, sg, sa = s.gyro_bias, s.accel_bias, s.gyro_scale, s.accel_scale
         th, dv = inc.dtheta_rad, inc.dvel_m_s
@@ -818,6 +875,21 @@ class InsEngine:
         if s.cov_dt >= self.config.covariance_interval_s:
             self._propagate_covariance()
 
+    def _imu_psd(self) -> tuple[FloatArray, FloatArray] | None:
+        """IMU white-noise densities (gyro, accelerometer) [rad²/s, m²/s³] per imu axis: the
+        measured ones (core.adaptation.ImuNoiseMonitor) where above the user's; None before a
+        measurement."""
+        measured = self._imu_noise.psd
+        if measured is None:
+            return None
+        if measured is not self._measured_psd:
+            self._measured_psd = measured
+            self._effective_psd = (
+                np.maximum(self._gyro_psd, measured[0]),
+                np.maximum(self._accel_psd_floor, measured[1]),
+            )
+        return self._effective_psd
+
     def _propagate_covariance(self) -> None:
         """Propagate P over the accumulated interval with its mean specific force (NED from the
         velocity change; Coriolis, < 3e-3 m/s², left out of F)."""
@@ -830,6 +902,7 @@ class InsEngine:
         force_n = (nav.vel_ned_m_s - s.cov_vel0) * inv_dt
         force_n[2] -= earth.normal_gravity_m_s2(nav.lat_rad, nav.height_m)
         vn, ve, vd = nav.vel_ned_m_s.tolist()
+        kf.set_white_noise(*(s.imu_psd or (self._gyro_psd, self._accel_psd_floor)))
         kf.propagate(
             s.cov_dt,
             s.mat_nb @ self._mat_bi,
@@ -895,8 +968,9 @@ class InsEngine:
 
     # --------------------------------------------------------------------- updates
 
-    def _update(self, kind: str, model: Model, live: bool) -> bool:
-        """Gated update; inject the estimate into the nominal state."""
+    def _update(self, kind: str, model: Model, live: bool) -> FloatArray | None:
+        """Gated update; inject the estimate into the nominal state and return it (None:
+        rejected)."""
         kf, s = self._filter, self._state
         assert kf is not None and s is not None
         z, H, R = model
@@ -912,8 +986,16 @@ class InsEngine:
         if gated and recover and block is not None and runs.get(kind, 0) + 1 >= recover:
             # The filter has rejected this sensor `recover` times running: its state, not the
             # sensor, is the likelier culprit (a state that went wrong and a covariance too
-            # small to admit the fix). Widen what the sensor measures until it fits, apply it.
-            kf.widen(z, H, R, block)
+            # small to admit the fix, e.g. IMU noise far above the model). Grow the whole
+            # covariance (attitude, biases, velocity with position: fading memory) by the least
+            # factor that makes the innovation typical (NIS = dof), apply it. Only if no factor
+            # does (the innovation lies outside what P spans) widen what the sensor measures.
+            factor = fading_factor(z, H @ kf.P @ H.T, R, float(len(z)))
+            if math.isfinite(factor):
+                kf.scale(factor)
+                self._fading = factor
+            else:
+                kf.widen(z, H, R, block)
             result = kf.update(z, H, R, math.inf)
             gated = False
             if live:
@@ -929,7 +1011,7 @@ class InsEngine:
                 counters["gated"] += 1
         if result.dx is not None:
             self._inject(result.dx)
-        return result.accepted
+        return result.dx
 
     def _inject(self, dx: FloatArray) -> None:
         """Closed-loop feedback of an error estimate into the nominal state."""
@@ -981,11 +1063,26 @@ class InsEngine:
             return
         white, correlated = self._fix_noise(fix)
         if self.layout.gp is not None:
-            ratio = correlated / np.maximum(s.gnss_variance, 1e-12)
+            ratio = self._reported_variance(fix) / np.maximum(s.gnss_reported, 1e-12)
             if ratio.max() > _GNSS_NOISE_JUMP or ratio.min() < 1.0 / _GNSS_NOISE_JUMP:
-                self._restart_gnss_error(correlated)
+                self._restart_gnss_error(fix, correlated)
+            elif not np.array_equal(correlated, s.gnss_variance):
+                self._set_gnss_variance(correlated)  # the white/correlated split moved
         model = gnss_position(pred, fix, self._antenna_arm_b, white, s.gnss_error)
-        if self._update("gnss_position", model, live):
+        z, H, _ = model
+        kf = self._filter
+        assert kf is not None
+        predicted = np.einsum("ij,jk,ik->i", H, kf.P, H)
+        dx = self._update("gnss_position", model, live)
+        s.gnss_white = s.gnss_white.pushed(
+            fix.t_s,
+            z,
+            z if dx is None else z - H @ dx,
+            predicted,
+            np.einsum("ij,jk,ik->i", H, kf.P, H),
+            self._reported_variance(fix),
+        )
+        if dx is not None:
             s.last_position_t_s = max(s.last_position_t_s, fix.t_s)
 
     def _gnss_velocity(self, pred: Prediction, vel: GnssVelocityMeasurement, live: bool) -> None:
@@ -1083,7 +1180,7 @@ class InsEngine:
         ):
             kinds.append(("nhc", None))
         for kind, payload in kinds:
-            record: _Record = (t, next(self._sequence), kind, payload)
+            record: _Record = (t, _RANK[kind], next(self._sequence), kind, payload)
             entry.measurements.append(record)
             self._apply(record, live=True)
         problem = kf.problem()
@@ -1257,22 +1354,40 @@ class InsEngine:
         self._filter = kf
         self._restart_position(fix)
         zero: Vec3 = (0.0, 0.0, 0.0)
-        self._history = [_Entry(t, ImuIncrement(0.0, zero, zero), None, self._checkpoint())]
+        self._history = [_Entry(t, ImuIncrement(0.0, zero, zero), None, None, self._checkpoint())]
         self._history_t = [t]
 
+    def _reported_variance(self, fix: GnssFixMeasurement) -> FloatArray:
+        """The receiver's position variance per NED axis, times gnss_position_noise_scale²."""
+        return np.diagonal(ned_cov(fix.cov_enu_m2)) * self.config.gnss_position_noise_scale**2
+
     def _fix_noise(self, fix: GnssFixMeasurement) -> tuple[FloatArray, FloatArray]:
-        """(white covariance NED [m²], correlated variance per NED axis [m²]) of a fix: the
-        white part is the receiver's variance capped at ``gnss_noise.white_sigma`` per axis but
-        at least ``gnss_noise.white_fraction`` of it (correlations kept), the rest is the
-        time-correlated error."""
+        """(white covariance NED [m²], correlated variance per NED axis [m²]) of a fix.
+
+        The white part is what the data say (core.adaptation.WhiteNoiseMonitor: consecutive
+        innovations), at least ``gnss_noise.white_sigma``² or ``gnss_noise.white_fraction`` of
+        the receiver's variance, at most that variance; before the data say anything, the
+        floor. The rest is the time-correlated error. A receiver whose epochs scatter more than
+        it reports gets its whole covariance scaled up to the measured white part (at most
+        ``_MAX_GNSS_INFLATION`` times). Correlations between axes are kept.
+        """
         total = ned_cov(fix.cov_enu_m2) * self.config.gnss_position_noise_scale**2
-        if self.layout.gp is None:
-            return total, np.zeros(3)
         variance = np.diagonal(total)
+        assert self._state is not None
+        share = self._state.gnss_white.share
+        measured = None if share is None else share * variance
+        if self.layout.gp is None:  # all white
+            if measured is None:
+                return total, np.zeros(3)
+            white = np.minimum(np.maximum(variance, measured), _MAX_GNSS_INFLATION * variance)
+            scale = np.sqrt(white / np.maximum(variance, 1e-30))
+            return total * np.outer(scale, scale), np.zeros(3)
         floor = np.maximum(self._gnss_white_var_ned, self.config.gnss_white_fraction * variance)
         white = np.minimum(variance, floor)
+        if measured is not None:
+            white = np.minimum(np.maximum(white, measured), _MAX_GNSS_INFLATION * variance)
         scale = np.sqrt(white / np.maximum(variance, 1e-30))
-        return total * np.outer(scale, scale), variance - white
+        return total * np.outer(scale, scale), np.maximum(variance - white, 0.0)
 
     def _restart_position(self, fix: GnssFixMeasurement) -> None:
         """Position error (and correlated GNSS error) as after taking the position from a fix:
@@ -1284,13 +1399,13 @@ class InsEngine:
         _restart_block(P, POS, white + np.diag(correlated))
         kf.P = P
         if self.layout.gp is not None:
-            self._restart_gnss_error(correlated)
+            self._restart_gnss_error(fix, correlated)
             P = kf.P.copy()
             gp = self.layout.gp
             P[POS : POS + 3, gp : gp + 3] = P[gp : gp + 3, POS : POS + 3] = -np.diag(correlated)
             kf.P = P
 
-    def _restart_gnss_error(self, correlated: FloatArray) -> None:
+    def _restart_gnss_error(self, fix: GnssFixMeasurement, correlated: FloatArray) -> None:
         """A new correlated GNSS error process (start, or the receiver's σ jumped: another fix
         type, e.g. RTK float after an outage): uncorrelated, at its stationary variance."""
         s, kf = self._state, self._filter
@@ -1298,8 +1413,16 @@ class InsEngine:
         P = kf.P.copy()
         _restart_block(P, self.layout.gp, np.diag(correlated))
         kf.P = P
-        s.gnss_variance = (float(correlated[0]), float(correlated[1]), float(correlated[2]))
+        reported = self._reported_variance(fix)
+        s.gnss_reported = (float(reported[0]), float(reported[1]), float(reported[2]))
         s.gnss_error = (0.0, 0.0, 0.0)
+        self._set_gnss_variance(correlated)
+
+    def _set_gnss_variance(self, correlated: FloatArray) -> None:
+        """Stationary variance of the correlated GNSS error process per NED axis [m²]."""
+        s, kf = self._state, self._filter
+        assert s is not None and kf is not None
+        s.gnss_variance = (float(correlated[0]), float(correlated[1]), float(correlated[2]))
         kf.gnss_variance = s.gnss_variance
 
     def _accel_bias_variance(self) -> FloatArray:

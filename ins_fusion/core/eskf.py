@@ -233,6 +233,21 @@ class ErrorStateFilter:
         P += q
         self.P = P
 
+    def set_white_noise(self, gyro_psd: FloatArray, accel_psd: FloatArray) -> None:
+        """White-noise power densities per imu axis from now on: gyro [rad²/s] (ARW²),
+        accelerometer [m²/s³] (VRW²)."""
+        self._gyro_psd = gyro_psd
+        self._accel_psd = accel_psd
+
+    @property
+    def white_noise(self) -> tuple[FloatArray, FloatArray]:
+        """(gyro, accelerometer) white-noise power densities in use (``set_white_noise``)."""
+        return self._gyro_psd, self._accel_psd
+
+    def scale(self, factor: float) -> None:
+        """Multiply the covariance by ``factor`` (fading memory: every state less certain)."""
+        self.P = self.P * factor
+
     def add_noise(self, start: int, cov: FloatArray) -> None:
         """Add a 3x3 covariance to the diagonal block of the states at ``start`` (noise the
         continuous model does not hold, e.g. a bridged IMU gap). P is replaced, not changed in

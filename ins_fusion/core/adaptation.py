@@ -1,0 +1,206 @@
+"""What the data say about the noise: online estimates that let the filter outgrow the user's
+noise values when a real vehicle is noisier than the datasheet (no ROS, no engine state).
+
+Two estimators, each bounded below by the user's values (they are a floor, never lowered):
+
+- ``ImuNoiseMonitor``: the white-noise density of the IMU output at the time scale the filter
+  integrates it (``block_s``, 0.1 s), from the Hadamard variance of block means. For block means
+  ȳ_k over τ of white noise of density N, D_k = ȳ_k - 2ȳ_{k-1} + ȳ_{k-2} has E[D²] = 6 N²/τ, and a
+  motion that changes linearly over three blocks cancels; so N² = τ E[D²]/6. Vibration above
+  1/τ (an engine at 20-40 Hz) averages out in the block means as it does in the velocity
+  increments the filter integrates; vibration and road noise near or below 1/τ, which does
+  corrupt them, is counted. In a moving car this is 10-100 times the datasheet density (issue 10;
+  the comma2k19 windshield phone: docs/accuracy.md). Smooth motion (turns, braking: jerk of
+  1 m/s³ changing over a second) adds less than 1e-3 m/s² to D.
+- ``WhiteNoiseMonitor``: the white (epoch-to-epoch) part of a GNSS receiver's position error
+  per axis, as a share of the variance it reports, from the innovation ν_k of each fix minus
+  the residual r_{k-1} the previous fix left after its update: with white errors e_k of
+  variance σ², ν_k - r_{k-1} = (e_k - ε_k⁻) - (e_{k-1} - ε_{k-1}⁺) = e_k - e_{k-1} - (ε_k⁻ -
+  ε_{k-1}⁺), of variance 2σ² plus the state's error growth between the fixes, which the filter
+  predicts (H P⁻_k Hᵀ - H P⁺_{k-1} Hᵀ) and which is taken off, whatever the filter's gain. An RTK
+  rover's centimetre noise and a stand-alone receiver's metre noise are then told apart without
+  a parameter.
+
+Both average squared differences with a time constant (``window``) and clip each new square at
+``_CLIP`` times the running mean (a single jump, a pothole or a multipath outlier, cannot
+dominate); both report nothing until ``_MIN_COUNT`` differences have been seen.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ins_fusion.core.rotation import FloatArray
+
+#: A squared difference above this many times the running mean is clipped to it.
+_CLIP = 9.0
+#: Differences needed before an estimate is reported.
+_MIN_COUNT = 10
+
+
+@dataclass(frozen=True)
+class _RunningMeanSquare:
+    """Exponentially weighted mean of per-axis squares, with clipping (module docstring);
+    immutable: ``pushed`` returns the updated mean."""
+
+    window: float
+    count: int = 0
+    mean: FloatArray = field(default_factory=lambda: np.zeros(3))
+
+    def pushed(self, square: FloatArray, weight: float) -> _RunningMeanSquare:
+        """With a per-axis square of ``weight`` (in the units of ``window``) added."""
+        if not np.isfinite(square).all():
+            return self
+        count = self.count + 1
+        if count <= _MIN_COUNT:  # plain mean to start
+            return replace(self, count=count, mean=self.mean + (square - self.mean) / count)
+        clipped = np.minimum(square, _CLIP * self.mean)
+        gain = min(1.0, weight / self.window)
+        return replace(self, count=count, mean=self.mean + (clipped - self.mean) * gain)
+
+    @property
+    def ready(self) -> bool:
+        return self.count >= _MIN_COUNT
+
+
+class ImuNoiseMonitor:
+    """White-equivalent noise density of the IMU's rate and specific force, per imu axis, at
+    the filter's time scale (module docstring). Feed every sample; read ``psd``."""
+
+    def __init__(self, block_s: float = 0.1, window_s: float = 10.0) -> None:
+        """block_s: block length τ [s]; window_s: time constant of the running mean [s]."""
+        self.block_s = block_s
+        self._gyro = _RunningMeanSquare(window_s)
+        self._accel = _RunningMeanSquare(window_s)
+        self._psd: tuple[FloatArray, FloatArray] | None = None
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the blocks (a gap or a reset); the running estimate is kept."""
+        self._start_s: float | None = None
+        self._sum = np.zeros(6)
+        self._n = 0
+        self._means: list[FloatArray] = []
+
+    def push(
+        self,
+        t_s: float,
+        rate: tuple[float, float, float],
+        force: tuple[float, float, float],
+    ) -> None:
+        """One IMU sample at t_s [s]: angular rate [rad/s] and specific force [m/s²]."""
+        if self._start_s is None:
+            self._start_s = t_s
+        elif t_s - self._start_s >= self.block_s and self._n:
+            self._close_block(t_s - self._start_s)
+            self._start_s = t_s
+        self._sum += (rate[0], rate[1], rate[2], force[0], force[1], force[2])
+        self._n += 1
+
+    def _close_block(self, tau_s: float) -> None:
+        means = self._means
+        means.append(self._sum / self._n)
+        self._sum = np.zeros(6)
+        self._n = 0
+        if len(means) < 3:
+            return
+        d = means[2] - 2.0 * means[1] + means[0]
+        del means[0]
+        psd = np.square(d) * (tau_s / 6.0)
+        self._gyro = self._gyro.pushed(psd[:3], tau_s)
+        self._accel = self._accel.pushed(psd[3:], tau_s)
+        if self._gyro.ready:
+            self._psd = (self._gyro.mean, self._accel.mean)
+
+    @property
+    def psd(self) -> tuple[FloatArray, FloatArray] | None:
+        """(gyro [rad²/s], accelerometer [m²/s³]) white-noise power densities per axis, the
+        squares of ARW [rad/√s] and VRW [m/s/√s]; None before enough blocks. The same
+        (read-only) objects until the next block closes."""
+        return self._psd
+
+
+@dataclass(frozen=True)
+class WhiteNoiseMonitor:
+    """White share of a receiver's position variance per NED axis, from consecutive
+    innovations (module docstring). Immutable (the engine keeps it in its rolled-back state):
+    ``pushed`` returns the updated monitor.
+
+    window_epochs: time constant of the running mean [epochs]; consecutive fixes further apart
+    than max_interval_s [s] (an outage, a gap) are not differenced.
+    """
+
+    window_epochs: float = 30.0
+    max_interval_s: float = 2.0
+    squares: _RunningMeanSquare | None = None
+    #: The previous fix: stamp, residual, its variance H P⁺ Hᵀ and the reported variance.
+    last: tuple[float, FloatArray, FloatArray, FloatArray] | None = None
+
+    def pushed(
+        self,
+        t_s: float,
+        innovation_ned_m: FloatArray,
+        residual_ned_m: FloatArray,
+        predicted_var_m2: FloatArray,
+        updated_var_m2: FloatArray,
+        reported_var_m2: FloatArray,
+    ) -> WhiteNoiseMonitor:
+        """With a fix at t_s [s]: its innovation (measured minus predicted, before the update)
+        and residual after the update (the innovation when rejected) [m], the diagonals of
+        H P Hᵀ before and after the update and the receiver's reported variance [m²], NED.
+
+        The state's own error growth between the two fixes, H P⁻_k Hᵀ - H P⁺_{k-1} Hᵀ, which
+        the filter predicts, is taken off the squared difference; the rest is divided by the
+        two reported variances, so the share carries over when the fix type changes."""
+        squares = self.squares or _RunningMeanSquare(self.window_epochs)
+        last = self.last
+        if last is not None and 0.0 < t_s - last[0] <= self.max_interval_s:
+            growth = np.maximum(predicted_var_m2 - last[2], 0.0)
+            excess = np.maximum(np.square(innovation_ned_m - last[1]) - growth, 0.0)
+            squares = squares.pushed(excess / np.maximum(reported_var_m2 + last[3], 1e-30), 1.0)
+        last = (t_s, residual_ned_m, updated_var_m2, reported_var_m2)
+        return replace(self, squares=squares, last=last)
+
+    def restarted(self) -> WhiteNoiseMonitor:
+        """The next fix starts a new run (after a state jump); the estimate is kept."""
+        return replace(self, last=None)
+
+    @property
+    def share(self) -> FloatArray | None:
+        """Estimated white share of the reported variance per NED axis (may exceed 1: the
+        receiver reports too little); None before enough epochs."""
+        if self.squares is None or not self.squares.ready:
+            return None
+        return self.squares.mean.copy()
+
+
+def fading_factor(
+    innovation: FloatArray, predicted: FloatArray, noise: FloatArray, target: float
+) -> float:
+    """Smallest λ >= 1 with zᵀ(λ H P Hᵀ + R)⁻¹ z <= target (``predicted`` = H P Hᵀ, ``noise``
+    = R): the factor on the whole covariance that makes a rejected innovation fit, found by
+    bisection on log λ (the NIS falls monotonically with λ). math.inf when no finite λ up to
+    1e12 does (the innovation lies where H P Hᵀ has no variance)."""
+
+    def nis(lam: float) -> float:
+        try:
+            return float(innovation @ np.linalg.solve(lam * predicted + noise, innovation))
+        except np.linalg.LinAlgError:
+            return math.inf
+
+    if nis(1.0) <= target:
+        return 1.0
+    high = 1e12
+    if not nis(high) <= target:
+        return math.inf
+    low_log, high_log = 0.0, math.log(high)
+    for _ in range(40):
+        mid = 0.5 * (low_log + high_log)
+        if nis(math.exp(mid)) <= target:
+            high_log = mid
+        else:
+            low_log = mid
+    return math.exp(high_log)
