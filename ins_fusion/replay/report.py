@@ -69,6 +69,11 @@ def build_report(
         else inputs.reference.frame_id,
         "dropped_messages": dict(run.dropped),
         "measurements": {name: dict(c) for name, c in run.status.measurements.items()},
+        # The noise the engine adapted to at the end (InsEngine.adapted_noise; NaN -> None).
+        "adapted_noise": {
+            name: value if math.isfinite(value) else None
+            for name, value in run.status.adapted.items()
+        },
     }
     report.update(_accuracy(evaluation, outages))
     scored = withheld if withheld is not None else WithheldEvaluation.empty()
@@ -212,6 +217,7 @@ def format_table(report: Report) -> str:
     else:
         lines += _accuracy_lines(report)
     lines += withheld
+    lines += _adapted_lines(report)
     counters = report["measurements"]
     width = max(len("measurement"), *(len(n) for n in counters)) if counters else 11
     lines.append(f"{'measurement':<{width}}  {'used':>7}  {'rejected':>8}")
@@ -220,3 +226,19 @@ def format_table(report: Report) -> str:
         for name, c in counters.items()
     )
     return "\n".join(lines)
+
+
+def _adapted_lines(report: Report) -> list[str]:
+    """The adapted noise next to nothing else: what the filter ended up believing."""
+    adapted = report.get("adapted_noise")
+    if not adapted:
+        return []
+
+    def axes(prefix: str, suffix: str, names: str) -> str:
+        return "/".join(_num(adapted.get(f"{prefix}_{a}_{suffix}"), 3) for a in names)
+
+    return [
+        f"adapted noise  gyro ARW {axes('gyro_arw', 'deg_sqrt_h', 'xyz')} deg/√h  "
+        f"accel VRW {axes('accel_vrw', 'm_s_sqrt_h', 'xyz')} m/s/√h  "
+        f"GNSS white σ {axes('gnss_white_sigma', 'm', 'enu')} m"
+    ]
