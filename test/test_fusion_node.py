@@ -126,6 +126,7 @@ def test_node_fuses_a_played_bag_into_odometry_fix_and_imu(drive_bag):
     assert values["state"] == "navigating"
     assert int(values["gnss_position.used"]) > 20
     assert int(values["imu_samples"]) > 0.9 * DURATION_S * 134
+    assert float(values["adapted.accel_vrw_x_m_s_sqrt_h"]) > 0.0  # the noise in use
 
 
 def test_bad_parameters_are_rejected():
