@@ -94,7 +94,9 @@ def _replay(monkeypatch, frame_id, imu_frame="imu_link"):
     track = SolutionTrack.from_solutions([_solution(t) for t in np.arange(0.0, 10.01, 0.02)])
     parameters = {"imu_lever_arm": list(IMU_ARM), "imu_mounting_rpy_deg": list(MOUNTING_DEG)}
     config = FusionConfig.from_parameters(parameters)
-    status = SimpleNamespace(state="navigating", resets=0, last_reset_reason="", measurements={})
+    status = SimpleNamespace(
+        state="navigating", resets=0, last_reset_reason="", measurements={}, adapted={}
+    )
     run = FusionRun(track, status, DATUM, {"fix": 0, "vel": 0, "attitude": 0}, 50.0, 0.0, config)
     monkeypatch.setattr(pipeline, "run_fusion", lambda *args, **kwargs: run)
     truth_frame = "imu_link" if frame_id == "imu_link" else "base_link"
