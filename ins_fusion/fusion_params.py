@@ -161,6 +161,40 @@ PARAMETERS: tuple[Param, ...] = (
         180.0,
     ),
     Param(
+        "imu_time_offset",
+        0.0,
+        "how much later than the GNSS epochs the IMU samples are stamped [s]; subtracted from "
+        "every IMU stamp (the residual is estimated, self_calibration.time_offset)",
+        -1.0,
+        1.0,
+    ),
+    Param(
+        "self_calibration.time_offset",
+        True,
+        "estimate the residual IMU-GNSS time offset online (observable in turns and speed "
+        "changes; reported in /diagnostics and by replay)",
+    ),
+    Param(
+        "self_calibration.time_offset_sigma",
+        0.1,
+        "initial sigma of the residual IMU time offset [s]",
+        1.0e-4,
+        1.0,
+    ),
+    Param(
+        "self_calibration.mounting",
+        True,
+        "estimate the residual IMU-to-vehicle mounting (pitch, yaw) online from the NHC "
+        "(needs use_nhc; observable in turns and speed changes)",
+    ),
+    Param(
+        "self_calibration.mounting_sigma",
+        3.0,
+        "initial sigma of the residual mounting pitch and yaw [deg]",
+        0.01,
+        20.0,
+    ),
+    Param(
         "datum",
         [],
         "origin of the map frame [lat_deg, lon_deg, height_m]; empty = the first good fix",

@@ -74,6 +74,11 @@ class FusionConfig:
     imu_lever_arm_flu_m: Vec3
     gnss_lever_arm_flu_m: Vec3
     attitude_mounting_rpy_rad: Vec3
+    imu_time_offset_s: float
+    estimate_time_offset: bool
+    time_offset_sigma_s: float
+    estimate_mounting: bool
+    mounting_sigma_rad: float
     datum_deg: tuple[float, float, float] | None
     calibration_file: str
     use_gnss_velocity: bool
@@ -126,6 +131,11 @@ class FusionConfig:
             imu_lever_arm_flu_m=_vec(p["imu_lever_arm"]),
             gnss_lever_arm_flu_m=_vec(p["gnss_lever_arm"]),
             attitude_mounting_rpy_rad=_vec(p["attitude_mounting_rpy_deg"], math.pi / 180.0),
+            imu_time_offset_s=p["imu_time_offset"],
+            estimate_time_offset=p["self_calibration.time_offset"],
+            time_offset_sigma_s=p["self_calibration.time_offset_sigma"],
+            estimate_mounting=p["self_calibration.mounting"] and p["use_nhc"],
+            mounting_sigma_rad=math.radians(p["self_calibration.mounting_sigma"]),
             datum_deg=_vec(datum) if datum else None,
             calibration_file=p["calibration_file"],
             use_gnss_velocity=p["use_gnss_velocity"],

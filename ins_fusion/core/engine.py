@@ -47,6 +47,7 @@ from dataclasses import dataclass
 from typing import Any, TypeVar
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from ins_fusion.core import earth
 from ins_fusion.core.adaptation import ImuNoiseMonitor, WhiteNoiseMonitor, fading_factor
@@ -92,6 +93,7 @@ from ins_fusion.core.rotation import (
     FloatArray,
     Quat,
     Vec3,
+    euler_from_quat,
     mat_from_quat,
     quat_from_euler,
     quat_from_rotvec,
@@ -142,6 +144,8 @@ _ALIGN_FIX_MAX_AGE_S = 1.5
 #: A change of the receiver's reported variance by more than this factor restarts the
 #: correlated GNSS error states (another fix type).
 _GNSS_NOISE_JUMP = 1.5
+#: Time constant of the smoothed acceleration used for the time offset of GNSS velocities [s].
+_ACCEL_SMOOTHING_S = 0.1
 #: Largest factor by which a fix's covariance grows when its epochs scatter more than reported.
 _MAX_GNSS_INFLATION = 100.0
 #: Most measurements waiting for a later IMU sample.
@@ -187,7 +191,8 @@ class EngineStatus:
     with the reason of the last one, IMU samples/gaps/duplicate stamps, the last normalised
     innovation squared per measurement, rollbacks and re-propagated samples for late
     measurements, the stop detector's decision, and the noise the filter adapted to
-    (``adapted``, flat names with units; InsEngine.adapted_noise)."""
+    (``adapted``, flat names with units; InsEngine.adapted_noise) and the self-calibration
+    (``calibration``; InsEngine.self_calibration)."""
 
     state: str
     measurements: dict[str, dict[str, int]]
@@ -201,6 +206,7 @@ class EngineStatus:
     replayed_samples: int
     stationary: bool
     adapted: dict[str, float]
+    calibration: dict[str, float]
 
 
 class _State:
@@ -214,6 +220,7 @@ class _State:
     __slots__ = (
         "_mat_nb",
         "accel_bias",
+        "accel_lp",
         "accel_n",
         "accel_scale",
         "cov_dt",
@@ -230,11 +237,13 @@ class _State:
         "heading_known",
         "imu_psd",
         "last_position_t_s",
+        "mounting",
         "nav",
         "prev_inc",
         "rate_b",
         "rate_i",
         "t_s",
+        "time_offset",
     )
 
     def __init__(self, t_s: float, nav: NavState, gyro_bias: Vec3, heading_known: bool) -> None:
@@ -251,6 +260,9 @@ class _State:
         self.gnss_error = self.gnss_variance = self.gnss_reported = zero
         self.gnss_white = WhiteNoiseMonitor()
         self.imu_psd: tuple[FloatArray, FloatArray] | None = None
+        self.accel_lp = zero
+        self.mounting = (0.0, 0.0)
+        self.time_offset = 0.0
         self.cov_dt = 0.0
         self.cov_dth = self.cov_dv = zero
         self.cov_vel0 = nav.vel_ned_m_s
@@ -271,6 +283,9 @@ class _State:
         other.gnss_reported = self.gnss_reported
         other.gnss_white = self.gnss_white
         other.imu_psd = self.imu_psd
+        other.accel_lp = self.accel_lp
+        other.mounting = self.mounting
+        other.time_offset = self.time_offset
         other.gated_runs = self.gated_runs
         other.gyro_bias = self.gyro_bias
         other.gyro_scale = self.gyro_scale
@@ -398,6 +413,8 @@ class InsEngine:
             noise.gyro_scale_sigma > 0.0,
             noise.accel_scale_sigma > 0.0,
             config.gnss_correlation_time_s > 0.0,
+            config.estimate_mounting,
+            config.estimate_time_offset,
         )
         self._mat_bi = _mat_from_rpy_flu(config.imu_mounting_rpy_rad)
         self._r_bi = tuple(float(v) for v in self._mat_bi.ravel())
@@ -455,8 +472,9 @@ class InsEngine:
         rate_flu_rad_s: Sequence[float] | FloatArray,
         force_flu_m_s2: Sequence[float] | FloatArray,
     ) -> None:
-        """One IMU sample as published by imu400cc_node: imu_link FLU, rad/s and m/s², stamp."""
-        t = float(t_s)
+        """One IMU sample as published by imu400cc_node: imu_link FLU, rad/s and m/s², stamp
+        (``imu_time_offset`` is taken off it: the engine runs on the GNSS time base)."""
+        t = float(t_s) - self.config.imu_time_offset_s
         rate: Vec3 = (float(rate_flu_rad_s[0]), float(rate_flu_rad_s[1]), float(rate_flu_rad_s[2]))
         force: Vec3 = (float(force_flu_m_s2[0]), float(force_flu_m_s2[1]), float(force_flu_m_s2[2]))
         # One test for all seven: a NaN or an infinity in any makes the sum non-finite.
@@ -569,7 +587,7 @@ class InsEngine:
             return None
         C = s.mat_nb
         (c00, c01, c02), (c10, c11, c12), (c20, c21, c22) = C.tolist()
-        ax, ay, az = self._base_arm_b.tolist()
+        ax, ay, az = self._arms(s)[1].tolist()
         # Lever arm in NED, and its velocity ω × r (body) rotated into NED; 3-vectors in plain
         # floats (numpy per 3-vector costs more than the arithmetic at the output rate).
         n0 = c00 * ax + c01 * ay + c02 * az
@@ -629,7 +647,55 @@ class InsEngine:
             replayed_samples=self._replayed_samples,
             stationary=self._detector.stationary,
             adapted=self.adapted_noise(),
+            calibration=self.self_calibration(),
         )
+
+    def self_calibration(self) -> dict[str, float]:
+        """The self-calibration (NaN where not estimated or before the filter starts):
+        ``time_offset_s`` = imu_time_offset + the estimated residual, with the residual and its
+        σ [s]; the residual mounting pitch and yaw about base_link FRD y, z and their σ [deg];
+        ``imu_mounting_{roll,pitch,yaw}_deg``: the imu_mounting_rpy_deg that holds them (REP-103,
+        for the configuration)."""
+        s, kf, layout = self._state, self._filter, self.layout
+        nan = math.nan
+        values = dict.fromkeys(
+            (
+                "time_offset_s",
+                "time_offset_residual_s",
+                "time_offset_sigma_s",
+                "mounting_pitch_residual_deg",
+                "mounting_yaw_residual_deg",
+                "mounting_pitch_sigma_deg",
+                "mounting_yaw_sigma_deg",
+                "imu_mounting_roll_deg",
+                "imu_mounting_pitch_deg",
+                "imu_mounting_yaw_deg",
+            ),
+            nan,
+        )
+        if s is None or kf is None:
+            return values
+        if layout.td is not None:
+            values["time_offset_residual_s"] = s.time_offset
+            values["time_offset_s"] = self.config.imu_time_offset_s + s.time_offset
+            values["time_offset_sigma_s"] = math.sqrt(max(kf.P[layout.td, layout.td], 0.0))
+        if layout.mt is not None:
+            mt = layout.mt
+            pitch, yaw = s.mounting
+            values["mounting_pitch_residual_deg"] = math.degrees(pitch)
+            values["mounting_yaw_residual_deg"] = math.degrees(yaw)
+            values["mounting_pitch_sigma_deg"] = math.degrees(math.sqrt(max(kf.P[mt, mt], 0.0)))
+            values["mounting_yaw_sigma_deg"] = math.degrees(
+                math.sqrt(max(kf.P[mt + 1, mt + 1], 0.0))
+            )
+            # imu -> vehicle (FRD) = (I - [μ×]) imu -> base_link; as REP-103 angles (FLU).
+            mat_vi = (np.eye(3) - skew((0.0, pitch, yaw))) @ self._mat_bi
+            roll_p_yaw = euler_from_quat(
+                np.asarray(Rotation.from_matrix(MAT_FLU_FRD @ mat_vi @ MAT_FLU_FRD).as_quat())
+            )
+            for name, value in zip(("roll", "pitch", "yaw"), roll_p_yaw, strict=True):
+                values[f"imu_mounting_{name}_deg"] = math.degrees(float(value))
+        return values
 
     def adapted_noise(self) -> dict[str, float]:
         """The noise model in use after adaptation (core.adaptation), in user units: gyro ARW
@@ -858,7 +924,15 @@ class InsEngine:
         s.set_nav(nav)
         inv_dt = 1.0 / dt
         v1n, v1e, v1d = nav.vel_ned_m_s.tolist()
-        s.accel_n = ((v1n - v0n) * inv_dt, (v1e - v0e) * inv_dt, (v1d - v0d) * inv_dt)
+        an = ((v1n - v0n) * inv_dt, (v1e - v0e) * inv_dt, (v1d - v0d) * inv_dt)
+        s.accel_n = an
+        # Acceleration low-passed over ~0.1 s (vibration out) for the time-offset model.
+        k, lp = min(1.0, dt / _ACCEL_SMOOTHING_S), s.accel_lp
+        s.accel_lp = (
+            lp[0] + k * (an[0] - lp[0]),
+            lp[1] + k * (an[1] - lp[1]),
+            lp[2] + k * (an[2] - lp[2]),
+        )
         s.rate_b = (tb[0] * inv_dt, tb[1] * inv_dt, tb[2] * inv_dt)
         s.rate_i = (ti0 * inv_dt, ti1 * inv_dt, ti2 * inv_dt)
         s.prev_inc = inc_b
@@ -1039,6 +1113,11 @@ class InsEngine:
             s.accel_scale = _add3(s.accel_scale, d, self.layout.sa)
         if self.layout.gp is not None:
             s.gnss_error = _add3(s.gnss_error, d, self.layout.gp)
+        if self.layout.mt is not None:
+            mt = self.layout.mt
+            s.mounting = (s.mounting[0] + d[mt], s.mounting[1] + d[mt + 1])
+        if self.layout.td is not None:
+            s.time_offset += d[self.layout.td]
         if not s.heading_known:
             self._decouple_yaw()
 
@@ -1068,8 +1147,17 @@ class InsEngine:
                 self._restart_gnss_error(fix, correlated)
             elif not np.array_equal(correlated, s.gnss_variance):
                 self._set_gnss_variance(correlated)  # the white/correlated split moved
-        model = gnss_position(pred, fix, self._antenna_arm_b, white, s.gnss_error)
+        antenna_b = self._arms(s)[0]
+        antenna_rate_n = pred.vel_ned_m_s + pred.mat_nb @ np.cross(pred.rate_b, antenna_b)
+        model = self._late_imu(
+            gnss_position(pred, fix, antenna_b, white, s.gnss_error),
+            antenna_rate_n,
+            np.array(s.accel_lp),
+        )
         z, H, _ = model
+        if self.layout.mt is not None:  # the arm turns with the mounting: -C [l×] on (μ_y, μ_z)
+            mt = self.layout.mt
+            H[:, mt : mt + 2] = -(pred.mat_nb @ skew(self._antenna_arm_b))[:, 1:3]
         kf = self._filter
         assert kf is not None
         predicted = np.einsum("ij,jk,ik->i", H, kf.P, H)
@@ -1096,12 +1184,12 @@ class InsEngine:
                 return
         if not self.config.use_gnss_velocity:
             return
-        model = gnss_velocity(pred, vel, self._antenna_arm_b, self._mat_bi)
+        model = gnss_velocity(pred, vel, self._arms(s)[0], self._mat_bi)
         if model is None:
             if live:
                 self._counters["gnss_velocity"]["rejected"] += 1
             return
-        self._update("gnss_velocity", model, live)
+        self._update("gnss_velocity", self._late_imu(model, np.array(s.accel_lp)), live)
 
     def _attitude(self, pred: Prediction, att: AttitudeMeasurement, live: bool) -> None:
         s = self._state
@@ -1114,7 +1202,7 @@ class InsEngine:
                 if live:
                     self._counters["attitude"]["used"] += 1
             return
-        model = attitude(pred, mat_nb, att.cov_rpy_rad2)
+        model = attitude(pred, mat_nb, att.cov_rpy_rad2, s.time_offset)
         if model is None:
             if live:
                 self._counters["attitude"]["rejected"] += 1
@@ -1144,8 +1232,43 @@ class InsEngine:
         self._update("zaru", model, live)
 
     def _nhc(self, pred: Prediction, _: None, live: bool) -> None:
-        model = nhc(pred, self._base_arm_b, self._mat_bi, self.config.nhc_sigma_m_s)
+        s = self._state
+        assert s is not None
+        model = nhc(pred, self._arms(s)[1], self._mat_bi, self.config.nhc_sigma_m_s, s.mounting)
         self._update("nhc", model, live)
+
+    def _arms(self, s: _State) -> tuple[FloatArray, FloatArray]:
+        """(antenna, base_link origin) lever arms from the IMU [m] in the engine's body frame:
+        the configured arms (vehicle axes) turned by the residual mounting, (I + [μ×]) l."""
+        if self.layout.mt is None or s.mounting == (0.0, 0.0):
+            return self._antenna_arm_b, self._base_arm_b
+        mu = np.array((0.0, s.mounting[0], s.mounting[1]))
+        return (
+            self._antenna_arm_b + np.cross(mu, self._antenna_arm_b),
+            self._base_arm_b + np.cross(mu, self._base_arm_b),
+        )
+
+    def _late_imu(
+        self, model: Model, rate_n: FloatArray, second_n: FloatArray | None = None
+    ) -> Model:
+        """A GNSS measurement at its epoch t compared with the state at t + t̂_d, the estimated
+        residual IMU time offset (the IMU timeline runs late by it): the prediction moves by
+        rate·t̂_d (+ second·t̂_d²/2 when the second derivative is given) and H gets the rate
+        at t + t̂_d on δt_d (rate, second: first and second time derivative of the measured
+        quantity, NED)."""
+        td = self.layout.td
+        s = self._state
+        if td is None or s is None:
+            return model
+        z, H, R = model
+        rows = len(z)
+        offset = s.time_offset
+        shift = rate_n[:rows] * offset
+        if second_n is not None:
+            shift = shift + second_n[:rows] * (0.5 * offset * offset)
+            rate_n = rate_n + second_n * offset
+        H[:, td] = rate_n[:rows]
+        return z - shift, H, R
 
     def _too_fast_to_align(self, pred: Prediction, live: bool, kind: str) -> bool:
         """Heading unknown and moving: GNSS updates would need the yaw; count them rejected."""
@@ -1342,6 +1465,11 @@ class InsEngine:
         P[ATT : ATT + 3, ATT : ATT + 3] = att_cov
         P[BG : BG + 3, BG : BG + 3] = np.diag(gyro_bias_var)
         P[BA : BA + 3, BA : BA + 3] = np.diag(self._accel_bias_variance())
+        if self.layout.mt is not None:
+            mt = self.layout.mt
+            P[mt : mt + 2, mt : mt + 2] = np.eye(2) * self.config.mounting_sigma_rad**2
+        if self.layout.td is not None:
+            P[self.layout.td, self.layout.td] = self.config.time_offset_sigma_s**2
         if self.layout.sg is not None:
             P[self.layout.sg : self.layout.sg + 3, self.layout.sg : self.layout.sg + 3] = (
                 np.eye(3) * noise.gyro_scale_sigma**2

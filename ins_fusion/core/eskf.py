@@ -8,6 +8,8 @@ update), with x_true = x_nominal + δx:
     δb_g gyro bias error, imu FRD [rad/s]   δb_a accelerometer bias error, imu FRD [m/s²]
     δs_g, δs_a optional scale-factor errors [fraction] (imu FRD)
     ε_g  optional time-correlated GNSS position error, NED [m] (first-order Gauss-Markov)
+    δμ   optional residual IMU-to-vehicle mounting, pitch and yaw about base_link FRD y, z [rad]
+    δt_d optional residual IMU time offset [s]: how much later than the GNSS the IMU is stamped
 
 Sensor model (imu FRD axes i): ω̃ = (1 + s_g)∘ω + b_g + n_g, f̃ = (1 + s_a)∘f + b_a + n_a, with
 b and s first-order Gauss-Markov processes (Oslo notes §2 (3.15)/(3.16), §7 F1/G1;
@@ -23,6 +25,7 @@ strapdown):
     ψ̇ = -[ω_in×]ψ - ∂ω_en/∂v δv - C_ni (δb_g + diag(ω_i) δs_g) - C_ni n_g
     δḃ = -δb/T + w_b,   E[w_b²] = 2σ_b²/T (and the same for the scale factors)
     ε̇_g = -ε_g/T_g + w_g, E[w_g²] = 2σ_g²/T_g with σ_g² from the latest fix (gnss_variance)
+    δμ̇ = w_μ, δṫ_d = w_t: random constants with a small random walk (``CALIBRATION_WALK``)
 
 Discretisation over an interval Δt: Φ = I + FΔt + (FΔt)²/2 and Q_d = (Φ Q_c Φᵀ + Q_c)Δt/2, both
 second-order accurate; propagated in steps of 1/134 s or 0.1 s for 10 s they agree with Van Loan's
@@ -52,31 +55,42 @@ from ins_fusion.core.rotation import FloatArray
 #: First index of each always-present block of the error state.
 POS, VEL, ATT, BG, BA = 0, 3, 6, 9, 12
 _CORE_SIZE = 15
+#: Random-walk densities of the self-calibration states: mounting [rad²/s] (0.01°/√s: a
+#: mounting that settles by a few hundredths of a degree per minute) and time offset [s²/s]
+#: (0.1 ms/√s: a clock mapping that wanders by about a millisecond per minute).
+CALIBRATION_WALK = {"mounting": math.radians(0.01) ** 2, "time_offset": 1e-4**2}
 
 
 @dataclass(frozen=True)
 class StateLayout:
     """Named indices of the error state: the 15 core states, then the optional gyro and
-    accelerometer scale factors and the GNSS position error (NED [m], time-correlated part of
-    the receiver's error). An absent block has index None."""
+    accelerometer scale factors, the GNSS position error (NED [m], time-correlated part of the
+    receiver's error), the residual mounting (pitch, yaw [rad]) and the residual IMU time
+    offset [s]. An absent block has index None."""
 
     gyro_scale: bool = False
     accel_scale: bool = False
     gnss_error: bool = False
+    mounting: bool = False
+    time_offset: bool = False
     sg: int | None = field(init=False)
     sa: int | None = field(init=False)
     gp: int | None = field(init=False)
+    mt: int | None = field(init=False)
+    td: int | None = field(init=False)
     size: int = field(init=False)
 
     def __post_init__(self) -> None:
         next_index = _CORE_SIZE
-        for name, present in (
-            ("sg", self.gyro_scale),
-            ("sa", self.accel_scale),
-            ("gp", self.gnss_error),
+        for name, present, width in (
+            ("sg", self.gyro_scale, 3),
+            ("sa", self.accel_scale, 3),
+            ("gp", self.gnss_error, 3),
+            ("mt", self.mounting, 2),
+            ("td", self.time_offset, 1),
         ):
             object.__setattr__(self, name, next_index if present else None)
-            next_index += 3 * present
+            next_index += width * present
         object.__setattr__(self, "size", next_index)
 
 
@@ -139,6 +153,11 @@ class ErrorStateFilter:
                 markov.append((start, t_b, (sigma, sigma, sigma)))
         if layout.gp is not None:
             markov.append((layout.gp, gnss_correlation_time_s, (0.0, 0.0, 0.0)))
+        walks = [(layout.mt, 2, CALIBRATION_WALK["mounting"])]
+        walks.append((layout.td, 1, CALIBRATION_WALK["time_offset"]))
+        for start, width, density in walks:
+            if start is not None:
+                Q[start : start + width, start : start + width] = np.eye(width) * density
         self._markov_idx = np.concatenate([np.arange(m[0], m[0] + 3) for m in markov])
         self._markov_q = np.array([2.0 * s * s / m[1] for m in markov for s in m[2]])
         self._F[self._markov_idx, self._markov_idx] = np.repeat([-1.0 / m[1] for m in markov], 3)

@@ -205,12 +205,18 @@ def wrap_angle(angle_rad: FloatArray) -> FloatArray:
 
 
 def attitude(
-    pred: Prediction, mat_nb_measured: FloatArray, cov_rpy_flu: FloatArray
+    pred: Prediction,
+    mat_nb_measured: FloatArray,
+    cov_rpy_flu: FloatArray,
+    time_offset_s: float = 0.0,
 ) -> Model | None:
     """Euler angles (roll, pitch, yaw) of base_link; angles marked unknown are dropped.
 
     The REP-103 covariance (errors about the FLU axes) becomes the covariance of the NED Euler
-    angles by the sign flips of pitch and yaw. None when no angle is measured.
+    angles by the sign flips of pitch and yaw. None when no angle is measured. With a residual
+    IMU time offset state, the measurement is compared with the attitude ``time_offset_s``
+    later on the IMU's timeline: the Euler angles move by their rate J C_nb ω_b (the earth and
+    transport rates, < 1e-4 rad/s, left out) times it, and H gets that rate on δt_d.
     """
     cov = _RPY_FLU_TO_FRD @ cov_rpy_flu @ _RPY_FLU_TO_FRD
     diagonal = np.diagonal(cov)
@@ -219,7 +225,13 @@ def attitude(
         return None
     z = wrap_angle(euler_rad(mat_nb_measured) - euler_rad(pred.mat_nb))
     H = pred.jacobian(3)
-    H[:, ATT : ATT + 3] = euler_jacobian(pred.mat_nb)
+    jacobian = euler_jacobian(pred.mat_nb)
+    H[:, ATT : ATT + 3] = jacobian
+    td = pred.layout.td
+    if td is not None:
+        euler_rate = jacobian @ (pred.mat_nb @ pred.rate_b)
+        H[:, td] = euler_rate
+        z = z - euler_rate * time_offset_s
     return z[keep], H[keep], cov[np.ix_(keep, keep)]
 
 
@@ -245,9 +257,19 @@ def zaru(
     return mean_rate_i - earth_rate_i - gyro_bias_i, H, np.diag(variance)
 
 
-def nhc(pred: Prediction, arm_b: FloatArray, mat_bi: FloatArray, sigma_m_s: float) -> Model:
-    """No lateral or vertical velocity of the point ``arm_b`` (base_link origin) in base_link:
-    v_b = C_nbᵀ v + ω_b × r. H: δv -> C_nbᵀ, ψ -> C_nbᵀ [v×], gyro errors -> -[r×] dω_b."""
+def nhc(
+    pred: Prediction,
+    arm_b: FloatArray,
+    mat_bi: FloatArray,
+    sigma_m_s: float,
+    mounting_rad: tuple[float, float] = (0.0, 0.0),
+) -> Model:
+    """No lateral or vertical velocity of the point ``arm_b`` (base_link origin) in the
+    vehicle frame: v_b = C_nbᵀ v + ω_b × r in base_link, turned into the vehicle frame by the
+    residual mounting μ = (pitch, yaw) about base_link FRD y and z, C_vb = I - [μ×]:
+    lateral v_b,y - μ_z v_b,x, vertical v_b,z + μ_y v_b,x. H: δv -> C_nbᵀ, ψ -> C_nbᵀ [v×],
+    gyro errors -> -[r×] dω_b, δμ_y -> +v_b,x (vertical), δμ_z -> -v_b,x (lateral) (the
+    mounting's second-order terms in H left out)."""
     c_bn = pred.mat_nb.T
     v_b = c_bn @ pred.vel_ned_m_s + skew(pred.rate_b) @ arm_b
     H = pred.jacobian(3)
@@ -255,4 +277,11 @@ def nhc(pred: Prediction, arm_b: FloatArray, mat_bi: FloatArray, sigma_m_s: floa
     H[:, ATT : ATT + 3] = c_bn @ skew(pred.vel_ned_m_s)
     for start, d_rate in pred.gyro_error_jacobian(mat_bi):
         H[:, start : start + 3] = -skew(arm_b) @ d_rate
-    return -v_b[1:], H[1:], np.eye(2) * sigma_m_s**2
+    pitch, yaw = mounting_rad
+    forward = float(v_b[0])
+    predicted = np.array([v_b[1] - yaw * forward, v_b[2] + pitch * forward])
+    mt = pred.layout.mt
+    if mt is not None:
+        H[1, mt + 1] = -forward
+        H[2, mt] = forward
+    return -predicted, H[1:], np.eye(2) * sigma_m_s**2
