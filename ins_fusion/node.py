@@ -184,6 +184,8 @@ class InsFusionNode(Node):
             values[f"{name}.last_nis"] = nis
         for name, value in status.adapted.items():  # the noise the filter adapted to
             values[f"adapted.{name}"] = value
+        for name, value in status.calibration.items():  # time offset and mounting estimates
+            values[f"calibration.{name}"] = value
         if solution is not None:
             for axis, value in zip("xyz", solution.gyro_bias_flu_rad_s, strict=True):
                 values[f"gyro_bias_{axis}_deg_h"] = math.degrees(value) * 3600.0

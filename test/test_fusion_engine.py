@@ -288,7 +288,8 @@ def test_a_sensor_rejected_again_and_again_is_let_in_by_widening_the_covariance(
     """The heading jumps by 4° (think of a state corrupted by bad IMU timing, seen from the
     other side): without recovery every attitude measurement is gated from then on; with it,
     the fifth in a row widens the attitude covariance and the filter follows."""
-    engine = _engine(gate_recovery_count=recovery_count)
+    # The mounting estimate off: with it the filter may explain the jump as a turned IMU.
+    engine = _engine(gate_recovery_count=recovery_count, **{"self_calibration.mounting": False})
     feed(engine, eight_adu5, events=_yaw_offset(eight_adu5.events, 40.0, 4.0))
     counters = engine.status().measurements["attitude"]
     base = eight_adu5.truth.base_link(eight_adu5.imu_t[-1:])

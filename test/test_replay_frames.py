@@ -95,7 +95,12 @@ def _replay(monkeypatch, frame_id, imu_frame="imu_link"):
     parameters = {"imu_lever_arm": list(IMU_ARM), "imu_mounting_rpy_deg": list(MOUNTING_DEG)}
     config = FusionConfig.from_parameters(parameters)
     status = SimpleNamespace(
-        state="navigating", resets=0, last_reset_reason="", measurements={}, adapted={}
+        state="navigating",
+        resets=0,
+        last_reset_reason="",
+        measurements={},
+        adapted={},
+        calibration={},
     )
     run = FusionRun(track, status, DATUM, {"fix": 0, "vel": 0, "attitude": 0}, 50.0, 0.0, config)
     monkeypatch.setattr(pipeline, "run_fusion", lambda *args, **kwargs: run)

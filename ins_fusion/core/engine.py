@@ -144,7 +144,11 @@ _ALIGN_FIX_MAX_AGE_S = 1.5
 #: A change of the receiver's reported variance by more than this factor restarts the
 #: correlated GNSS error states (another fix type).
 _GNSS_NOISE_JUMP = 1.5
-#: Time constant of the smoothed acceleration used for the time offset of GNSS velocities [s].
+#: The time offset is observed only above these rates of the measured quantity: speed [m/s]
+#: for positions, acceleration [m/s²] for velocities (core.measurements for attitude).
+_TIME_OFFSET_MIN_SPEED_M_S = 1.0
+_TIME_OFFSET_MIN_ACCEL_M_S2 = 0.3
+#: Time constant of the smoothed acceleration and rate of the time-offset model [s].
 _ACCEL_SMOOTHING_S = 0.1
 #: Largest factor by which a fix's covariance grows when its epochs scatter more than reported.
 _MAX_GNSS_INFLATION = 100.0
@@ -166,7 +170,10 @@ class InsSolution:
     quat_enu_flu_xyzw: base_link (FLU) in ENU; rate_flu_rad_s: bias-corrected ω_ib in base_link
     FLU; covariances [m², m²/s², rad²] in ENU (attitude: errors about the ENU axes);
     gyro_bias_flu_rad_s, accel_bias_flu_m_s2: estimated sensor biases in imu_link FLU (after the
-    calibration file's correction); state: 'aligning' | 'navigating' | 'degraded'.
+    calibration file's correction); state: 'aligning' | 'navigating' | 'degraded';
+    imu_mounting_rpy_rad: REP-103 roll, pitch, yaw of imu_link in base_link with the estimated
+    residual mounting (None when it is not estimated: the configured one). base_link is the
+    vehicle frame of that mounting: position, velocity, orientation and rate include it.
     """
 
     t_s: float
@@ -183,6 +190,7 @@ class InsSolution:
     gyro_bias_flu_rad_s: FloatArray
     accel_bias_flu_m_s2: FloatArray
     state: str
+    imu_mounting_rpy_rad: FloatArray | None = None
 
 
 @dataclass(frozen=True)
@@ -242,6 +250,7 @@ class _State:
         "prev_inc",
         "rate_b",
         "rate_i",
+        "rate_lp",
         "t_s",
         "time_offset",
     )
@@ -260,7 +269,7 @@ class _State:
         self.gnss_error = self.gnss_variance = self.gnss_reported = zero
         self.gnss_white = WhiteNoiseMonitor()
         self.imu_psd: tuple[FloatArray, FloatArray] | None = None
-        self.accel_lp = zero
+        self.accel_lp = self.rate_lp = zero
         self.mounting = (0.0, 0.0)
         self.time_offset = 0.0
         self.cov_dt = 0.0
@@ -284,6 +293,7 @@ class _State:
         other.gnss_white = self.gnss_white
         other.imu_psd = self.imu_psd
         other.accel_lp = self.accel_lp
+        other.rate_lp = self.rate_lp
         other.mounting = self.mounting
         other.time_offset = self.time_offset
         other.gated_runs = self.gated_runs
@@ -427,6 +437,9 @@ class InsEngine:
         self._j_solution = np.zeros((9, BG + 3))
         for row, col in ((0, POS), (3, VEL), (6, ATT)):
             self._j_solution[row : row + 3, col : col + 3] = MAT_ENU_NED
+        self._j_mounting = np.zeros((9, BG + 5))
+        mt = self.layout.mt
+        self._solution_states = np.r_[0 : BG + 3, [] if mt is None else [mt, mt + 1]].astype(int)
         # Orientation of base_link from that of the attitude receiver's frame a: q_ea ⊗ q_ab.
         q_ba = quat_from_euler(*config.attitude_mounting_rpy_rad)
         self._q_a_base: Quat = (-q_ba[0], -q_ba[1], -q_ba[2], q_ba[3])
@@ -458,6 +471,7 @@ class InsEngine:
         self._imu_noise = ImuNoiseMonitor()
         self._accel_psd_floor = np.square(noise.accel_vrw)
         self._measured_psd: tuple[FloatArray, FloatArray] | None = None
+        self._mounting_cache: tuple[tuple[float, float], FloatArray] | None = None
         self._effective_psd = (self._gyro_psd, self._accel_psd_floor)
         self._fading = 1.0
         self._levelling = Levelling()
@@ -587,6 +601,8 @@ class InsEngine:
             return None
         C = s.mat_nb
         (c00, c01, c02), (c10, c11, c12), (c20, c21, c22) = C.tolist()
+        # base_link of the estimated mounting: the lever arm turned by it, and below the
+        # orientation and rate turned into it (C_bv = I + [μ×]).
         ax, ay, az = self._arms(s)[1].tolist()
         # Lever arm in NED, and its velocity ω × r (body) rotated into NED; 3-vectors in plain
         # floats (numpy per 3-vector costs more than the arithmetic at the output rate).
@@ -607,13 +623,27 @@ class InsEngine:
         J[0:3, ATT : ATT + 3] = _enu_skew(-n0, -n1, -n2)
         J[3:6, ATT : ATT + 3] = _enu_skew(-r0, -r1, -r2)
         J[3:6, BG : BG + 3] = MAT_ENU_NED @ C @ self._arm_bi
-        cov = J @ kf.P[: BG + 3, : BG + 3] @ J.T
+        mt = self.layout.mt
+        if mt is None:
+            cov = J @ kf.P[: BG + 3, : BG + 3] @ J.T
+        else:  # the vehicle's attitude error is ψ + C_nb μ: the mounting states join
+            J_mt = self._j_mounting
+            J_mt[:, : BG + 3] = J
+            J_mt[6:9, BG + 3 :] = (MAT_ENU_NED @ C)[:, 1:3]
+            cov = J_mt @ kf.P[np.ix_(self._solution_states, self._solution_states)] @ J_mt.T
         vn, ve, vd = nav.vel_ned_m_s.tolist()
         lat0, lon0, h0 = self.datum
         datum_rad = (math.radians(lat0), math.radians(lon0), h0)
         if self._plane is None or self._plane.datum != datum_rad:
             self._plane = earth.TangentPlane(*datum_rad)
         bg, ba = s.gyro_bias, s.accel_bias
+        quat_nb = _quat(nav.quat_nb)
+        mounting = None
+        if self.layout.mt is not None:
+            mu_y, mu_z = s.mounting
+            quat_nb = quat_multiply(quat_nb, quat_from_rotvec(0.0, mu_y, mu_z))
+            wx, wy, wz = wx - (mu_y * wz - mu_z * wy), wy - mu_z * wx, wz + mu_y * wx
+            mounting = self._mounting_rpy(s.mounting)
         return InsSolution(
             t_s=s.t_s,
             lat_deg=math.degrees(lat),
@@ -621,7 +651,7 @@ class InsEngine:
             height_m=height,
             pos_enu_m=self._plane.enu(lat, lon, height),
             vel_enu_m_s=np.array((ve + r1, vn + r0, -(vd + r2))),
-            quat_enu_flu_xyzw=np.array(_quat_enu_flu(_quat(nav.quat_nb))),
+            quat_enu_flu_xyzw=np.array(_quat_enu_flu(quat_nb)),
             rate_flu_rad_s=np.array((wx, -wy, -wz)),
             cov_pos_enu_m2=cov[0:3, 0:3],
             cov_vel_enu=cov[3:6, 3:6],
@@ -629,7 +659,20 @@ class InsEngine:
             gyro_bias_flu_rad_s=np.array((bg[0], -bg[1], -bg[2])),
             accel_bias_flu_m_s2=np.array((ba[0], -ba[1], -ba[2])),
             state=self._state_name(),
+            imu_mounting_rpy_rad=mounting,
         )
+
+    def _mounting_rpy(self, mounting: tuple[float, float]) -> FloatArray:
+        """REP-103 roll, pitch, yaw [rad] of imu_link in the base_link of a residual mounting
+        (pitch, yaw about base_link FRD y, z [rad]): imu -> vehicle (FRD) = (I - [μ×]) R_bi."""
+        cached = self._mounting_cache
+        if cached is not None and cached[0] == mounting:
+            return cached[1]
+        mat_vi = (np.eye(3) - skew((0.0, mounting[0], mounting[1]))) @ self._mat_bi
+        rotation = Rotation.from_matrix(MAT_FLU_FRD @ mat_vi @ MAT_FLU_FRD)
+        rpy = np.asarray(euler_from_quat(np.asarray(rotation.as_quat())), dtype=np.float64)
+        self._mounting_cache = (mounting, rpy)
+        return rpy
 
     def status(self) -> EngineStatus:
         """Counters and diagnostics (see EngineStatus)."""
@@ -688,11 +731,7 @@ class InsEngine:
             values["mounting_yaw_sigma_deg"] = math.degrees(
                 math.sqrt(max(kf.P[mt + 1, mt + 1], 0.0))
             )
-            # imu -> vehicle (FRD) = (I - [μ×]) imu -> base_link; as REP-103 angles (FLU).
-            mat_vi = (np.eye(3) - skew((0.0, pitch, yaw))) @ self._mat_bi
-            roll_p_yaw = euler_from_quat(
-                np.asarray(Rotation.from_matrix(MAT_FLU_FRD @ mat_vi @ MAT_FLU_FRD).as_quat())
-            )
+            roll_p_yaw = self._mounting_rpy(s.mounting)
             for name, value in zip(("roll", "pitch", "yaw"), roll_p_yaw, strict=True):
                 values[f"imu_mounting_{name}_deg"] = math.degrees(float(value))
         return values
@@ -926,14 +965,20 @@ class InsEngine:
         v1n, v1e, v1d = nav.vel_ned_m_s.tolist()
         an = ((v1n - v0n) * inv_dt, (v1e - v0e) * inv_dt, (v1d - v0d) * inv_dt)
         s.accel_n = an
-        # Acceleration low-passed over ~0.1 s (vibration out) for the time-offset model.
-        k, lp = min(1.0, dt / _ACCEL_SMOOTHING_S), s.accel_lp
+        rb = s.rate_b = (tb[0] * inv_dt, tb[1] * inv_dt, tb[2] * inv_dt)
+        # Acceleration and rate low-passed over ~0.1 s (vibration out) for the time-offset
+        # model: their noise would otherwise make H noisy and the estimate wander.
+        k, lp, rl = min(1.0, dt / _ACCEL_SMOOTHING_S), s.accel_lp, s.rate_lp
         s.accel_lp = (
             lp[0] + k * (an[0] - lp[0]),
             lp[1] + k * (an[1] - lp[1]),
             lp[2] + k * (an[2] - lp[2]),
         )
-        s.rate_b = (tb[0] * inv_dt, tb[1] * inv_dt, tb[2] * inv_dt)
+        s.rate_lp = (
+            rl[0] + k * (rb[0] - rl[0]),
+            rl[1] + k * (rb[1] - rl[1]),
+            rl[2] + k * (rb[2] - rl[2]),
+        )
         s.rate_i = (ti0 * inv_dt, ti1 * inv_dt, ti2 * inv_dt)
         s.prev_inc = inc_b
         s.t_s = t
@@ -1148,14 +1193,18 @@ class InsEngine:
             elif not np.array_equal(correlated, s.gnss_variance):
                 self._set_gnss_variance(correlated)  # the white/correlated split moved
         antenna_b = self._arms(s)[0]
-        antenna_rate_n = pred.vel_ned_m_s + pred.mat_nb @ np.cross(pred.rate_b, antenna_b)
+        antenna_rate_n = pred.vel_ned_m_s + pred.mat_nb @ np.cross(np.array(s.rate_lp), antenna_b)
         model = self._late_imu(
             gnss_position(pred, fix, antenna_b, white, s.gnss_error),
             antenna_rate_n,
+            _TIME_OFFSET_MIN_SPEED_M_S,
             np.array(s.accel_lp),
         )
         z, H, _ = model
-        if self.layout.mt is not None:  # the arm turns with the mounting: -C [l×] on (μ_y, μ_z)
+        moving = float(np.linalg.norm(pred.vel_ned_m_s)) >= _TIME_OFFSET_MIN_SPEED_M_S
+        if self.layout.mt is not None and moving:
+            # The arm turns with the mounting: -C [l×] on (μ_y, μ_z); frozen at a standstill,
+            # where a position offset explains the same.
             mt = self.layout.mt
             H[:, mt : mt + 2] = -(pred.mat_nb @ skew(self._antenna_arm_b))[:, 1:3]
         kf = self._filter
@@ -1189,7 +1238,11 @@ class InsEngine:
             if live:
                 self._counters["gnss_velocity"]["rejected"] += 1
             return
-        self._update("gnss_velocity", self._late_imu(model, np.array(s.accel_lp)), live)
+        self._update(
+            "gnss_velocity",
+            self._late_imu(model, np.array(s.accel_lp), _TIME_OFFSET_MIN_ACCEL_M_S2),
+            live,
+        )
 
     def _attitude(self, pred: Prediction, att: AttitudeMeasurement, live: bool) -> None:
         s = self._state
@@ -1202,7 +1255,7 @@ class InsEngine:
                 if live:
                     self._counters["attitude"]["used"] += 1
             return
-        model = attitude(pred, mat_nb, att.cov_rpy_rad2, s.time_offset)
+        model = attitude(pred, mat_nb, att.cov_rpy_rad2, s.time_offset, s.mounting)
         if model is None:
             if live:
                 self._counters["attitude"]["rejected"] += 1
@@ -1249,13 +1302,18 @@ class InsEngine:
         )
 
     def _late_imu(
-        self, model: Model, rate_n: FloatArray, second_n: FloatArray | None = None
+        self,
+        model: Model,
+        rate_n: FloatArray,
+        min_rate: float,
+        second_n: FloatArray | None = None,
     ) -> Model:
         """A GNSS measurement at its epoch t compared with the state at t + t̂_d, the estimated
         residual IMU time offset (the IMU timeline runs late by it): the prediction moves by
         rate·t̂_d (+ second·t̂_d²/2 when the second derivative is given) and H gets the rate
         at t + t̂_d on δt_d (rate, second: first and second time derivative of the measured
-        quantity, NED)."""
+        quantity, NED). Below ``min_rate`` the offset is frozen (H stays 0): the rate is then
+        mostly noise, and a noisy H would move the estimate without cause."""
         td = self.layout.td
         s = self._state
         if td is None or s is None:
@@ -1267,7 +1325,8 @@ class InsEngine:
         if second_n is not None:
             shift = shift + second_n[:rows] * (0.5 * offset * offset)
             rate_n = rate_n + second_n * offset
-        H[:, td] = rate_n[:rows]
+        if float(np.linalg.norm(rate_n[:rows])) >= min_rate:
+            H[:, td] = rate_n[:rows]
         return z - shift, H, R
 
     def _too_fast_to_align(self, pred: Prediction, live: bool, kind: str) -> bool:

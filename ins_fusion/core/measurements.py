@@ -119,6 +119,9 @@ class Prediction:
 
 Model = tuple[FloatArray, FloatArray, FloatArray]
 
+#: Attitude measurements observe the IMU time offset only above this Euler rate [rad/s].
+TIME_OFFSET_MIN_TURN_RATE = math.radians(2.0)
+
 
 def ned_cov(cov_enu: FloatArray) -> FloatArray:
     """ENU covariance -> NED (and back: the axis swap is its own inverse)."""
@@ -209,6 +212,7 @@ def attitude(
     mat_nb_measured: FloatArray,
     cov_rpy_flu: FloatArray,
     time_offset_s: float = 0.0,
+    mounting_rad: tuple[float, float] = (0.0, 0.0),
 ) -> Model | None:
     """Euler angles (roll, pitch, yaw) of base_link; angles marked unknown are dropped.
 
@@ -216,22 +220,32 @@ def attitude(
     angles by the sign flips of pitch and yaw. None when no angle is measured. With a residual
     IMU time offset state, the measurement is compared with the attitude ``time_offset_s``
     later on the IMU's timeline: the Euler angles move by their rate J C_nb ω_b (the earth and
-    transport rates, < 1e-4 rad/s, left out) times it, and H gets that rate on δt_d.
+    transport rates, < 1e-4 rad/s, left out) times it, and H gets that rate on δt_d when above
+    ``TIME_OFFSET_MIN_TURN_RATE`` (a slower one is mostly gyro noise). The measured frame is
+    the vehicle's: C_nb (I + [μ×]) with the residual mounting μ = (0, pitch, yaw), which is
+    ψ = C_nb μ, so H gets J C_nb on (μ_y, μ_z).
     """
     cov = _RPY_FLU_TO_FRD @ cov_rpy_flu @ _RPY_FLU_TO_FRD
     diagonal = np.diagonal(cov)
     keep = np.flatnonzero(np.isfinite(diagonal) & (diagonal < UNKNOWN_ANGLE_VARIANCE))
     if keep.size == 0:
         return None
-    z = wrap_angle(euler_rad(mat_nb_measured) - euler_rad(pred.mat_nb))
+    mat_nv = pred.mat_nb
+    if mounting_rad != (0.0, 0.0):
+        mat_nv = pred.mat_nb @ (np.eye(3) + skew((0.0, mounting_rad[0], mounting_rad[1])))
+    z = wrap_angle(euler_rad(mat_nb_measured) - euler_rad(mat_nv))
     H = pred.jacobian(3)
-    jacobian = euler_jacobian(pred.mat_nb)
+    jacobian = euler_jacobian(mat_nv)
     H[:, ATT : ATT + 3] = jacobian
+    mt = pred.layout.mt
+    if mt is not None:
+        H[:, mt : mt + 2] = (jacobian @ pred.mat_nb)[:, 1:3]
     td = pred.layout.td
     if td is not None:
         euler_rate = jacobian @ (pred.mat_nb @ pred.rate_b)
-        H[:, td] = euler_rate
         z = z - euler_rate * time_offset_s
+        if float(np.linalg.norm(euler_rate)) >= TIME_OFFSET_MIN_TURN_RATE:
+            H[:, td] = euler_rate
     return z[keep], H[keep], cov[np.ix_(keep, keep)]
 
 

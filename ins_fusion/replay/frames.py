@@ -63,11 +63,11 @@ def mounting_quat(rpy_rad: Sequence[float]) -> FloatArray:
 def moved_track(
     track: SolutionTrack,
     lever_arm_flu_m: Sequence[float],
-    mounting_rpy_rad: Sequence[float] = (0.0, 0.0, 0.0),
+    mounting_rpy_rad: Sequence[float] | FloatArray = (0.0, 0.0, 0.0),
 ) -> SolutionTrack:
     """``track`` of the frame at ``lever_arm_flu_m`` (base_link FLU [m]) with orientation
-    ``mounting_rpy_rad`` in base_link (see the module docstring); ``solutions`` stay those of
-    base_link."""
+    ``mounting_rpy_rad`` in base_link (see the module docstring; one (3,) mounting, or one per
+    solution (n, 3) when the engine estimated it); ``solutions`` stay those of base_link."""
     if not len(track.t_s):
         return track
     r = np.asarray(lever_arm_flu_m, dtype=np.float64).reshape(3)
@@ -75,8 +75,11 @@ def moved_track(
     arm_enu = rot.apply(r)
     rate = np.array([s.rate_flu_rad_s for s in track.solutions], dtype=np.float64).reshape(-1, 3)
     quat = track.quat_enu_flu_xyzw
-    if any(angle != 0.0 for angle in mounting_rpy_rad):
-        quat = (rot * Rotation.from_quat(mounting_quat(mounting_rpy_rad))).as_quat()
+    rpy = np.asarray(mounting_rpy_rad, dtype=np.float64)
+    if rpy.ndim == 2:
+        quat = (rot * Rotation.from_euler("ZYX", rpy[:, ::-1])).as_quat()
+    elif rpy.any():
+        quat = (rot * Rotation.from_quat(mounting_quat(rpy.tolist()))).as_quat()
     return replace(
         track,
         pos_enu_m=track.pos_enu_m + arm_enu,

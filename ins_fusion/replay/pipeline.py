@@ -7,6 +7,8 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.replay.frames import comparison_frame, is_imu_frame, moved_track
 from ins_fusion.replay.inputs import ReplayInputs
@@ -53,7 +55,8 @@ def replay(
     """Run the engine with the flat ``parameters`` over ``inputs``, evaluate it when the inputs
     hold a reference (``reference``: its prefix, for the report), and compare it with the GNSS
     fixes the outages withheld. A reference of the IMU (its frame_id is the IMU's) is compared
-    with the solution moved to the IMU by ``imu_lever_arm`` and ``imu_mounting_rpy_deg``
+    with the solution moved to the IMU by ``imu_lever_arm`` and the mounting (the engine's estimate,
+    else ``imu_mounting_rpy_deg``)
     (ins_fusion.replay.frames)."""
     run = run_fusion(inputs, parameters, outages, progress)
     evaluation = withheld = None
@@ -62,7 +65,14 @@ def replay(
     compared = run.track
     if is_imu_frame(frame, inputs.imu_frame):
         config = run.config
-        compared = moved_track(run.track, config.imu_lever_arm_flu_m, config.imu_mounting_rpy_rad)
+        configured = np.asarray(config.imu_mounting_rpy_rad, dtype=np.float64)
+        mounting = np.array(  # the engine's estimate where it has one
+            [
+                configured if s.imu_mounting_rpy_rad is None else s.imu_mounting_rpy_rad
+                for s in run.track.solutions
+            ]
+        ).reshape(-1, 3)
+        compared = moved_track(run.track, config.imu_lever_arm_flu_m, mounting)
     if inputs.reference is not None and run.datum is not None:
         evaluation = evaluate(
             compared, inputs.reference, run.datum, inputs.t0_s, outages, max_gap_s

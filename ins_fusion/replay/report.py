@@ -69,11 +69,10 @@ def build_report(
         else inputs.reference.frame_id,
         "dropped_messages": dict(run.dropped),
         "measurements": {name: dict(c) for name, c in run.status.measurements.items()},
-        # The noise the engine adapted to at the end (InsEngine.adapted_noise; NaN -> None).
-        "adapted_noise": {
-            name: value if math.isfinite(value) else None
-            for name, value in run.status.adapted.items()
-        },
+        # The noise the engine adapted to and its self-calibration at the end
+        # (InsEngine.adapted_noise, InsEngine.self_calibration; NaN -> None).
+        "adapted_noise": _finite(run.status.adapted),
+        "self_calibration": _finite(run.status.calibration),
     }
     report.update(_accuracy(evaluation, outages))
     scored = withheld if withheld is not None else WithheldEvaluation.empty()
@@ -218,6 +217,7 @@ def format_table(report: Report) -> str:
         lines += _accuracy_lines(report)
     lines += withheld
     lines += _adapted_lines(report)
+    lines += _calibration_lines(report)
     counters = report["measurements"]
     width = max(len("measurement"), *(len(n) for n in counters)) if counters else 11
     lines.append(f"{'measurement':<{width}}  {'used':>7}  {'rejected':>8}")
@@ -242,3 +242,27 @@ def _adapted_lines(report: Report) -> list[str]:
         f"accel VRW {axes('accel_vrw', 'm_s_sqrt_h', 'xyz')} m/s/√h  "
         f"GNSS white σ {axes('gnss_white_sigma', 'm', 'enu')} m"
     ]
+
+
+def _finite(values: dict[str, float]) -> dict[str, float | None]:
+    return {name: value if math.isfinite(value) else None for name, value in values.items()}
+
+
+def _calibration_lines(report: Report) -> list[str]:
+    """The self-calibration, and the parameters that hold it, for the user to copy."""
+    cal = report.get("self_calibration") or {}
+    lines = []
+    if cal.get("time_offset_s") is not None:
+        lines.append(
+            f"IMU time offset  {1e3 * cal['time_offset_s']:.1f} ms (residual "
+            f"{1e3 * cal['time_offset_residual_s']:.1f} ± {1e3 * cal['time_offset_sigma_s']:.1f}"
+            f" ms 1σ)  ->  imu_time_offset: {cal['time_offset_s']:.4f}"
+        )
+    if cal.get("imu_mounting_pitch_deg") is not None:
+        rpy = ", ".join(f"{cal[f'imu_mounting_{a}_deg']:.2f}" for a in ("roll", "pitch", "yaw"))
+        lines.append(
+            f"IMU mounting residual  pitch {cal['mounting_pitch_residual_deg']:.2f} ± "
+            f"{cal['mounting_pitch_sigma_deg']:.2f}°  yaw {cal['mounting_yaw_residual_deg']:.2f}"
+            f" ± {cal['mounting_yaw_sigma_deg']:.2f}° (1σ)  ->  imu_mounting_rpy_deg: [{rpy}]"
+        )
+    return lines
