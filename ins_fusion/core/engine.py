@@ -1102,6 +1102,8 @@ class InsEngine:
         runs = s.gated_runs
         recover = self.config.gate_recovery_count
         block = _RECOVERY_BLOCKS.get(kind)
+        if kind == "gnss_position" and s.gnss_white.share is None:
+            block = None  # the receiver's noise is not learnt yet: it, not the state, may be off
         if gated and recover and block is not None and runs.get(kind, 0) + 1 >= recover:
             # The filter has rejected this sensor `recover` times running: its state, not the
             # sensor, is the likelier culprit (a state that went wrong and a covariance too
