@@ -170,9 +170,10 @@ PARAMETERS: tuple[Param, ...] = (
     ),
     Param(
         "self_calibration.time_offset",
-        True,
+        False,
         "estimate the residual IMU-GNSS time offset online (observable in turns and speed "
-        "changes; reported in /diagnostics and by replay)",
+        "changes; reported in /diagnostics and by replay): a calibration run, then set "
+        "imu_time_offset",
     ),
     Param(
         "self_calibration.time_offset_sigma",

@@ -10,7 +10,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ins_fusion.core.adaptation import ImuNoiseMonitor, WhiteNoiseMonitor, fading_factor
+from ins_fusion.core.adaptation import (
+    ImuNoiseMonitor,
+    WhiteNoiseMonitor,
+    adapt_process_noise,
+    fading_factor,
+)
 
 RATE_HZ = 100.0
 
@@ -137,3 +142,20 @@ def test_fading_factor_makes_a_rejected_innovation_typical():
     # The innovation lies where H P Hᵀ has no variance: no factor helps.
     z2 = np.array([0.0, 5.0])
     assert fading_factor(z2, np.diag([1.0, 0.0]), np.eye(2) * 1e-4, 2.0) == math.inf
+
+
+def test_process_noise_grows_while_the_innovations_are_too_large_and_returns_after():
+    """NIS/dof of 4 (a covariance half the size it should be in σ) raises the factor on the
+    IMU process noise; typical innovations (1) bring it back to the user's model, never below;
+    a single outlier moves it little (clipped)."""
+    mean, scale = 1.0, 1.0
+    for _ in range(200):
+        mean, scale = adapt_process_noise(mean, scale, 4.0)
+    assert mean == pytest.approx(4.0, rel=0.01) and scale > 10.0
+    high = scale
+    for _ in range(2000):
+        mean, scale = adapt_process_noise(mean, scale, 0.5)
+    assert scale == 1.0 and mean == pytest.approx(0.5, rel=0.01)
+    mean, scale = adapt_process_noise(1.0, 1.0, 1e6)
+    assert mean == pytest.approx(1.2) and scale < 1.01
+    assert high <= 100.0

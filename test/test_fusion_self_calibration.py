@@ -29,6 +29,8 @@ from ins_fusion.sim.vehicle import VehicleSetup, VehicleTruth
 #: than the GNSS its samples are stamped [s]; the filter is told neither.
 MOUNTING_DEG = (0.0, 3.0, 2.0)
 IMU_LATE_S = 0.13
+#: The time offset is a calibration run's (off by default); the mounting is on by default.
+CALIBRATING = {"self_calibration__time_offset": True}
 REAL_BAG = Path(__file__).resolve().parent / "fixtures" / "comma2k19" / "comma2k19_ex1_seg40"
 
 
@@ -68,7 +70,7 @@ def calibration() -> ImuCalibration:
 
 def test_time_offset_and_mounting_are_found_on_a_drive_with_turns(calibration):
     """Acceptance: within 10 ms and 0.2° after a drive with turns, inside the stated 3σ."""
-    result = run(mounted_drive("figure_eight", 200.0), calibration=calibration)
+    result = run(mounted_drive("figure_eight", 200.0), config(**CALIBRATING), calibration)
     cal = result.status.calibration
     print({k: round(v, 4) for k, v in cal.items()})
     offset_error = cal["time_offset_s"] - IMU_LATE_S
@@ -87,7 +89,7 @@ def test_time_offset_and_mounting_are_found_on_a_drive_with_turns(calibration):
 def test_nothing_is_estimated_while_standing(calibration):
     """60 s at a standstill: neither the time offset nor the mounting is observable; the
     estimates stay at zero and their σ at the prior."""
-    result = run(mounted_drive("test_pattern", 60.0), calibration=calibration)
+    result = run(mounted_drive("test_pattern", 60.0), config(**CALIBRATING), calibration)
     cal = result.status.calibration
     assert abs(cal["time_offset_residual_s"]) < 1e-3
     assert cal["time_offset_sigma_s"] > 0.09  # prior 0.1 s
@@ -100,7 +102,7 @@ def test_driving_straight_moves_no_estimate_without_cause(calibration):
     """A straight run (accelerate, then cruise) with a perfectly mounted, punctual IMU: the
     time offset and mounting estimates stay inside their σ, nothing drifts."""
     drive = mounted_drive("aalborg_straight", 120.0, (0.0, 0.0, 0.0), 0.0, seed=3)
-    result = run(drive, calibration=calibration)
+    result = run(drive, config(**CALIBRATING), calibration)
     cal = result.status.calibration
     assert abs(cal["time_offset_residual_s"]) < 3.0 * cal["time_offset_sigma_s"]
     for axis in ("pitch", "yaw"):
@@ -110,10 +112,10 @@ def test_driving_straight_moves_no_estimate_without_cause(calibration):
 
 
 def test_switched_off_there_are_no_calibration_states():
-    cfg = config(self_calibration__time_offset=False, self_calibration__mounting=False)
     from ins_fusion.core.engine import InsEngine
 
-    engine = InsEngine(cfg)
+    assert InsEngine(config()).layout.td is None  # the time offset is a calibration run's
+    engine = InsEngine(config(self_calibration__mounting=False))
     assert engine.layout.td is None and engine.layout.mt is None
     assert all(math.isnan(v) for v in engine.status().calibration.values())
     assert InsEngine(config(use_nhc=False)).layout.mt is None  # the mounting needs the NHC

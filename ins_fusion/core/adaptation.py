@@ -180,6 +180,28 @@ class WhiteNoiseMonitor:
         return self.squares.mean.copy()
 
 
+#: Weight of one normalised innovation in the running NIS mean, and of the mean's log in the
+#: process-noise scale, per GNSS measurement (about 20 measurements: 1-2 s at 10 Hz).
+_NIS_WEIGHT = 0.05
+#: Each normalised innovation counts at most this much (an outlier is not a model error).
+_NIS_CLIP = 5.0
+#: Range of the process-noise scale.
+Q_SCALE_RANGE = (1.0, 100.0)
+
+
+def adapt_process_noise(nis_mean: float, scale: float, nis_per_dof: float) -> tuple[float, float]:
+    """Running mean of the GNSS normalised innovations per degree of freedom and the factor on
+    the IMU white process noise it drives, after one more measurement (NIS/dof, clipped at
+    ``_NIS_CLIP``). A mean above 1 says the covariance is too small for what the data show
+    (unmodelled scale factors, misalignment, vibration below the measured band): the factor
+    grows by mean^w per measurement; below 1 it shrinks back towards the user's model (never
+    below it). Returns (mean, scale)."""
+    sample = min(nis_per_dof, _NIS_CLIP)
+    mean = nis_mean + _NIS_WEIGHT * (sample - nis_mean)
+    low, high = Q_SCALE_RANGE
+    return mean, min(high, max(low, scale * mean**_NIS_WEIGHT))
+
+
 def fading_factor(
     innovation: FloatArray, predicted: FloatArray, noise: FloatArray, target: float
 ) -> float:

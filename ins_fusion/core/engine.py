@@ -50,7 +50,12 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ins_fusion.core import earth
-from ins_fusion.core.adaptation import ImuNoiseMonitor, WhiteNoiseMonitor, fading_factor
+from ins_fusion.core.adaptation import (
+    ImuNoiseMonitor,
+    WhiteNoiseMonitor,
+    adapt_process_noise,
+    fading_factor,
+)
 from ins_fusion.core.alignment import (
     Levelling,
     earth_rate_body_rad_s,
@@ -128,6 +133,8 @@ MEASUREMENT_NAMES = (
 #: Counters kept per measurement kind ('rejected' includes 'gated' and 'too_old').
 COUNTERS = ("used", "rejected", "gated", "too_old", "duplicates", "recoveries")
 
+#: The measurements whose normalised innovations scale the IMU process noise (adaptation.py).
+_ADAPTING_KINDS = frozenset({"gnss_position", "gnss_velocity"})
 #: The error states a gate recovery widens, per sensor measurement (InsEngine._update); the
 #: pseudo-measurements (ZUPT, ZARU, NHC) are constraints a real vehicle can break (a skid),
 #: so their rejections stay rejections.
@@ -247,7 +254,9 @@ class _State:
         "last_position_t_s",
         "mounting",
         "nav",
+        "nis_mean",
         "prev_inc",
+        "q_scale",
         "rate_b",
         "rate_i",
         "rate_lp",
@@ -270,6 +279,7 @@ class _State:
         self.gnss_white = WhiteNoiseMonitor()
         self.imu_psd: tuple[FloatArray, FloatArray] | None = None
         self.accel_lp = self.rate_lp = zero
+        self.nis_mean = self.q_scale = 1.0
         self.mounting = (0.0, 0.0)
         self.time_offset = 0.0
         self.cov_dt = 0.0
@@ -293,6 +303,8 @@ class _State:
         other.gnss_white = self.gnss_white
         other.imu_psd = self.imu_psd
         other.accel_lp = self.accel_lp
+        other.nis_mean = self.nis_mean
+        other.q_scale = self.q_scale
         other.rate_lp = self.rate_lp
         other.mounting = self.mounting
         other.time_offset = self.time_offset
@@ -754,6 +766,9 @@ class InsEngine:
         for k, axis in enumerate("enu"):
             values[f"gnss_white_sigma_{axis}_m"] = math.sqrt(float(white_enu[k]))
         values["fading_factor_last"] = self._fading
+        s = self._state
+        values["process_noise_scale"] = math.nan if s is None else s.q_scale
+        values["gnss_nis_mean"] = math.nan if s is None else s.nis_mean
         return values
 
     @property
@@ -1021,7 +1036,8 @@ class InsEngine:
         force_n = (nav.vel_ned_m_s - s.cov_vel0) * inv_dt
         force_n[2] -= earth.normal_gravity_m_s2(nav.lat_rad, nav.height_m)
         vn, ve, vd = nav.vel_ned_m_s.tolist()
-        kf.set_white_noise(*(s.imu_psd or (self._gyro_psd, self._accel_psd_floor)))
+        gyro_psd, accel_psd = s.imu_psd or (self._gyro_psd, self._accel_psd_floor)
+        kf.set_white_noise(gyro_psd * s.q_scale, accel_psd * s.q_scale)
         kf.propagate(
             s.cov_dt,
             s.mat_nb @ self._mat_bi,
@@ -1098,6 +1114,8 @@ class InsEngine:
             H[:, ATT + 2] = 0.0
         result = kf.update(z, H, R, self._gates[len(z)])
         self._nis[kind] = result.nis  # as first tested, also when a recovery follows
+        if kind in _ADAPTING_KINDS and math.isfinite(result.nis):
+            s.nis_mean, s.q_scale = adapt_process_noise(s.nis_mean, s.q_scale, result.nis / len(z))
         gated = not result.accepted and math.isfinite(result.nis)
         runs = s.gated_runs
         recover = self.config.gate_recovery_count
