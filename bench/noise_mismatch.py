@@ -125,8 +125,16 @@ def _in_outage(t_s: float, outages: Sequence[tuple[float, float]]) -> bool:
     return any(start <= t_s < start + length for start, length in outages)
 
 
-def drive_truth(duration_s: float = DURATION_S, scenario: str = SCENARIO) -> VehicleTruth:
-    return VehicleTruth(SCENARIOS[scenario](duration_s), SURVEY_CAR)
+def drive_truth(
+    duration_s: float = DURATION_S,
+    scenario: str = SCENARIO,
+    imu_mounting_deg: tuple[float, float, float] = (0.0, 0.0, 0.0),
+) -> VehicleTruth:
+    """The survey car on a scenario, its IMU turned by ``imu_mounting_deg`` (REP-103 roll,
+    pitch, yaw of imu_link in base_link; the filter is told nothing of it)."""
+    rpy = tuple(math.radians(a) for a in imu_mounting_deg)
+    setup = replace(SURVEY_CAR, imu=replace(SURVEY_CAR.imu, rpy_rad=rpy))
+    return VehicleTruth(SCENARIOS[scenario](duration_s), setup)
 
 
 def speed_factor_rms(
@@ -176,10 +184,14 @@ def build_streams(
     outages: Sequence[tuple[float, float]] = (),
     scenario: str = SCENARIO,
     imu_rate_hz: float | None = None,
+    imu_mounting_deg: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    imu_late_s: float = 0.0,
 ) -> Streams:
     """A seeded drive (IMU errors, vibration, GNSS noise each from their own seed); ``imu`` a
-    profile name or a profile."""
-    truth = drive_truth(duration_s, scenario)
+    profile name or a profile; the IMU turned by ``imu_mounting_deg`` (drive_truth) and
+    stamped ``imu_late_s`` [s] later than the GNSS (the GNSS epochs are stamped that much
+    early: the same offset, with the truth on the IMU's time base)."""
+    truth = drive_truth(duration_s, scenario, imu_mounting_deg)
     profile = IMU_PROFILES[imu] if isinstance(imu, str) else imu
     if imu_rate_hz is not None:
         profile = replace(profile, rate_hz=imu_rate_hz)
@@ -203,7 +215,7 @@ def build_streams(
         for fix in model.fixes(0.0, duration_s):
             fixes.append(
                 PositionFix(
-                    fix.t_s,
+                    fix.t_s - imu_late_s,
                     fix.arrival_t_s,
                     fix.lat_rad,
                     fix.lon_rad,
@@ -215,7 +227,7 @@ def build_streams(
             var = np.square(fix.velocity_sigma_enu_m_s)
             if not math.isfinite(vel[2]):
                 vel[2], var[2] = 0.0, UNKNOWN_VERTICAL_VARIANCE
-            velocities.append(VelocityFix(fix.t_s, fix.arrival_t_s, vel, np.diag(var)))
+            velocities.append(VelocityFix(fix.t_s - imu_late_s, fix.arrival_t_s, vel, np.diag(var)))
     elif gnss == "white5":
         epochs = np.arange(0.0, duration_s, 1.0 / WHITE_RATE_HZ)
         epochs = np.array([e for e in epochs if not _in_outage(float(e), outages)])
@@ -236,12 +248,13 @@ def build_streams(
         vel_cov = np.eye(3) * WHITE_VELOCITY_SIGMA_M_S**2
         vel_enu = antenna.vel_enu_m_s + vel_noise
         for k, t_k in enumerate(epochs.tolist()):
+            stamp = t_k - imu_late_s
             fixes.append(
                 PositionFix(
-                    t_k, t_k, float(lat[k]), float(lon[k]), float(height[k]), pos_cov.copy()
+                    stamp, t_k, float(lat[k]), float(lon[k]), float(height[k]), pos_cov.copy()
                 )
             )
-            velocities.append(VelocityFix(t_k, t_k, vel_enu[k].copy(), vel_cov.copy()))
+            velocities.append(VelocityFix(stamp, t_k, vel_enu[k].copy(), vel_cov.copy()))
     else:
         raise ValueError(f"unknown GNSS kind {gnss!r} (known: {', '.join(GNSS_KINDS)})")
     return Streams(truth, profile, vib, density, gnss, outages, t, rate, force, fixes, velocities)
