@@ -84,7 +84,7 @@ class ImuNoiseMonitor:
     def reset(self) -> None:
         """Forget the blocks (a gap or a reset); the running estimate is kept."""
         self._start_s: float | None = None
-        self._sum = np.zeros(6)
+        self._sum = [0.0] * 6  # plain floats: this runs for every IMU sample
         self._n = 0
         self._means: list[FloatArray] = []
 
@@ -100,13 +100,19 @@ class ImuNoiseMonitor:
         elif t_s - self._start_s >= self.block_s and self._n:
             self._close_block(t_s - self._start_s)
             self._start_s = t_s
-        self._sum += (rate[0], rate[1], rate[2], force[0], force[1], force[2])
+        acc = self._sum
+        acc[0] += rate[0]
+        acc[1] += rate[1]
+        acc[2] += rate[2]
+        acc[3] += force[0]
+        acc[4] += force[1]
+        acc[5] += force[2]
         self._n += 1
 
     def _close_block(self, tau_s: float) -> None:
         means = self._means
-        means.append(self._sum / self._n)
-        self._sum = np.zeros(6)
+        means.append(np.array(self._sum) / self._n)
+        self._sum = [0.0] * 6
         self._n = 0
         if len(means) < 3:
             return
