@@ -19,6 +19,7 @@ import os
 import random
 import shutil
 import subprocess
+import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -143,12 +144,51 @@ def _live_errors(bag: Path, truth: Path) -> dict[str, float]:
     }
 
 
-def run(args: argparse.Namespace) -> int:
-    """Run the demo; returns 0 when every stage produced its output."""
-    out: Path = args.output_dir
-    if out.exists():
-        shutil.rmtree(out)
+#: What a demo writes into its output directory (and may replace on the next run), and the
+#: file that marks the directory as a demo's.
+_DEMO_ENTRIES = (
+    "logs",
+    "drive",
+    "truth",
+    "drive_with_truth",
+    "replay_report.json",
+    "replay.png",
+)
+_MARKER = ".gnss_ins_demo"
+
+
+def _prepare_output(out: Path) -> str | None:
+    """Make ``out`` ready for a run: create it, or clear what an earlier demo wrote there.
+    Anything else in it is the user's: refuse (the reason), never delete it."""
+    if out.exists() and not out.is_dir():
+        return f"{out} exists and is not a directory"
+    if out.exists() and any(out.iterdir()):
+        foreign = sorted(p.name for p in out.iterdir() if p.name not in {*_DEMO_ENTRIES, _MARKER})
+        if not (out / _MARKER).exists() or foreign:
+            shown = ", ".join(foreign[:5]) or "no demo marker"
+            return (
+                f"{out} is not empty and not (only) an earlier demo's output ({shown}); "
+                "choose another --output-dir, nothing was deleted"
+            )
+        for name in _DEMO_ENTRIES:
+            path = out / name
+            if path.is_dir():
+                shutil.rmtree(path)
+            elif path.exists():
+                path.unlink()
     (out / "logs").mkdir(parents=True)
+    (out / _MARKER).write_text("written by gnss_ins demo; its entries are replaced on a rerun\n")
+    return None
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the demo; returns 0 when every stage produced its output, 2 for an output
+    directory that holds someone else's files."""
+    out: Path = args.output_dir
+    problem = _prepare_output(out)
+    if problem is not None:
+        print(f"gnss_ins demo: error: {problem}", file=sys.stderr)
+        return 2
     env = dict(os.environ)
     env.setdefault("ROS_DOMAIN_ID", str(random.SystemRandom().randint(1, 100)))
     env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")

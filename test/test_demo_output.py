@@ -1,0 +1,48 @@
+"""gnss_ins demo never deletes what it did not write (issue 12): its output directory is
+created, or cleared of an earlier demo's entries, or refused."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ins_fusion.tools import cli
+from ins_fusion.tools.demo import _prepare_output
+
+
+def test_a_new_directory_is_created_and_marked(tmp_path: Path) -> None:
+    out = tmp_path / "demo"
+    assert _prepare_output(out) is None
+    assert (out / "logs").is_dir() and (out / ".gnss_ins_demo").is_file()
+
+
+def test_an_earlier_demo_is_replaced(tmp_path: Path) -> None:
+    out = tmp_path / "demo"
+    assert _prepare_output(out) is None
+    (out / "replay.png").write_bytes(b"old")
+    (out / "drive").mkdir()
+    (out / "drive" / "drive.mcap").write_bytes(b"old")
+    assert _prepare_output(out) is None
+    assert not (out / "replay.png").exists() and not (out / "drive").exists()
+
+
+def test_a_directory_with_the_users_files_is_refused_and_kept(tmp_path: Path, capsys) -> None:
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "thesis.tex").write_text("years of work")
+    assert "thesis.tex" in (_prepare_output(out) or "")
+    # Through the command line: exit 2, a message, the file untouched.
+    assert cli.main(["demo", "--output-dir", str(out)]) == 2
+    assert "nothing was deleted" in capsys.readouterr().err
+    assert (out / "thesis.tex").read_text() == "years of work"
+    # An earlier demo's directory to which the user added a file: refused as well.
+    demo = tmp_path / "demo"
+    assert _prepare_output(demo) is None
+    (demo / "notes.txt").write_text("mine")
+    assert "notes.txt" in (_prepare_output(demo) or "")
+    assert (demo / "notes.txt").exists()
+
+
+def test_a_file_in_the_way_is_refused(tmp_path: Path) -> None:
+    path = tmp_path / "demo"
+    path.write_text("x")
+    assert "not a directory" in (_prepare_output(path) or "")
