@@ -161,6 +161,22 @@ PARAMETERS: tuple[Param, ...] = (
         180.0,
     ),
     Param(
+        "imu_range_rate",
+        100.0,
+        "measuring range of the gyros [deg/s] (IMU400CC-100: 100); a sample beyond 1.1 times it "
+        "is corrupt: skipped and counted, never fed to the filter",
+        1.0,
+        1.0e5,
+    ),
+    Param(
+        "imu_range_accel",
+        2.0,
+        "measuring range of the accelerometers [g] (IMU400CC-100: 2); a sample beyond 1.1 "
+        "times it is corrupt: skipped and counted",
+        0.1,
+        1000.0,
+    ),
+    Param(
         "imu_time_offset",
         0.0,
         "how much later than the GNSS epochs the IMU samples are stamped [s]; subtracted from "

@@ -169,6 +169,8 @@ class InsFusionNode(Node):
             "imu_samples": status.imu_samples,
             "imu_gaps": status.imu_gaps,
             "imu_duplicates": status.imu_duplicates,
+            "imu_out_of_order": status.imu_out_of_order,
+            "imu_implausible": status.imu_implausible,
             "bad_imu_messages": self._bad_imu_messages,
             "resets": status.resets,
             "rollbacks": status.rollbacks,

@@ -204,14 +204,52 @@ def test_imu_time_problems(eight_adu5):
     assert engine.status().imu_duplicates == 1
     engine.add_imu(t[-1] + 0.0075, [math.nan, 0.0, 0.0], force[-1])  # corrupt: dropped
     assert engine.status().imu_gaps == 2
-    engine.add_imu(t[-1] - 5.0, rate[-1], force[-1])  # the clock went back
+    engine.add_imu(t[-1] - 0.5, rate[-1], force[-1])  # one sample stamped in the past: skipped
+    status = engine.status()
+    assert status.imu_out_of_order == 1 and status.resets == 0
+    assert engine.solution() is not None
+    engine.add_imu(t[-1] + 1.0 / 134.0, rate[-1], force[-1])  # and the stream goes on
+    back = t[-1] - 5.0 + np.arange(10) / 134.0
+    for stamp in back:  # the clock went back: ten samples in a row start a new stream
+        engine.add_imu(stamp, rate[-1], force[-1])
     status = engine.status()
     assert status.resets == 1 and status.last_reset_reason.startswith("IMU stamp went back")
+    assert status.imu_out_of_order == 10  # 1 + the 9 before the tenth in a row
     assert engine.solution() is None and status.state == "aligning"
-    engine.add_imu(t[-1] - 5.0 + 1.0 / 134.0, rate[-1], force[-1])  # the new stream's period
-    engine.add_imu(t[-1] - 2.0, rate[-1], force[-1])  # then a 3 s gap resets as well
+    engine.add_imu(back[-1] + 1.0 / 134.0, rate[-1], force[-1])  # the new stream's period
+    engine.add_imu(back[-1] + 3.0, rate[-1], force[-1])  # then a 3 s gap resets as well
     status = engine.status()
     assert status.resets == 2 and status.last_reset_reason.startswith("IMU gap of 2.99")
+
+
+def test_corrupt_imu_samples_are_skipped_and_the_solution_stays_good(eight_adu5):
+    """A NaN and samples of 1e6 m/s² and 1e30 rad/s (issue 12) every 10 s: skipped and counted,
+    no reset, the outputs finite and within 5 m (RTK and ADU5 otherwise)."""
+    t, rate, force = eight_adu5.imu_t, eight_adu5.imu_rate.copy(), eight_adu5.imu_force.copy()
+    bad = np.flatnonzero(np.isin(np.round(t, 3), np.round(np.arange(20.0, t[-1], 10.0), 3)))
+    assert len(bad) >= 4
+    for k, i in enumerate(bad):
+        if k % 3 == 0:
+            rate[i, 0] = math.nan
+        elif k % 3 == 1:
+            force[i, 2] = 1e6
+        else:
+            rate[i, 2] = 1e30
+    engine = _engine()
+    feed(engine, Drive(eight_adu5.truth, t, rate, force, eight_adu5.events))
+    status = engine.status()
+    assert status.resets == 0 and status.imu_implausible == len(bad) - len(bad[::3])
+    sol = engine.solution()
+    assert sol is not None and np.isfinite(sol.pos_enu_m).all()
+    assert np.isfinite(sol.cov_pos_enu_m2).all()
+    truth = eight_adu5.truth.base_link(t[-1:])
+    east, north, _ = pymap3d.geodetic2enu(
+        math.degrees(truth.lat_rad[0]),
+        math.degrees(truth.lon_rad[0]),
+        truth.height_m[0],
+        *engine.datum,
+    )
+    assert math.hypot(sol.pos_enu_m[0] - east, sol.pos_enu_m[1] - north) < 5.0
 
 
 def test_bad_numbers_reset_the_filter_with_a_reason(eight_adu5):

@@ -74,6 +74,8 @@ class FusionConfig:
     imu_lever_arm_flu_m: Vec3
     gnss_lever_arm_flu_m: Vec3
     attitude_mounting_rpy_rad: Vec3
+    imu_range_rate_deg_s: float
+    imu_range_accel_g: float
     imu_time_offset_s: float
     estimate_time_offset: bool
     time_offset_sigma_s: float
@@ -131,6 +133,8 @@ class FusionConfig:
             imu_lever_arm_flu_m=_vec(p["imu_lever_arm"]),
             gnss_lever_arm_flu_m=_vec(p["gnss_lever_arm"]),
             attitude_mounting_rpy_rad=_vec(p["attitude_mounting_rpy_deg"], math.pi / 180.0),
+            imu_range_rate_deg_s=p["imu_range_rate"],
+            imu_range_accel_g=p["imu_range_accel"],
             imu_time_offset_s=p["imu_time_offset"],
             estimate_time_offset=p["self_calibration.time_offset"],
             time_offset_sigma_s=p["self_calibration.time_offset_sigma"],

@@ -105,6 +105,7 @@ from ins_fusion.core.rotation import (
 )
 from ins_fusion.core.stop_detector import GNSS_SPEED_MAX_AGE_S, StopDetector
 from ins_fusion.core.strapdown import ImuIncrement, NavState, SampleIntegrator, propagate
+from ins_fusion.core.units import STANDARD_GRAVITY_M_S2
 
 __all__ = [
     "MEASUREMENT_NAMES",
@@ -157,6 +158,9 @@ _TIME_OFFSET_MIN_ACCEL_M_S2 = 0.3
 _ACCEL_SMOOTHING_S = 0.1
 #: Largest factor by which a fix's covariance grows when its epochs scatter more than reported.
 _MAX_GNSS_INFLATION = 100.0
+#: IMU samples stamped before the last one, in a row, that make a new stream (a reset); fewer
+#: are skipped one by one.
+_BACK_RUN_RESET = 10
 #: Most measurements waiting for a later IMU sample.
 _MAX_PENDING = 256
 #: Course-heading variance floor for side slip and antenna motion [rad²] (0.5°).
@@ -201,7 +205,9 @@ class InsSolution:
 @dataclass(frozen=True)
 class EngineStatus:
     """Diagnostics: state, per-measurement counters ({name: {counter: n}}, COUNTERS), resets
-    with the reason of the last one, IMU samples/gaps/duplicate stamps, the last normalised
+    with the reason of the last one, IMU samples/gaps/duplicate stamps/samples skipped for a
+    stamp in the past (out of order) or a value beyond the unit's range (implausible, also
+    counted as gaps), the last normalised
     innovation squared per measurement, rollbacks and re-propagated samples for late
     measurements, the stop detector's decision, and the noise the filter adapted to
     (``adapted``, flat names with units; InsEngine.adapted_noise) and the self-calibration
@@ -214,6 +220,8 @@ class EngineStatus:
     imu_samples: int
     imu_gaps: int
     imu_duplicates: int
+    imu_out_of_order: int
+    imu_implausible: int
     nis: dict[str, float]
     rollbacks: int
     replayed_samples: int
@@ -466,6 +474,12 @@ class InsEngine:
         self._imu_samples = 0
         self._imu_gaps = 0
         self._imu_duplicates = 0
+        self._imu_out_of_order = 0
+        self._imu_implausible = 0
+        self._imu_back_run = 0
+        range_margin = 1.1  # calibration and scale errors may carry a reading past the range
+        self._max_rate = math.radians(config.imu_range_rate_deg_s) * range_margin
+        self._max_force = config.imu_range_accel_g * STANDARD_GRAVITY_M_S2 * range_margin
         self._rollbacks = 0
         self._replayed_samples = 0
         self._sequence = itertools.count()
@@ -505,13 +519,29 @@ class InsEngine:
         if not math.isfinite(t + rate[0] + rate[1] + rate[2] + force[0] + force[1] + force[2]):
             self._imu_gaps += 1  # a corrupt sample is a one-sample gap
             return
+        if (
+            max(abs(rate[0]), abs(rate[1]), abs(rate[2])) > self._max_rate
+            or max(abs(force[0]), abs(force[1]), abs(force[2])) > self._max_force
+        ):
+            self._imu_gaps += 1  # beyond what the unit can measure: corrupt, a one-sample gap
+            self._imu_implausible += 1
+            return
         last = self._last_t_s
         if last is not None and t <= last:
             if t == last:
                 self._imu_duplicates += 1
                 return
-            self._reset(f"IMU stamp went back by {last - t:.3f} s")
+            # One sample in the past is a fault of that sample (skipped); a run of them is the
+            # clock that went back (a restarted recording, a reset device): start again.
+            self._imu_back_run += 1
+            if self._imu_back_run < _BACK_RUN_RESET:
+                self._imu_out_of_order += 1
+                return
+            self._reset(
+                f"IMU stamp went back by {last - t:.3f} s for {_BACK_RUN_RESET} samples in a row"
+            )
             last = None
+        self._imu_back_run = 0
         self._imu_samples += 1
         if self.calibration is not None:
             rate, force = self.calibration.correct(rate, force)
@@ -694,6 +724,8 @@ class InsEngine:
             imu_samples=self._imu_samples,
             imu_gaps=self._imu_gaps,
             imu_duplicates=self._imu_duplicates,
+            imu_out_of_order=self._imu_out_of_order,
+            imu_implausible=self._imu_implausible,
             nis=dict(self._nis),
             rollbacks=self._rollbacks,
             replayed_samples=self._replayed_samples,

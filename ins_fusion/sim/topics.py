@@ -115,7 +115,8 @@ class SimulationConfig:
     every error of both receivers (0 = exact fixes and attitudes, as reported σ unchanged),
     scheduled outages (start, duration [s]) and sky zones, truth rate [Hz], seed, the UTC time
     of simulation time 0 [ns], and the engine/road vibration the IMU senses (a profile of
-    sim.vibration.PROFILES: ``none``, ``car``, ``rough``)."""
+    sim.vibration.PROFILES: ``none``, ``car`` (the default: the project's own drives are not
+    kinder than a car on a road), ``rough``)."""
 
     scenario: str = "test_pattern"
     duration_s: float = 240.0
@@ -129,7 +130,7 @@ class SimulationConfig:
     truth_rate_hz: float = 50.0
     seed: int = 0
     start_ns: int = DEFAULT_START_NS
-    vibration: str = "none"
+    vibration: str = "car"
 
 
 def _ns(t_s: FloatArray) -> FloatArray:

@@ -138,8 +138,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--vibration",
         choices=sorted(vibration.PROFILES),
-        default="none",
-        help="engine/road vibration the IMU senses, growing with speed (docs/simulator.md)",
+        default="car",
+        help="engine/road vibration the IMU senses, growing with speed; default like a car on "
+        "a road (docs/simulator.md)",
     )
     parser.add_argument(
         "--truth-rate", type=_positive, default=50.0, help="rate of /ground_truth/* [Hz]"
