@@ -25,14 +25,13 @@ Profiles (σ at 15 m/s, x forward, y left, z up):
 | name | accel σ [m/s²] | gyro σ [rad/s] |
 |---|---|---|
 | none | 0 | 0 |
-| car | 0.45, 0.35, 0.45 | 0.020, 0.025, 0.020 |
-| rough | 0.90, 0.70, 0.90 | 0.040, 0.050, 0.040 |
+| car | 0.58, 0.37, 0.52 | 0.0072, 0.0186, 0.0029 |
+| rough | 1.16, 0.74, 1.04 | 0.0144, 0.0372, 0.0058 |
 
-Source: comma2k19 segment in shared data (shared/data/real/README.md, `/imu/data_raw`): a phone
+Source: the comma2k19 segment (test/fixtures/comma2k19/README.md, `/imu/data_raw`): a phone
 IMU on a car windshield mount at 104 Hz, driving 8-20 m/s, per-sample σ of the high-passed
-signal accel (0.58, 0.37, 0.52) m/s², gyro (0.0072, 0.0186, 0.0029) rad/s. ``car`` takes the
-accelerometer a little below (a body-mounted unit vibrates less than a windshield phone), the gyro
-at the team's "several hundredths of rad/s" (issue 10 item 3), above the phone's x/z. Road
+signal accel (0.58, 0.37, 0.52) m/s², gyro (0.0072, 0.0186, 0.0029) rad/s; ``car`` takes these
+measured values as they are (the only real vibration record the project has). Road
 fractions: in that record 0.5-5 Hz holds 13-19 % (accel) and 29-74 % (gyro) of the power above
 0.5 Hz, an upper bound since it includes the car's own manoeuvres. Idle fraction, reference speed
 and the 2x of ``rough`` are assumed.
@@ -99,21 +98,21 @@ class VibrationProfile:
 
 
 _SOURCE = (
-    "comma2k19 segment in shared data (shared/data/real/README.md, /imu/data_raw: windshield "
-    "phone IMU, 8-20 m/s, accel σ 0.58/0.37/0.52 m/s², gyro σ 0.0072/0.0186/0.0029 rad/s); "
-    "issue 10 item 3"
+    "comma2k19 segment (test/fixtures/comma2k19/README.md, /imu/data_raw: windshield phone "
+    "IMU, 8-20 m/s, per-sample σ of the high-passed signal accel 0.58/0.37/0.52 m/s², gyro "
+    "0.0072/0.0186/0.0029 rad/s, x forward, y left, z up)"
 )
 NONE = VibrationProfile(name="none")
 CAR = VibrationProfile(
     name="car",
-    gyro_sigma_rad_s=(0.020, 0.025, 0.020),
-    accel_sigma_m_s2=(0.45, 0.35, 0.45),
+    gyro_sigma_rad_s=(0.0072, 0.0186, 0.0029),
+    accel_sigma_m_s2=(0.58, 0.37, 0.52),
     source=_SOURCE,
 )
 ROUGH = VibrationProfile(
     name="rough",
-    gyro_sigma_rad_s=(0.040, 0.050, 0.040),
-    accel_sigma_m_s2=(0.90, 0.70, 0.90),
+    gyro_sigma_rad_s=(0.0144, 0.0372, 0.0058),
+    accel_sigma_m_s2=(1.16, 0.74, 1.04),
     source="car x 2 (assumed: rough road surface)",
 )
 PROFILES: dict[str, VibrationProfile] = {p.name: p for p in (NONE, CAR, ROUGH)}
