@@ -24,6 +24,13 @@ sample wait for it.
 Duplicates (same kind and stamp) are ignored and counted; measurements older than the history
 are rejected and counted as ``too_old``; a backwards IMU stamp resets the engine.
 
+Adaptation and self-calibration (core.adaptation, docs/fusion.md): the IMU white noise is
+measured from the samples and raises the process noise above the user's densities; the GNSS
+white share is measured from consecutive innovations; the GNSS normalised innovations scale the
+process noise while they stay too large; a gate recovery fades the whole covariance. Optional
+error states estimate the residual IMU-to-vehicle mounting (pitch, yaw; with the NHC) and the
+IMU time offset (``imu_time_offset`` is taken off every IMU stamp).
+
 Alignment and states: 'aligning' while levelling on a standstill (no solution yet) and while the
 heading is unknown; 'navigating'; 'degraded' when no GNSS position was used for
 ``degraded_after_s``. Levelling (core.alignment) averages ``alignment.duration`` seconds of a
