@@ -13,9 +13,9 @@ import math
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
+from test_replay_metrics import _solution as metrics_solution
 
 from ins_fusion.core import earth
-from ins_fusion.core.engine import InsSolution
 from ins_fusion.core.measurements import GnssFixMeasurement
 from ins_fusion.replay.frames import lever_arm_covariance, moved_track
 from ins_fusion.replay.outages import Outage
@@ -34,22 +34,10 @@ LEVER_ARM = (0.5, 0.2, 1.5)  # base_link FLU [m]
 FIX_COV = np.diag([0.01, 0.01, 0.04])
 
 
-def _solution(t, cov_att, pos=(10.0, 20.0, 1.0), quat=YAW_90, rate=(0.0, 0.0, 0.0)):
-    return InsSolution(
-        t_s=t,
-        lat_deg=0.0,
-        lon_deg=0.0,
-        height_m=0.0,
-        pos_enu_m=np.asarray(pos, dtype=float),
-        vel_enu_m_s=np.zeros(3),
-        quat_enu_flu_xyzw=np.asarray(quat, dtype=float),
-        rate_flu_rad_s=np.asarray(rate, dtype=float),
-        cov_pos_enu_m2=np.diag([0.04, 0.04, 0.09]),
-        cov_vel_enu=np.eye(3) * 1e-4,
-        cov_att_enu_rad2=cov_att,
-        gyro_bias_flu_rad_s=np.zeros(3),
-        accel_bias_flu_m_s2=np.zeros(3),
-        state="navigating",
+def _solution(t, cov_att):
+    """A base_link solution at (10, 20, 1) m ENU facing east (test_replay_metrics' builder)."""
+    return metrics_solution(
+        t, (10.0, 20.0, 1.0), quat=YAW_90, cov_pos=np.diag([0.04, 0.04, 0.09]), cov_att=cov_att
     )
 
 
