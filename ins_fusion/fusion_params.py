@@ -206,7 +206,7 @@ PARAMETERS: tuple[Param, ...] = (
     ),
     Param(
         "self_calibration.mounting_sigma",
-        1.5,
+        3.0,
         "initial sigma of the residual mounting pitch and yaw [deg]",
         0.01,
         20.0,
