@@ -92,6 +92,7 @@ from ins_fusion.core.measurements import (
     euler_rad,
     gnss_position,
     gnss_velocity,
+    mounting_skew,
     ned_cov,
     nhc,
     wrap_angle,
@@ -715,7 +716,7 @@ class InsEngine:
         cached = self._mounting_cache
         if cached is not None and cached[0] == mounting:
             return cached[1]
-        mat_vi = (np.eye(3) - skew((0.0, mounting[0], mounting[1]))) @ self._mat_bi
+        mat_vi = (np.eye(3) - mounting_skew(mounting)) @ self._mat_bi
         rpy = euler_rad(MAT_FLU_FRD @ mat_vi @ MAT_FLU_FRD)  # z-y'-x'' of the FLU rotation
         self._mounting_cache = (mounting, rpy)
         return rpy
@@ -802,7 +803,6 @@ class InsEngine:
         for k, axis in enumerate("enu"):
             values[f"gnss_white_sigma_{axis}_m"] = math.sqrt(float(white_enu[k]))
         values["fading_factor_last"] = self._fading
-        s = self._state
         values["process_noise_scale"] = math.nan if s is None else s.q_scale
         values["gnss_nis_mean"] = math.nan if s is None else s.nis_mean
         return values
@@ -1242,8 +1242,9 @@ class InsEngine:
         if not s.heading_known and self._too_fast_to_align(pred, live, "gnss_position"):
             return
         white, correlated = self._fix_noise(fix)
+        reported = self._reported_variance(fix)
         if self.layout.gp is not None:
-            ratio = self._reported_variance(fix) / np.maximum(s.gnss_reported, 1e-12)
+            ratio = reported / np.maximum(s.gnss_reported, 1e-12)
             if ratio.max() > _GNSS_NOISE_JUMP or ratio.min() < 1.0 / _GNSS_NOISE_JUMP:
                 self._restart_gnss_error(fix, correlated)
             elif not np.array_equal(correlated, s.gnss_variance):
@@ -1273,7 +1274,7 @@ class InsEngine:
             z if dx is None else z - H @ dx,
             predicted,
             np.einsum("ij,jk,ik->i", H, kf.P, H),
-            self._reported_variance(fix),
+            reported,
         )
         if dx is not None:
             s.last_position_t_s = max(s.last_position_t_s, fix.t_s)
@@ -1351,7 +1352,7 @@ class InsEngine:
         the configured arms (vehicle axes) turned by the residual mounting, (I + [μ×]) l."""
         if self.layout.mt is None or s.mounting == (0.0, 0.0):
             return self._antenna_arm_b, self._base_arm_b
-        turn = skew((0.0, s.mounting[0], s.mounting[1]))  # np.cross costs 10x more
+        turn = mounting_skew(s.mounting)  # np.cross costs 10x more
         return (
             self._antenna_arm_b + turn @ self._antenna_arm_b,
             self._base_arm_b + turn @ self._base_arm_b,
@@ -1619,14 +1620,11 @@ class InsEngine:
         assert self._state is not None
         share = self._state.gnss_white.share
         measured = None if share is None else share * variance
-        if self.layout.gp is None:  # all white
-            if measured is None:
-                return total, np.zeros(3)
-            white = np.minimum(np.maximum(variance, measured), _MAX_GNSS_INFLATION * variance)
-            scale = np.sqrt(white / np.maximum(variance, 1e-30))
-            return total * np.outer(scale, scale), np.zeros(3)
-        floor = np.maximum(self._gnss_white_var_ned, self.config.gnss_white_fraction * variance)
-        white = np.minimum(variance, floor)
+        if self.layout.gp is None:  # all white: no correlated error states
+            white = variance
+        else:
+            floor = np.maximum(self._gnss_white_var_ned, self.config.gnss_white_fraction * variance)
+            white = np.minimum(variance, floor)
         if measured is not None:
             white = np.minimum(np.maximum(white, measured), _MAX_GNSS_INFLATION * variance)
         scale = np.sqrt(white / np.maximum(variance, 1e-30))

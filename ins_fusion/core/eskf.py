@@ -258,11 +258,6 @@ class ErrorStateFilter:
         self._gyro_psd = gyro_psd
         self._accel_psd = accel_psd
 
-    @property
-    def white_noise(self) -> tuple[FloatArray, FloatArray]:
-        """(gyro, accelerometer) white-noise power densities in use (``set_white_noise``)."""
-        return self._gyro_psd, self._accel_psd
-
     def scale(self, factor: float) -> None:
         """Multiply the covariance by ``factor`` (fading memory: every state less certain)."""
         self.P = self.P * factor

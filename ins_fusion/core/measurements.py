@@ -123,6 +123,12 @@ Model = tuple[FloatArray, FloatArray, FloatArray]
 TIME_OFFSET_MIN_TURN_RATE = math.radians(2.0)
 
 
+def mounting_skew(mounting_rad: tuple[float, float]) -> FloatArray:
+    """[μ×] of a residual mounting μ = (0, pitch, yaw) about base_link FRD y, z [rad]: the
+    vehicle frame v is the engine's body frame b turned by it, C_bv = I + [μ×]."""
+    return skew((0.0, mounting_rad[0], mounting_rad[1]))
+
+
 def ned_cov(cov_enu: FloatArray) -> FloatArray:
     """ENU covariance -> NED (and back: the axis swap is its own inverse)."""
     return np.asarray(MAT_ENU_NED @ cov_enu @ MAT_ENU_NED.T, dtype=np.float64)
@@ -232,7 +238,7 @@ def attitude(
         return None
     mat_nv = pred.mat_nb
     if mounting_rad != (0.0, 0.0):
-        mat_nv = pred.mat_nb @ (np.eye(3) + skew((0.0, mounting_rad[0], mounting_rad[1])))
+        mat_nv = pred.mat_nb @ (np.eye(3) + mounting_skew(mounting_rad))
     z = wrap_angle(euler_rad(mat_nb_measured) - euler_rad(mat_nv))
     H = pred.jacobian(3)
     jacobian = euler_jacobian(mat_nv)
