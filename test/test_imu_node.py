@@ -119,7 +119,10 @@ def test_stamps_are_sample_times_not_read_times():
     writes = np.array([p.written_wall_s for p in sent[1 : 1 + len(stamps)]])
     assert np.median(writes - sample_times) == pytest.approx(18 * 10 / 38400, abs=1e-3)
     error = (stamps - sample_times)[len(stamps) // 2 :]  # after the clock fit settled
-    assert np.median(np.abs(error)) < 0.5e-3
+    # The fit cannot see a transfer latency below the smallest one it observed: on a loaded
+    # 2-core machine the pseudo-terminal alone adds 0.5-0.8 ms (a read-time stamp would be
+    # 4.7 ms late, the packet's time on the wire).
+    assert np.median(np.abs(error)) < 1.0e-3
     assert np.percentile(np.abs(error), 95) < 2e-3
 
 
