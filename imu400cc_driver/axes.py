@@ -9,14 +9,13 @@ specific force: ``accel_sign = -1`` undoes that. With the defaults a level, rest
 
 from __future__ import annotations
 
-import re
-from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Final
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from gnss_ins_common.axes import AxisMap
 from imu400cc_driver.protocol import RawPacket, Scaling
 
 #: FLU axis i of imu_link = this device axis (FRD device; notes §1.4, §11.1 item 5).
@@ -25,82 +24,6 @@ DEFAULT_AXIS_SPEC: Final[tuple[str, str, str]] = ("x", "-y", "-z")
 DEFAULT_ACCEL_SIGN: Final = -1.0
 #: Standard gravity [m/s^2] used to turn the device's g into m/s^2 (notes §11.1 item 4).
 STANDARD_GRAVITY_M_S2: Final = 9.80665
-
-_AXIS_NAMES: Final = "xyz"
-_AXIS_TERM: Final = re.compile(r"([+-]?)([xyz])")
-
-
-@dataclass(frozen=True, slots=True)
-class AxisMap:
-    """Signed permutation: FLU axis i = ``signs[i]`` * device axis ``indices[i]``."""
-
-    indices: tuple[int, int, int]
-    signs: tuple[float, float, float]
-
-    def __post_init__(self) -> None:
-        if sorted(self.indices) != [0, 1, 2] or any(s not in (1.0, -1.0) for s in self.signs):
-            raise ValueError(f"not a signed permutation: {self.indices!r}, {self.signs!r}")
-
-    @classmethod
-    def from_spec(cls, spec: Sequence[str]) -> AxisMap:
-        """Parse e.g. ``["x", "-y", "-z"]``: spec[i] is the device axis (optionally signed) that
-        is FLU axis i. Exactly three terms, each of x, y, z once; ValueError otherwise."""
-        if isinstance(spec, str) or len(spec) != 3:
-            raise ValueError(f"axis spec needs three terms like ['x', '-y', '-z'], got {spec!r}")
-        matches = [_AXIS_TERM.fullmatch(str(term).strip().lower()) for term in spec]
-        axes = {m.group(2) for m in matches if m is not None}
-        if None in matches or len(axes) != 3:
-            raise ValueError(
-                f"axis spec {list(spec)!r}: each of x, y, z exactly once, optionally signed + or -"
-            )
-        (i0, s0), (i1, s1), (i2, s2) = (
-            (_AXIS_NAMES.index(m.group(2)), -1.0 if m.group(1) == "-" else 1.0)
-            for m in matches
-            if m is not None
-        )
-        return cls(indices=(i0, i1, i2), signs=(s0, s1, s2))
-
-    @property
-    def spec(self) -> tuple[str, str, str]:
-        """The canonical spec, e.g. ``("x", "-y", "-z")``."""
-        s0, s1, s2 = (
-            ("-" if sign < 0 else "") + _AXIS_NAMES[index]
-            for index, sign in zip(self.indices, self.signs, strict=True)
-        )
-        return (s0, s1, s2)
-
-    @property
-    def matrix(self) -> NDArray[np.float64]:
-        """3x3 matrix M with ``v_flu = M @ v_device``."""
-        matrix = np.zeros((3, 3))
-        matrix[[0, 1, 2], list(self.indices)] = self.signs
-        return matrix
-
-    @property
-    def proper(self) -> bool:
-        """True for a rotation (det +1). A reflection is only right for a left-handed device
-        frame, which App. B.5 (y left, z down) would imply against §7.4 (notes §12 item 2)."""
-        return bool(np.linalg.det(self.matrix) > 0)
-
-    def to_flu(self, vec: ArrayLike) -> NDArray[np.float64]:
-        """Device-axis vector(s), shape (..., 3), in imu_link FLU axes."""
-        device = _as_vectors(vec)
-        flu: NDArray[np.float64] = device[..., list(self.indices)] * np.asarray(self.signs)
-        return flu
-
-    def from_flu(self, vec: ArrayLike) -> NDArray[np.float64]:
-        """Inverse of to_flu: FLU vector(s), shape (..., 3), in device axes."""
-        flu = _as_vectors(vec)
-        device = np.empty_like(flu)
-        device[..., list(self.indices)] = flu * np.asarray(self.signs)
-        return device
-
-
-def _as_vectors(vec: ArrayLike) -> NDArray[np.float64]:
-    array = np.asarray(vec, dtype=np.float64)
-    if array.ndim == 0 or array.shape[-1] != 3:
-        raise ValueError(f"expected 3-vectors (shape (..., 3)), got shape {array.shape}")
-    return array
 
 
 @dataclass(frozen=True, slots=True, eq=False)

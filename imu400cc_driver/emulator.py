@@ -19,8 +19,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from gnss_ins_common.axes import AxisMap
 from gnss_ins_common.pty_device import PtyEmulator
-from imu400cc_driver.axes import DEFAULT_AXIS_SPEC, AxisMap, measurement_to_packet
+from imu400cc_driver.axes import DEFAULT_AXIS_SPEC, measurement_to_packet
 from imu400cc_driver.device_clock import NOMINAL_RATE_HZ, NOMINAL_TICK_S, PACKET_TRANSMISSION_S
 from imu400cc_driver.protocol import (
     Command,

@@ -18,6 +18,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, Temperature
 
 from gnss_ins_common import ros_diagnostics as diag
+from gnss_ins_common.axes import AxisMap
 from gnss_ins_common.message_fields import fill_imu, fill_temperature, stamp_ns
 from gnss_ins_common.params import Param
 from gnss_ins_common.ros_endpoints import Endpoints
@@ -25,7 +26,7 @@ from gnss_ins_common.ros_node_main import run_node
 from gnss_ins_common.ros_params import declare_parameters
 from gnss_ins_common.ros_serial import start_serial_link
 from gnss_ins_common.serial_link import LinkSettings
-from imu400cc_driver.axes import DEFAULT_AXIS_SPEC, AxisMap, packet_to_measurement
+from imu400cc_driver.axes import DEFAULT_AXIS_SPEC, packet_to_measurement
 from imu400cc_driver.device_clock import NOMINAL_RATE_HZ, NOMINAL_TICK_S, DeviceClock
 from imu400cc_driver.framer import PacketFramer
 from imu400cc_driver.link import configure_device, stop_stream

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 import yaml
 
-from imu400cc_driver.axes import AxisMap
+from gnss_ins_common.axes import AxisMap
 from ins_fusion.calibration_id import procedures
 from ins_fusion.calibration_id.model import Site
 from ins_fusion.calibration_id.record import write_bag

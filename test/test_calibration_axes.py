@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import pytest
 
-from imu400cc_driver.axes import DEFAULT_ACCEL_SIGN, DEFAULT_AXIS_SPEC, AxisMap
+from gnss_ins_common.axes import AxisMap
+from imu400cc_driver.axes import DEFAULT_ACCEL_SIGN, DEFAULT_AXIS_SPEC
 from ins_fusion.calibration_id import procedures
 from ins_fusion.calibration_id.axes import DEFAULT_POSITIONS, check_axes, parse_position
 from ins_fusion.calibration_id.lsq import EstimationError

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from imu400cc_driver.axes import AxisMap
+from gnss_ins_common.axes import AxisMap
 from ins_fusion.calibration_id import axes, rotation, static
 from ins_fusion.calibration_id.lsq import EstimationError
 from ins_fusion.calibration_id.model import BiasInstability, Site

@@ -118,15 +118,17 @@ def test_from_yaml_applies_overrides():
 
 
 def test_calibration_file_holds_the_selected_values_of_aalborg_notes_3_3():
+    """The report's device-axis values, as imu_link sees them through the driver's defaults
+    (FLU = device x, -y, -z; accelerometer sign -1): test_calibration_frame.py checks the rule."""
     cal = ImuCalibration.from_yaml(CALIBRATION)
-    assert cal.gyro.bias == pytest.approx(np.radians([0.0246, -0.0343, -0.0153]))
+    assert cal.gyro.bias == pytest.approx(np.radians([0.0246, 0.0343, 0.0153]))
     assert cal.gyro.bias_sigma == pytest.approx(np.radians([0.010, 0.0089, 0.0140]))
-    assert cal.gyro.scale_positive == pytest.approx([0.000921, 0.008286, 0.002637])
-    assert cal.gyro.scale_negative == pytest.approx([-0.001304, -0.008199, -0.001811])
+    assert cal.gyro.scale_positive == pytest.approx([0.000921, -0.008199, -0.001811])
+    assert cal.gyro.scale_negative == pytest.approx([-0.001304, 0.008286, 0.002637])
     mg = STANDARD_GRAVITY_M_S2 * 1e-3
-    assert cal.accel.bias == pytest.approx(np.array([5.4, -3.1, 7.1]) * mg)
-    assert cal.accel.scale_positive == pytest.approx([0.000652, 0.000309, -0.000202])
-    assert cal.accel.scale_negative == pytest.approx([0.000172, 0.000340, 0.000846])
+    assert cal.accel.bias == pytest.approx(np.array([-5.4, -3.1, 7.1]) * mg)
+    assert cal.accel.scale_positive == pytest.approx([0.000172, 0.000309, -0.000202])
+    assert cal.accel.scale_negative == pytest.approx([0.000652, 0.000340, 0.000846])
     assert cal.g_sensitivity == ((0.0, 0.0, 0.0),) * 3
     assert cal.temperature_range_c == (24.0, 28.0)
     assert cal.in_temperature_range(26.0) and not cal.in_temperature_range(30.0)

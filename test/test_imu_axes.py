@@ -17,11 +17,11 @@ from hypothesis import strategies as st
 from imu_strategies import raw_packets
 from scipy.spatial.transform import Rotation
 
+from gnss_ins_common.axes import AxisMap
 from imu400cc_driver.axes import (
     DEFAULT_ACCEL_SIGN,
     DEFAULT_AXIS_SPEC,
     STANDARD_GRAVITY_M_S2,
-    AxisMap,
     measurement_to_packet,
     packet_to_measurement,
 )

@@ -18,8 +18,9 @@ from gnss_driver.driver import EpochOutput
 from gnss_driver.node import GnssNode
 from gnss_driver.profiles import Receiver
 from gnss_driver.utc import DateSource, UtcTime
+from gnss_ins_common.axes import AxisMap
 from imu400cc_driver import node as imu_node
-from imu400cc_driver.axes import AxisMap, measurement_to_packet, packet_to_measurement
+from imu400cc_driver.axes import measurement_to_packet, packet_to_measurement
 from imu400cc_driver.protocol import Scaling
 from ins_fusion.sim import topics as T  # noqa: N812
 from ins_fusion.sim.messages import new_message, stamp_ns

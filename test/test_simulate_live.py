@@ -17,7 +17,8 @@ import serial
 
 from gnss_driver.reader import NmeaReader
 from gnss_driver.sentences import ASHRPAT, lat_lon_deg
-from imu400cc_driver.axes import DEFAULT_AXIS_SPEC, AxisMap, packet_to_measurement
+from gnss_ins_common.axes import AxisMap
+from imu400cc_driver.axes import DEFAULT_AXIS_SPEC, packet_to_measurement
 from imu400cc_driver.framer import PacketFramer
 from imu400cc_driver.protocol import Scaling
 from ins_fusion.tools.bag_io import BagReader

@@ -17,8 +17,9 @@ from typing import Any
 
 import yaml
 
+from gnss_ins_common.axes import AxisMap
 from gnss_ins_common.params import ParameterValueError, load_yaml
-from imu400cc_driver.axes import DEFAULT_ACCEL_SIGN, DEFAULT_AXIS_SPEC, AxisMap
+from imu400cc_driver.axes import DEFAULT_ACCEL_SIGN, DEFAULT_AXIS_SPEC
 from ins_fusion.calibration_id import axes, rotation, static
 from ins_fusion.calibration_id.lsq import EstimationError
 from ins_fusion.calibration_id.model import BiasInstability, Site

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from imu400cc_driver.axes import AxisMap
+from gnss_ins_common.axes import AxisMap
 from ins_fusion.calibration_id.model import Site
 from ins_fusion.calibration_id.record import FloatArray, ImuRecord
 from ins_fusion.sim.imu_model import ImuErrorModel, ImuProfile

@@ -10,13 +10,16 @@ off-diagonal misalignment, b the bias and G the g-dependent gyro bias. The corre
 y = (I + diag(s±) + A)⁻¹ (ỹ - b - G f), which for A = 0 is Aalborg (9.1)/(9.2) per axis. The
 sign is taken from ỹ - b. The accelerometers are corrected first; their result is the f of G f.
 
-File format (``imu_calibration:`` section; every term optional, zero when absent; the future
-``gnss_ins calibrate`` tool writes the same keys). Axes are imu_link FLU, in user units named
-by the key suffix, each term with its 1σ (the day-to-day scatter of the laboratory estimate):
+File format (``imu_calibration:`` section; every term optional, zero when absent; the
+``gnss_ins calibrate`` tool writes the same keys), in user units named by the key suffix, each
+term with its 1σ (the day-to-day scatter of the laboratory estimate):
 
     imu_calibration:
       sensor: free text
       source: free text
+      axes: imu_link                            # or device (below); default imu_link
+      device_axes: [x, -y, -z]                  # axes: device only: imu_link axis i = this
+      device_accel_sign: -1                     # device axis, accelerometers times this sign
       temperature_range_c: [low, high]          # calibration valid between these temperatures
       gyro:
         bias_deg_s: [x, y, z]                   # and bias_sigma_deg_s
@@ -29,6 +32,14 @@ by the key suffix, each term with its 1σ (the day-to-day scatter of the laborat
         scale_positive_percent / scale_negative_percent / misalignment_mrad as for the gyros
 
 Each ``*_sigma_*`` key sits next to its value key (``misalignment_sigma_mrad``, ...).
+
+``axes: imu_link`` (what ``gnss_ins calibrate`` writes, from imu_link records): the terms are per
+imu_link FLU axis. ``axes: device``: the terms are per axis of the unit's own output, as a
+laboratory report prints them (the Aalborg tables are per IMU400CC device axis); the loader
+carries them into imu_link with the driver's axis map and accelerometer sign
+(``device_axes``/``device_accel_sign``, the imu400cc_node parameters ``axis_map`` and
+``accel_sign``): biases follow the signed axes, a FLU axis that reads minus its device axis swaps
+the positive and negative scale factors, matrices become M A Mᵀ (``gnss_ins_common.axes``).
 """
 
 from __future__ import annotations
@@ -36,13 +47,14 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import yaml
 
+from gnss_ins_common.axes import AxisMap
 from ins_fusion.core.units import STANDARD_GRAVITY_M_S2, deg_s, mg, percent
 
 Vec3 = tuple[float, float, float]
@@ -71,6 +83,24 @@ class TriadCalibration:
     scale_negative_sigma: Vec3 = _ZERO3
     misalignment_rad: Mat3 = _ZERO33
     misalignment_sigma_rad: Mat3 = _ZERO33
+
+    def in_flu(self, axes: AxisMap, sign: float) -> TriadCalibration:
+        """These terms, given per device axis of a triad whose output is ``sign`` (±1) times
+        ``axes.to_flu`` of the device output, per imu_link FLU axis (module docstring)."""
+        scale = axes.scale_pair_to_flu(self.scale_positive, self.scale_negative, sign)
+        scale_sigma = axes.scale_pair_to_flu(
+            self.scale_positive_sigma, self.scale_negative_sigma, sign
+        )
+        return TriadCalibration(
+            bias=_vec(sign * axes.to_flu(self.bias)),
+            bias_sigma=_vec(axes.permute_to_flu(self.bias_sigma)),
+            scale_positive=_vec(scale[0]),
+            scale_positive_sigma=_vec(scale_sigma[0]),
+            scale_negative=_vec(scale[1]),
+            scale_negative_sigma=_vec(scale_sigma[1]),
+            misalignment_rad=_mat(axes.matrix_to_flu(self.misalignment_rad)),
+            misalignment_sigma_rad=_mat(abs(axes.matrix_to_flu(self.misalignment_sigma_rad))),
+        )
 
     @functools.cached_property
     def _inverses(self) -> tuple[tuple[float, ...], ...]:
@@ -141,9 +171,23 @@ class ImuCalibration:
             sensor=str(section.get("sensor", "")),
             source=str(section.get("source", "")),
         )
+        device = fields.device_axes()
         for part in (fields, gyro, accel):
             part.reject_unknown()
-        return calibration
+        return calibration if device is None else calibration.in_flu(*device)
+
+    def in_flu(self, axes: AxisMap, accel_sign: float) -> ImuCalibration:
+        """This calibration, given per device axis of a unit read through ``axes`` with
+        accelerometer sign ``accel_sign``, per imu_link FLU axis (module docstring). The
+        g-sensitivity relates device gyro output to device accelerometer output, so it takes
+        the accelerometer sign once."""
+        return replace(
+            self,
+            gyro=self.gyro.in_flu(axes, 1.0),
+            accel=self.accel.in_flu(axes, accel_sign),
+            g_sensitivity=_mat(accel_sign * axes.matrix_to_flu(self.g_sensitivity)),
+            g_sensitivity_sigma=_mat(abs(axes.matrix_to_flu(self.g_sensitivity_sigma))),
+        )
 
     def correct(self, rate_flu_rad_s: Vec3, force_flu_m_s2: Vec3) -> tuple[Vec3, Vec3]:
         """(rate, specific force) corrected for the deterministic errors, imu_link FLU, SI."""
@@ -230,10 +274,40 @@ class _Fields:
             raise CalibrationError(f"{self._where}.temperature_range_c: needs [low, high]")
         return numbers[0], numbers[1]
 
+    def device_axes(self) -> tuple[AxisMap, float] | None:
+        """(axis map, accelerometer sign) when the terms are per device axis (``axes:
+        device``), None when they are per imu_link axis."""
+        frame = self._get("axes")
+        if frame in (None, "imu_link"):
+            for key in ("device_axes", "device_accel_sign"):
+                if self._get(key) is not None:
+                    raise CalibrationError(f"{self._where}.{key} needs 'axes: device'")
+            return None
+        if frame != "device":
+            raise CalibrationError(f"{self._where}.axes: 'imu_link' or 'device', got {frame!r}")
+        spec, sign = self._get("device_axes"), self._get("device_accel_sign")
+        if spec is None or isinstance(sign, bool) or sign not in (1, -1):
+            raise CalibrationError(
+                f"{self._where}: 'axes: device' needs device_axes (the driver's axis_map, e.g."
+                " [x, -y, -z]) and device_accel_sign (+1 or -1, the driver's accel_sign)"
+            )
+        try:
+            return AxisMap.from_spec(spec), float(sign)
+        except ValueError as exc:
+            raise CalibrationError(f"{self._where}.device_axes: {exc}") from exc
+
     def reject_unknown(self) -> None:
         unknown = sorted(set(self._section) - self._used)
         if unknown:
             raise CalibrationError(f"{self._where}: unknown key(s) {', '.join(unknown)}")
+
+
+def _vec(values: np.ndarray[Any, Any]) -> Vec3:
+    return (float(values[0]), float(values[1]), float(values[2]))
+
+
+def _mat(values: np.ndarray[Any, Any]) -> Mat3:
+    return (_vec(values[0]), _vec(values[1]), _vec(values[2]))
 
 
 def _numbers(value: Any, where: str) -> list[float]:

@@ -27,10 +27,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
+from gnss_ins_common.axes import AxisMap
+from imu400cc_driver.axes import DEFAULT_ACCEL_SIGN, DEFAULT_AXIS_SPEC
 from ins_fusion.core.rotation import FloatArray
 from ins_fusion.core.units import (
     DEG,
@@ -96,6 +98,25 @@ class TriadErrors:
     wrap: bool = False
     bandwidth_hz: float = math.inf
 
+    def in_flu(self, axes: AxisMap, sign: float) -> TriadErrors:
+        """These errors, given per device axis of a triad whose output is ``sign`` (±1) times
+        ``axes.to_flu`` of the device output, per FLU axis: the same carry-over as a device-axis
+        calibration file (core.calibration, ``axes: device``)."""
+        scale_pos, scale_neg = axes.scale_pair_to_flu(self.scale_pos, self.scale_neg, sign)
+        return replace(
+            self,
+            noise_density=_vec(axes.permute_to_flu(self.noise_density)),
+            bias_instability=_vec(axes.permute_to_flu(self.bias_instability)),
+            bias_correlation_time_s=_vec(axes.permute_to_flu(self.bias_correlation_time_s)),
+            random_walk=_vec(axes.permute_to_flu(self.random_walk)),
+            bias=_vec(sign * axes.to_flu(self.bias)),
+            bias_sigma=_vec(axes.permute_to_flu(self.bias_sigma)),
+            scale_pos=_vec(scale_pos),
+            scale_neg=_vec(scale_neg),
+            scale_sigma=_vec(axes.permute_to_flu(self.scale_sigma)),
+            misalignment_rad=_mat(axes.matrix_to_flu(self.misalignment_rad)),
+        )
+
 
 @dataclass(frozen=True)
 class TemperatureSpec:
@@ -123,6 +144,14 @@ class ImuProfile:
     source: str = ""
 
 
+def _vec(values: FloatArray) -> Vec3:
+    return (float(values[0]), float(values[1]), float(values[2]))
+
+
+def _mat(values: FloatArray) -> Mat3:
+    return (_vec(values[0]), _vec(values[1]), _vec(values[2]))
+
+
 def _deg_s_per_g(value: float) -> float:
     """g-dependent gyro bias: (deg/s)/g -> (rad/s)/(m/s²)."""
     return deg_s(value) / STANDARD_GRAVITY_M_S2
@@ -142,7 +171,9 @@ def _deg_s_per_g(value: float) -> float:
 #: for MEMS). Noise bandwidths 25 Hz / 75 Hz (§1.2, the bandwidths (5.21) divides by, §1.3).
 #: Temperature about 28 °C on the drives (§7.1.3, Fig. 8-3); the ±0.5 °C power-up spread and the
 #: drift to within ±1 °C over 30 min are assumptions (the unit stayed within 24-28 °C, §4).
-#: Axes are imu_link FLU; the driver owns the device's own sign conventions.
+#: The report's values are per device axis; they are carried into FLU with the imu400cc_node
+#: defaults (axis_map, accel_sign), as config/imu400cc_calibration.yaml says for the fusion node.
+_IMU400CC_AXES = AxisMap.from_spec(DEFAULT_AXIS_SPEC)
 IMU400CC = ImuProfile(
     name="imu400cc",
     rate_hz=134.0,
@@ -157,7 +188,7 @@ IMU400CC = ImuProfile(
         resolution=deg_s(150.0 / 32768.0),
         full_scale=deg_s(150.0),
         bandwidth_hz=25.0,
-    ),
+    ).in_flu(_IMU400CC_AXES, 1.0),
     accel=TriadErrors(
         noise_density=_each(
             m_s_sqrt_h, *(60.0 * s / math.sqrt(75.0) for s in (0.0029, 0.0038, 0.0036))
@@ -171,11 +202,16 @@ IMU400CC = ImuProfile(
         resolution=mg(3000.0 / 32768.0),
         full_scale=mg(3000.0),
         bandwidth_hz=75.0,
-    ),
-    gyro_g_sensitivity=(
-        _each(_deg_s_per_g, -0.0003, -0.0002, 0.0006),
-        _each(_deg_s_per_g, -0.0005, 0.0021, -0.0001),
-        _each(_deg_s_per_g, -0.0076, -0.0004, 0.0030),
+    ).in_flu(_IMU400CC_AXES, DEFAULT_ACCEL_SIGN),
+    gyro_g_sensitivity=_mat(
+        DEFAULT_ACCEL_SIGN
+        * _IMU400CC_AXES.matrix_to_flu(
+            [
+                _each(_deg_s_per_g, -0.0003, -0.0002, 0.0006),
+                _each(_deg_s_per_g, -0.0005, 0.0021, -0.0001),
+                _each(_deg_s_per_g, -0.0076, -0.0004, 0.0030),
+            ]
+        )
     ),
     temperature=TemperatureSpec(
         mean_c=28.0, turn_on_sigma_c=0.5, drift_sigma_c=1.0, drift_time_s=1800.0
