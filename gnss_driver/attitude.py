@@ -2,11 +2,26 @@
 
 The ADU5 body reference frame (BRF) has X right, Y forward, Z up; pitch κ is about X, roll ε
 about Y and heading φ about Z, clockwise from true north, relative to the local tangent plane
-(imu400cc-aalborg-notes.md §7.3, §11.2 item 2). The angles are applied as a vehicle's Euler
-angles: heading, then pitch about the turned X, then roll about the turned-and-pitched Y
-(positive pitch = nose up, positive roll = right side down):
+(imu400cc-aalborg-notes.md §7.3, §11.2 item 2). How the three angles compose is a convention
+(``ANGLE_CONVENTIONS``, the gnss_node parameter ``adu5_angle_convention``):
 
-    R_enu_brf = Rz(-φ) · Rx(κ) · Ry(ε)        (scipy: from_euler("ZXY", [-φ, κ, ε]))
+- ``heading_pitch_roll`` (default): a vehicle's Euler angles, heading, then pitch about the
+  turned X, then roll about the turned-and-pitched Y (positive pitch = nose up, positive roll =
+  right side down): ``R_enu_brf = Rz(-φ) · Rx(κ) · Ry(ε)`` (scipy ``"ZXY"``). Heading and pitch
+  are then the azimuth and elevation of the first antenna vector V12 (BRF Y), and roll the tilt of
+  the antenna plane about it, whatever the heading: the geometric meaning an attitude receiver's
+  angles have.
+- ``report_fixed_axes``: the Aalborg report's own reading (§7.5): rotations of the ADU frame
+  about *fixed* axes in the order φ, κ, ε, i.e. ``R_enu_brf = Ry(ε) · Rx(κ) · Rz(-φ)`` (scipy
+  extrinsic ``"zxy"``). The report takes it from an earlier project report that is not among the
+  documents; it makes pitch a rotation about the east axis whatever the heading, so at heading
+  90° it is what a vehicle calls roll. At heading 0 the two agree to second order in the tilt
+  (0.02° at 1° pitch and roll); elsewhere they differ by up to about twice the tilt (at heading
+  90°, pitch 2°, roll 3° the two readings are 5.1° apart).
+
+The documents do not give the receiver's own definition (the calibration dialog's note on it is
+not legible in the report), so the default follows the geometry above and the report's reading
+is one parameter away.
 
 With all angles zero the BRF axes are east, north, up. The vehicle frame is FLU (REP-103):
 x = BRF Y, y = -BRF X, z = BRF Z, i.e. ``R_brf_flu = Rz(+90°)``; so a vehicle heading north
@@ -41,14 +56,30 @@ MRMS_LIMIT_M = 0.005
 BRMS_LIMIT_M = 0.04
 
 
-def brf_rotation(heading_deg: float, pitch_deg: float, roll_deg: float) -> Rotation:
-    """``R_enu_brf`` from ADU5 heading, pitch, roll [deg] (see the module docstring)."""
-    return Rotation.from_euler("ZXY", [-heading_deg, pitch_deg, roll_deg], degrees=True)
+#: scipy Euler sequence (heading, pitch, roll about Z, X, Y) per angle convention.
+_SEQUENCES = {"heading_pitch_roll": "ZXY", "report_fixed_axes": "zxy"}
+ANGLE_CONVENTIONS = tuple(_SEQUENCES)
+DEFAULT_ANGLE_CONVENTION = "heading_pitch_roll"
 
 
-def brf_angles(r_enu_brf: Rotation) -> tuple[float, float, float]:
+def brf_rotation(
+    heading_deg: float,
+    pitch_deg: float,
+    roll_deg: float,
+    convention: str = DEFAULT_ANGLE_CONVENTION,
+) -> Rotation:
+    """``R_enu_brf`` from ADU5 heading, pitch, roll [deg] in one of ``ANGLE_CONVENTIONS``
+    (module docstring)."""
+    return Rotation.from_euler(
+        _SEQUENCES[convention], [-heading_deg, pitch_deg, roll_deg], degrees=True
+    )
+
+
+def brf_angles(
+    r_enu_brf: Rotation, convention: str = DEFAULT_ANGLE_CONVENTION
+) -> tuple[float, float, float]:
     """Inverse of ``brf_rotation``: (heading in [0, 360), pitch, roll) [deg]."""
-    z, x, y = r_enu_brf.as_euler("ZXY", degrees=True)
+    z, x, y = r_enu_brf.as_euler(_SEQUENCES[convention], degrees=True)
     return float((-z) % 360.0), float(x), float(y)
 
 
@@ -57,13 +88,21 @@ class AttitudeConfig:
     """How ADU5 angles become a vehicle orientation and its covariance.
 
     ``sigma_rpy_deg``: nominal 1-sigma of (roll, pitch, yaw) [deg]; ``offsets_deg``: installation
-    offsets (heading, pitch, roll) [deg] the driver removes (zeros when the receiver does).
+    offsets (heading, pitch, roll) [deg] the driver removes (zeros when the receiver does);
+    ``convention``: how the angles compose, one of ``ANGLE_CONVENTIONS``.
     """
 
     sigma_rpy_deg: tuple[float, float, float] = DEFAULT_SIGMA_RPY_DEG
     offsets_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
     mrms_limit_m: float = MRMS_LIMIT_M
     brms_limit_m: float = BRMS_LIMIT_M
+    convention: str = DEFAULT_ANGLE_CONVENTION
+
+    def __post_init__(self) -> None:
+        if self.convention not in _SEQUENCES:
+            raise ValueError(
+                f"ADU5 angle convention {self.convention!r}: one of {', '.join(_SEQUENCES)}"
+            )
 
 
 @dataclass(frozen=True, slots=True)
@@ -83,7 +122,7 @@ class AttitudeConverter:
     def __init__(self, config: AttitudeConfig) -> None:
         """Precompute the fixed part ``R_ofs⁻¹ · R_brf_flu``."""
         self.config = config
-        self._r_brf_flu = brf_rotation(*config.offsets_deg).inv() * R_BRF_FLU
+        self._r_brf_flu = brf_rotation(*config.offsets_deg, config.convention).inv() * R_BRF_FLU
         self._var_rpy = [math.radians(s) ** 2 for s in config.sigma_rpy_deg]
 
     def quality_scale(self, mrms_m: float | None, brms_m: float | None) -> float:
@@ -105,7 +144,9 @@ class AttitudeConverter:
     ) -> Orientation:
         """Orientation of the vehicle from ADU5 angles [deg] and PAT quality values [m]."""
         scale = self.quality_scale(mrms_m, brms_m)
-        r_enu_flu = brf_rotation(heading_deg, pitch_deg, roll_deg) * self._r_brf_flu
+        r_enu_flu = (
+            brf_rotation(heading_deg, pitch_deg, roll_deg, self.config.convention) * self._r_brf_flu
+        )
         variances = [v * scale * scale for v in self._var_rpy]
         return Orientation(_quat(r_enu_flu), _diag(variances), scale)
 

@@ -21,7 +21,12 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, NavSatFix, TimeReference
 
-from gnss_driver.attitude import DEFAULT_SIGMA_RPY_DEG, AttitudeConfig
+from gnss_driver.attitude import (
+    ANGLE_CONVENTIONS,
+    DEFAULT_ANGLE_CONVENTION,
+    DEFAULT_SIGMA_RPY_DEG,
+    AttitudeConfig,
+)
 from gnss_driver.commands import Answer, CommandResult, command_error, run_setup
 from gnss_driver.driver import GPS_UTC_LEAP_S, DriverConfig, EpochOutput, GnssDriver
 from gnss_driver.profiles import (
@@ -97,6 +102,14 @@ PARAMETERS = (
         0.001,
         180.0,
         check=_length(3, "roll, pitch, yaw"),
+    ),
+    Param(
+        "adu5_angle_convention",
+        DEFAULT_ANGLE_CONVENTION,
+        "how ADU5 heading, pitch, roll compose: heading_pitch_roll (vehicle Euler angles, pitch ="
+        " elevation of V12) or report_fixed_axes (Aalborg report 7.5: fixed axes, order"
+        " heading, pitch, roll); docs/gnss.md",
+        choices=ANGLE_CONVENTIONS,
     ),
     Param("attitude_mrms_limit", 0.005, "MRMS above this scales the sigmas up [m]", 1e-4, 1.0),
     Param("attitude_brms_limit", 0.04, "BRMS above this scales the sigmas up [m]", 1e-4, 10.0),
@@ -187,6 +200,7 @@ class GnssNode(Node):
                     offsets_deg=zeros if in_receiver else offsets,
                     mrms_limit_m=p["attitude_mrms_limit"],
                     brms_limit_m=p["attitude_brms_limit"],
+                    convention=p["adu5_angle_convention"],
                 ),
             )
         )
