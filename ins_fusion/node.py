@@ -57,6 +57,7 @@ class InsFusionNode(Node):
         gyro_psd = float(np.mean(np.square(config.imu_noise.gyro_arw)))
         self._rate_variance = gyro_psd * NOMINAL_RATE_HZ
         self._published = 0
+        self._warned = 0  # engine warnings already logged
         self._rate_covariance = np.eye(3).ravel() * self._rate_variance
         self._odom_msg, self._fix_msg, self._imu_msg = Odometry(), NavSatFix(), Imu()
         self._bad_imu_messages = 0
@@ -164,6 +165,11 @@ class InsFusionNode(Node):
             message = status.state
         if not temperature_ok:
             level, message = diag.WARN, f"{message}; IMU temperature outside the calibration range"
+        for warning in status.warnings[self._warned :]:
+            self.get_logger().warning(warning)
+        self._warned = len(status.warnings)
+        if status.warnings:
+            level, message = diag.WARN, f"{message}; {status.warnings[-1]}"
         values: dict[str, object] = {
             "state": status.state,
             "imu_samples": status.imu_samples,

@@ -155,6 +155,10 @@ _UNKNOWN_YAW_VARIANCE = (math.pi / 2.0) ** 2
 _ALIGN_MAX_SPEED_M_S = 1.0
 #: Largest distance in time between a fix and the alignment that uses it [s].
 _ALIGN_FIX_MAX_AGE_S = 1.5
+#: A vehicle levelled on a standstill tilted more than this [deg] (roads: < 12°) means the IMU is
+#: mounted otherwise than imu_mounting_rpy_deg says, or its axis map or accelerometer sign is
+#: wrong (an upside-down unit levels at roll 180°): EngineStatus.warnings says so.
+_LEVEL_TILT_WARNING_DEG = 30.0
 #: A change of the receiver's reported variance by more than this factor restarts the
 #: correlated GNSS error states (another fix type).
 _GNSS_NOISE_JUMP = 1.5
@@ -219,7 +223,8 @@ class EngineStatus:
     innovation squared per measurement, rollbacks and re-propagated samples for late
     measurements, the stop detector's decision, and the noise the filter adapted to
     (``adapted``, flat names with units; InsEngine.adapted_noise) and the self-calibration
-    (``calibration``; InsEngine.self_calibration)."""
+    (``calibration``; InsEngine.self_calibration); ``warnings``: set-up problems the data show
+    (e.g. a unit levelled far from its configured mounting), each once, for the log."""
 
     state: str
     measurements: dict[str, dict[str, int]]
@@ -236,6 +241,7 @@ class EngineStatus:
     stationary: bool
     adapted: dict[str, float]
     calibration: dict[str, float]
+    warnings: tuple[str, ...] = ()
 
 
 class _State:
@@ -479,6 +485,7 @@ class InsEngine:
         self._nis = dict.fromkeys(MEASUREMENT_NAMES, math.nan)
         self._resets = 0
         self._last_reset_reason = ""
+        self._warnings: tuple[str, ...] = ()
         self._imu_samples = 0
         self._imu_gaps = 0
         self._imu_duplicates = 0
@@ -740,6 +747,7 @@ class InsEngine:
             stationary=self._detector.stationary,
             adapted=self.adapted_noise(),
             calibration=self.self_calibration(),
+            warnings=self._warnings,
         )
 
     def self_calibration(self) -> dict[str, float]:
@@ -1477,6 +1485,7 @@ class InsEngine:
         lev = self._levelling
         force_b = self._mat_bi @ lev.mean_force_i
         roll, pitch = level(force_b)
+        self._check_level(roll, pitch)
         att = self._recent(self._last_attitude, t)
         heading_known = att is not None and float(att.cov_rpy_rad2[2, 2]) < UNKNOWN_ANGLE_VARIANCE
         yaw, yaw_variance = 0.0, _UNKNOWN_YAW_VARIANCE
@@ -1508,6 +1517,23 @@ class InsEngine:
             np.full(3, self.config.zupt_sigma_m_s**2),
             heading_known,
         )
+
+    def _check_level(self, roll: float, pitch: float) -> None:
+        """Warn (once) when the standstill levels the vehicle tilted beyond
+        ``_LEVEL_TILT_WARNING_DEG``: the configured mounting, axis map or accelerometer sign
+        does not fit this unit (Aalborg notes §12: the IMU400CC's sign is not settled)."""
+        tilt = math.degrees(math.acos(max(-1.0, min(1.0, math.cos(roll) * math.cos(pitch)))))
+        if tilt <= _LEVEL_TILT_WARNING_DEG:
+            return
+        mounting = ", ".join(f"{math.degrees(a):.1f}" for a in self.config.imu_mounting_rpy_rad)
+        warning = (
+            f"static levelling finds the vehicle tilted {tilt:.0f} deg (roll"
+            f" {math.degrees(roll):.0f}, pitch {math.degrees(pitch):.0f}) with"
+            f" imu_mounting_rpy_deg [{mounting}]: the IMU is mounted otherwise (upside down ="
+            " roll 180) or its axis_map/accel_sign is wrong; check with `gnss_ins calibrate axes`"
+        )
+        if warning not in self._warnings:
+            self._warnings = (*self._warnings, warning)
 
     def _start_moving(
         self,

@@ -3,7 +3,8 @@
 Times are seconds after the first IMU stamp; errors are estimate minus reference (see
 ins_fusion.replay.metrics). Keys (docs/replay.md describes each): bag, topics, parameters (those
 differing from the defaults), imu_samples, duration_s, read_time_s, fusion_time_s, wall_time_s,
-realtime_factor, aligned_at_s, final_state, resets, last_reset_reason, datum, reference,
+realtime_factor, aligned_at_s, final_state, resets, last_reset_reason, warnings (set-up problems
+the engine found, e.g. a unit levelled upside down), datum, reference,
 reference_frame (the frame compared in: base_link, or the IMU's for a reference of the IMU),
 reference_frame_id (the reference's own), dropped_messages, measurements, evaluated_samples,
 position_error_m, velocity_error_m_s, attitude_error_deg, outages, nees, withheld_fixes (per
@@ -61,6 +62,7 @@ def build_report(
         "final_state": run.status.state,
         "resets": run.status.resets,
         "last_reset_reason": run.status.last_reset_reason,
+        "warnings": list(run.status.warnings),
         "datum": None if run.datum is None else list(run.datum),
         "reference": reference if evaluation is not None else None,
         "reference_frame": reference_frame if evaluation is not None else None,
@@ -209,6 +211,7 @@ def format_table(report: Report) -> str:
         f"{_num(report['aligned_at_s'], 1)} s, final state {report['final_state']}, "
         f"{report['resets']} resets",
     ]
+    lines += [f"WARNING: {warning}" for warning in report.get("warnings", ())]
     withheld = _withheld_lines(report)
     if report["reference"] is None:
         note = " (withheld fixes below)" if withheld else ""
