@@ -96,6 +96,14 @@ PARAMETERS = (
         100.0,
     ),
     Param(
+        "llq_horizontal_fraction",
+        SolutionConfig().llq_horizontal_fraction,
+        "horizontal share f of Leica LLQ's coordinate quality CQ = sigma_h + sigma_v: sigma_h ="
+        " f CQ, sigma_v = (1 - f) CQ (the report gives only the sum; 0.4 = 2 cm of 2 + 3 cm)",
+        0.01,
+        0.99,
+    ),
+    Param(
         "attitude_sigma_rpy",
         list(DEFAULT_SIGMA_RPY_DEG),
         "1-sigma of roll, pitch, yaw at nominal PAT quality [deg] (notes §7.3)",
@@ -194,6 +202,7 @@ class GnssNode(Node):
                         p["uere_sps"], p["uere_dgps"], p["uere_rtk_float"], p["uere_rtk_fixed"]
                     ),
                     p["velocity_sigma"],
+                    p["llq_horizontal_fraction"],
                 ),
                 attitude=AttitudeConfig(
                     sigma_rpy_deg=(sigma[0], sigma[1], sigma[2]),

@@ -15,8 +15,10 @@ Covariance, ENU [m^2], each of the horizontal and vertical parts from the first 
    diagonal -> DIAGONAL_KNOWN. (Receivers do not always make the ellipse and the σ fields agree,
    so the σ fields set the variances.)
 2. LLQ coordinate quality CQ = σ_h + σ_v with σ_h = sqrt(σ_E² + σ_N²) (notes §7.2, (7.1)),
-   split by the nominal RTK ratio 2 cm : 3 cm (notes §7.2): σ_h = 0.4 CQ, σ_v = 0.6 CQ,
-   σ_E² = σ_N² = σ_h² / 2 -> DIAGONAL_KNOWN.
+   split as σ_h = f·CQ, σ_v = (1 - f)·CQ, σ_E² = σ_N² = σ_h² / 2 -> DIAGONAL_KNOWN. The report
+   gives only the sum; the split f is this project's assumption, the ratio of the rover's
+   nominal RTK accuracy 2 cm : 3 cm (notes §7.2), f = 0.4 by default
+   (``SolutionConfig.llq_horizontal_fraction``, gnss_node ``llq_horizontal_fraction``).
 3. HDOP x UERE (per fix type): σ_E² = σ_N² = (HDOP·UERE)² / 2; σ_U = VDOP·UERE with VDOP from
    GSA, else 2·HDOP [external: typical geometry] -> APPROXIMATED. No HDOP at all counts as 1.
 The covariance type is the weaker of the two parts'.
@@ -59,7 +61,8 @@ from gnss_ins_common.message_fields import UNKNOWN_VARIANCE, fill_navsatfix
 T = TypeVar("T")
 
 _KNOTS_TO_M_S = 1852.0 / 3600.0
-#: Fraction of the LLQ coordinate quality that is horizontal: 2 cm of 2 + 3 cm (notes §7.2).
+#: Default fraction of the LLQ coordinate quality that is horizontal: 2 cm of 2 + 3 cm (notes
+#: §7.2); the project's assumption, the report gives only the sum (7.1).
 LLQ_HORIZONTAL_FRACTION = 0.4
 #: VDOP / HDOP when no GSA gives VDOP [external: typical satellite geometry].
 VDOP_PER_HDOP = 2.0
@@ -162,6 +165,8 @@ class SolutionConfig:
     uere: UereTable = UereTable()
     #: 1-sigma of each horizontal velocity component [m/s] (R of (7.15), notes §10).
     velocity_sigma_m_s: float = 0.05
+    #: Horizontal share f of the LLQ coordinate quality: σ_h = f·CQ, σ_v = (1 - f)·CQ.
+    llq_horizontal_fraction: float = LLQ_HORIZONTAL_FRACTION
 
 
 @dataclass(frozen=True, slots=True)
@@ -359,7 +364,7 @@ class EpochSolver:
         llq = epoch.get(LLQ)
         cq = self._positive(llq, "coord_quality") if llq is not None else None
         if cq is not None:
-            sigma_h = LLQ_HORIZONTAL_FRACTION * cq
+            sigma_h = self.config.llq_horizontal_fraction * cq
             if horizontal is None:
                 h2 = sigma_h * sigma_h / 2.0
                 horizontal = (h2, h2, 0.0), CovarianceType.DIAGONAL_KNOWN, "LLQ"

@@ -108,6 +108,12 @@ def test_llq_coordinate_quality_split_per_the_notes():
     assert np.diag(cov(solution.fix)) == pytest.approx([5e-5, 5e-5, 2.25e-4])
     assert solution.fix.accuracy_source == "LLQ"
     assert solution.fix.cov_type is CovarianceType.DIAGONAL_KNOWN
+    # The split is an assumption: the user sets it (f = 0.5: sigma_h = sigma_v = 0.0125 m).
+    even = EpochSolver(
+        SolutionConfig(llq_horizontal_fraction=0.5), AttitudeConverter(AttitudeConfig())
+    )
+    (split, _) = solve(GGA_FLOAT, LLQ_RTK, solver=even)
+    assert np.diag(cov(split.fix)) == pytest.approx([0.0125**2 / 2, 0.0125**2 / 2, 0.0125**2])
 
 
 @pytest.mark.parametrize(
