@@ -1,9 +1,10 @@
 """Device axes and signs -> REP-103/REP-145 ``imu_link`` (FLU, SI units), and back (no I/O).
 
 The IMU400CC platform frame is FRD (x forward, y right, z down; notes §1.4, §12 item 2), with
-rates positive by the right-hand rule about each device axis. App. D.5 reads about +1 g on a_z
-with the unit level and at rest (notes §2.7, §12 item 1), i.e. the device reports minus the
-specific force: ``accel_sign = -1`` undoes that. With the defaults a level, resting unit reads
+rates positive by the right-hand rule about each device axis. The example packets of App. D.5
+read about +1 g on a_z; the report does not say how the unit stood, so reading them as "level,
+upright, at rest" (the device reports minus the specific force, ``accel_sign = -1`` undoes it)
+is this project's assumption (notes §2.7, §12 item 1). With the defaults a level, resting unit reads
 (0, 0, +9.81) m/s^2 in FLU. Both signs must be confirmed on hardware (notes §11.1 item 5).
 """
 
@@ -20,7 +21,8 @@ from imu400cc_driver.protocol import RawPacket, Scaling
 
 #: FLU axis i of imu_link = this device axis (FRD device; notes §1.4, §11.1 item 5).
 DEFAULT_AXIS_SPEC: Final[tuple[str, str, str]] = ("x", "-y", "-z")
-#: Device accelerometer output = -specific force (App. D.5; notes §12 item 1). Unverified.
+#: Device accelerometer output = -specific force: our assumption from the App. D.5 example rows
+#: (the report does not say the unit was upright; notes §12 item 1). Unverified.
 DEFAULT_ACCEL_SIGN: Final = -1.0
 #: Standard gravity [m/s^2] used to turn the device's g into m/s^2 (notes §11.1 item 4).
 STANDARD_GRAVITY_M_S2: Final = 9.80665

@@ -22,7 +22,8 @@ from imu400cc_driver.protocol import PACKET_LENGTH
 TIMER_MODULUS = 1 << 16
 #: Continuous-mode packet rate [Hz] (notes §2.6, §10).
 NOMINAL_RATE_HZ = 134.0
-#: Mean timer decrement per packet in the App. D.5 example rows (notes §2.6).
+#: Mean timer decrement per packet, our derivation from the App. D.5 example rows read as
+#: consecutive packets (the report states no tick period or direction; notes §2.6).
 COUNTS_PER_PACKET = 9411.75
 #: Nominal tick, (1/134 s) / 9411.75 ≈ 0.793 us [s] (notes §2.6); the true one is estimated online.
 NOMINAL_TICK_S = 1.0 / NOMINAL_RATE_HZ / COUNTS_PER_PACKET
