@@ -101,6 +101,7 @@ def _replay(monkeypatch, frame_id, imu_frame="imu_link"):
         measurements={},
         adapted={},
         calibration={},
+        warnings=(),
     )
     run = FusionRun(track, status, DATUM, {"fix": 0, "vel": 0, "attitude": 0}, 50.0, 0.0, config)
     monkeypatch.setattr(pipeline, "run_fusion", lambda *args, **kwargs: run)
