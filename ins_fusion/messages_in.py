@@ -57,6 +57,13 @@ def _vec3(v: Any) -> Vec3:
     return (float(v.x), float(v.y), float(v.z))
 
 
+def _positive_definite(cov: np.ndarray) -> bool:
+    """True for a finite, symmetric, positive definite matrix."""
+    if not np.isfinite(cov).all() or not np.allclose(cov, cov.T):
+        return False
+    return bool(np.linalg.eigvalsh(cov).min() > 0.0)
+
+
 def imu_sample(msg: Any) -> ImuSample:
     """sensor_msgs/Imu of imu/data_raw -> ``ImuSample`` (angular_velocity, linear_acceleration)."""
     return ImuSample(stamp_s(msg), _vec3(msg.angular_velocity), _vec3(msg.linear_acceleration))
@@ -66,9 +73,10 @@ def fix_measurement(msg: Any) -> GnssFixMeasurement:
     """sensor_msgs/NavSatFix -> antenna position with its ENU covariance [m²].
 
     Valid only with a fix (status >= STATUS_FIX), finite latitude, longitude and altitude
-    (altitude above the WGS-84 ellipsoid, ARCHITECTURE.md), and a known, finite covariance
-    (type not UNKNOWN): a position without an accuracy cannot be weighted. Invalid fixes are
-    still handed to the engine, which ignores and counts them.
+    (altitude above the WGS-84 ellipsoid, ARCHITECTURE.md), and a known, finite, positive
+    definite covariance (type not UNKNOWN; a zero or negative variance is no accuracy either): a
+    position without an accuracy cannot be weighted. Invalid fixes are still handed to the
+    engine, which ignores and counts them.
     """
     cov = np.asarray(msg.position_covariance, dtype=np.float64).reshape(3, 3)
     position = (float(msg.latitude), float(msg.longitude), float(msg.altitude))
@@ -76,7 +84,7 @@ def fix_measurement(msg: Any) -> GnssFixMeasurement:
         int(msg.status.status) >= STATUS_FIX
         and int(msg.position_covariance_type) != COVARIANCE_TYPE_UNKNOWN
         and all(map(math.isfinite, position))
-        and bool(np.isfinite(cov).all())
+        and _positive_definite(cov)
     )
     return GnssFixMeasurement(stamp_s(msg), *position, cov, valid)
 

@@ -33,7 +33,7 @@ from ins_fusion.cdr_fields import CdrError
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.engine import InsEngine, InsSolution
 from ins_fusion.fusion_params import PARAMETERS as FUSION_PARAMETERS
-from ins_fusion.solution_out import fill_fused_fix, fill_odometry
+from ins_fusion.solution_out import fill_fused_fix, fill_odometry, publishable
 
 #: One table for the node and `gnss_ins replay` (ins_fusion/fusion_params.py).
 PARAMETERS = FUSION_PARAMETERS
@@ -58,6 +58,7 @@ class InsFusionNode(Node):
         self._rate_variance = gyro_psd * NOMINAL_RATE_HZ
         self._published = 0
         self._warned = 0  # engine warnings already logged
+        self._invalid_outputs = 0
         self._rate_covariance = np.eye(3).ravel() * self._rate_variance
         self._odom_msg, self._fix_msg, self._imu_msg = Odometry(), NavSatFix(), Imu()
         self._bad_imu_messages = 0
@@ -131,6 +132,14 @@ class InsFusionNode(Node):
 
     # ---- outputs ------------------------------------------------------------------------------
     def _publish(self, solution: InsSolution) -> None:
+        if not publishable(solution):  # a non-finite value or covariance: counted, not sent
+            self._invalid_outputs += 1
+            self.get_logger().error(
+                "solution with a non-finite value or a covariance that is not positive"
+                " semi-definite not published",
+                throttle_duration_sec=10.0,
+            )
+            return
         # One message object per topic, refilled every time (every field is set; publish()
         # serializes before it returns): building three new messages cost more than filling.
         odom = fill_odometry(
@@ -182,6 +191,7 @@ class InsFusionNode(Node):
             "rollbacks": status.rollbacks,
             "stationary": status.stationary,
             "outputs_published": self._published,
+            "outputs_invalid": self._invalid_outputs,
             "imu_temperature_c": self._temperature_c,
             "temperature_in_calibration_range": temperature_ok,
         }

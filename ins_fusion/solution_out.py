@@ -37,6 +37,34 @@ class OdometryArrays:
     twist_covariance: FloatArray  # 36, row-major
 
 
+#: Relative tolerance on negative covariance eigenvalues (rounding in a PSD matrix).
+_PSD_TOLERANCE = 1e-9
+
+
+def _psd(cov: FloatArray) -> bool:
+    """True for a finite, symmetric, positive semi-definite matrix (up to rounding)."""
+    if not np.isfinite(cov).all() or not np.allclose(cov, cov.T, rtol=1e-9, atol=0.0):
+        return False
+    eigenvalues = np.linalg.eigvalsh(cov)
+    return bool(eigenvalues.min() >= -_PSD_TOLERANCE * max(1.0, float(eigenvalues.max())))
+
+
+def publishable(solution: InsSolution) -> bool:
+    """True if every number of ``solution`` that the outputs carry is finite and every
+    covariance positive semi-definite (ARCHITECTURE.md: valid or not published)."""
+    vectors = (
+        [solution.lat_deg, solution.lon_deg, solution.height_m],
+        solution.pos_enu_m,
+        solution.vel_enu_m_s,
+        solution.quat_enu_flu_xyzw,
+        solution.rate_flu_rad_s,
+    )
+    if not all(np.isfinite(v).all() for v in vectors):
+        return False
+    covariances = (solution.cov_pos_enu_m2, solution.cov_vel_enu, solution.cov_att_enu_rad2)
+    return all(_psd(np.asarray(c, dtype=np.float64)) for c in covariances)
+
+
 def odometry_arrays(solution: InsSolution, rate_variance_rad2_s2: float) -> OdometryArrays:
     """Odometry numbers of ``solution``; ``rate_variance_rad2_s2``: variance of each rate axis."""
     mat_enu_flu = mat_from_quat(*solution.quat_enu_flu_xyzw.tolist())  # FLU -> ENU

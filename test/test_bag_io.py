@@ -249,3 +249,51 @@ def test_any_imu_message_round_trips(tmp_path_factory, k: float, cov: float, fra
     assert back.message.angular_velocity.x == k
     assert back.message.angular_velocity_covariance[4] == cov
     assert cdr(back.message) == cdr(msg)
+
+
+def unfinished_bag(path: Path, storage: str, flushed: int, total: int) -> Path:
+    """A bag left as a killed recorder leaves it: split once, ``flushed`` messages of the
+    second file flushed, ``total`` written, never closed. Returns the unfinished file."""
+    writer = BagWriter(path, storage=storage, max_file_duration_s=1.0)
+    for k in range(total):
+        writer.write("/imu", T0 + k * 10**8, imu(T0 + k * 10**8, k))  # files of 10 messages
+        if k == 10 + flushed - 1:
+            writer.flush()
+    assert writer._part is not None and writer._part.storage is not None
+    return Path(writer._part.storage.path)
+
+
+@pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
+def test_unfinished_bag_is_refused_with_advice_and_recovered(tmp_path: Path, storage: str):
+    from ins_fusion.tools.bag_recover import recover_bag
+
+    unfinished_bag(tmp_path / "bag", storage, flushed=5, total=18)
+    with pytest.raises(BagError, match="gnss_ins recover"):
+        BagReader(tmp_path / "bag")
+    recovered = recover_bag(tmp_path / "bag", tmp_path / "out")
+    assert len(recovered.files) == 2
+    with BagReader(tmp_path / "out") as reader:
+        got = list(reader.messages(deserialize=True))
+    assert [m.log_time_ns for m in got] == [T0 + k * 10**8 for k in range(15)]
+    assert got[-1].message.angular_velocity.x == 14
+    with pytest.raises(BagError, match="complete"):
+        recover_bag(tmp_path / "out", tmp_path / "again")
+
+
+@settings(
+    max_examples=30, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(cut=st.floats(0.0, 1.0))
+def test_mcap_cut_anywhere_recovers_a_prefix(tmp_path_factory, cut: float):
+    from ins_fusion.tools.bag_recover import recover_bag
+
+    tmp = tmp_path_factory.mktemp("cut")
+    last = unfinished_bag(tmp / "bag", "mcap", flushed=4, total=14)
+    data = last.read_bytes()
+    last.write_bytes(data[: round(cut * len(data))])  # a write torn anywhere
+    with pytest.raises(BagError, match="gnss_ins recover"):
+        BagReader(last)  # the torn file itself: a clean error, not a traceback
+    recover_bag(tmp / "bag", tmp / "out")
+    times = [m.log_time_ns for m in read_messages(tmp / "out")]
+    assert times == [T0 + k * 10**8 for k in range(len(times))]
+    assert len(times) in (10, 14)  # the closed file, and the flushed chunk unless torn

@@ -65,8 +65,24 @@ def test_valid_fix_carries_position_and_enu_covariance():
         (0, 0, 41.5, COV3),  # covariance type UNKNOWN: cannot be weighted
         (0, 1, math.nan, COV3),  # altitude unknown (no geoid separation)
         (0, 2, 41.5, [math.nan] * 9),
+        (0, 2, 41.5, [0.0] * 9),
+        (0, 2, 41.5, [-1.0, 0, 0, 0, -1.0, 0, 0, 0, -4.0]),
+        (0, 2, 41.5, [1.0, 0, 0, 0, 1.0, 0, 0, 0, 0.0]),
+        (0, 3, 41.5, [1.0, 2.0, 0, 2.0, 1.0, 0, 0, 0, 1.0]),  # eigenvalue -1
+        (0, 2, 41.5, [1.0, 0, 0, 0, math.inf, 0, 0, 0, 1.0]),
     ],
-    ids=["no_fix", "status_unknown", "covariance_unknown", "nan_altitude", "nan_covariance"],
+    ids=[
+        "no_fix",
+        "status_unknown",
+        "covariance_unknown",
+        "nan_altitude",
+        "nan_covariance",
+        "zero_covariance",
+        "negative_covariance",
+        "zero_vertical_variance",
+        "indefinite_covariance",
+        "infinite_variance",
+    ],
 )
 def test_fix_without_usable_position_is_invalid(status, cov_type, alt, cov):
     assert not messages_in.fix_measurement(_fix(status, cov_type, alt, cov)).valid

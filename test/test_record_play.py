@@ -221,3 +221,36 @@ def test_refusals(tmp_path: Path, capsys: pytest.CaptureFixture[str]):
     assert main(["play", str(tmp_path / "none")]) == 2
     assert "no such bag" in capsys.readouterr().err
     assert not (tmp_path / "bag").exists()
+
+
+@pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
+def test_killed_record_is_recovered_up_to_the_last_second(tmp_path: Path, storage: str):
+    bag = tmp_path / "bag"
+    recorder = gnss_ins("record", "-o", str(bag), "--storage", storage, "/test/live")
+    node = rclpy.create_node("live_publisher")
+    reliable = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+    publisher = node.create_publisher(Imu, "/test/live", reliable)
+    try:
+        assert wait_for(lambda: publisher.get_subscription_count() > 0, 30.0)
+        sent_ns = []
+        for k in range(300):  # 3 s at 100 Hz, each message stamped with its publication time
+            msg = imu(k)
+            sent_ns.append(time.time_ns())
+            msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(sent_ns[-1], 10**9)
+            publisher.publish(msg)
+            time.sleep(0.01)
+        recorder.kill()
+        killed_ns = time.time_ns()
+        recorder.communicate(timeout=30)
+    finally:
+        if recorder.poll() is None:
+            recorder.kill()
+        node.destroy_node()
+    assert not (bag / "metadata.yaml").exists()
+    assert main(["recover", str(bag)]) == 0
+    with BagReader(tmp_path / "bag_recovered") as reader:
+        headers = [deserialize_message(m.message, Imu).header for m in reader.messages()]
+    stamps = [h.stamp.sec * 10**9 + h.stamp.nanosec for h in headers]
+    assert stamps == sent_ns[: len(stamps)]  # in order, none missing
+    print(f"{storage}: {(killed_ns - stamps[-1]) / 1e9:.3f} s before the kill lost")
+    assert len(stamps) >= sum(t <= killed_ns - 10**9 for t in sent_ns)  # all but the last 1 s

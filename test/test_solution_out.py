@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
+import math
+
 import numpy as np
 import pytest
 from hypothesis import given
@@ -9,7 +12,7 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from ins_fusion.core.engine import InsSolution
-from ins_fusion.solution_out import odometry_arrays
+from ins_fusion.solution_out import odometry_arrays, publishable
 
 
 def _solution(yaw_deg: float, vel_enu, cov_vel) -> InsSolution:
@@ -55,3 +58,23 @@ def test_body_velocity_keeps_speed_and_covariance_stays_symmetric(yaw, vel):
     twist = arrays.twist_covariance.reshape(6, 6)
     assert np.allclose(twist, twist.T)
     assert np.trace(twist[:3, :3]) == pytest.approx(np.trace(cov))
+
+
+@pytest.mark.parametrize(
+    "change",
+    [
+        {"lat_deg": math.nan},
+        {"height_m": math.inf},
+        {"pos_enu_m": np.array([0.0, math.nan, 0.0])},
+        {"quat_enu_flu_xyzw": np.array([0.0, 0.0, math.nan, 1.0])},
+        {"cov_pos_enu_m2": np.diag([0.01, -0.04, 0.09])},
+        {"cov_vel_enu": np.array([[1.0, 2.0, 0.0], [2.0, 1.0, 0.0], [0.0, 0.0, 1.0]])},
+        {"cov_att_enu_rad2": np.diag([1e-6, math.nan, 3e-6])},
+    ],
+    ids=["nan_lat", "inf_height", "nan_enu", "nan_quat", "negative_var", "indefinite", "nan_cov"],
+)
+def test_invalid_solutions_are_not_publishable(change):
+    good = _solution(30.0, [1.0, 2.0, 0.0], np.eye(3) * 0.01)
+    assert publishable(good)
+    assert publishable(dataclasses.replace(good, cov_vel_enu=np.zeros((3, 3))))  # PSD
+    assert not publishable(dataclasses.replace(good, **change))

@@ -13,7 +13,7 @@ from pathlib import Path
 
 from ins_fusion.core.engine import InsSolution
 from ins_fusion.sim.messages import new_message, stamp_ns
-from ins_fusion.solution_out import fill_fused_fix, fill_odometry
+from ins_fusion.solution_out import fill_fused_fix, fill_odometry, publishable
 from ins_fusion.tools.bag_io import BagSummary, BagWriter
 
 ODOMETRY_TOPIC, FIX_TOPIC = "/ins/odometry", "/ins/fix"
@@ -27,11 +27,12 @@ def write_fused_bag(
     base_frame: str,
     rate_variance_rad2_s2: float,
 ) -> BagSummary:
-    """Write /ins/odometry and /ins/fix of every solution to a new bag at ``path`` (MCAP)."""
+    """Write /ins/odometry and /ins/fix of every publishable solution to a new bag at ``path``
+    (MCAP)."""
     with BagWriter(path) as writer:
         writer.add_topic(ODOMETRY_TOPIC, ODOMETRY_TYPE)
         writer.add_topic(FIX_TOPIC, FIX_TYPE)
-        for solution in solutions:
+        for solution in filter(publishable, solutions):
             time_ns = stamp_ns(solution.t_s)
             odometry = fill_odometry(
                 new_message(ODOMETRY_TYPE), solution, map_frame, base_frame, rate_variance_rad2_s2

@@ -13,6 +13,7 @@ No rclpy here: the recorder, the player, the importer and the simulator share th
 from __future__ import annotations
 
 import heapq
+import os
 import shutil
 from collections.abc import Collection, Iterator, Sequence
 from dataclasses import dataclass, field
@@ -23,9 +24,11 @@ from types import TracebackType
 from typing import Any, Literal, NamedTuple, cast
 
 import yaml
-from rosbags.highlevel import AnyReader
+from rosbags.highlevel import AnyReader, AnyReaderError
 from rosbags.interfaces import Connection, Qos
-from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.rosbag2 import ReaderError, StoragePlugin, Writer
+from rosbags.rosbag2.storage_mcap import McapWriter
+from rosbags.rosbag2.storage_sqlite3 import Sqlite3Writer
 from rosbags.typesys import Stores, get_typestore
 from rosbags.typesys.store import Typestore
 
@@ -269,6 +272,18 @@ class BagWriter:
         self._part_count += 1
         self.summary.add(topic, self._topics[topic].msgtype, log_time_ns)
 
+    def flush(self) -> None:
+        """Put every message written so far on disk so that a crash keeps it (``bag_recover``
+        reads it back): MCAP closes the open chunk, flushes and fsyncs; sqlite3 commits."""
+        storage = None if self._part is None else self._part.storage
+        if isinstance(storage, McapWriter):  # rosbags internals: chunk, close_chunk, bio
+            if storage.chunk.bio.tell():
+                storage.close_chunk()
+            storage.bio.flush()
+            os.fsync(storage.bio.fileno())
+        elif isinstance(storage, Sqlite3Writer):
+            storage.conn.commit()
+
     def close(self) -> BagSummary:
         """Finish the current file and write ``metadata.yaml``; returns the summary."""
         if not self._closed:
@@ -366,6 +381,11 @@ class BagWriter:
 
 
 def _load_metadata(bag_dir: Path) -> dict[str, Any]:
+    if not (bag_dir / "metadata.yaml").exists():
+        raise BagError(
+            f"{bag_dir}: no metadata.yaml, the recording did not finish;"
+            f" `gnss_ins recover {bag_dir}` makes a readable copy"
+        )
     try:
         text = (bag_dir / "metadata.yaml").read_text(encoding="utf-8")
         info = yaml.safe_load(text)["rosbag2_bagfile_information"]
@@ -420,8 +440,15 @@ class BagReader:
         if not self.path.exists():
             raise BagError(f"{self.path}: no such bag")
         default = typestore if typestore is not None else jazzy_typestore()
-        self._reader = AnyReader(storage_files(self.path), default_typestore=default)
-        self._reader.open()
+        files = storage_files(self.path)
+        try:
+            self._reader = AnyReader(files, default_typestore=default)
+            self._reader.open()
+        except (AnyReaderError, ReaderError) as exc:
+            raise BagError(
+                f"{self.path}: unreadable ({exc}); if its recording did not finish, run"
+                f" `gnss_ins recover` on its bag directory"
+            ) from exc
         self.topics: dict[str, BagTopic] = {}
         for conn in self._reader.connections:
             known = self.topics.get(conn.topic)

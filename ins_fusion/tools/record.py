@@ -5,7 +5,10 @@ topic as soon as a publisher of it appears in the graph, with the QoS its publis
 (reliable only if all are, transient-local only if all are — rosbag2's rule). Callbacks only
 queue (topic, receive time, bytes); a writer thread hands them to ``BagWriter``. The receive
 time is the middleware's reception time (system clock, ns since the epoch). Ctrl-C or SIGTERM
-stops the subscriptions, takes every message already received, and closes the bag cleanly.
+stops the subscriptions, takes every message already received, and closes the bag cleanly. The
+writer thread flushes the bag every FLUSH_PERIOD_S while messages come, so a process killed
+otherwise (SIGKILL, power cut) leaves all but its last FLUSH_PERIOD_S on disk for
+``gnss_ins recover``.
 
 rclpy is imported inside the functions that need it (this module is loaded by ``gnss_ins --help``).
 """
@@ -18,6 +21,7 @@ import queue
 import signal
 import sys
 import threading
+import time
 from collections import Counter
 from functools import partial
 from pathlib import Path
@@ -45,6 +49,8 @@ DISCOVERY_PERIOD_S = 0.2
 SUBSCRIPTION_DEPTH = 1000
 #: Executor wake-up period, the latency of reacting to Ctrl-C (s).
 SPIN_PERIOD_S = 0.1
+#: Longest time a written message waits before it is flushed to disk (s): what a kill loses.
+FLUSH_PERIOD_S = 0.5
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -203,13 +209,29 @@ class Recorder:
 
     def _write_loop(self) -> None:
         """Write queued items until the None sentinel, then close the bag — all on this thread
-        (the storage, e.g. a sqlite3 connection, belongs to the thread that opened it)."""
+        (the storage, e.g. a sqlite3 connection, belongs to the thread that opened it). Items
+        written are flushed at most FLUSH_PERIOD_S later."""
+        flush_due: float | None = None  # monotonic time the oldest unflushed item must be out
         try:
-            while (item := self._queue.get()) is not None:
+            while True:
+                timeout = None if flush_due is None else max(0.0, flush_due - time.monotonic())
+                try:
+                    item = self._queue.get(timeout=timeout)
+                except queue.Empty:  # nothing came for a while: out with what is pending
+                    self.writer.flush()
+                    flush_due = None
+                    continue
+                if item is None:
+                    break
                 if isinstance(item, _Declare):
                     self.writer.add_topic(item.topic, item.msgtype, item.qos)
                 else:
                     self.writer.write(item.topic, item.receive_ns, item.data)
+                if flush_due is None:
+                    flush_due = time.monotonic() + FLUSH_PERIOD_S
+                elif time.monotonic() >= flush_due:
+                    self.writer.flush()
+                    flush_due = None
         except BaseException as exc:  # re-raised by close()
             self.error = exc
             self.stop.set()
