@@ -1266,12 +1266,6 @@ class InsEngine:
             np.array(s.accel_lp),
         )
         z, H, _ = model
-        moving = float(np.linalg.norm(pred.vel_ned_m_s)) >= _TIME_OFFSET_MIN_SPEED_M_S
-        if self.layout.mt is not None and moving:
-            # The arm turns with the mounting: -C [l×] on (μ_y, μ_z); frozen at a standstill,
-            # where a position offset explains the same.
-            mt = self.layout.mt
-            H[:, mt : mt + 2] = -(pred.mat_nb @ skew(self._antenna_arm_b))[:, 1:3]
         kf = self._filter
         assert kf is not None
         predicted = np.einsum("ij,jk,ik->i", H, kf.P, H)
