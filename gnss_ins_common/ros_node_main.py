@@ -2,15 +2,17 @@
 
 from __future__ import annotations
 
+import re
 import sys
 from collections.abc import Callable, Sequence
 from typing import Protocol
 
 import rclpy
+from rclpy._rclpy_pybind11 import RCLError
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
-from gnss_ins_common.params import ParameterValueError
+from gnss_ins_common.params import ParameterValueError, check_parameter_files
 
 
 class ClosableNode(Protocol):
@@ -19,9 +21,24 @@ class ClosableNode(Protocol):
     def close(self) -> None: ...
 
 
+def _init(args: list[str]) -> None:
+    """``rclpy.init`` with the parameter files checked first; ParameterValueError if they or
+    the other ROS arguments are refused (rcl's message without its source locations)."""
+    check_parameter_files(args)
+    try:
+        rclpy.init(args=args)
+    except RCLError as exc:
+        raise ParameterValueError(re.sub(r", at /\S+:\d+", "", str(exc))) from exc
+
+
 def run_node(factory: Callable[[], Node], args: Sequence[str] | None = None) -> int:
-    """Init rclpy, build the node, spin until Ctrl-C/SIGTERM; exit code 2 on bad parameters."""
-    rclpy.init(args=list(args) if args is not None else sys.argv)
+    """Init rclpy, build the node, spin until Ctrl-C/SIGTERM; exit code 2 on bad parameters or
+    parameter files."""
+    try:
+        _init(list(args) if args is not None else sys.argv)
+    except ParameterValueError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     node: Node | None = None
     try:
         node = factory()
