@@ -48,6 +48,7 @@ class LinkStats:
     invalid_stalls: int = 0
     bytes_read: int = 0
     callback_errors: int = 0
+    #: The last problem, cleared when the port is open and the device set up again.
     last_error: str = ""
 
 
@@ -182,6 +183,7 @@ class SerialLink:
         self.stats.opens += 1
         self._port = port
         self._on_open(port)
+        self.stats.last_error = ""  # recovered: the device answered its set-up
         self._info(f"opened {self.settings.port} at {self.settings.baud} baud")
 
     def _read_until_error(self) -> None:
