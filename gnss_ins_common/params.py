@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from itertools import pairwise
 from pathlib import Path
 from typing import Any, Literal
 
@@ -40,6 +41,13 @@ class Param:
     #: (e.g. a per-axis noise density given once for the three axes).
     broadcast: bool = False
 
+    @property
+    def is_frame(self) -> bool:
+        """A TF frame name (``frame_id`` or ``*_frame``): non-empty, without white space."""
+        return isinstance(self.default, str) and (
+            self.name == "frame_id" or self.name.endswith("_frame")
+        )
+
     def problem(self, value: Any) -> str | None:
         """Why ``value`` is not acceptable, or None (type, choices, range, extra check)."""
         if isinstance(self.default, list):
@@ -53,6 +61,8 @@ class Param:
             return f"expected {type(self.default).__name__}, got {value!r}"
         if self.choices and value not in self.choices:
             return f"'{value}' is not one of {', '.join(self.choices)}"
+        if self.is_frame and (not value or any(c.isspace() for c in value)):
+            return f"{value!r} is not a frame name (non-empty, no spaces)"
         for item in value if isinstance(value, list) else [value]:
             if isinstance(item, str | bool):
                 continue
@@ -111,13 +121,46 @@ def validate_all(specs: Sequence[Param], values: Mapping[str, Any]) -> dict[str,
     return result
 
 
+def read_parameter_file(path: Path) -> dict[str, Any]:
+    """The top-level mapping of a ROS parameter file, or ParameterValueError saying why not:
+    unreadable, not YAML, or not ``{node: {ros__parameters: {...}}}`` (namespaces may nest)."""
+    try:
+        with path.open() as stream:  # a stream, so that YAML errors name the file
+            document = yaml.safe_load(stream) or {}
+    except (OSError, yaml.YAMLError) as exc:
+        raise ParameterValueError(f"cannot read parameter file {path}: {exc}") from exc
+    problem = _layout_problem(document, "")
+    if problem:
+        raise ParameterValueError(f"parameter file {path}: {problem}")
+    return dict(document)
+
+
+def _layout_problem(section: Any, where: str) -> str | None:
+    """Why ``section`` is not a node or namespace mapping of a parameter file, or None."""
+    if not isinstance(section, Mapping):
+        return f"{where or 'the file'} must be a mapping of node names, got {section!r}"
+    for key, value in section.items():
+        name = f"{where}/{key}".lstrip("/") if key != "/**" else key
+        if key == "ros__parameters":
+            if not isinstance(value, Mapping):
+                return f"{name} must be a mapping of parameter names, got {value!r}"
+        elif (problem := _layout_problem(value, name)) is not None:
+            return problem
+    return None
+
+
+def check_parameter_files(ros_args: Sequence[str]) -> None:
+    """Read every ``--params-file FILE`` of a node's command line (``read_parameter_file``) so
+    that a missing or malformed file is refused with a message, not by rcl with a traceback."""
+    for flag, value in pairwise(ros_args):
+        if flag == "--params-file":
+            read_parameter_file(Path(value))
+
+
 def file_values(path: Path, node_name: str) -> dict[str, Any]:
     """The parameters a ROS parameter file gives ``node_name`` (its ``NAME``, ``/NAME`` or ``/**``
     section), nested maps flattened to dotted names; nothing validated or defaulted."""
-    try:
-        document = yaml.safe_load(path.read_text()) or {}
-    except (OSError, yaml.YAMLError) as exc:
-        raise ParameterValueError(f"cannot read parameter file {path}: {exc}") from exc
+    document = read_parameter_file(path)
     for key in (node_name, f"/{node_name}", "/**"):
         if key in document:
             return _flatten((document[key] or {}).get("ros__parameters", {}))

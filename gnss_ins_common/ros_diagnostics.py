@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import threading
+import weakref
 from collections.abc import Mapping
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -35,9 +37,64 @@ def make_status(
     )
 
 
+#: Seconds between log lines of one kind of callback error after its first.
+CALLBACK_ERROR_LOG_PERIOD_S = 10.0
+
+
+class CallbackErrors:
+    """Exceptions raised by a node's subscription and timer callbacks, caught by the spin loop
+    (``ros_node_main.spin_guarded``) so that one bad message or tick does not end the node.
+
+    Each kind (exception type and callback) is logged at ERROR the first time, then at most once
+    per ``CALLBACK_ERROR_LOG_PERIOD_S`` with its count."""
+
+    def __init__(self, node: Node) -> None:
+        """Errors of ``node``."""
+        self._logger = node.get_logger()
+        self.count = 0
+        self._kinds: dict[str, int] = {}
+        self._new: list[str] = []
+        self._lock = threading.Lock()  # serial reader threads record too
+
+    def record(self, exc: BaseException, where: str) -> None:
+        """Count ``exc``, raised in the callback ``where``, and log it (rate-limited per kind)."""
+        kind = f"{type(exc).__name__} in {where}"
+        message = f"callback error ({kind}): {exc}"
+        with self._lock:
+            self.count += 1
+            seen = self._kinds.get(kind, 0)
+            self._kinds[kind] = seen + 1
+            self._new.append(message)
+        if seen == 0:
+            self._logger.error(f"{message}; the node goes on, further ones are counted")
+        else:
+            self._logger.error(
+                f"{message} ({seen + 1} of this kind)",
+                throttle_duration_sec=CALLBACK_ERROR_LOG_PERIOD_S,
+            )
+
+    def take_new(self) -> list[str]:
+        """The errors since the last call (the status they go into), oldest first."""
+        with self._lock:
+            new, self._new = self._new, []
+        return new
+
+
+_CALLBACK_ERRORS: weakref.WeakKeyDictionary[Node, CallbackErrors] = weakref.WeakKeyDictionary()
+
+
+def callback_errors(node: Node) -> CallbackErrors:
+    """The callback error counter of ``node`` (made on first use)."""
+    errors = _CALLBACK_ERRORS.get(node)
+    if errors is None:
+        errors = _CALLBACK_ERRORS[node] = CallbackErrors(node)
+    return errors
+
+
 class DiagnosticsPublisher:
     """Publishes statuses on the absolute ``/diagnostics`` topic (aggregator convention) and
-    reports the node's incompatible peers (see ros_endpoints) in the first status."""
+    reports the node's incompatible peers (see ros_endpoints) and callback errors (see
+    ``CallbackErrors``) in the first status."""
 
     def __init__(self, node: Node, endpoints: Endpoints) -> None:
         """Create the publisher on ``node``; ``endpoints`` made the node's other endpoints."""
@@ -46,12 +103,16 @@ class DiagnosticsPublisher:
         self._publisher = endpoints.publisher(DiagnosticArray, "/diagnostics", 10)
 
     def publish(self, *statuses: DiagnosticStatus) -> None:
-        """Publish the statuses, stamped now on the node's clock. Incompatible peers raise the
-        first status to WARN, lead its message and are counted in ``incompatible_peers``."""
-        problems = self._endpoints.problems()
+        """Publish the statuses, stamped now on the node's clock. Incompatible peers and callback
+        errors since the last status raise the first status to WARN and lead its message; they
+        are counted in ``incompatible_peers`` and ``callback_errors`` (since start-up)."""
+        peers = self._endpoints.problems()
+        errors = callback_errors(self._node)
+        problems = [*peers, *errors.take_new()[-1:]]
         if statuses:
             first = statuses[0]
-            first.values.append(KeyValue(key="incompatible_peers", value=str(len(problems))))
+            first.values.append(KeyValue(key="incompatible_peers", value=str(len(peers))))
+            first.values.append(KeyValue(key="callback_errors", value=str(errors.count)))
             if problems:
                 first.level = max(first.level, WARN)
                 first.message = f"{problems[0]}; {first.message}"

@@ -7,6 +7,7 @@ from collections.abc import Callable
 import serial
 from rclpy.node import Node
 
+from gnss_ins_common.ros_diagnostics import callback_errors
 from gnss_ins_common.serial_link import LinkSettings, SerialLink
 
 
@@ -21,12 +22,21 @@ def start_serial_link(
     on_open: Callable[[serial.Serial], None],
     on_data: Callable[[bytes, float], None],
 ) -> SerialLink:
-    """A started SerialLink that stamps reads on the node's clock and logs through its logger."""
+    """A started SerialLink that stamps reads on the node's clock and logs through its logger;
+    exceptions of ``on_data`` are the node's callback errors (ros_diagnostics)."""
     logger = node.get_logger()
+    errors = callback_errors(node)
+
+    def guarded_on_data(chunk: bytes, received_s: float) -> None:
+        try:
+            on_data(chunk, received_s)
+        except Exception as exc:  # a decoding bug must not take the link down
+            errors.record(exc, getattr(on_data, "__name__", "on_data"))
+
     link = SerialLink(
         settings,
         on_open=on_open,
-        on_data=on_data,
+        on_data=guarded_on_data,
         now=lambda: node_time_s(node),
         log=logger.warning,
         info=logger.info,

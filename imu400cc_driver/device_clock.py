@@ -46,7 +46,8 @@ class DeviceStamp:
     host_stamp_s: float
     #: Unwrapped device time since the first packet after the last reset, in nominal ticks [s].
     device_time_s: float
-    #: Packets missing between the previous packet and this one (0 in polled mode).
+    #: Packets missing between the previous packet and this one (0 in polled mode, and after a
+    #: silence over ``max_gap_s``).
     dropped_packets: int
     #: The gap before this packet was at least one whole timer wrap (~52 ms), more than the
     #: count alone can measure.
@@ -104,6 +105,10 @@ class DeviceClock:
         self._timer: int | None = None
         self._ticks = 0  # unwrapped ticks since the first packet
         self._last_stamp_s = -math.inf
+        # Drops counted for host-pinned whole wraps, still open to be taken back until device
+        # time passes _wrap_drops_until [ticks].
+        self._wrap_drops = 0
+        self._wrap_drops_until = 0
 
     def reset(self) -> None:
         """Start over (device time and mapping), e.g. after a reconnect; counted in ``resets``."""
@@ -143,34 +148,51 @@ class DeviceClock:
             self._sync.update(device_times[-1], last_host_s)
 
         stamps = []
-        for ticks, device_time_s in zip(steps, device_times, strict=True):
+        for index, (ticks, device_time_s) in enumerate(zip(steps, device_times, strict=True)):
             stamp_s = self._sync.to_host(device_time_s)
             if self._last_stamp_s - stamp_s < self.max_gap_s:
                 stamp_s = max(stamp_s, self._last_stamp_s + ticks * self.nominal_tick_s / 2)
             self._last_stamp_s = stamp_s
-            dropped = 0
-            if ticks and self.nominal_period_s is not None:
-                dropped = max(round(ticks * self.nominal_tick_s / self.nominal_period_s) - 1, 0)
+            # A silence over max_gap_s is no count of lost packets: the unit may have restarted
+            # (a power-cycle restarts its timer and stream), and whole wraps pinned by the host
+            # clock then counted every packet period of the silence as dropped.
+            dropped = self._drops_of(ticks) if ticks * self.nominal_tick_s <= self.max_gap_s else 0
             wrapped = ticks >= TIMER_MODULUS
             self._dropped += dropped
             self._timer_gaps += int(wrapped)
+            if index == 0 and wrapped:  # the gap before the read: whole wraps pinned by the
+                # host clock, taken back if a packet within the next wrap contradicts them
+                self._wrap_drops += dropped - self._drops_of(ticks % TIMER_MODULUS)
+                self._wrap_drops_until = round(device_time_s / self.nominal_tick_s) + TIMER_MODULUS
             stamps.append(DeviceStamp(stamp_s, device_time_s, dropped, wrapped))
         return stamps
+
+    def _drops_of(self, ticks: int) -> int:
+        """Packets missing in a gap of ``ticks`` between two packets (0 in polled mode)."""
+        if not ticks or self.nominal_period_s is None:
+            return 0
+        return max(round(ticks * self.nominal_tick_s / self.nominal_period_s) - 1, 0)
 
     def _first_gap(self, previous: int, timer: int, later_ticks: int, last_host_s: float) -> int:
         """Ticks from the packet with timer ``previous`` to the one with ``timer``, given the
         ``later_ticks`` from that to the read's last packet, received at ``last_host_s``
         (corrected) [s]."""
         delta = (previous - timer) % TIMER_MODULUS
+        if self._ticks > self._wrap_drops_until:
+            self._wrap_drops = 0
         previous_s = self._sync.to_host(self._ticks * self.nominal_tick_s)
         host_gap_ticks = (last_host_s - previous_s) / self._unwrap_tick_s()
         margin = _UNWRAP_MARGIN_TICKS
         wraps = math.floor((host_gap_ticks + margin - delta - later_ticks) / TIMER_MODULUS)
         if wraps < 0 and self._sync.ready:
-            # Sampled over the margin after it arrived: the previous gap took a wrap too many,
-            # or the host clock stepped back. Restart the mapping rather than bend it for a
-            # whole window.
+            # Sampled over the margin after it arrived: the previous gap took a wrap too many
+            # (a read over ~45 ms late, e.g. a loaded machine), or the host clock stepped back.
+            # Restart the mapping rather than bend it for a whole window, and take back the
+            # drops that gap's wraps counted: they were a late read, not lost packets.
             self._sync.reset()
+        if wraps < 0:
+            self._dropped -= self._wrap_drops
+            self._wrap_drops = 0
         return delta + max(wraps, 0 if delta else 1) * TIMER_MODULUS
 
     def _unwrap_tick_s(self) -> float:

@@ -6,8 +6,8 @@ packets at 134 Hz after 'C' with the real down-counting 16-bit timer (~0.793 us/
 drifting), sends one packet per 'G', switches to voltage mode on 'r', and takes its sample values
 from a callable (so the simulator can drive it). Each packet is written when its last byte would
 have left a 38400-baud wire (sample time + 4.6875 ms). Faults are injected on demand: corrupted
-and dropped packets, garbage bytes, silence, and a pulled cable (the device powers up again, in
-polled mode, when it is plugged back).
+and dropped packets, garbage bytes, silence, a pulled cable (the device powers up again, in
+polled mode, when it is plugged back), a power-cycle on a plugged cable, and noise on the line.
 """
 
 from __future__ import annotations
@@ -39,6 +39,8 @@ ImuSource = Callable[[float], tuple[np.ndarray, np.ndarray]]
 _REST_GYRO_SIGMA = np.array([0.0041, 0.0040, 0.0048])
 _REST_ACCEL_SIGMA = np.array([0.0029, 0.0038, 0.0036])
 _STANDARD_GRAVITY = 9.80665
+#: Interval between the bursts of ``line_noise`` [s].
+_NOISE_PERIOD_S = 0.02
 
 
 def resting_source(seed: int = 0, noise: bool = True) -> ImuSource:
@@ -106,6 +108,9 @@ class Imu400ccEmulator(PtyEmulator):
         self._corrupt_next = 0
         self._drop_next = 0
         self._silent_until = 0.0
+        self._noise_bytes_per_s = 0.0
+        self._noise_rng = np.random.default_rng(0)
+        self._noise_due = 0.0
         self._power_up()
 
     @property
@@ -132,6 +137,19 @@ class Imu400ccEmulator(PtyEmulator):
         """Send nothing for ``seconds`` (a stalled stream; the device keeps sampling)."""
         with self._lock:
             self._silent_until = time.monotonic() + seconds
+
+    def power_cycle(self) -> None:
+        """The unit loses power and restarts on a plugged cable: polled mode, silent."""
+        with self._lock:
+            self._power_up()
+
+    def line_noise(self, bytes_per_s: float, seed: int = 0) -> None:
+        """Random bytes on the device-to-host line from now on (0 stops them), in bursts
+        every 20 ms between packets."""
+        with self._lock:
+            self._noise_bytes_per_s = bytes_per_s
+            self._noise_rng = np.random.default_rng(seed)
+            self._noise_due = time.monotonic()
 
     def unplug(self) -> None:
         """Pull the cable: the port disappears and the device loses power."""
@@ -163,7 +181,7 @@ class Imu400ccEmulator(PtyEmulator):
     def _run(self) -> None:
         while not self._stop.is_set():
             now = time.monotonic()
-            deadline = now + 0.05
+            deadline = now + (0.05 if self._noise_bytes_per_s <= 0 else _NOISE_PERIOD_S)
             if self._streaming:
                 deadline = min(deadline, self._next_write_time())
             if self._pending_polls:
@@ -171,6 +189,16 @@ class Imu400ccEmulator(PtyEmulator):
             for byte in self.pty.read(deadline - now):
                 self._handle_command(chr(byte))
             self._emit_due(time.monotonic())
+            self._emit_noise(time.monotonic())
+
+    def _emit_noise(self, now: float) -> None:
+        with self._lock:
+            if self._noise_bytes_per_s <= 0 or now < self._noise_due:
+                return
+            count = max(1, round(self._noise_bytes_per_s * _NOISE_PERIOD_S))
+            noise = self._noise_rng.integers(0, 256, count, dtype=np.uint8).tobytes()
+            self._noise_due = now + _NOISE_PERIOD_S
+        self.pty.write(noise)
 
     def _next_write_time(self) -> float:
         sample_device_time = self._next_index / self.config.rate_hz

@@ -96,6 +96,14 @@ PARAMETERS = (
     ),
     Param("latency", 0.0, "fixed delay from sampling to the packet's first byte [s]", 0.0, 0.1),
     Param("stall_timeout", 1.0, "reconnect when no byte arrives for this long [s]", 0.1, 60.0),
+    Param(
+        "packet_timeout",
+        2.0,
+        "reconnect (and restart the stream) when bytes arrive but no valid packet for this long,"
+        " e.g. noise on the line after the unit power-cycled [s]; at least 3 poll periods",
+        0.2,
+        60.0,
+    ),
     Param("temperature_rate", 1.0, "publish rate of imu/temperature [Hz]", 0.1, 134.0),
     Param("diagnostics_period", 1.0, "period of the /diagnostics status [s]", 0.1, 60.0),
 )
@@ -149,14 +157,15 @@ class Imu400ccNode(Node):
         if not self._continuous:
             self.create_timer(1.0 / p["poll_rate"], self._poll)
 
+        # Polled: one packet per poll period, so wait at least three of them.
+        min_timeout_s = 0.0 if self._continuous else 3.0 / p["poll_rate"]
         self._link = start_serial_link(
             self,
             LinkSettings(
                 port=p["port"],
                 baud=p["baud"],
-                stall_timeout_s=max(p["stall_timeout"], 3.0 / p["poll_rate"])
-                if not self._continuous
-                else p["stall_timeout"],
+                stall_timeout_s=max(p["stall_timeout"], min_timeout_s),
+                valid_timeout_s=max(p["packet_timeout"], min_timeout_s),
             ),
             self._on_open,
             self._on_data,
@@ -175,6 +184,8 @@ class Imu400ccNode(Node):
 
     def _on_data(self, chunk: bytes, received_s: float) -> None:
         packets = self._framer.feed(chunk)
+        if packets:
+            self._link.note_valid()
         # All packets of one read share its receive time: stamping them together keeps a stalled
         # read from looking like lost packets (docs/timing.md).
         stamps = self._device_clock.stamp_chunk([raw.timer for raw in packets], received_s)
@@ -239,6 +250,7 @@ class Imu400ccNode(Node):
             "clock_jitter_ms": clock.jitter_s * 1e3,
             "reconnects": link.reconnects,
             "stalls": link.stalls,
+            "invalid_stalls": link.invalid_stalls,
             "temperature_c": temperature,
             "serial_number": self._serial_number if self._serial_number is not None else "unknown",
             "last_error": link.last_error,

@@ -27,6 +27,7 @@ from __future__ import annotations
 import math
 
 from gnss_ins_common.params import Param
+from ins_fusion.core.calibration import CalibrationError, ImuCalibration
 
 # Per-axis per-sample σ of Aalborg (7.14) [rad/s, m/s²] and the sensor bandwidths of §1.3 [Hz].
 _GYRO_SIGMA_7_14 = (0.0041, 0.0040, 0.0048)
@@ -38,6 +39,17 @@ _ACCEL_BANDWIDTH_HZ = 75.0
 def _random_walk(sigmas: tuple[float, ...], bandwidth_hz: float, to_user: float) -> list[float]:
     """Aalborg (5.21): RW = 60 σ / √BW in user units (deg/√h or m/s/√h), 3 significant digits."""
     return [float(f"{60.0 * s * to_user / math.sqrt(bandwidth_hz):.3g}") for s in sigmas]
+
+
+def _calibration_file(path: str) -> str | None:
+    """Why the calibration file cannot be used (unreadable or malformed), or None."""
+    if not path:
+        return None
+    try:
+        ImuCalibration.from_yaml(path)
+    except CalibrationError as exc:
+        return str(exc)
+    return None
 
 
 def _three(values: list[float]) -> str | None:
@@ -222,6 +234,7 @@ PARAMETERS: tuple[Param, ...] = (
         "calibration_file",
         "",
         "IMU calibration YAML applied before mechanization; empty = none",
+        check=_calibration_file,
     ),
     # Measurements.
     Param("use_gnss_velocity", True, "use gnss/vel (horizontal only when vertical is unknown)"),

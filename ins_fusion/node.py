@@ -62,6 +62,10 @@ class InsFusionNode(Node):
         self._rate_covariance = np.eye(3).ravel() * self._rate_variance
         self._odom_msg, self._fix_msg, self._imu_msg = Odometry(), NavSatFix(), Imu()
         self._bad_imu_messages = 0
+        self._degraded_after_s = config.degraded_after_s
+        # IMU stamp [s] from which the state is 'navigating' again after an outage; None: not
+        # recovering (never degraded, or degraded now). -inf: navigating from the start.
+        self._navigating_since_s: float | None = -math.inf
 
         sensor_qos = QoSProfile(depth=200, reliability=ReliabilityPolicy.BEST_EFFORT)
         endpoints = Endpoints(self)
@@ -161,17 +165,31 @@ class InsFusionNode(Node):
         self._imu_pub.publish(imu)
         self._published += 1
 
+    def _state_level(self, state: str, t_s: float | None) -> tuple[bytes, str]:
+        """Level and message of the navigation state at IMU stamp ``t_s``. 'aligning' and
+        'degraded' (no GNSS position used for degraded_after_s) are WARN, never ERROR: the
+        outputs stay valid, with a covariance that grows honestly. After an outage the level
+        returns to OK only once positions have kept the state 'navigating' for another
+        degraded_after_s, so sparse fixes in an outage do not flip it between OK and WARN."""
+        if state == "degraded":
+            self._navigating_since_s = None
+            return diag.WARN, "degraded: no GNSS position used for too long"
+        if state != "navigating":
+            return diag.WARN, state
+        if self._navigating_since_s is None and t_s is not None:
+            self._navigating_since_s = t_s
+        since = self._navigating_since_s
+        if since is None or t_s is None or t_s - since < self._degraded_after_s:
+            return diag.WARN, "navigating again after a GNSS outage, not yet settled"
+        return diag.OK, state
+
     def _publish_diagnostics(self) -> None:
         status = self.engine.status()
         solution = self.engine.solution()
-        level = {"navigating": diag.OK, "aligning": diag.WARN}.get(status.state, diag.WARN)
+        level, message = self._state_level(status.state, solution.t_s if solution else None)
         temperature_ok = self._temperature_ok(self._temperature_c)
-        if status.state == "degraded":
-            message = "degraded: no GNSS for too long"
-        elif status.last_reset_reason:
-            message = f"{status.state}; last reset: {status.last_reset_reason}"
-        else:
-            message = status.state
+        if status.last_reset_reason:
+            message = f"{message}; last reset: {status.last_reset_reason}"
         if not temperature_ok:
             level, message = diag.WARN, f"{message}; IMU temperature outside the calibration range"
         for warning in status.warnings[self._warned :]:

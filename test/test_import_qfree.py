@@ -15,7 +15,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from gnss_driver.solution import CovarianceType, NavSatStatus
-from ins_fusion import qfree
+from ins_fusion import qfree, qfree_checks
 from ins_fusion.tools.bag_io import BagReader
 from ins_fusion.tools.cli import main
 
@@ -285,16 +285,28 @@ def test_import_writes_the_documented_topics(tmp_path: Path, capsys: pytest.Capt
     )
 
 
+def _in_g(line: str) -> str:
+    """A MEMS line with its accelerations (columns 9-11) from mg to g; others unchanged."""
+    fields = line.split()
+    try:
+        fields[8:11] = [f"{float(v) / 1000:g}" for v in fields[8:11]]
+    except ValueError:  # a comment or a deliberately bad line
+        return line
+    return " ".join(fields)
+
+
 def test_import_options_units_mounting_wrap_storage(tmp_path: Path):
+    in_g = tmp_path / "mems_g.txt"  # the MEMS fixture with its accelerations in g
+    in_g.write_text("\n".join(_in_g(line) for line in MEMS.read_text().splitlines()))
     code, bag = import_fixtures(
-        tmp_path,
+        tmp_path, "--mems", str(in_g),
         "--accel-unit", "g", "--mounting", "0,0,90", "--keep-gyro-wrap", "--storage", "sqlite3",
     )  # fmt: skip
     assert code == 0 and next(bag.glob("*.db3"))
     msgs = read(bag)
     assert "/ground_truth/fix" not in msgs
     accel = msgs["/imu/data_raw"][0][1].linear_acceleration
-    np.testing.assert_allclose([accel.x, accel.y, accel.z], [7 * G0, 12 * G0, 1000 * G0])
+    np.testing.assert_allclose([accel.x, accel.y, accel.z], [0.007 * G0, 0.012 * G0, 1.0 * G0])
     rate_z = np.array([m.angular_velocity.z for _, m in msgs["/imu/data_raw"]])
     assert rate_z.min() < -0.5  # the wrapped values were kept
 
@@ -308,3 +320,67 @@ def test_equipment_filter_and_failures(tmp_path: Path, capsys: pytest.CaptureFix
     assert missing == 2 and "nope.txt" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         import_fixtures(tmp_path, "--mounting", "1,2")
+
+
+def _mems_line(time: str, accel_z: str = "1000", gyro_x: str = "10") -> str:
+    return f"2 1 1 2013-08-26 {time} 1759 0 0 12 -7 {accel_z} {gyro_x} -20 0"
+
+
+def test_implausible_values_and_time_faults_are_refused_listed_and_counted(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+):
+    mems = tmp_path / "mems.txt"
+    mems.write_text(
+        "\n".join(
+            [
+                _mems_line("10:00:00.000"),
+                _mems_line("10:00:00.020", accel_z="1e308"),  # beyond the ±8 g of the sensor
+                _mems_line("10:00:00.040", gyro_x="-2500000"),  # beyond ±2000 deg/s
+                _mems_line("10:00:00.060"),
+                _mems_line("10:00:00.010"),  # back in time
+                _mems_line("10:00:00.060"),  # a repeat
+                _mems_line("10:00:00.080"),
+            ]
+        )
+    )
+    gnss = tmp_path / "gnss.txt"
+    gnss.write_text(
+        "\n".join(
+            [
+                gnss_line(equipment_id="2", time="10:00:00.000"),
+                gnss_line(equipment_id="2", time="10:00:01.000", height_ellipsoid="1e308"),
+                gnss_line(equipment_id="2", time="09:59:59.500"),
+                gnss_line(equipment_id="2", time="10:00:02.000"),
+            ]
+        )
+    )
+    bag = tmp_path / "bag"
+    assert main(["import-qfree", "--gnss", str(gnss), "--mems", str(mems), "-o", str(bag)]) == 0
+    out, err = capsys.readouterr()
+    assert f"implausible value: {mems}:2: accelerometer value 1e+308 mg beyond ±8 g" in err
+    assert f"implausible value: {mems}:3: gyro value -2.5e+06 mdps beyond ±2000 deg/s" in err
+    assert f"time order: {mems}:5: time goes back 0.05 s from the time of line 4" in err
+    assert f"time order: {mems}:6: time repeats the time of line 4" in err
+    assert f"implausible value: {gnss}:2: height 1e+308 m outside" in err
+    assert f"time order: {gnss}:3: time goes back 0.5 s from the time of line 1" in err
+    assert "refused: 3 lines with implausible values, 3 lines at or before the time" in out
+    msgs = read(bag)
+    imu_times = [t for t, _ in msgs["/imu/data_raw"]]
+    assert imu_times == [T0, T0 + 60_000_000, T0 + 80_000_000]
+    assert [t for t, _ in msgs["/gnss/fix"]] == [T0, T0 + 2_000_000_000]
+    assert all(abs(m.linear_acceleration.z) < 80 for _, m in msgs["/imu/data_raw"])
+
+
+@pytest.mark.parametrize(
+    ("overrides", "reason"),
+    [
+        ({"vel_north": "600"}, "velocity component 600 m/s"),
+        ({"std_east": "1e6"}, "position sigma 1e+06 m"),
+        ({"std_east": "-1"}, "position sigma -1 m"),
+        ({"height_ellipsoid": "-5000"}, "height -5000 m"),
+    ],
+)
+def test_implausible_gnss_values_say_why(overrides: dict[str, str], reason: str):
+    epoch = qfree.parse_gnss_line(gnss_line(**overrides))
+    assert reason in (qfree_checks.gnss_problem(epoch) or "")
+    assert qfree_checks.gnss_problem(qfree.parse_gnss_line(gnss_line())) is None

@@ -180,6 +180,40 @@ def test_fault_run_garbage_corruption_drops_and_a_vanishing_port():
     assert all(abs(f - 9.80665) < 0.1 for f in forces), "a corrupted packet was published"
 
 
+def test_power_cycle_on_a_noisy_line_reconnects_on_no_valid_packet():
+    """After a power-cycle the unit is silent in polled mode, but line noise keeps bytes coming:
+    only a "no valid packet" time-out restarts the stream."""
+    with Imu400ccEmulator(resting_source(seed=2)) as dev:
+        node = Imu400ccNode(parameter_overrides=overrides(port=dev.path, packet_timeout=0.5))
+        collector = Collector(TOPICS)
+        try:
+            with spinning(node, collector.node):
+                assert wait_for(lambda: collector.count("imu/data_raw") > 100, 5.0)
+                dev.line_noise(400.0, seed=5)
+                dev.power_cycle()
+                assert wait_for(lambda: not dev.streaming, 2.0)
+                cycled = collector.count("imu/data_raw")
+                # Noise only for packet_timeout (0.5 s), then one reconnect (~1 s of set-up):
+                # the generous wait is for a loaded machine, not a bound on the recovery time.
+                assert wait_for(lambda: collector.count("imu/data_raw") > cycled + 134, 20.0), (
+                    "no data after the power-cycle on a noisy line"
+                )
+                assert dev.commands["C"] >= 2
+                assert wait_for(lambda: len(collector.get("/diagnostics")) > 0, 3.0)
+
+                def recovered() -> bool:
+                    values = diagnostic_values(collector.get("/diagnostics")[-1])
+                    # last_error is cleared once the unit answered its set-up again.
+                    return int(values["invalid_stalls"]) >= 1 and values["last_error"] == ""
+
+                assert wait_for(recovered, 5.0), "the stall is not counted or not cleared"
+        finally:
+            node.close()
+            node.destroy_node()
+            collector.node.destroy_node()
+    assert node._link.stats.invalid_stalls >= 1
+
+
 @pytest.mark.parametrize(
     ("name", "value", "fragment"),
     [

@@ -86,3 +86,45 @@ def test_load_yaml_reads_a_wildcard_section(tmp_path):
     path = tmp_path / "p.yaml"
     path.write_text("/**:\n  ros__parameters:\n    count: 7\n")
     assert load_yaml(path, "any_node", SPECS)["count"] == 7
+
+
+def _node_specs() -> list[Param]:
+    from gnss_driver.node import PARAMETERS as GNSS
+    from imu400cc_driver.node import PARAMETERS as IMU
+    from ins_fusion.fusion_params import PARAMETERS as FUSION
+
+    return [*IMU, *GNSS, *FUSION]
+
+
+def _non_finite_variants(spec: Param) -> list[object]:
+    """``spec``'s value with a NaN / an infinity in each number (none for non-numeric specs)."""
+    default = spec.default
+    if isinstance(default, float):
+        return [float("nan"), float("inf"), float("-inf")]
+    if isinstance(default, list) and (
+        (default and isinstance(default[0], float))
+        or (not default and spec.empty_list_of == "float")
+    ):
+        base = list(default) or [0.0, 0.0, 0.0]
+        return [[bad, *base[1:]] for bad in (float("nan"), float("inf"))]
+    return []
+
+
+@pytest.mark.parametrize(
+    "spec", [s for s in _node_specs() if _non_finite_variants(s)], ids=lambda s: s.name
+)
+def test_every_numeric_node_parameter_refuses_nan_and_inf(spec):
+    for value in _non_finite_variants(spec):
+        with pytest.raises(ParameterValueError, match=f"parameter '{spec.name}'"):
+            validate(spec, value)
+
+
+@pytest.mark.parametrize(
+    "spec",
+    [s for s in _node_specs() if s.name == "frame_id" or s.name.endswith("_frame")],
+    ids=lambda s: s.name,
+)
+@pytest.mark.parametrize("value", ["", "  ", "imu link"])
+def test_frame_names_must_be_non_empty_without_spaces(spec, value):
+    with pytest.raises(ParameterValueError, match=f"parameter '{spec.name}'.*frame name"):
+        validate(spec, value)

@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import Any
 
 from gnss_driver.solution import SERVICE_GPS
-from ins_fusion import qfree
+from ins_fusion import qfree, qfree_checks
 from ins_fusion.sim.messages import fill_imu, fill_navsatfix, fill_velocity, new_message
 from ins_fusion.sim.topics import (
     GNSS_FIX,
@@ -138,6 +138,19 @@ def imu_message(series: qfree.ImuSeries, k: int) -> Any:
     )
 
 
+def _validated(
+    log: qfree.ParsedLog[Any], problem: Callable[[Any], str | None], refused: Counter[str]
+) -> list[Any]:
+    """The records of ``log`` with plausible values (``problem``) in time order; the others
+    listed on stderr and counted in ``refused`` (keys "implausible" and "time")."""
+    kept, implausible = qfree_checks.refuse(log.records, problem)
+    kept, time_faults = qfree_checks.refuse_time_faults(kept)
+    _listed(implausible, "implausible value")
+    _listed(time_faults, "time order")
+    refused.update(implausible=len(implausible), time=len(time_faults))
+    return kept
+
+
 def _read(path: Path, parse: Callable[..., qfree.ParsedLog[Any]]) -> qfree.ParsedLog[Any]:
     with path.open(encoding="utf-8", errors="replace") as lines:
         log = parse(lines, str(path))
@@ -188,7 +201,12 @@ def run(args: argparse.Namespace) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     gnss, mems, *reference = logs
-    epochs: list[qfree.GnssEpoch] = [e for log in (gnss, *reference) for e in log.records]
+    refused: Counter[str] = Counter()
+    epochs: list[qfree.GnssEpoch] = [
+        e for log in (gnss, *reference) for e in _validated(log, qfree_checks.gnss_problem, refused)
+    ]
+    mems_units = {"accel_unit": args.accel_unit, "gyro_unit": args.gyro_unit}
+    mems_records = _validated(mems, partial(qfree_checks.mems_problem, **mems_units), refused)
 
     def selected(equipment_id: int) -> bool:
         if args.equipment is not None:
@@ -196,14 +214,14 @@ def run(args: argparse.Namespace) -> int:
         return equipment_id != qfree.REFERENCE_EQUIPMENT_ID
 
     receivers = {e.stamp.equipment_id for e in epochs} | {
-        s.stamp.equipment_id for s in mems.records
+        s.stamp.equipment_id for s in mems_records
     }
     if args.equipment is None and len(receivers - {qfree.REFERENCE_EQUIPMENT_ID}) > 1:
         print(
             f"warning: receivers {sorted(receivers)} share the topics; choose with --equipment",
             file=sys.stderr,
         )
-    samples = [s for s in mems.records if selected(s.stamp.equipment_id)]
+    samples = [s for s in mems_records if selected(s.stamp.equipment_id)]
     series = qfree.imu_series(
         samples,
         accel_unit=args.accel_unit,
@@ -232,7 +250,11 @@ def run(args: argparse.Namespace) -> int:
     print(
         f"  bad lines: {sum(len(log.bad_lines) for log in logs)};"
         f" GNSS epochs without usable velocity: {no_velocity};"
-        f" MEMS samples of other equipment: {len(mems.records) - len(samples)}"
+        f" MEMS samples of other equipment: {len(mems_records) - len(samples)}"
+    )
+    print(
+        f"  refused: {refused['implausible']} lines with implausible values,"
+        f" {refused['time']} lines at or before the time of the previous line"
     )
     if series.wraps:
         per_axis = Counter(w.axis for w in series.wraps)
