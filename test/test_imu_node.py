@@ -117,7 +117,9 @@ def test_stamps_are_sample_times_not_read_times():
     # The i-th message is the i-th streamed packet: the set-up's 'G' answer is not published.
     sample_times = np.array([p.sample_wall_s for p in sent[1 : 1 + len(stamps)]])
     writes = np.array([p.written_wall_s for p in sent[1 : 1 + len(stamps)]])
-    assert np.median(writes - sample_times) == pytest.approx(18 * 10 / 38400, abs=1e-3)
+    # The emulator writes a packet once its 18 bytes have been on the wire (a loaded machine
+    # only makes it later): the driver must take that transmission time off, not the read time.
+    assert np.median(writes - sample_times) >= 18 * 10 / 38400 - 1e-4
     error = (stamps - sample_times)[len(stamps) // 2 :]  # after the clock fit settled
     # The fit cannot see a transfer latency below the smallest one it observed: on a loaded
     # 2-core machine the pseudo-terminal alone adds 0.5-0.8 ms (a read-time stamp would be
