@@ -26,7 +26,7 @@ import pynmea2
 from gnss_driver.attitude import AttitudeConfig, AttitudeConverter
 from gnss_driver.epoch import EPOCH_TYPES, Epoch, EpochAssembler, sentence_time_of_day_ms
 from gnss_driver.reader import NmeaReader
-from gnss_driver.sentences import ASHRACK, ASHRNAK, FieldError
+from gnss_driver.sentences import ASHRACK, ASHRATT, ASHRNAK, FieldError
 from gnss_driver.solution import (
     EpochSolver,
     GnssAttitude,
@@ -72,9 +72,11 @@ class DriverStats:
     """Counters of the driver core itself (the parts have their own ``stats``)."""
 
     epochs: int = 0
-    bad_times: int = 0
     acks: int = 0
     naks: int = 0
+    #: Exceptions caught inside the core (a bug: every input should be handled), and the last.
+    internal_errors: int = 0
+    last_internal_error: str = ""
 
 
 class GnssDriver:
@@ -100,30 +102,58 @@ class GnssDriver:
         self.clock.reset()
 
     def feed(self, chunk: bytes, receive_time_s: float) -> list[EpochOutput]:
-        """Bytes received at host time ``receive_time_s`` [s] -> results of the closed epochs."""
+        """Bytes received at host time ``receive_time_s`` [s] -> results of the closed epochs.
+
+        Never raises: an exception from one sentence is counted (``internal_errors``) and the
+        rest of the chunk is still read.
+        """
         outputs: list[EpochOutput] = []
         for read in self.reader.feed(chunk):
-            sentence = read.sentence
-            if isinstance(sentence, pynmea2.GSA):
-                self.solver.note_gsa(sentence)
-            elif isinstance(sentence, ASHRACK | ASHRNAK):
-                if isinstance(sentence, ASHRACK):
-                    self.stats.acks += 1
-                else:
-                    self.stats.naks += 1
-            elif isinstance(sentence, EPOCH_TYPES):
-                try:
-                    time_ms = sentence_time_of_day_ms(sentence, self.config.gps_utc_leap_s)
-                except FieldError:
-                    self.stats.bad_times += 1
-                    continue
-                for epoch in self.assembler.add(sentence, time_ms, read.wire_bytes, receive_time_s):
-                    outputs.append(self._finish(epoch))
+            try:
+                self._take(read.sentence, read.wire_bytes, receive_time_s, outputs)
+            except Exception as exc:  # a bug must cost one sentence, never the stream
+                self._note_internal_error(exc)
         return outputs
 
     def flush_idle(self, now_s: float) -> list[EpochOutput]:
         """Results of an epoch closed because the line was idle up to ``now_s`` [s]."""
-        return [self._finish(epoch) for epoch in self.assembler.flush_idle(now_s)]
+        outputs: list[EpochOutput] = []
+        for epoch in self.assembler.flush_idle(now_s):
+            self._finish_into(epoch, outputs)
+        return outputs
+
+    def _take(
+        self,
+        sentence: pynmea2.NMEASentence,
+        wire_bytes: int,
+        receive_time_s: float,
+        outputs: list[EpochOutput],
+    ) -> None:
+        if isinstance(sentence, pynmea2.GSA):
+            self.solver.note_gsa(sentence)
+        elif isinstance(sentence, ASHRACK):
+            self.stats.acks += 1
+        elif isinstance(sentence, ASHRNAK):
+            self.stats.naks += 1
+        elif isinstance(sentence, EPOCH_TYPES):
+            try:
+                time_ms = sentence_time_of_day_ms(sentence, self.config.gps_utc_leap_s)
+            except FieldError:
+                time_field = "time_of_week" if isinstance(sentence, ASHRATT) else "timestamp"
+                self.solver.fields.reject(sentence, time_field)
+                return
+            for epoch in self.assembler.add(sentence, time_ms, wire_bytes, receive_time_s):
+                self._finish_into(epoch, outputs)
+
+    def _finish_into(self, epoch: Epoch, outputs: list[EpochOutput]) -> None:
+        try:
+            outputs.append(self._finish(epoch))
+        except Exception as exc:  # a bug must cost one epoch, never the stream
+            self._note_internal_error(exc)
+
+    def _note_internal_error(self, exc: Exception) -> None:
+        self.stats.internal_errors += 1
+        self.stats.last_internal_error = repr(exc)[:200]
 
     def _finish(self, epoch: Epoch) -> EpochOutput:
         self.stats.epochs += 1

@@ -22,7 +22,8 @@ from typing import TypeVar
 
 import pynmea2
 
-from gnss_driver.sentences import ASHRATT, ASHRPAT, LLQ, number, time_of_day_ms
+from gnss_driver.plausibility import within_limits
+from gnss_driver.sentences import ASHRATT, ASHRPAT, LLQ, FieldError, number, time_of_day_ms
 from gnss_driver.utc import gps_time_of_week_to_time_of_day_ms
 
 #: Sentence types that form epochs; all but VTG and HDT carry a UTC time (ATT a GPS week time).
@@ -88,7 +89,11 @@ def sentence_time_of_day_ms(sentence: pynmea2.NMEASentence, gps_utc_leap_s: int)
     """UTC time of day [ms] of a sentence, None when it has none (raises FieldError if bad)."""
     if isinstance(sentence, ASHRATT):
         tow = number(sentence, "time_of_week")
-        return None if tow is None else gps_time_of_week_to_time_of_day_ms(tow, gps_utc_leap_s)
+        if tow is None:
+            return None
+        if not within_limits("time_of_week", tow):
+            raise FieldError(f"time_of_week={tow}")
+        return gps_time_of_week_to_time_of_day_ms(tow, gps_utc_leap_s)
     if isinstance(sentence, pynmea2.VTG | pynmea2.HDT):
         return None
     return time_of_day_ms(sentence)

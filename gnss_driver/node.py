@@ -98,6 +98,13 @@ PARAMETERS = (
         180.0,
         check=_length(3, "roll, pitch, yaw"),
     ),
+    Param(
+        "min_satellites",
+        SolutionConfig().min_satellites,
+        "a position from fewer satellites used is published as no fix (3-D needs 4)",
+        0,
+        12,
+    ),
     Param("attitude_mrms_limit", 0.005, "MRMS above this scales the sigmas up [m]", 1e-4, 1.0),
     Param("attitude_brms_limit", 0.04, "BRMS above this scales the sigmas up [m]", 1e-4, 10.0),
     Param(
@@ -181,6 +188,7 @@ class GnssNode(Node):
                         p["uere_sps"], p["uere_dgps"], p["uere_rtk_float"], p["uere_rtk_fixed"]
                     ),
                     p["velocity_sigma"],
+                    p["min_satellites"],
                 ),
                 attitude=AttitudeConfig(
                     sigma_rpy_deg=(sigma[0], sigma[1], sigma[2]),
@@ -197,6 +205,8 @@ class GnssNode(Node):
         self._last_date_source = "none"
         self._rate_window: tuple[float, int] = (time.monotonic(), 0)
         self._attitude_problems = (0, 0)  # resets, degraded at the last diagnostics
+        self._publish_errors = 0
+        self._last_publish_error = ""
 
         qos = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
         endpoints = Endpoints(self)
@@ -246,23 +256,30 @@ class GnssNode(Node):
     # ---- messages -----------------------------------------------------------------------------
     def _publish(self, outputs: list[EpochOutput]) -> None:
         for out in outputs:
-            if out.fix is not None:
-                self._publish_fix(out)
-            if out.velocity is not None:
-                self._publish_velocity(out)
-            if out.attitude is not None:
-                self._publish_attitude(out)
-            if out.utc is not None:
-                msg = fill_time_reference(
-                    TimeReference(),
-                    stamp_ns(out.stamp_s),
-                    self._frame_id,
-                    stamp_ns(out.utc.utc_s),
-                    self._receiver.value,
-                )
-                self._time_pub.publish(msg)
-                self._last_date_source = out.utc.date_source.value
-            self._latencies.append(node_time_s(self) - out.stamp_s)
+            try:
+                self._publish_epoch(out)
+            except (AssertionError, ValueError, OverflowError) as exc:  # e.g. a UTC past 2038
+                self._publish_errors += 1
+                self._last_publish_error = repr(exc)[:200]
+
+    def _publish_epoch(self, out: EpochOutput) -> None:
+        if out.fix is not None:
+            self._publish_fix(out)
+        if out.velocity is not None:
+            self._publish_velocity(out)
+        if out.attitude is not None:
+            self._publish_attitude(out)
+        if out.utc is not None:
+            msg = fill_time_reference(
+                TimeReference(),
+                stamp_ns(out.stamp_s),
+                self._frame_id,
+                stamp_ns(out.utc.utc_s),
+                self._receiver.value,
+            )
+            self._time_pub.publish(msg)
+            self._last_date_source = out.utc.date_source.value
+        self._latencies.append(node_time_s(self) - out.stamp_s)
 
     def _publish_fix(self, out: EpochOutput) -> None:
         fix = out.fix
@@ -302,6 +319,7 @@ class GnssNode(Node):
         with self._lock:
             driver = self._driver
             reader, solver = driver.reader.stats, driver.solver.stats
+            solver_fields = driver.solver.fields
             assembler = driver.assembler.stats
             epochs = driver.stats.epochs
             values: dict[str, object] = {
@@ -310,9 +328,14 @@ class GnssNode(Node):
                 "epochs": epochs,
                 "sentences": reader.sentences,
                 **reader.rejected(),
-                "empty_fields": solver.empty_fields,
-                "bad_fields": solver.bad_fields,
-                "bad_times": driver.stats.bad_times,
+                "empty_fields": solver_fields.empty_fields,
+                "bad_fields": solver_fields.bad_fields,
+                **{f"rejected {name}": n for name, n in sorted(solver_fields.rejected.items())},
+                "too_few_satellites": solver.too_few_satellites,
+                "internal_errors": driver.stats.internal_errors,
+                "last_internal_error": driver.stats.last_internal_error,
+                "publish_errors": self._publish_errors,
+                "last_publish_error": self._last_publish_error,
                 "late_sentences": assembler.late_sentences,
                 "duplicate_sentences": assembler.duplicate_sentences,
                 "untimed_epochs": assembler.untimed_epochs,

@@ -32,33 +32,18 @@ from __future__ import annotations
 
 import datetime
 import math
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from enum import IntEnum
-from typing import Any, TypeVar
+from typing import Any
 
 import pynmea2
 
 from gnss_driver.attitude import AttitudeConverter, Orientation
 from gnss_driver.epoch import Epoch
-from gnss_driver.sentences import (
-    ASHRATT,
-    ASHRPAT,
-    LLQ,
-    FieldError,
-    date,
-    integer,
-    lat_lon_deg,
-    number,
-    sentence_id,
-    text,
-    zda_date,
-)
+from gnss_driver.plausibility import KNOTS_TO_M_S, FieldReader
+from gnss_driver.sentences import ASHRATT, ASHRPAT, LLQ, sentence_id, text
 from gnss_ins_common.message_fields import UNKNOWN_VARIANCE, fill_navsatfix
 
-T = TypeVar("T")
-
-_KNOTS_TO_M_S = 1852.0 / 3600.0
 #: Fraction of the LLQ coordinate quality that is horizontal: 2 cm of 2 + 3 cm (notes §7.2).
 LLQ_HORIZONTAL_FRACTION = 0.4
 #: VDOP / HDOP when no GSA gives VDOP [external: typical satellite geometry].
@@ -162,6 +147,8 @@ class SolutionConfig:
     uere: UereTable = UereTable()
     #: 1-sigma of each horizontal velocity component [m/s] (R of (7.15), notes §10).
     velocity_sigma_m_s: float = 0.05
+    #: Fewer satellites used than this make a fix NO_FIX (a 3-D fix needs 4).
+    min_satellites: int = 4
 
 
 @dataclass(frozen=True, slots=True)
@@ -207,9 +194,8 @@ class GnssAttitude:
 class SolutionStats:
     """Counters since start-up."""
 
-    empty_fields: int = 0
-    bad_fields: int = 0
     no_fix: int = 0
+    too_few_satellites: int = 0
     fixes: dict[str, int] = field(default_factory=dict)
     attitudes: int = 0
     attitude_resets: int = 0
@@ -238,16 +224,17 @@ class EpochSolver:
         self.config = config
         self.attitude = attitude
         self.stats = SolutionStats()
+        self.fields = FieldReader()
         self._hdop_gsa: float | None = None
         self._vdop_gsa: float | None = None
 
     def note_gsa(self, gsa: pynmea2.GSA) -> None:
         """Remember the DOPs of a GSA sentence (GSA is timeless and may repeat per epoch)."""
-        hdop = self._read(number, gsa, "hdop")
-        vdop = self._read(number, gsa, "vdop")
-        if hdop is not None and hdop > 0.0:
+        hdop = self.fields.number(gsa, "hdop")
+        vdop = self.fields.number(gsa, "vdop")
+        if hdop is not None:
             self._hdop_gsa = hdop
-        if vdop is not None and vdop > 0.0:
+        if vdop is not None:
             self._vdop_gsa = vdop
 
     def solve(self, epoch: Epoch) -> EpochSolution:
@@ -260,40 +247,6 @@ class EpochSolver:
                 self.stats.no_fix += 1
         return EpochSolution(fix, self._velocity(epoch), self._attitude(epoch), self._date(epoch))
 
-    # ---- field access with counting ----------------------------------------------------------
-    def _read(
-        self,
-        reader: Callable[[pynmea2.NMEASentence, str], T | None],
-        sentence: pynmea2.NMEASentence,
-        name: str,
-    ) -> T | None:
-        try:
-            return reader(sentence, name)
-        except FieldError:
-            self.stats.bad_fields += 1
-            return None
-
-    def _required(
-        self,
-        reader: Callable[[pynmea2.NMEASentence, str], T | None],
-        sentence: pynmea2.NMEASentence,
-        name: str,
-    ) -> T | None:
-        value = self._read(reader, sentence, name)
-        if value is None:
-            self.stats.empty_fields += 1
-        return value
-
-    def _position(self, sentence: pynmea2.NMEASentence) -> tuple[float, float] | None:
-        try:
-            position = lat_lon_deg(sentence)
-        except FieldError:
-            self.stats.bad_fields += 1
-            return None
-        if position is None:
-            self.stats.empty_fields += 1
-        return position
-
     # ---- position ---------------------------------------------------------------------------
     def _fix(self, epoch: Epoch) -> GnssFix | None:
         gga = epoch.get(pynmea2.GGA)
@@ -304,7 +257,7 @@ class EpochSolver:
         if mode is None and gll is not None:
             mode = self._mode_fix_type(gll)
         if gga is not None:
-            quality = self._required(integer, gga, "gps_qual")
+            quality = self.fields.integer(gga, "gps_qual", required=True)
             fix_type = _fix_type(quality) if quality is not None else FixType.NO_FIX
             source: pynmea2.NMEASentence = gga
         elif pat is not None:
@@ -318,12 +271,15 @@ class EpochSolver:
         service = _service(epoch)
         if fix_type not in VALID_FIX_TYPES:
             return _no_fix(name, service)
-        position = self._position(source)
+        sats = self.fields.integer(gga, "num_sats") if gga is not None else None
+        if sats is not None and sats < self.config.min_satellites:
+            self.stats.too_few_satellites += 1
+            return _no_fix(name, service)
+        position = self.fields.position(source)
         if position is None:
             return _no_fix(name, service)
         alt = self._altitude(source)
         cov, cov_type, accuracy = self._covariance(epoch, gga, fix_type)
-        sats = self._read(integer, gga, "num_sats") if gga is not None else None
         return GnssFix(fix_type, *position, alt, cov, cov_type, accuracy, name, sats, service)
 
     def _mode_fix_type(self, sentence: pynmea2.NMEASentence) -> FixType | None:
@@ -338,12 +294,12 @@ class EpochSolver:
 
     def _altitude(self, source: pynmea2.NMEASentence) -> float:
         if isinstance(source, ASHRPAT):
-            alt = self._required(number, source, "altitude")
+            alt = self.fields.number(source, "altitude", required=True)
             return _NAN if alt is None else alt
         if not isinstance(source, pynmea2.GGA):
             return _NAN
-        msl = self._required(number, source, "altitude")
-        separation = self._required(number, source, "geo_sep")
+        msl = self.fields.number(source, "altitude", required=True)
+        separation = self.fields.number(source, "geo_sep", required=True)
         if msl is None or separation is None:
             return _NAN
         return msl + separation
@@ -357,7 +313,7 @@ class EpochSolver:
         if gst is not None:
             horizontal, vertical = self._gst(gst)
         llq = epoch.get(LLQ)
-        cq = self._positive(llq, "coord_quality") if llq is not None else None
+        cq = self.fields.number(llq, "coord_quality") if llq is not None else None
         if cq is not None:
             sigma_h = LLQ_HORIZONTAL_FRACTION * cq
             if horizontal is None:
@@ -366,7 +322,7 @@ class EpochSolver:
             if vertical is None:
                 vertical = (cq - sigma_h) ** 2, CovarianceType.DIAGONAL_KNOWN
         if horizontal is None or vertical is None:
-            hdop = self._positive(gga, "horizontal_dil") if gga is not None else None
+            hdop = self.fields.number(gga, "horizontal_dil") if gga is not None else None
             hdop = hdop or self._hdop_gsa or 1.0
             vdop = self._vdop_gsa or VDOP_PER_HDOP * hdop
             uere = self.config.uere.for_fix(fix_type)
@@ -386,15 +342,15 @@ class EpochSolver:
         tuple[tuple[float, float, float], CovarianceType, str] | None,
         tuple[float, CovarianceType] | None,
     ]:
-        sigma_n = self._positive(gst, "std_dev_latitude")
-        sigma_e = self._positive(gst, "std_dev_longitude")
-        sigma_u = self._positive(gst, "std_dev_altitude")
+        sigma_n = self.fields.number(gst, "std_dev_latitude")
+        sigma_e = self.fields.number(gst, "std_dev_longitude")
+        sigma_u = self.fields.number(gst, "std_dev_altitude")
         vertical = None if sigma_u is None else (sigma_u * sigma_u, CovarianceType.KNOWN)
         if sigma_n is None or sigma_e is None:
             return None, vertical
-        major = self._positive(gst, "std_dev_major")
-        minor = self._positive(gst, "std_dev_minor")
-        orientation = self._read(number, gst, "orientation")
+        major = self.fields.number(gst, "std_dev_major")
+        minor = self.fields.number(gst, "std_dev_minor")
+        orientation = self.fields.number(gst, "orientation")
         if major is None or minor is None or orientation is None:
             diagonal = (sigma_e * sigma_e, sigma_n * sigma_n, 0.0)
             return (diagonal, CovarianceType.DIAGONAL_KNOWN, "GST"), vertical
@@ -409,34 +365,26 @@ class EpochSolver:
         full = (sigma_e * sigma_e, sigma_n * sigma_n, rho * sigma_e * sigma_n)
         return (full, CovarianceType.KNOWN, "GST"), vertical
 
-    def _positive(self, sentence: pynmea2.NMEASentence, name: str) -> float | None:
-        """A strictly positive number field; zero or negative counts as a bad field."""
-        value = self._read(number, sentence, name)
-        if value is not None and value <= 0.0:
-            self.stats.bad_fields += 1
-            return None
-        return value
-
     # ---- velocity ---------------------------------------------------------------------------
     def _velocity(self, epoch: Epoch) -> GnssVelocity | None:
         vtg = epoch.get(pynmea2.VTG)
         rmc = epoch.get(pynmea2.RMC)
         if vtg is not None and text(vtg, "faa_mode") != "N":
-            kmph = self._read(number, vtg, "spd_over_grnd_kmph")
-            knots = self._read(number, vtg, "spd_over_grnd_kts")
-            speed = kmph / 3.6 if kmph is not None else _scaled(knots, _KNOTS_TO_M_S)
-            return self._enu_velocity(speed, self._read(number, vtg, "true_track"), "VTG")
+            kmph = self.fields.number(vtg, "spd_over_grnd_kmph")
+            knots = self.fields.number(vtg, "spd_over_grnd_kts")
+            speed = kmph / 3.6 if kmph is not None else _scaled(knots, KNOTS_TO_M_S)
+            return self._enu_velocity(speed, self.fields.number(vtg, "true_track"), "VTG")
         if rmc is not None and self._mode_fix_type(rmc) in VALID_FIX_TYPES:
-            knots = self._read(number, rmc, "spd_over_grnd")
-            course = self._read(number, rmc, "true_course")
-            return self._enu_velocity(_scaled(knots, _KNOTS_TO_M_S), course, "RMC")
+            knots = self.fields.number(rmc, "spd_over_grnd")
+            course = self.fields.number(rmc, "true_course")
+            return self._enu_velocity(_scaled(knots, KNOTS_TO_M_S), course, "RMC")
         return None
 
     def _enu_velocity(
         self, speed: float | None, course_deg: float | None, source: str
     ) -> GnssVelocity | None:
         if speed is None or (course_deg is None and speed != 0.0):
-            self.stats.empty_fields += 1
+            self.fields.empty_fields += 1
             return None
         course = math.radians(course_deg or 0.0)
         vel = (speed * math.sin(course), speed * math.cos(course), 0.0)
@@ -449,23 +397,25 @@ class EpochSolver:
         sentence: ASHRPAT | ASHRATT | None = epoch.get(ASHRPAT) or epoch.get(ASHRATT)
         if sentence is None:
             hdt = epoch.get(pynmea2.HDT)
-            heading = self._required(number, hdt, "heading") if hdt is not None else None
+            heading = None if hdt is None else self.fields.number(hdt, "heading", required=True)
             if heading is None:
                 return None
             self.stats.attitudes += 1
             return GnssAttitude(self.attitude.convert_heading(heading), "HDT")
-        reset_flag = self._required(integer, sentence, "reset_flag")
+        reset_flag = self.fields.integer(sentence, "reset_flag", required=True)
         if reset_flag is None:
             return None
         if reset_flag != 0:
             self.stats.attitude_resets += 1
             return None
-        angles = [self._required(number, sentence, n) for n in ("heading", "pitch", "roll")]
+        angles = [
+            self.fields.number(sentence, n, required=True) for n in ("heading", "pitch", "roll")
+        ]
         if None in angles:
             return None
         heading, pitch, roll = (float(a or 0.0) for a in angles)
-        mrms = self._read(number, sentence, "mrms")
-        brms = self._read(number, sentence, "brms")
+        mrms = self.fields.number(sentence, "mrms")
+        brms = self.fields.number(sentence, "brms")
         orientation = self.attitude.convert(heading, pitch, roll, mrms, brms)
         self.stats.attitudes += 1
         if orientation.scale > 1.0:
@@ -474,18 +424,9 @@ class EpochSolver:
 
     # ---- date -------------------------------------------------------------------------------
     def _date(self, epoch: Epoch) -> datetime.date | None:
-        zda = epoch.get(pynmea2.ZDA)
-        if zda is not None:
-            try:
-                found = zda_date(zda)
-            except FieldError:
-                self.stats.bad_fields += 1
-                found = None
-            if found is not None:
-                return found
-        for cls in (pynmea2.RMC, LLQ):
+        for cls in (pynmea2.ZDA, pynmea2.RMC, LLQ):
             sentence = epoch.get(cls)
-            found = self._read(date, sentence, "datestamp") if sentence is not None else None
+            found = self.fields.date(sentence) if sentence is not None else None
             if found is not None:
                 return found
         return None

@@ -133,7 +133,7 @@ def test_missing_geoid_separation_gives_unknown_altitude_and_counts_an_empty_fie
     (solution, solver) = solve("GPGGA,123519.00,4807.038,N,01131.000,W,4,10,0.9,545.4,M,,M,,")
     assert solution.fix.fix_type is FixType.RTK_FIXED
     assert math.isnan(solution.fix.alt_m)
-    assert solver.stats.empty_fields == 1
+    assert solver.fields.empty_fields == 1
 
 
 def test_rmc_position_with_mode_letters_and_pat_position():
@@ -183,7 +183,7 @@ def test_rmc_velocity_knots_and_invalid_or_incomplete_velocities():
     assert rmc.velocity.vel_enu_m_s == pytest.approx((5.144444, 0.0, 0.0), abs=1e-6)
     assert solve("GPVTG,,T,,M,,N,,K,N")[0].velocity is None
     (no_course, solver) = solve("GPVTG,,T,,M,003.0,N,005.6,K,A")
-    assert no_course.velocity is None and solver.stats.empty_fields == 1
+    assert no_course.velocity is None and solver.fields.empty_fields == 1
     (standing, _) = solve("GPVTG,,T,,M,000.0,N,000.0,K,A")
     assert standing.velocity.vel_enu_m_s == (0.0, 0.0, 0.0)
 
