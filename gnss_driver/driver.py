@@ -58,13 +58,17 @@ class DriverConfig:
 
 @dataclass(frozen=True, slots=True)
 class EpochOutput:
-    """One epoch's results, stamped: ``stamp_s`` is the host time [s] of its UTC instant."""
+    """One epoch's results, stamped: ``stamp_s`` is the host time [s] of its UTC instant.
+
+    ``extends``: the parts of an epoch published before that only a later sentence gave.
+    """
 
     stamp_s: float
     utc: UtcTime | None
     fix: GnssFix | None
     velocity: GnssVelocity | None
     attitude: GnssAttitude | None
+    extends: bool = False
 
 
 @dataclass(slots=True)
@@ -72,6 +76,8 @@ class DriverStats:
     """Counters of the driver core itself (the parts have their own ``stats``)."""
 
     epochs: int = 0
+    #: Extensions of published epochs that had something new (velocity, attitude, a fix).
+    extensions: int = 0
     acks: int = 0
     naks: int = 0
     #: Exceptions caught inside the core (a bug: every input should be handled), and the last.
@@ -108,6 +114,7 @@ class GnssDriver:
         rest of the chunk is still read.
         """
         outputs: list[EpochOutput] = []
+        self.assembler.note_traffic(receive_time_s)
         for read in self.reader.feed(chunk):
             try:
                 self._take(read.sentence, read.wire_bytes, receive_time_s, outputs)
@@ -147,32 +154,58 @@ class GnssDriver:
 
     def _finish_into(self, epoch: Epoch, outputs: list[EpochOutput]) -> None:
         try:
-            outputs.append(self._finish(epoch))
+            out = self._finish(epoch)
         except Exception as exc:  # a bug must cost one epoch, never the stream
             self._note_internal_error(exc)
+            return
+        if out is not None:
+            outputs.append(out)
 
     def _note_internal_error(self, exc: Exception) -> None:
         self.stats.internal_errors += 1
         self.stats.last_internal_error = repr(exc)[:200]
 
-    def _finish(self, epoch: Epoch) -> EpochOutput:
-        self.stats.epochs += 1
+    def _finish(self, epoch: Epoch) -> EpochOutput | None:
         solution = self.solver.solve(epoch)
+        before = epoch.previous.published if epoch.previous is not None else None
+        if isinstance(before, EpochOutput):
+            # An extension: publish only what the first close could not, at the same stamp.
+            self.stats.extensions += 1
+            new = EpochOutput(
+                before.stamp_s,
+                before.utc,
+                None if before.fix else solution.fix,
+                None if before.velocity else solution.velocity,
+                None if before.attitude else solution.attitude,
+                extends=True,
+            )
+            epoch.published = EpochOutput(
+                before.stamp_s,
+                before.utc,
+                before.fix or new.fix,
+                before.velocity or new.velocity,
+                before.attitude or new.attitude,
+            )
+            return new if new.fix or new.velocity or new.attitude else None
+        self.stats.epochs += 1
         first_byte_s = min(
             arrival - total * self._seconds_per_byte for arrival, total in epoch.arrivals
         )
         if epoch.time_of_day_ms is None:
-            return EpochOutput(first_byte_s - self.config.latency_s, None, solution.fix, None, None)
-        utc = self.utc.resolve(epoch.time_of_day_ms, solution.date, first_byte_s)
-        self.clock.update(utc.utc_s, first_byte_s)
-        self._last_utc_s = utc.utc_s
-        return EpochOutput(
-            self.clock.to_host(utc.utc_s) - self.config.latency_s,
-            utc,
-            solution.fix,
-            solution.velocity,
-            solution.attitude,
-        )
+            out = EpochOutput(first_byte_s - self.config.latency_s, None, solution.fix, None, None)
+        else:
+            utc = self.utc.resolve(epoch.time_of_day_ms, solution.date, first_byte_s)
+            self.clock.update(utc.utc_s, first_byte_s)
+            self._last_utc_s = utc.utc_s
+            out = EpochOutput(
+                self.clock.to_host(utc.utc_s) - self.config.latency_s,
+                utc,
+                solution.fix,
+                solution.velocity,
+                solution.attitude,
+            )
+        epoch.published = out
+        return out
 
     def clock_offset_s(self) -> float:
         """Host minus UTC at the latest epoch on the current mapping [s] (the receiver's output

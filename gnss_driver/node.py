@@ -269,7 +269,7 @@ class GnssNode(Node):
             self._publish_velocity(out)
         if out.attitude is not None:
             self._publish_attitude(out)
-        if out.utc is not None:
+        if out.utc is not None and not out.extends:
             msg = fill_time_reference(
                 TimeReference(),
                 stamp_ns(out.stamp_s),
@@ -337,6 +337,7 @@ class GnssNode(Node):
                 "publish_errors": self._publish_errors,
                 "last_publish_error": self._last_publish_error,
                 "late_sentences": assembler.late_sentences,
+                "extended_epochs": assembler.extended_epochs,
                 "duplicate_sentences": assembler.duplicate_sentences,
                 "untimed_epochs": assembler.untimed_epochs,
                 "last_fix_type": self._last_fix_type,
