@@ -10,6 +10,8 @@ setup(
     name=PACKAGE,
     version="0.1.0",
     packages=find_packages(exclude=["test", "test.*", "bench", "bench.*"]),
+    # The EGM96 geoid grid and its source and licence notes (gnss_driver/data/README.md).
+    package_data={"gnss_driver": ["data/*.npz", "data/*.md", "data/egm96_LICENSE"]},
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),

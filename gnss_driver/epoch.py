@@ -46,6 +46,7 @@ from gnss_driver.utc import gps_time_of_week_to_time_of_day_ms
 #: Sentence types that form epochs; all but VTG and HDT carry a UTC time (ATT a GPS week time).
 EPOCH_TYPES: tuple[type[pynmea2.NMEASentence], ...] = (
     pynmea2.GGA,
+    pynmea2.GNS,
     pynmea2.RMC,
     pynmea2.GLL,
     pynmea2.GST,

@@ -21,6 +21,7 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, NavSatFix, TimeReference
 
+from gnss_driver import geoid
 from gnss_driver.attitude import DEFAULT_SIGMA_RPY_DEG, AttitudeConfig
 from gnss_driver.commands import Answer, CommandResult, command_error, run_setup
 from gnss_driver.driver import GPS_UTC_LEAP_S, DriverConfig, EpochOutput, GnssDriver
@@ -332,6 +333,8 @@ class GnssNode(Node):
                 "bad_fields": solver_fields.bad_fields,
                 **{f"rejected {name}": n for name, n in sorted(solver_fields.rejected.items())},
                 "too_few_satellites": solver.too_few_satellites,
+                "geoid_model": geoid.MODEL,
+                "geoid_altitudes": solver.geoid_altitudes,
                 "internal_errors": driver.stats.internal_errors,
                 "last_internal_error": driver.stats.last_internal_error,
                 "publish_errors": self._publish_errors,
@@ -359,6 +362,7 @@ class GnssNode(Node):
                 "naks": driver.stats.naks,
             }
             no_fix = self._last_fix_type == FixType.NO_FIX.name
+            geoid_used = solver.geoid_altitudes > 0
             naks = sum(r.answer is Answer.NAK for r in self._setup_results)
             problems = (solver.attitude_resets, solver.attitude_degraded)
         resets, degraded = (a - b for a, b in zip(problems, self._attitude_problems, strict=True))
@@ -386,6 +390,8 @@ class GnssNode(Node):
             level, message = diag.WARN, f"receiver rejected {naks} set-up command(s)"
         else:
             level, message = diag.OK, f"{self._last_fix_type} fix"
+            if geoid_used:
+                message += f", altitude with the {geoid.MODEL} geoid"
         name = f"{self.get_name()}: GNSS {self._receiver.value}"
         hardware_id = f"{self._receiver.value} {self.params['port']}"
         self._diagnostics.publish(diag.make_status(name, hardware_id, level, message, values))

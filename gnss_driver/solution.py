@@ -1,12 +1,15 @@
 """One epoch's sentences -> the best fix, velocity and attitude it holds (no ROS).
 
-Position: GGA, else PASHR,PAT, else RMC, else GLL. Fix type from GGA quality (1 SPS, 2 DGPS,
-3 PPS, 4 RTK fixed, 5 RTK float), else the RMC/GLL mode letter, else SPS for a PAT position.
-Quality 0, 6 (dead reckoning), 7 (manual) and 8 (simulator), status 'V' or mode 'N' are NO_FIX:
-published as such, with NaN position and no covariance, never a made-up position.
+Position: GGA, else GNS, else PASHR,PAT, else RMC, else GLL. Fix type from GGA quality (1 SPS,
+2 DGPS, 3 PPS, 4 RTK fixed, 5 RTK float), else the best of GNS's per-system mode letters (R, F,
+P, D, A), else the RMC/GLL mode letter, else SPS for a PAT position. Quality 0, 6 (dead
+reckoning), 7 (manual) and 8 (simulator), status 'V', mode 'N' or fewer satellites than
+``min_satellites`` (GGA, GNS) are NO_FIX: published as such, with NaN position and no
+covariance, never a made-up position.
 
-Altitude: height above the WGS-84 ellipsoid = GGA altitude (mean sea level) + geoid separation;
-NaN when the separation is missing (unknowable without a geoid model). PAT's altitude is taken as
+Altitude: height above the WGS-84 ellipsoid = GGA/GNS altitude (mean sea level) + geoid
+separation; when the receiver leaves the separation empty, the EGM96 undulation of
+``geoid.MODEL`` at the position (counted in ``geoid_altitudes``). PAT's altitude is taken as
 ellipsoidal [external: Ashtech's PAT reports the WGS-84 solution; verify on the receiver].
 
 Covariance, ENU [m^2], each of the horizontal and vertical parts from the first source present:
@@ -38,6 +41,7 @@ from typing import Any
 
 import pynmea2
 
+from gnss_driver import geoid
 from gnss_driver.attitude import AttitudeConverter, Orientation
 from gnss_driver.epoch import Epoch
 from gnss_driver.plausibility import KNOTS_TO_M_S, FieldReader
@@ -106,6 +110,8 @@ NAV_SAT_STATUS = {
 #: unknown talkers name no system, and an epoch naming none is taken as GPS.
 SERVICE_GPS = 1
 _TALKER_SERVICE = {"GP": SERVICE_GPS, "GL": 2, "GB": 4, "BD": 4, "GA": 8}
+#: Service bits of the GNS mode letters by position: GPS, GLONASS, Galileo, BeiDou (NMEA 4.10).
+_GNS_MODE_SERVICE = (SERVICE_GPS, 2, 8, 4)
 
 
 class CovarianceType(IntEnum):
@@ -196,6 +202,8 @@ class SolutionStats:
 
     no_fix: int = 0
     too_few_satellites: int = 0
+    #: Altitudes completed with the geoid model (GGA/GNS without a geoid separation).
+    geoid_altitudes: int = 0
     fixes: dict[str, int] = field(default_factory=dict)
     attitudes: int = 0
     attitude_resets: int = 0
@@ -249,17 +257,21 @@ class EpochSolver:
 
     # ---- position ---------------------------------------------------------------------------
     def _fix(self, epoch: Epoch) -> GnssFix | None:
-        gga = epoch.get(pynmea2.GGA)
+        gga: pynmea2.GGA | pynmea2.GNS | None = epoch.get(pynmea2.GGA)
+        if gga is None:
+            gga = epoch.get(pynmea2.GNS)
         pat = epoch.get(ASHRPAT)
         rmc = epoch.get(pynmea2.RMC)
         gll = epoch.get(pynmea2.GLL)
         mode = self._mode_fix_type(rmc) if rmc is not None else None
         if mode is None and gll is not None:
             mode = self._mode_fix_type(gll)
-        if gga is not None:
+        if isinstance(gga, pynmea2.GGA):
             quality = self.fields.integer(gga, "gps_qual", required=True)
             fix_type = _fix_type(quality) if quality is not None else FixType.NO_FIX
             source: pynmea2.NMEASentence = gga
+        elif gga is not None:
+            fix_type, source = _gns_fix_type(text(gga, "mode_indicator")), gga
         elif pat is not None:
             fix_type, source = (FixType.SPS if mode is None else mode), pat
         elif rmc is not None or gll is not None:
@@ -278,7 +290,7 @@ class EpochSolver:
         position = self.fields.position(source)
         if position is None:
             return _no_fix(name, service)
-        alt = self._altitude(source)
+        alt = self._altitude(source, *position)
         cov, cov_type, accuracy = self._covariance(epoch, gga, fix_type)
         return GnssFix(fix_type, *position, alt, cov, cov_type, accuracy, name, sats, service)
 
@@ -292,21 +304,25 @@ class EpochSolver:
             return _MODE_FIX.get(mode[0], FixType.NO_FIX)
         return FixType.SPS if status == "A" else None
 
-    def _altitude(self, source: pynmea2.NMEASentence) -> float:
+    def _altitude(self, source: pynmea2.NMEASentence, lat_deg: float, lon_deg: float) -> float:
         if isinstance(source, ASHRPAT):
             alt = self.fields.number(source, "altitude", required=True)
             return _NAN if alt is None else alt
-        if not isinstance(source, pynmea2.GGA):
+        if not isinstance(source, pynmea2.GGA | pynmea2.GNS):
             return _NAN
         msl = self.fields.number(source, "altitude", required=True)
-        separation = self.fields.number(source, "geo_sep", required=True)
-        if msl is None or separation is None:
+        if msl is None:
             return _NAN
+        separation = self.fields.number(source, "geo_sep")
+        if separation is None:
+            self.stats.geoid_altitudes += 1
+            separation = geoid.undulation_m(lat_deg, lon_deg)
         return msl + separation
 
     def _covariance(
-        self, epoch: Epoch, gga: pynmea2.GGA | None, fix_type: FixType
+        self, epoch: Epoch, gga: pynmea2.GGA | pynmea2.GNS | None, fix_type: FixType
     ) -> tuple[tuple[float, ...], CovarianceType, str]:
+        """``gga``: the GGA or GNS of the epoch (its HDOP)."""
         horizontal: tuple[tuple[float, float, float], CovarianceType, str] | None = None
         vertical: tuple[float, CovarianceType] | None = None
         gst = epoch.get(pynmea2.GST)
@@ -322,7 +338,8 @@ class EpochSolver:
             if vertical is None:
                 vertical = (cq - sigma_h) ** 2, CovarianceType.DIAGONAL_KNOWN
         if horizontal is None or vertical is None:
-            hdop = self.fields.number(gga, "horizontal_dil") if gga is not None else None
+            hdop_field = "horizontal_dil" if isinstance(gga, pynmea2.GGA) else "hdop"
+            hdop = self.fields.number(gga, hdop_field) if gga is not None else None
             hdop = hdop or self._hdop_gsa or 1.0
             vdop = self._vdop_gsa or VDOP_PER_HDOP * hdop
             uere = self.config.uere.for_fix(fix_type)
@@ -432,6 +449,19 @@ class EpochSolver:
         return None
 
 
+#: GNS mode letters from the best fix to the weakest valid one.
+_GNS_MODE_RANK = "RFPDA"
+
+
+def _gns_fix_type(modes: str | None) -> FixType:
+    """The best fix type among a GNS sentence's per-system mode letters (GPS, GLONASS, Galileo,
+    BeiDou, ...; NMEA 0183 4.10), NO_FIX when none is valid."""
+    for letter in _GNS_MODE_RANK:
+        if modes is not None and letter in modes:
+            return _MODE_FIX[letter]
+    return FixType.NO_FIX
+
+
 def _fix_type(quality: int) -> FixType:
     try:
         return FixType(quality)
@@ -448,6 +478,10 @@ def _service(epoch: Epoch) -> int:
     bits = 0
     for sentence in epoch.sentences:
         bits |= _TALKER_SERVICE.get(getattr(sentence, "talker", ""), 0)
+        if isinstance(sentence, pynmea2.GNS):
+            modes = text(sentence, "mode_indicator") or ""
+            for letter, bit in zip(modes, _GNS_MODE_SERVICE, strict=False):
+                bits |= bit if letter in _GNS_MODE_RANK else 0
     return bits or SERVICE_GPS
 
 

@@ -129,11 +129,43 @@ def test_no_fix_never_carries_a_position(bodies):
     assert solver.stats.no_fix == 1
 
 
-def test_missing_geoid_separation_gives_unknown_altitude_and_counts_an_empty_field():
+def test_missing_geoid_separation_is_taken_from_egm96():
     (solution, solver) = solve("GPGGA,123519.00,4807.038,N,01131.000,W,4,10,0.9,545.4,M,,M,,")
     assert solution.fix.fix_type is FixType.RTK_FIXED
-    assert math.isnan(solution.fix.alt_m)
-    assert solver.fields.empty_fields == 1
+    # EGM96 N at 48.1173 N, 11.5167 W: 54.262 m on the 5' grid of the egm96 package.
+    assert solution.fix.alt_m == pytest.approx(545.4 + 54.262, abs=0.05)
+    assert solver.stats.geoid_altitudes == 1 and solver.fields.empty_fields == 0
+    (no_msl, _) = solve("GPGGA,123519.00,4807.038,N,01131.000,W,4,10,0.9,,M,,M,,")
+    assert math.isnan(no_msl.fix.alt_m)
+
+
+@pytest.mark.parametrize(
+    ("modes", "fix_type", "service"),
+    [
+        ("AAN", FixType.SPS, 1 | 2),  # GPS and GLONASS autonomous, Galileo none
+        ("DAA", FixType.DGPS, 1 | 2 | 8),
+        ("NRNF", FixType.RTK_FIXED, 2 | 4),  # GLONASS RTK fixed, BeiDou float
+        ("NNN", FixType.NO_FIX, 1),
+    ],
+)
+def test_gns_is_a_position_source_with_its_mode_letters(modes, fix_type, service):
+    (solution, _) = solve(
+        f"GNGNS,123519.00,4807.038,N,01131.000,W,{modes},12,0.9,545.4,46.9,,",
+        "GNGLL,4807.038,N,01131.000,W,123519.00,A,A",
+    )
+    fix = solution.fix
+    assert fix.fix_type is fix_type and fix.service == service
+    if fix_type is not FixType.NO_FIX:
+        assert fix.position_source == "GNS" and fix.satellites == 12
+        assert fix.alt_m == pytest.approx(545.4 + 46.9)
+        # HDOP 0.9 of the GNS x UERE.
+        uere = UereTable().for_fix(fix_type)
+        assert cov(fix)[0, 0] == pytest.approx((0.9 * uere) ** 2 / 2)
+
+
+def test_gns_with_too_few_satellites_is_no_fix():
+    (solution, solver) = solve("GNGNS,123519.00,4807.038,N,01131.000,W,AA,03,0.9,545.4,46.9,,")
+    assert solution.fix.fix_type is FixType.NO_FIX and solver.stats.too_few_satellites == 1
 
 
 def test_rmc_position_with_mode_letters_and_pat_position():
