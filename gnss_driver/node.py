@@ -232,18 +232,20 @@ class GnssNode(Node):
 
     # ---- serial side (link thread) ----------------------------------------------------------
     def _on_open(self, port: Any) -> None:
+        with self._lock:
+            self._driver.reset()
         results = run_setup(
             port,
             self._commands,
             answer_timeout_s=self.params["setup_answer_timeout"],
             log=self.get_logger().info,
+            on_data=lambda chunk: self._on_data(chunk, node_time_s(self)),
         )
         for result in results:
             if result.answer is Answer.NAK:
                 self.get_logger().error(f"receiver rejected {result.command}")
         with self._lock:
             self._setup_results = results
-            self._driver.reset()
 
     def _on_data(self, chunk: bytes, received_s: float) -> None:
         with self._lock:

@@ -196,6 +196,43 @@ def test_adu5_setup_commands_and_vehicle_attitude(offsets_in_receiver):
     assert float(values["rate_hz"]) == pytest.approx(5.0, rel=0.3)
 
 
+def test_adu5_that_never_answers_loses_no_epoch_to_the_setup():
+    recorder = Recorder()
+    sent: list[tuple[float, float]] = []  # (UTC, host time written)
+    config = EmulatorConfig(receiver=Receiver.ADU5, answer_commands=False)
+
+    def on_epoch(utc_s: float, truth: Truth) -> None:
+        recorder(utc_s, truth)
+        sent.append((utc_s, time.time()))
+
+    with GnssEmulator(constant_velocity(VELOCITY), config, on_epoch=on_epoch) as dev:
+        node = _node(dev, Receiver.ADU5)
+        collector = Collector(TOPICS)
+        try:
+            with spinning(node, collector.node):
+                assert wait_for(lambda: dev.commands, 10.0)
+                opened = time.time()  # the port opened before the first command came
+                # 7 commands x 0.5 s without an answer, then 1 s more.
+                assert wait_for(lambda: len(dev.commands) == 7, 6.0)
+                time.sleep(1.0)
+                end = time.time()
+                time.sleep(0.3)
+        finally:
+            node.close()
+            node.destroy_node()
+            collector.node.destroy_node()
+    expected = {round(utc, 2) for utc, written in sent if opened + 0.2 < written < end}
+    assert len(expected) >= 15  # the set-up takes 3.5 s at 5 Hz
+    published = set(_utc_by_stamp(collector).values())
+    published = {round(u, 2) for u in published}
+    assert expected <= published, sorted(expected - published)
+    attitudes = {round(stamp_s(m), 6) for m in collector.get("gnss/attitude")}
+    utc_of = _utc_by_stamp(collector)
+    assert expected <= {round(utc_of[s], 2) for s in attitudes}
+    values = diagnostic_values(collector.get("/diagnostics")[-1])
+    assert values["setup"] == "7 no answer"
+
+
 def test_custom_setup_commands_and_a_rejected_one():
     config = EmulatorConfig(receiver=Receiver.ADU5)
     commands = ["$PASHS,ELM,10", "$PASHS,XYZ,1", "$PASHS,NME,PAT,A,ON"]
