@@ -10,7 +10,10 @@ solves each closed epoch and stamps it on the host clock:
 - ``EnvelopeClockSync`` (gnss_ins_common.clock_sync) maps UTC to host time by the lower
   envelope of those pairs (shared/ARCHITECTURE.md, "The shared clock");
 - the stamp is the mapped UTC minus ``latency_s``, the receiver's fixed delay from the epoch
-  to its first output byte (0 unless known, e.g. from a PPS test).
+  to its first output byte (0 unless known, e.g. from a PPS test);
+- with ``use_gnss_time`` (a host clock disciplined to UTC by NTP/PTP/PPS) the stamp is the UTC
+  instant itself and the mapping only measures host - UTC (``clock_offset_s``: the receiver's
+  output delay plus the host clock's error).
 An epoch without any UTC time (a receiver without fix may leave the time empty) yields only its
 fix, NO_FIX as a rule, stamped with its host bound minus ``latency_s``; its velocity or attitude
 could not be placed in time and is dropped.
@@ -50,6 +53,7 @@ class DriverConfig:
     baud: int = 9600
     allow_missing_checksum: bool = False
     latency_s: float = 0.0
+    use_gnss_time: bool = False
     epoch_idle_s: float = 0.5
     gps_utc_leap_s: int = GPS_UTC_LEAP_S
     solution: SolutionConfig = field(default_factory=SolutionConfig)
@@ -58,12 +62,14 @@ class DriverConfig:
 
 @dataclass(frozen=True, slots=True)
 class EpochOutput:
-    """One epoch's results, stamped: ``stamp_s`` is the host time [s] of its UTC instant.
+    """One epoch's results, stamped: ``stamp_s`` is the time [s] of its UTC instant on the host
+    clock: the UTC mapped by the envelope (``host_s``), or with ``use_gnss_time`` the UTC itself.
 
     ``extends``: the parts of an epoch published before that only a later sentence gave.
     """
 
     stamp_s: float
+    host_s: float
     utc: UtcTime | None
     fix: GnssFix | None
     velocity: GnssVelocity | None
@@ -173,6 +179,7 @@ class GnssDriver:
             self.stats.extensions += 1
             new = EpochOutput(
                 before.stamp_s,
+                before.host_s,
                 before.utc,
                 None if before.fix else solution.fix,
                 None if before.velocity else solution.velocity,
@@ -181,6 +188,7 @@ class GnssDriver:
             )
             epoch.published = EpochOutput(
                 before.stamp_s,
+                before.host_s,
                 before.utc,
                 before.fix or new.fix,
                 before.velocity or new.velocity,
@@ -192,13 +200,16 @@ class GnssDriver:
             arrival - total * self._seconds_per_byte for arrival, total in epoch.arrivals
         )
         if epoch.time_of_day_ms is None:
-            out = EpochOutput(first_byte_s - self.config.latency_s, None, solution.fix, None, None)
+            host_s = first_byte_s - self.config.latency_s
+            out = EpochOutput(host_s, host_s, None, solution.fix, None, None)
         else:
             utc = self.utc.resolve(epoch.time_of_day_ms, solution.date, first_byte_s)
             self.clock.update(utc.utc_s, first_byte_s)
             self._last_utc_s = utc.utc_s
+            host_s = self.clock.to_host(utc.utc_s) - self.config.latency_s
             out = EpochOutput(
-                self.clock.to_host(utc.utc_s) - self.config.latency_s,
+                utc.utc_s if self.config.use_gnss_time else host_s,
+                host_s,
                 utc,
                 solution.fix,
                 solution.velocity,

@@ -133,6 +133,20 @@ PARAMETERS = (
     Param("adu5_period", 0.2, "ADU5 NMEA output period [s] (0.2 s = 5 Hz)", 0.2, 999.0),
     Param("adu5_port", "A", "ADU5 port this node is connected to", choices=("A", "B")),
     Param("latency", 0.0, "fixed delay from the epoch's UTC time to its first byte [s]", 0.0, 2.0),
+    Param(
+        "use_gnss_time",
+        False,
+        "true: stamp each epoch with its UTC time (host clock disciplined to UTC by NTP/PTP/PPS);"
+        " false: with the UTC mapped onto the host clock by the arrival envelope",
+    ),
+    Param(
+        "gnss_time_offset_warn",
+        0.25,
+        "with use_gnss_time, warn when host - UTC (receiver output delay + host clock error)"
+        " exceeds this [s]",
+        0.001,
+        10.0,
+    ),
     Param("gps_utc_leap_seconds", GPS_UTC_LEAP_S, "GPS - UTC for PASHR,ATT times [s]", 0, 100),
     Param(
         "epoch_idle_timeout",
@@ -182,6 +196,7 @@ class GnssNode(Node):
                 baud=p["baud"],
                 allow_missing_checksum=p["allow_missing_checksum"],
                 latency_s=p["latency"],
+                use_gnss_time=p["use_gnss_time"],
                 epoch_idle_s=p["epoch_idle_timeout"],
                 gps_utc_leap_s=p["gps_utc_leap_seconds"],
                 solution=SolutionConfig(
@@ -275,7 +290,7 @@ class GnssNode(Node):
         if out.utc is not None and not out.extends:
             msg = fill_time_reference(
                 TimeReference(),
-                stamp_ns(out.stamp_s),
+                stamp_ns(out.host_s),
                 self._frame_id,
                 stamp_ns(out.utc.utc_s),
                 self._receiver.value,
@@ -353,6 +368,7 @@ class GnssNode(Node):
                 "date_source": self._last_date_source,
                 "midnight_rollovers": driver.utc.rollovers,
                 "clock_ready": driver.clock.ready,
+                "time_mode": "gnss" if self.params["use_gnss_time"] else "host",
                 "clock_offset_ms": driver.clock_offset_s() * 1e3,
                 "clock_skew_ppm": driver.clock.skew * 1e6,
                 "receive_delay_ms": driver.clock.mean_delay_s * 1e3,
@@ -365,6 +381,7 @@ class GnssNode(Node):
             }
             no_fix = self._last_fix_type == FixType.NO_FIX.name
             geoid_used = solver.geoid_altitudes > 0
+            offset_s = driver.clock_offset_s()
             naks = sum(r.answer is Answer.NAK for r in self._setup_results)
             problems = (solver.attitude_resets, solver.attitude_degraded)
         resets, degraded = (a - b for a, b in zip(problems, self._attitude_problems, strict=True))
@@ -385,6 +402,10 @@ class GnssNode(Node):
             level, message = diag.WARN, f"{rate:.1f} epochs/s, expected {self._rate_hz:g}"
         elif no_fix:
             level, message = diag.WARN, "no fix"
+        elif self.params["use_gnss_time"] and abs(offset_s) > self.params["gnss_time_offset_warn"]:
+            level = diag.WARN
+            message = f"host - UTC {offset_s * 1e3:.1f} ms: is the host clock disciplined to UTC?"
+            self.get_logger().warning(f"use_gnss_time: {message}", throttle_duration_sec=60.0)
         elif resets or degraded:
             level = diag.WARN
             message = f"attitude: {resets} reset, {degraded} above MRMS/BRMS limits"

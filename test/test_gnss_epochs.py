@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import datetime
 import itertools
 import math
@@ -264,3 +265,25 @@ def test_any_chunking_and_sentence_order_gives_one_output_per_epoch(sizes, order
     assert [round(o.utc.utc_s % 60) for o in outputs] == list(range(epochs))
     assert speeds(outputs) == [10.0 + k for k in range(epochs)]
     assert driver.assembler.stats.late_sentences == 0
+
+
+def test_use_gnss_time_stamps_with_the_utc_and_still_measures_the_host_offset():
+    baud, latency, offset = 9600, 0.05, 0.0423  # host = UTC + 42.3 ms at the first byte
+    config = DriverConfig(baud=baud, latency_s=latency)
+    envelope, gnss = GnssDriver(config), GnssDriver(dataclasses.replace(config, use_gnss_time=True))
+    compared = 0
+    for k in range(12):
+        t = f"1200{k:02d}.00"
+        first_byte = 1_415_966_400.0 + k + offset
+        wire = 0
+        for sentence in (vtg(10.0), gga(t), llq(t, "111414")):
+            wire += len(sentence)
+            arrival = first_byte + wire * 10 / baud + 0.003 * (k % 3)
+            for a, b in zip(
+                envelope.feed(sentence, arrival), gnss.feed(sentence, arrival), strict=True
+            ):
+                assert b.stamp_s == b.utc.utc_s  # the UTC instant itself
+                assert b.host_s == a.host_s == a.stamp_s  # the envelope as before
+                compared += 1
+    assert compared == 12
+    assert gnss.clock_offset_s() == pytest.approx(offset, abs=1e-6)

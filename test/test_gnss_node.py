@@ -233,6 +233,37 @@ def test_adu5_that_never_answers_loses_no_epoch_to_the_setup():
     assert values["setup"] == "7 no answer"
 
 
+def test_use_gnss_time_stamps_fixes_with_the_sentences_utc():
+    recorder = Recorder()
+    # The host clock is the UTC source here; the receiver's output delay is 60 ms.
+    config = EmulatorConfig(receiver=Receiver.LEICA, output_latency_s=0.06)
+    with GnssEmulator(constant_velocity(VELOCITY), config, on_epoch=recorder) as dev:
+        collector = _run(
+            dev,
+            Receiver.LEICA,
+            lambda c: c.count("gnss/fix") >= 4 and c.count("/diagnostics") >= 3,
+            12.0,
+            use_gnss_time=True,
+            gnss_time_offset_warn=0.03,
+        )
+    with recorder.lock:
+        sent = set(recorder.truth)
+    fixes = collector.get("gnss/fix")
+    for fix in fixes:
+        utc = round(stamp_s(fix), 2)
+        assert utc in sent and abs(stamp_s(fix) - utc) < 1e-3  # the sentence's UTC, < 1 ms
+    # TimeReference keeps the envelope mapping as without use_gnss_time: the UTC on the host
+    # clock (60 ms output delay) minus the ``latency`` parameter (LATENCY).
+    for ref in collector.get("gnss/time_reference")[3:]:
+        utc = ref.time_ref.sec + ref.time_ref.nanosec * 1e-9
+        assert stamp_s(ref) - utc == pytest.approx(0.06 - LATENCY, abs=0.015)
+    last = collector.get("/diagnostics")[-1]
+    values = diagnostic_values(last)
+    assert values["time_mode"] == "gnss"
+    assert float(values["clock_offset_ms"]) == pytest.approx(60.0, abs=15.0)
+    assert last.status[0].level == b"\x01" and "host - UTC" in last.status[0].message
+
+
 def test_custom_setup_commands_and_a_rejected_one():
     config = EmulatorConfig(receiver=Receiver.ADU5)
     commands = ["$PASHS,ELM,10", "$PASHS,XYZ,1", "$PASHS,NME,PAT,A,ON"]
