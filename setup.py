@@ -26,6 +26,7 @@ setup(
         "pyserial>=3.5",
         "pynmea2>=1.19",
         "pymap3d>=3.0",
+        "pyproj>=3.6",
         "rosbags>=0.10",
         "filterpy>=1.4.5",
         "allantools>=2019.9",

@@ -16,17 +16,19 @@ import time
 from gnss_driver.driver import DriverConfig, GnssDriver
 from gnss_driver.fuzz import TEMPLATES, FuzzSource, output_problems
 from gnss_driver.reader import frame_sentence
+from gnss_driver.solution import SolutionConfig
 
 SENTENCES = 1_000_000
 VALID_EVERY = 50
 CHUNK = 1000
 BAUD = 115200
+LLQ_CRS = "EPSG:25832"  # LLQ grid positions on, so their fields are fuzzed too
 
 
 def main(total: int = SENTENCES) -> int:
     source = FuzzSource(seed=13)
     valid = b"".join(frame_sentence(t) for t in TEMPLATES)
-    driver = GnssDriver(DriverConfig(baud=BAUD))
+    driver = GnssDriver(DriverConfig(baud=BAUD, solution=SolutionConfig(llq_projection=LLQ_CRS)))
     now, outputs, bad_outputs = 1_700_000_000.0, 0, 0
     build_s = feed_s = 0.0
     for first in range(0, total, CHUNK):

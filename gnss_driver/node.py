@@ -25,6 +25,7 @@ from gnss_driver import geoid
 from gnss_driver.attitude import DEFAULT_SIGMA_RPY_DEG, AttitudeConfig
 from gnss_driver.commands import Answer, CommandResult, command_error, run_setup
 from gnss_driver.driver import GPS_UTC_LEAP_S, DriverConfig, EpochOutput, GnssDriver
+from gnss_driver.grid import projection_error
 from gnss_driver.profiles import (
     CAR_OFFSETS_DEG,
     CAR_VECTORS_M,
@@ -105,6 +106,13 @@ PARAMETERS = (
         "a position from fewer satellites used is published as no fix (3-D needs 4)",
         0,
         12,
+    ),
+    Param(
+        "llq_projection",
+        "",
+        "projected CRS of Leica LLQ grid positions (e.g. EPSG:25832, ETRS89 / UTM 32N); empty:"
+        " LLQ gives accuracy only, no position",
+        check=projection_error,
     ),
     Param("attitude_mrms_limit", 0.005, "MRMS above this scales the sigmas up [m]", 1e-4, 1.0),
     Param("attitude_brms_limit", 0.04, "BRMS above this scales the sigmas up [m]", 1e-4, 10.0),
@@ -205,6 +213,7 @@ class GnssNode(Node):
                     ),
                     p["velocity_sigma"],
                     p["min_satellites"],
+                    p["llq_projection"],
                 ),
                 attitude=AttitudeConfig(
                     sigma_rpy_deg=(sigma[0], sigma[1], sigma[2]),

@@ -1,11 +1,12 @@
 """One epoch's sentences -> the best fix, velocity and attitude it holds (no ROS).
 
-Position: GGA, else GNS, else PASHR,PAT, else RMC, else GLL. Fix type from GGA quality (1 SPS,
-2 DGPS, 3 PPS, 4 RTK fixed, 5 RTK float), else the best of GNS's per-system mode letters (R, F,
-P, D, A), else the RMC/GLL mode letter, else SPS for a PAT position. Quality 0, 6 (dead
-reckoning), 7 (manual) and 8 (simulator), status 'V', mode 'N' or fewer satellites than
-``min_satellites`` (GGA, GNS) are NO_FIX: published as such, with NaN position and no
-covariance, never a made-up position.
+Position: GGA, else GNS, else PASHR,PAT, else LLQ's grid position when ``llq_projection`` names
+its projected CRS (``grid``; height taken as ellipsoidal), else RMC, else GLL. Fix type from GGA
+quality (1 SPS, 2 DGPS, 3 PPS, 4 RTK fixed, 5 RTK float), else the best of GNS's per-system mode
+letters (R, F, P, D, A), else LLQ quality (1 SPS, 2 RTK float, 3 RTK fixed), else the RMC/GLL
+mode letter, else SPS for a PAT position. Quality 0, 6 (dead reckoning), 7 (manual) and 8
+(simulator), status 'V', mode 'N' or fewer satellites than ``min_satellites`` (GGA, GNS, LLQ)
+are NO_FIX: published as such, with NaN position and no covariance, never a made-up position.
 
 Altitude: height above the WGS-84 ellipsoid = GGA/GNS altitude (mean sea level) + geoid
 separation; when the receiver leaves the separation empty, the EGM96 undulation of
@@ -44,6 +45,7 @@ import pynmea2
 from gnss_driver import geoid
 from gnss_driver.attitude import AttitudeConverter, Orientation
 from gnss_driver.epoch import Epoch
+from gnss_driver.grid import GridProjection
 from gnss_driver.plausibility import KNOTS_TO_M_S, FieldReader
 from gnss_driver.sentences import ASHRATT, ASHRPAT, LLQ, sentence_id, text
 from gnss_ins_common.message_fields import UNKNOWN_VARIANCE, fill_navsatfix
@@ -155,6 +157,8 @@ class SolutionConfig:
     velocity_sigma_m_s: float = 0.05
     #: Fewer satellites used than this make a fix NO_FIX (a 3-D fix needs 4).
     min_satellites: int = 4
+    #: Projected CRS of LLQ's grid position (e.g. "EPSG:25832"); "" = LLQ gives no position.
+    llq_projection: str = ""
 
 
 @dataclass(frozen=True, slots=True)
@@ -233,6 +237,7 @@ class EpochSolver:
         self.attitude = attitude
         self.stats = SolutionStats()
         self.fields = FieldReader()
+        self._grid = GridProjection(config.llq_projection) if config.llq_projection else None
         self._hdop_gsa: float | None = None
         self._vdop_gsa: float | None = None
 
@@ -274,6 +279,11 @@ class EpochSolver:
             fix_type, source = _gns_fix_type(text(gga, "mode_indicator")), gga
         elif pat is not None:
             fix_type, source = (FixType.SPS if mode is None else mode), pat
+        elif (llq := epoch.get(LLQ)) is not None and self._grid is not None:
+            quality = self.fields.integer(llq, "gps_qual", required=True)
+            fix_type = FixType.NO_FIX if quality is None else _LLQ_FIX.get(quality, FixType.NO_FIX)
+            source = llq
+            gga = None
         elif rmc is not None or gll is not None:
             source = rmc if rmc is not None else gll
             fix_type = FixType.NO_FIX if mode is None else mode
@@ -283,11 +293,15 @@ class EpochSolver:
         service = _service(epoch)
         if fix_type not in VALID_FIX_TYPES:
             return _no_fix(name, service)
-        sats = self.fields.integer(gga, "num_sats") if gga is not None else None
+        counted = gga if gga is not None else source if isinstance(source, LLQ) else None
+        sats = self.fields.integer(counted, "num_sats") if counted is not None else None
         if sats is not None and sats < self.config.min_satellites:
             self.stats.too_few_satellites += 1
             return _no_fix(name, service)
-        position = self.fields.position(source)
+        if isinstance(source, LLQ):
+            position = self._grid_position(source)
+        else:
+            position = self.fields.position(source)
         if position is None:
             return _no_fix(name, service)
         alt = self._altitude(source, *position)
@@ -304,9 +318,24 @@ class EpochSolver:
             return _MODE_FIX.get(mode[0], FixType.NO_FIX)
         return FixType.SPS if status == "A" else None
 
+    def _grid_position(self, llq: LLQ) -> tuple[float, float] | None:
+        """LLQ's grid easting and northing [m] through ``llq_projection``."""
+        easting = self.fields.number(llq, "easting", required=True)
+        northing = self.fields.number(llq, "northing", required=True)
+        if easting is None or northing is None or self._grid is None:
+            return None
+        if {text(llq, "easting_unit"), text(llq, "northing_unit")} - {"M", None}:
+            self.fields.reject(llq, "easting_unit")  # only metres
+            return None
+        position = self._grid.to_lat_lon(easting, northing)
+        if position is None:
+            self.fields.reject(llq, "easting")
+        return position
+
     def _altitude(self, source: pynmea2.NMEASentence, lat_deg: float, lon_deg: float) -> float:
-        if isinstance(source, ASHRPAT):
-            alt = self.fields.number(source, "altitude", required=True)
+        if isinstance(source, ASHRPAT | LLQ):
+            name = "height" if isinstance(source, LLQ) else "altitude"
+            alt = self.fields.number(source, name, required=True)
             return _NAN if alt is None else alt
         if not isinstance(source, pynmea2.GGA | pynmea2.GNS):
             return _NAN
@@ -449,6 +478,8 @@ class EpochSolver:
         return None
 
 
+#: LLQ GPS quality -> fix type: 1 navigation fix, 2 RTK float, 3 RTK fixed (notes §7.2).
+_LLQ_FIX = {1: FixType.SPS, 2: FixType.RTK_FLOAT, 3: FixType.RTK_FIXED}
 #: GNS mode letters from the best fix to the weakest valid one.
 _GNS_MODE_RANK = "RFPDA"
 

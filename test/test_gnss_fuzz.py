@@ -23,9 +23,10 @@ from gnss_driver.fuzz import (
     output_problems,
 )
 from gnss_driver.reader import frame_sentence as nmea
-from gnss_driver.solution import FixType
+from gnss_driver.solution import FixType, SolutionConfig
 
 T0 = 1_700_000_000.0
+LLQ_GRID = SolutionConfig(llq_projection="EPSG:25832")
 #: The templates one second later: a complete epoch that closes the fuzzed one.
 NEXT_EPOCH = b"".join(
     nmea(t.replace("123519.00", "123520.00").replace("218137.0", "218138.0")) for t in TEMPLATES
@@ -51,7 +52,8 @@ def fuzzed_sentences(draw: st.DrawFn) -> bytes:
 
 
 def run(stream: bytes) -> tuple[list, GnssDriver]:
-    driver = GnssDriver(DriverConfig(baud=115200))
+    # LLQ positions on: its grid fields are fuzzed too.
+    driver = GnssDriver(DriverConfig(baud=115200, solution=LLQ_GRID))
     outputs = driver.feed(stream, T0)
     outputs += driver.flush_idle(T0 + 10.0)
     return outputs, driver

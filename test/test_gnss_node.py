@@ -364,6 +364,8 @@ def test_adu5_fault_run():
         ("adu5_vectors", [0.0, 1.0], "9 values"),
         ("attitude_sigma_rpy", [0.1, 0.1], "3 values"),
         ("adu5_port", "C", "not one of"),
+        ("llq_projection", "EPSG:4326", "not a projected CRS"),
+        ("llq_projection", "EPSG:0", "unknown coordinate reference system"),
     ],
 )
 def test_bad_parameters_are_rejected_with_a_clear_message(name, value, fragment):

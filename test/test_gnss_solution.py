@@ -291,3 +291,49 @@ def test_hdt_gives_heading_only():
     assert np.diag(c) == pytest.approx(
         [UNKNOWN_VARIANCE, UNKNOWN_VARIANCE, math.radians(0.07) ** 2]
     )
+
+
+def utm_northing_on_the_central_meridian(lat_deg: float) -> float:
+    """k0 x the GRS80 meridian arc (the classical series; independent of PROJ)."""
+    a, f, k0 = 6_378_137.0, 1 / 298.257222101, 0.9996
+    e2 = f * (2 - f)
+    e4, e6 = e2 * e2, e2 * e2 * e2
+    phi = math.radians(lat_deg)
+    arc = a * (
+        (1 - e2 / 4 - 3 * e4 / 64 - 5 * e6 / 256) * phi
+        - (3 * e2 / 8 + 3 * e4 / 32 + 45 * e6 / 1024) * math.sin(2 * phi)
+        + (15 * e4 / 256 + 45 * e6 / 1024) * math.sin(4 * phi)
+        - (35 * e6 / 3072) * math.sin(6 * phi)
+    )
+    return k0 * arc
+
+
+def test_llq_grid_position_through_the_configured_projection():
+    northing = utm_northing_on_the_central_meridian(57.0)
+    body = f"GPLLQ,123519.00,051005,500000.000,M,{northing:.3f},M,3,12,0.025,76.69,M"
+    solver = EpochSolver(
+        SolutionConfig(llq_projection="EPSG:25832"), AttitudeConverter(AttitudeConfig())
+    )
+    (solution, _) = solve(body, solver=solver)
+    fix = solution.fix
+    # ETRS89 / UTM zone 32N: easting 500 km is the 9 deg E central meridian.
+    assert (fix.lat_deg, fix.lon_deg) == pytest.approx((57.0, 9.0), abs=1e-7)
+    assert fix.fix_type is FixType.RTK_FIXED and fix.position_source == "LLQ"
+    assert fix.alt_m == pytest.approx(76.69) and fix.satellites == 12
+    assert fix.accuracy_source == "LLQ"
+    # Without a projection LLQ gives no position; GGA wins over LLQ when both are there.
+    (no_grid, _) = solve(body)
+    assert no_grid.fix is None
+    (both, _) = solve(GGA_FLOAT, body, solver=solver)
+    assert both.fix.position_source == "GGA"
+
+
+def test_llq_grid_position_outside_the_projection_or_in_feet_is_rejected():
+    solver = EpochSolver(
+        SolutionConfig(llq_projection="EPSG:25832"), AttitudeConverter(AttitudeConfig())
+    )
+    (far, _) = solve("GPLLQ,123519.00,051005,9e7,M,9e7,M,3,12,0.025,76.69,M", solver=solver)
+    (feet, _) = solve("GPLLQ,123519.00,051005,5e5,f,6e6,f,3,12,0.025,76.69,M", solver=solver)
+    assert far.fix.fix_type is FixType.NO_FIX and feet.fix.fix_type is FixType.NO_FIX
+    assert solver.fields.rejected["LLQ.easting"] == 1
+    assert solver.fields.rejected["LLQ.easting_unit"] == 1
