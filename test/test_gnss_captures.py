@@ -8,10 +8,13 @@ receiver's queue grows, sentences arrive later and later, and still none may be 
 
 from __future__ import annotations
 
+import json
+import math
+import os
 import random
 
 import pytest
-from nmea_captures import CAPTURES, chunk_ends, feed, on_the_wire
+from nmea_captures import CAPTURES, DATA, chunk_ends, feed, on_the_wire
 
 from gnss_driver.driver import DriverConfig, GnssDriver
 from gnss_driver.epoch import EPOCH_TYPES
@@ -30,6 +33,35 @@ def run(name: str, baud: int, max_bytes: int, seed: int | None = None):
 
 def content(outputs) -> list[str]:
     return [repr((o.utc, o.fix, o.velocity, o.attitude, o.extends)) for o in outputs]
+
+
+def summary(out) -> dict:
+    """What a golden file holds of an output (rounded to the sentences' resolution)."""
+    fix, vel, att = out.fix, out.velocity, out.attitude
+    return {
+        "utc": round(out.utc.utc_s - START_S, 3),
+        "extends": out.extends,
+        "fix": None
+        if fix is None
+        else [fix.fix_type.name, fix.position_source, fix.accuracy_source, fix.satellites]
+        + [None if math.isnan(v) else round(v, 9) for v in (fix.lat_deg, fix.lon_deg)]
+        + [None if math.isnan(fix.alt_m) else round(fix.alt_m, 3)],
+        "velocity": None if vel is None else [vel.source, *(round(v, 3) for v in vel.vel_enu_m_s)],
+        "attitude": None if att is None else att.source,
+    }
+
+
+@pytest.mark.parametrize("name", CAPTURES)
+def test_golden_output_at_every_baud_rate(name):
+    """The outputs (all but their stamps) match the golden file at 4800, 9600 and 115200 baud;
+    ``GNSS_UPDATE_GOLDEN=1`` rewrites it from 115200 baud."""
+    path = DATA / f"{name}.golden.json"
+    outputs = {baud: [summary(o) for o in run(name, baud, 1)[0]] for baud in BAUDS}
+    if os.environ.get("GNSS_UPDATE_GOLDEN"):
+        path.write_text(json.dumps(outputs[115200], indent=1) + "\n")
+    golden = json.loads(path.read_text())
+    for baud in BAUDS:
+        assert outputs[baud] == golden, baud
 
 
 @pytest.mark.parametrize("baud", BAUDS)
