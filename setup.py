@@ -10,6 +10,8 @@ setup(
     name=PACKAGE,
     version="0.1.0",
     packages=find_packages(exclude=["test", "test.*", "bench", "bench.*"]),
+    # The EGM96 geoid grid and its source and licence notes (gnss_driver/data/README.md).
+    package_data={"gnss_driver": ["data/*.npz", "data/*.md", "data/egm96_LICENSE"]},
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
@@ -24,6 +26,7 @@ setup(
         "pyserial>=3.5",
         "pynmea2>=1.19",
         "pymap3d>=3.0",
+        "pyproj>=3.6",
         "rosbags>=0.10",
         "filterpy>=1.4.5",
         "allantools>=2019.9",

@@ -5,7 +5,8 @@ Only proprietary NMEA-style commands are sent: ``$P`` + an upper-case manufactur
 at most 80 characters, no ``$``, ``*`` or control characters, so a parameter can never inject
 a second command or binary data. Each command is terminated with CR LF (notes §7.3). The ADU5
 answers ``$PASHR,ACK*3D`` or ``$PASHR,NAK*30``; other receivers may not answer at all, which is
-reported, not treated as an error.
+reported, not treated as an error. Whatever the receiver streams while the set-up waits for an
+answer is passed on (``run_setup``'s ``on_data``), so the set-up costs no data.
 """
 
 from __future__ import annotations
@@ -46,6 +47,8 @@ class BytePort(Protocol):
 
     def write(self, data: bytes, /) -> int | None: ...
     def read(self, size: int = 1, /) -> bytes: ...
+    @property
+    def in_waiting(self) -> int: ...
 
 
 def command_error(command: str) -> str | None:
@@ -71,25 +74,32 @@ def run_setup(
     *,
     answer_timeout_s: float = 0.5,
     log: Callable[[str], None] = print,
+    on_data: Callable[[bytes], None] | None = None,
 ) -> list[CommandResult]:
     """Send each command and wait up to ``answer_timeout_s`` for its ACK / NAK.
 
-    Other sentences arriving meanwhile are dropped (the receiver may already be streaming).
+    The receiver may already be streaming: every byte read meanwhile is also handed to
+    ``on_data`` as soon as it is read, so no epoch is lost to the set-up.
     """
     results = []
     for command in commands:
         port.write(encode_command(command))
-        answer = _wait_for_answer(port, answer_timeout_s)
+        answer = _wait_for_answer(port, answer_timeout_s, on_data)
         results.append(CommandResult(command, answer))
         log(f"{command}: {answer.value}")
     return results
 
 
-def _wait_for_answer(port: BytePort, timeout_s: float) -> Answer:
+def _wait_for_answer(
+    port: BytePort, timeout_s: float, on_data: Callable[[bytes], None] | None
+) -> Answer:
     reader = NmeaReader()
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
-        for read in reader.feed(port.read(64)):
+        chunk = port.read(max(1, port.in_waiting))  # what is there, or wait for one byte
+        if chunk and on_data is not None:
+            on_data(chunk)
+        for read in reader.feed(chunk):
             if isinstance(read.sentence, ASHRACK):
                 return Answer.ACK
             if isinstance(read.sentence, ASHRNAK):

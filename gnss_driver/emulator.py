@@ -116,6 +116,8 @@ class EmulatorConfig:
     #: Offsets stored in the receiver at power-up (changed by $PASHS,3DF,OFS) [deg].
     receiver_offsets_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
     gps_utc_leap_s: int = GPS_UTC_LEAP_S
+    #: False: the ADU5 records commands but never answers or applies them.
+    answer_commands: bool = True
 
 
 @dataclass
@@ -358,7 +360,7 @@ class GnssEmulator(PtyEmulator):
     def _command(self, line: str) -> None:
         with self._lock:
             self._adu5.commands.append(line)
-        if self.config.receiver is not Receiver.ADU5:
+        if self.config.receiver is not Receiver.ADU5 or not self.config.answer_commands:
             return
         match = _ADU5_COMMAND.fullmatch(line)
         if match is None:

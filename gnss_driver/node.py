@@ -21,6 +21,7 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, NavSatFix, TimeReference
 
+from gnss_driver import geoid
 from gnss_driver.attitude import (
     ANGLE_CONVENTIONS,
     DEFAULT_ANGLE_CONVENTION,
@@ -29,6 +30,7 @@ from gnss_driver.attitude import (
 )
 from gnss_driver.commands import Answer, CommandResult, command_error, run_setup
 from gnss_driver.driver import GPS_UTC_LEAP_S, DriverConfig, EpochOutput, GnssDriver
+from gnss_driver.grid import projection_error
 from gnss_driver.profiles import (
     CAR_OFFSETS_DEG,
     CAR_VECTORS_M,
@@ -119,6 +121,20 @@ PARAMETERS = (
         " heading, pitch, roll); docs/gnss.md",
         choices=ANGLE_CONVENTIONS,
     ),
+    Param(
+        "min_satellites",
+        SolutionConfig().min_satellites,
+        "a position from fewer satellites used is published as no fix (3-D needs 4)",
+        0,
+        12,
+    ),
+    Param(
+        "llq_projection",
+        "",
+        "projected CRS of Leica LLQ grid positions (e.g. EPSG:25832, ETRS89 / UTM 32N); empty:"
+        " LLQ gives accuracy only, no position",
+        check=projection_error,
+    ),
     Param("attitude_mrms_limit", 0.005, "MRMS above this scales the sigmas up [m]", 1e-4, 1.0),
     Param("attitude_brms_limit", 0.04, "BRMS above this scales the sigmas up [m]", 1e-4, 10.0),
     Param(
@@ -146,6 +162,20 @@ PARAMETERS = (
     Param("adu5_period", 0.2, "ADU5 NMEA output period [s] (0.2 s = 5 Hz)", 0.2, 999.0),
     Param("adu5_port", "A", "ADU5 port this node is connected to", choices=("A", "B")),
     Param("latency", 0.0, "fixed delay from the epoch's UTC time to its first byte [s]", 0.0, 2.0),
+    Param(
+        "use_gnss_time",
+        False,
+        "true: stamp each epoch with its UTC time (host clock disciplined to UTC by NTP/PTP/PPS);"
+        " false: with the UTC mapped onto the host clock by the arrival envelope",
+    ),
+    Param(
+        "gnss_time_offset_warn",
+        0.25,
+        "with use_gnss_time, warn when host - UTC (receiver output delay + host clock error)"
+        " exceeds this [s]",
+        0.001,
+        10.0,
+    ),
     Param("gps_utc_leap_seconds", GPS_UTC_LEAP_S, "GPS - UTC for PASHR,ATT times [s]", 0, 100),
     Param(
         "epoch_idle_timeout",
@@ -195,6 +225,7 @@ class GnssNode(Node):
                 baud=p["baud"],
                 allow_missing_checksum=p["allow_missing_checksum"],
                 latency_s=p["latency"],
+                use_gnss_time=p["use_gnss_time"],
                 epoch_idle_s=p["epoch_idle_timeout"],
                 gps_utc_leap_s=p["gps_utc_leap_seconds"],
                 solution=SolutionConfig(
@@ -203,6 +234,8 @@ class GnssNode(Node):
                     ),
                     p["velocity_sigma"],
                     p["llq_horizontal_fraction"],
+                    p["min_satellites"],
+                    p["llq_projection"],
                 ),
                 attitude=AttitudeConfig(
                     sigma_rpy_deg=(sigma[0], sigma[1], sigma[2]),
@@ -220,6 +253,8 @@ class GnssNode(Node):
         self._last_date_source = "none"
         self._rate_window: tuple[float, int] = (time.monotonic(), 0)
         self._attitude_problems = (0, 0)  # resets, degraded at the last diagnostics
+        self._publish_errors = 0
+        self._last_publish_error = ""
 
         qos = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
         endpoints = Endpoints(self)
@@ -244,18 +279,20 @@ class GnssNode(Node):
 
     # ---- serial side (link thread) ----------------------------------------------------------
     def _on_open(self, port: Any) -> None:
+        with self._lock:
+            self._driver.reset()
         results = run_setup(
             port,
             self._commands,
             answer_timeout_s=self.params["setup_answer_timeout"],
             log=self.get_logger().info,
+            on_data=lambda chunk: self._on_data(chunk, node_time_s(self)),
         )
         for result in results:
             if result.answer is Answer.NAK:
                 self.get_logger().error(f"receiver rejected {result.command}")
         with self._lock:
             self._setup_results = results
-            self._driver.reset()
 
     def _on_data(self, chunk: bytes, received_s: float) -> None:
         with self._lock:
@@ -269,23 +306,30 @@ class GnssNode(Node):
     # ---- messages -----------------------------------------------------------------------------
     def _publish(self, outputs: list[EpochOutput]) -> None:
         for out in outputs:
-            if out.fix is not None:
-                self._publish_fix(out)
-            if out.velocity is not None:
-                self._publish_velocity(out)
-            if out.attitude is not None:
-                self._publish_attitude(out)
-            if out.utc is not None:
-                msg = fill_time_reference(
-                    TimeReference(),
-                    stamp_ns(out.stamp_s),
-                    self._frame_id,
-                    stamp_ns(out.utc.utc_s),
-                    self._receiver.value,
-                )
-                self._time_pub.publish(msg)
-                self._last_date_source = out.utc.date_source.value
-            self._latencies.append(node_time_s(self) - out.stamp_s)
+            try:
+                self._publish_epoch(out)
+            except (AssertionError, ValueError, OverflowError) as exc:  # e.g. a UTC past 2038
+                self._publish_errors += 1
+                self._last_publish_error = repr(exc)[:200]
+
+    def _publish_epoch(self, out: EpochOutput) -> None:
+        if out.fix is not None:
+            self._publish_fix(out)
+        if out.velocity is not None:
+            self._publish_velocity(out)
+        if out.attitude is not None:
+            self._publish_attitude(out)
+        if out.utc is not None and not out.extends:
+            msg = fill_time_reference(
+                TimeReference(),
+                stamp_ns(out.host_s),
+                self._frame_id,
+                stamp_ns(out.utc.utc_s),
+                self._receiver.value,
+            )
+            self._time_pub.publish(msg)
+            self._last_date_source = out.utc.date_source.value
+        self._latencies.append(node_time_s(self) - out.stamp_s)
 
     def _publish_fix(self, out: EpochOutput) -> None:
         fix = out.fix
@@ -325,6 +369,7 @@ class GnssNode(Node):
         with self._lock:
             driver = self._driver
             reader, solver = driver.reader.stats, driver.solver.stats
+            solver_fields = driver.solver.fields
             assembler = driver.assembler.stats
             epochs = driver.stats.epochs
             values: dict[str, object] = {
@@ -333,10 +378,18 @@ class GnssNode(Node):
                 "epochs": epochs,
                 "sentences": reader.sentences,
                 **reader.rejected(),
-                "empty_fields": solver.empty_fields,
-                "bad_fields": solver.bad_fields,
-                "bad_times": driver.stats.bad_times,
+                "empty_fields": solver_fields.empty_fields,
+                "bad_fields": solver_fields.bad_fields,
+                **{f"rejected {name}": n for name, n in sorted(solver_fields.rejected.items())},
+                "too_few_satellites": solver.too_few_satellites,
+                "geoid_model": geoid.MODEL,
+                "geoid_altitudes": solver.geoid_altitudes,
+                "internal_errors": driver.stats.internal_errors,
+                "last_internal_error": driver.stats.last_internal_error,
+                "publish_errors": self._publish_errors,
+                "last_publish_error": self._last_publish_error,
                 "late_sentences": assembler.late_sentences,
+                "extended_epochs": assembler.extended_epochs,
                 "duplicate_sentences": assembler.duplicate_sentences,
                 "untimed_epochs": assembler.untimed_epochs,
                 "last_fix_type": self._last_fix_type,
@@ -347,6 +400,7 @@ class GnssNode(Node):
                 "date_source": self._last_date_source,
                 "midnight_rollovers": driver.utc.rollovers,
                 "clock_ready": driver.clock.ready,
+                "time_mode": "gnss" if self.params["use_gnss_time"] else "host",
                 "clock_offset_ms": driver.clock_offset_s() * 1e3,
                 "clock_skew_ppm": driver.clock.skew * 1e6,
                 "receive_delay_ms": driver.clock.mean_delay_s * 1e3,
@@ -358,6 +412,8 @@ class GnssNode(Node):
                 "naks": driver.stats.naks,
             }
             no_fix = self._last_fix_type == FixType.NO_FIX.name
+            geoid_used = solver.geoid_altitudes > 0
+            offset_s = driver.clock_offset_s()
             naks = sum(r.answer is Answer.NAK for r in self._setup_results)
             problems = (solver.attitude_resets, solver.attitude_degraded)
         resets, degraded = (a - b for a, b in zip(problems, self._attitude_problems, strict=True))
@@ -378,6 +434,10 @@ class GnssNode(Node):
             level, message = diag.WARN, f"{rate:.1f} epochs/s, expected {self._rate_hz:g}"
         elif no_fix:
             level, message = diag.WARN, "no fix"
+        elif self.params["use_gnss_time"] and abs(offset_s) > self.params["gnss_time_offset_warn"]:
+            level = diag.WARN
+            message = f"host - UTC {offset_s * 1e3:.1f} ms: is the host clock disciplined to UTC?"
+            self.get_logger().warning(f"use_gnss_time: {message}", throttle_duration_sec=60.0)
         elif resets or degraded:
             level = diag.WARN
             message = f"attitude: {resets} reset, {degraded} above MRMS/BRMS limits"
@@ -385,6 +445,8 @@ class GnssNode(Node):
             level, message = diag.WARN, f"receiver rejected {naks} set-up command(s)"
         else:
             level, message = diag.OK, f"{self._last_fix_type} fix"
+            if geoid_used:
+                message += f", altitude with the {geoid.MODEL} geoid"
         name = f"{self.get_name()}: GNSS {self._receiver.value}"
         hardware_id = f"{self._receiver.value} {self.params['port']}"
         self._diagnostics.publish(diag.make_status(name, hardware_id, level, message, values))

@@ -180,17 +180,6 @@ def date(sentence: pynmea2.NMEASentence, name: str = "datestamp") -> datetime.da
     return value
 
 
-def zda_date(sentence: pynmea2.ZDA) -> datetime.date | None:
-    """Date of a ZDA sentence (day, month, year fields)."""
-    day, month, year = (integer(sentence, n) for n in ("day", "month", "year"))
-    if day is None or month is None or year is None:
-        return None
-    try:
-        return datetime.date(year, month, day)
-    except ValueError as exc:
-        raise FieldError(f"ZDA date {year}-{month}-{day}") from exc
-
-
 def _angle(
     dm: str | None, hemisphere: str | None, positive: str, negative: str, limit: float
 ) -> float | None:

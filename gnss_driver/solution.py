@@ -1,12 +1,16 @@
 """One epoch's sentences -> the best fix, velocity and attitude it holds (no ROS).
 
-Position: GGA, else PASHR,PAT, else RMC, else GLL. Fix type from GGA quality (1 SPS, 2 DGPS,
-3 PPS, 4 RTK fixed, 5 RTK float), else the RMC/GLL mode letter, else SPS for a PAT position.
-Quality 0, 6 (dead reckoning), 7 (manual) and 8 (simulator), status 'V' or mode 'N' are NO_FIX:
-published as such, with NaN position and no covariance, never a made-up position.
+Position: GGA, else GNS, else PASHR,PAT, else LLQ's grid position when ``llq_projection`` names
+its projected CRS (``grid``; height taken as ellipsoidal), else RMC, else GLL. Fix type from GGA
+quality (1 SPS, 2 DGPS, 3 PPS, 4 RTK fixed, 5 RTK float), else the best of GNS's per-system mode
+letters (R, F, P, D, A), else LLQ quality (1 SPS, 2 RTK float, 3 RTK fixed), else the RMC/GLL
+mode letter, else SPS for a PAT position. Quality 0, 6 (dead reckoning), 7 (manual) and 8
+(simulator), status 'V', mode 'N' or fewer satellites than ``min_satellites`` (GGA, GNS, LLQ)
+are NO_FIX: published as such, with NaN position and no covariance, never a made-up position.
 
-Altitude: height above the WGS-84 ellipsoid = GGA altitude (mean sea level) + geoid separation;
-NaN when the separation is missing (unknowable without a geoid model). PAT's altitude is taken as
+Altitude: height above the WGS-84 ellipsoid = GGA/GNS altitude (mean sea level) + geoid
+separation; when the receiver leaves the separation empty, the EGM96 undulation of
+``geoid.MODEL`` at the position (counted in ``geoid_altitudes``). PAT's altitude is taken as
 ellipsoidal [external: Ashtech's PAT reports the WGS-84 solution; verify on the receiver].
 
 Covariance, ENU [m^2], each of the horizontal and vertical parts from the first source present:
@@ -34,33 +38,20 @@ from __future__ import annotations
 
 import datetime
 import math
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from enum import IntEnum
-from typing import Any, TypeVar
+from typing import Any
 
 import pynmea2
 
+from gnss_driver import geoid
 from gnss_driver.attitude import AttitudeConverter, Orientation
 from gnss_driver.epoch import Epoch
-from gnss_driver.sentences import (
-    ASHRATT,
-    ASHRPAT,
-    LLQ,
-    FieldError,
-    date,
-    integer,
-    lat_lon_deg,
-    number,
-    sentence_id,
-    text,
-    zda_date,
-)
+from gnss_driver.grid import GridProjection
+from gnss_driver.plausibility import KNOTS_TO_M_S, FieldReader
+from gnss_driver.sentences import ASHRATT, ASHRPAT, LLQ, sentence_id, text
 from gnss_ins_common.message_fields import UNKNOWN_VARIANCE, fill_navsatfix
 
-T = TypeVar("T")
-
-_KNOTS_TO_M_S = 1852.0 / 3600.0
 #: Default fraction of the LLQ coordinate quality that is horizontal: 2 cm of 2 + 3 cm (notes
 #: §7.2); the project's assumption, the report gives only the sum (7.1).
 LLQ_HORIZONTAL_FRACTION = 0.4
@@ -124,6 +115,8 @@ NAV_SAT_STATUS = {
 #: unknown talkers name no system, and an epoch naming none is taken as GPS.
 SERVICE_GPS = 1
 _TALKER_SERVICE = {"GP": SERVICE_GPS, "GL": 2, "GB": 4, "BD": 4, "GA": 8}
+#: Service bits of the GNS mode letters by position: GPS, GLONASS, Galileo, BeiDou (NMEA 4.10).
+_GNS_MODE_SERVICE = (SERVICE_GPS, 2, 8, 4)
 
 
 class CovarianceType(IntEnum):
@@ -167,6 +160,10 @@ class SolutionConfig:
     velocity_sigma_m_s: float = 0.05
     #: Horizontal share f of the LLQ coordinate quality: σ_h = f·CQ, σ_v = (1 - f)·CQ.
     llq_horizontal_fraction: float = LLQ_HORIZONTAL_FRACTION
+    #: Fewer satellites used than this make a fix NO_FIX (a 3-D fix needs 4).
+    min_satellites: int = 4
+    #: Projected CRS of LLQ's grid position (e.g. "EPSG:25832"); "" = LLQ gives no position.
+    llq_projection: str = ""
 
 
 @dataclass(frozen=True, slots=True)
@@ -212,9 +209,10 @@ class GnssAttitude:
 class SolutionStats:
     """Counters since start-up."""
 
-    empty_fields: int = 0
-    bad_fields: int = 0
     no_fix: int = 0
+    too_few_satellites: int = 0
+    #: Altitudes completed with the geoid model (GGA/GNS without a geoid separation).
+    geoid_altitudes: int = 0
     fixes: dict[str, int] = field(default_factory=dict)
     attitudes: int = 0
     attitude_resets: int = 0
@@ -243,16 +241,18 @@ class EpochSolver:
         self.config = config
         self.attitude = attitude
         self.stats = SolutionStats()
+        self.fields = FieldReader()
+        self._grid = GridProjection(config.llq_projection) if config.llq_projection else None
         self._hdop_gsa: float | None = None
         self._vdop_gsa: float | None = None
 
     def note_gsa(self, gsa: pynmea2.GSA) -> None:
         """Remember the DOPs of a GSA sentence (GSA is timeless and may repeat per epoch)."""
-        hdop = self._read(number, gsa, "hdop")
-        vdop = self._read(number, gsa, "vdop")
-        if hdop is not None and hdop > 0.0:
+        hdop = self.fields.number(gsa, "hdop")
+        vdop = self.fields.number(gsa, "vdop")
+        if hdop is not None:
             self._hdop_gsa = hdop
-        if vdop is not None and vdop > 0.0:
+        if vdop is not None:
             self._vdop_gsa = vdop
 
     def solve(self, epoch: Epoch) -> EpochSolution:
@@ -265,55 +265,30 @@ class EpochSolver:
                 self.stats.no_fix += 1
         return EpochSolution(fix, self._velocity(epoch), self._attitude(epoch), self._date(epoch))
 
-    # ---- field access with counting ----------------------------------------------------------
-    def _read(
-        self,
-        reader: Callable[[pynmea2.NMEASentence, str], T | None],
-        sentence: pynmea2.NMEASentence,
-        name: str,
-    ) -> T | None:
-        try:
-            return reader(sentence, name)
-        except FieldError:
-            self.stats.bad_fields += 1
-            return None
-
-    def _required(
-        self,
-        reader: Callable[[pynmea2.NMEASentence, str], T | None],
-        sentence: pynmea2.NMEASentence,
-        name: str,
-    ) -> T | None:
-        value = self._read(reader, sentence, name)
-        if value is None:
-            self.stats.empty_fields += 1
-        return value
-
-    def _position(self, sentence: pynmea2.NMEASentence) -> tuple[float, float] | None:
-        try:
-            position = lat_lon_deg(sentence)
-        except FieldError:
-            self.stats.bad_fields += 1
-            return None
-        if position is None:
-            self.stats.empty_fields += 1
-        return position
-
     # ---- position ---------------------------------------------------------------------------
     def _fix(self, epoch: Epoch) -> GnssFix | None:
-        gga = epoch.get(pynmea2.GGA)
+        gga: pynmea2.GGA | pynmea2.GNS | None = epoch.get(pynmea2.GGA)
+        if gga is None:
+            gga = epoch.get(pynmea2.GNS)
         pat = epoch.get(ASHRPAT)
         rmc = epoch.get(pynmea2.RMC)
         gll = epoch.get(pynmea2.GLL)
         mode = self._mode_fix_type(rmc) if rmc is not None else None
         if mode is None and gll is not None:
             mode = self._mode_fix_type(gll)
-        if gga is not None:
-            quality = self._required(integer, gga, "gps_qual")
+        if isinstance(gga, pynmea2.GGA):
+            quality = self.fields.integer(gga, "gps_qual", required=True)
             fix_type = _fix_type(quality) if quality is not None else FixType.NO_FIX
             source: pynmea2.NMEASentence = gga
+        elif gga is not None:
+            fix_type, source = _gns_fix_type(text(gga, "mode_indicator")), gga
         elif pat is not None:
             fix_type, source = (FixType.SPS if mode is None else mode), pat
+        elif (llq := epoch.get(LLQ)) is not None and self._grid is not None:
+            quality = self.fields.integer(llq, "gps_qual", required=True)
+            fix_type = FixType.NO_FIX if quality is None else _LLQ_FIX.get(quality, FixType.NO_FIX)
+            source = llq
+            gga = None
         elif rmc is not None or gll is not None:
             source = rmc if rmc is not None else gll
             fix_type = FixType.NO_FIX if mode is None else mode
@@ -323,12 +298,19 @@ class EpochSolver:
         service = _service(epoch)
         if fix_type not in VALID_FIX_TYPES:
             return _no_fix(name, service)
-        position = self._position(source)
+        counted = gga if gga is not None else source if isinstance(source, LLQ) else None
+        sats = self.fields.integer(counted, "num_sats") if counted is not None else None
+        if sats is not None and sats < self.config.min_satellites:
+            self.stats.too_few_satellites += 1
+            return _no_fix(name, service)
+        if isinstance(source, LLQ):
+            position = self._grid_position(source)
+        else:
+            position = self.fields.position(source)
         if position is None:
             return _no_fix(name, service)
-        alt = self._altitude(source)
+        alt = self._altitude(source, *position)
         cov, cov_type, accuracy = self._covariance(epoch, gga, fix_type)
-        sats = self._read(integer, gga, "num_sats") if gga is not None else None
         return GnssFix(fix_type, *position, alt, cov, cov_type, accuracy, name, sats, service)
 
     def _mode_fix_type(self, sentence: pynmea2.NMEASentence) -> FixType | None:
@@ -341,28 +323,47 @@ class EpochSolver:
             return _MODE_FIX.get(mode[0], FixType.NO_FIX)
         return FixType.SPS if status == "A" else None
 
-    def _altitude(self, source: pynmea2.NMEASentence) -> float:
-        if isinstance(source, ASHRPAT):
-            alt = self._required(number, source, "altitude")
+    def _grid_position(self, llq: LLQ) -> tuple[float, float] | None:
+        """LLQ's grid easting and northing [m] through ``llq_projection``."""
+        easting = self.fields.number(llq, "easting", required=True)
+        northing = self.fields.number(llq, "northing", required=True)
+        if easting is None or northing is None or self._grid is None:
+            return None
+        if {text(llq, "easting_unit"), text(llq, "northing_unit")} - {"M", None}:
+            self.fields.reject(llq, "easting_unit")  # only metres
+            return None
+        position = self._grid.to_lat_lon(easting, northing)
+        if position is None:
+            self.fields.reject(llq, "easting")
+        return position
+
+    def _altitude(self, source: pynmea2.NMEASentence, lat_deg: float, lon_deg: float) -> float:
+        if isinstance(source, ASHRPAT | LLQ):
+            name = "height" if isinstance(source, LLQ) else "altitude"
+            alt = self.fields.number(source, name, required=True)
             return _NAN if alt is None else alt
-        if not isinstance(source, pynmea2.GGA):
+        if not isinstance(source, pynmea2.GGA | pynmea2.GNS):
             return _NAN
-        msl = self._required(number, source, "altitude")
-        separation = self._required(number, source, "geo_sep")
-        if msl is None or separation is None:
+        msl = self.fields.number(source, "altitude", required=True)
+        if msl is None:
             return _NAN
+        separation = self.fields.number(source, "geo_sep")
+        if separation is None:
+            self.stats.geoid_altitudes += 1
+            separation = geoid.undulation_m(lat_deg, lon_deg)
         return msl + separation
 
     def _covariance(
-        self, epoch: Epoch, gga: pynmea2.GGA | None, fix_type: FixType
+        self, epoch: Epoch, gga: pynmea2.GGA | pynmea2.GNS | None, fix_type: FixType
     ) -> tuple[tuple[float, ...], CovarianceType, str]:
+        """``gga``: the GGA or GNS of the epoch (its HDOP)."""
         horizontal: tuple[tuple[float, float, float], CovarianceType, str] | None = None
         vertical: tuple[float, CovarianceType] | None = None
         gst = epoch.get(pynmea2.GST)
         if gst is not None:
             horizontal, vertical = self._gst(gst)
         llq = epoch.get(LLQ)
-        cq = self._positive(llq, "coord_quality") if llq is not None else None
+        cq = self.fields.number(llq, "coord_quality") if llq is not None else None
         if cq is not None:
             sigma_h = self.config.llq_horizontal_fraction * cq
             if horizontal is None:
@@ -371,7 +372,8 @@ class EpochSolver:
             if vertical is None:
                 vertical = (cq - sigma_h) ** 2, CovarianceType.DIAGONAL_KNOWN
         if horizontal is None or vertical is None:
-            hdop = self._positive(gga, "horizontal_dil") if gga is not None else None
+            hdop_field = "horizontal_dil" if isinstance(gga, pynmea2.GGA) else "hdop"
+            hdop = self.fields.number(gga, hdop_field) if gga is not None else None
             hdop = hdop or self._hdop_gsa or 1.0
             vdop = self._vdop_gsa or VDOP_PER_HDOP * hdop
             uere = self.config.uere.for_fix(fix_type)
@@ -391,15 +393,15 @@ class EpochSolver:
         tuple[tuple[float, float, float], CovarianceType, str] | None,
         tuple[float, CovarianceType] | None,
     ]:
-        sigma_n = self._positive(gst, "std_dev_latitude")
-        sigma_e = self._positive(gst, "std_dev_longitude")
-        sigma_u = self._positive(gst, "std_dev_altitude")
+        sigma_n = self.fields.number(gst, "std_dev_latitude")
+        sigma_e = self.fields.number(gst, "std_dev_longitude")
+        sigma_u = self.fields.number(gst, "std_dev_altitude")
         vertical = None if sigma_u is None else (sigma_u * sigma_u, CovarianceType.KNOWN)
         if sigma_n is None or sigma_e is None:
             return None, vertical
-        major = self._positive(gst, "std_dev_major")
-        minor = self._positive(gst, "std_dev_minor")
-        orientation = self._read(number, gst, "orientation")
+        major = self.fields.number(gst, "std_dev_major")
+        minor = self.fields.number(gst, "std_dev_minor")
+        orientation = self.fields.number(gst, "orientation")
         if major is None or minor is None or orientation is None:
             diagonal = (sigma_e * sigma_e, sigma_n * sigma_n, 0.0)
             return (diagonal, CovarianceType.DIAGONAL_KNOWN, "GST"), vertical
@@ -414,34 +416,26 @@ class EpochSolver:
         full = (sigma_e * sigma_e, sigma_n * sigma_n, rho * sigma_e * sigma_n)
         return (full, CovarianceType.KNOWN, "GST"), vertical
 
-    def _positive(self, sentence: pynmea2.NMEASentence, name: str) -> float | None:
-        """A strictly positive number field; zero or negative counts as a bad field."""
-        value = self._read(number, sentence, name)
-        if value is not None and value <= 0.0:
-            self.stats.bad_fields += 1
-            return None
-        return value
-
     # ---- velocity ---------------------------------------------------------------------------
     def _velocity(self, epoch: Epoch) -> GnssVelocity | None:
         vtg = epoch.get(pynmea2.VTG)
         rmc = epoch.get(pynmea2.RMC)
         if vtg is not None and text(vtg, "faa_mode") != "N":
-            kmph = self._read(number, vtg, "spd_over_grnd_kmph")
-            knots = self._read(number, vtg, "spd_over_grnd_kts")
-            speed = kmph / 3.6 if kmph is not None else _scaled(knots, _KNOTS_TO_M_S)
-            return self._enu_velocity(speed, self._read(number, vtg, "true_track"), "VTG")
+            kmph = self.fields.number(vtg, "spd_over_grnd_kmph")
+            knots = self.fields.number(vtg, "spd_over_grnd_kts")
+            speed = kmph / 3.6 if kmph is not None else _scaled(knots, KNOTS_TO_M_S)
+            return self._enu_velocity(speed, self.fields.number(vtg, "true_track"), "VTG")
         if rmc is not None and self._mode_fix_type(rmc) in VALID_FIX_TYPES:
-            knots = self._read(number, rmc, "spd_over_grnd")
-            course = self._read(number, rmc, "true_course")
-            return self._enu_velocity(_scaled(knots, _KNOTS_TO_M_S), course, "RMC")
+            knots = self.fields.number(rmc, "spd_over_grnd")
+            course = self.fields.number(rmc, "true_course")
+            return self._enu_velocity(_scaled(knots, KNOTS_TO_M_S), course, "RMC")
         return None
 
     def _enu_velocity(
         self, speed: float | None, course_deg: float | None, source: str
     ) -> GnssVelocity | None:
         if speed is None or (course_deg is None and speed != 0.0):
-            self.stats.empty_fields += 1
+            self.fields.empty_fields += 1
             return None
         course = math.radians(course_deg or 0.0)
         vel = (speed * math.sin(course), speed * math.cos(course), 0.0)
@@ -454,23 +448,25 @@ class EpochSolver:
         sentence: ASHRPAT | ASHRATT | None = epoch.get(ASHRPAT) or epoch.get(ASHRATT)
         if sentence is None:
             hdt = epoch.get(pynmea2.HDT)
-            heading = self._required(number, hdt, "heading") if hdt is not None else None
+            heading = None if hdt is None else self.fields.number(hdt, "heading", required=True)
             if heading is None:
                 return None
             self.stats.attitudes += 1
             return GnssAttitude(self.attitude.convert_heading(heading), "HDT")
-        reset_flag = self._required(integer, sentence, "reset_flag")
+        reset_flag = self.fields.integer(sentence, "reset_flag", required=True)
         if reset_flag is None:
             return None
         if reset_flag != 0:
             self.stats.attitude_resets += 1
             return None
-        angles = [self._required(number, sentence, n) for n in ("heading", "pitch", "roll")]
+        angles = [
+            self.fields.number(sentence, n, required=True) for n in ("heading", "pitch", "roll")
+        ]
         if None in angles:
             return None
         heading, pitch, roll = (float(a or 0.0) for a in angles)
-        mrms = self._read(number, sentence, "mrms")
-        brms = self._read(number, sentence, "brms")
+        mrms = self.fields.number(sentence, "mrms")
+        brms = self.fields.number(sentence, "brms")
         orientation = self.attitude.convert(heading, pitch, roll, mrms, brms)
         self.stats.attitudes += 1
         if orientation.scale > 1.0:
@@ -479,21 +475,27 @@ class EpochSolver:
 
     # ---- date -------------------------------------------------------------------------------
     def _date(self, epoch: Epoch) -> datetime.date | None:
-        zda = epoch.get(pynmea2.ZDA)
-        if zda is not None:
-            try:
-                found = zda_date(zda)
-            except FieldError:
-                self.stats.bad_fields += 1
-                found = None
-            if found is not None:
-                return found
-        for cls in (pynmea2.RMC, LLQ):
+        for cls in (pynmea2.ZDA, pynmea2.RMC, LLQ):
             sentence = epoch.get(cls)
-            found = self._read(date, sentence, "datestamp") if sentence is not None else None
+            found = self.fields.date(sentence) if sentence is not None else None
             if found is not None:
                 return found
         return None
+
+
+#: LLQ GPS quality -> fix type: 1 navigation fix, 2 RTK float, 3 RTK fixed (notes §7.2).
+_LLQ_FIX = {1: FixType.SPS, 2: FixType.RTK_FLOAT, 3: FixType.RTK_FIXED}
+#: GNS mode letters from the best fix to the weakest valid one.
+_GNS_MODE_RANK = "RFPDA"
+
+
+def _gns_fix_type(modes: str | None) -> FixType:
+    """The best fix type among a GNS sentence's per-system mode letters (GPS, GLONASS, Galileo,
+    BeiDou, ...; NMEA 0183 4.10), NO_FIX when none is valid."""
+    for letter in _GNS_MODE_RANK:
+        if modes is not None and letter in modes:
+            return _MODE_FIX[letter]
+    return FixType.NO_FIX
 
 
 def _fix_type(quality: int) -> FixType:
@@ -512,6 +514,10 @@ def _service(epoch: Epoch) -> int:
     bits = 0
     for sentence in epoch.sentences:
         bits |= _TALKER_SERVICE.get(getattr(sentence, "talker", ""), 0)
+        if isinstance(sentence, pynmea2.GNS):
+            modes = text(sentence, "mode_indicator") or ""
+            for letter, bit in zip(modes, _GNS_MODE_SERVICE, strict=False):
+                bits |= bit if letter in _GNS_MODE_RANK else 0
     return bits or SERVICE_GPS
 
 

@@ -51,7 +51,7 @@ def test_leica_epoch_round_trip_in_the_southern_western_hemispheres():
     assert out.fix.accuracy_source == "GST"
     assert out.velocity.vel_enu_m_s == pytest.approx((-2.0, 1.0, 0.0), abs=0.01)
     assert driver.reader.stats.sentences == 6 and not any(driver.reader.stats.rejected().values())
-    assert driver.solver.stats.empty_fields == driver.solver.stats.bad_fields == 0
+    assert driver.solver.fields.empty_fields == driver.solver.fields.bad_fields == 0
 
 
 def test_leica_without_fix():

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import datetime
 import itertools
 import math
@@ -54,24 +55,78 @@ def test_gga_first_order_and_an_epoch_closed_by_idle_time():
     assert driver.flush_idle(T0 + 0.05) == []
     (first,) = driver.flush_idle(T0 + 0.11)
     assert speeds([first]) == [20.0]
-    # Learned: GGA + VTG + LLQ; the next epoch is out as soon as its LLQ is in.
-    (second,) = driver.feed(gga("123411.00") + vtg(21.0) + llq("123411.00"), T0 + 1)
-    assert speeds([second]) == [21.0]
+    # Two epochs closed by the idle line with the same content confirm it: from then on each
+    # epoch is out as soon as its LLQ is in.
+    assert driver.feed(gga("123411.00") + vtg(21.0) + llq("123411.00"), T0 + 1) == []
+    (second,) = driver.flush_idle(T0 + 1.2)
+    (third,) = driver.feed(gga("123412.00") + vtg(22.0) + llq("123412.00"), T0 + 2)
+    assert speeds([second, third]) == [21.0, 22.0]
 
 
-def test_a_sentence_after_its_epoch_closed_is_late_and_the_next_epochs_wait_for_it():
+def hdt(deg: float) -> bytes:
+    return nmea(f"GPHDT,{deg:.1f},T")
+
+
+def zda(hhmmss: str) -> bytes:
+    return nmea(f"GPZDA,{hhmmss},14,11,2023,00,00")
+
+
+def test_idle_time_counts_every_byte_not_only_epoch_sentences():
+    driver = GnssDriver(DriverConfig(epoch_idle_s=0.5))
+    gsv = nmea("GPGSV,3,1,12,01,40,083,46,02,17,308,41,12,07,344,39,14,22,228,45")
+    gst = nmea("GPGST,123410.00,0.006,0.023,0.020,273.6,0.023,0.020,0.031")
+    assert driver.feed(gga("123410.00"), T0) == []
+    for k in range(1, 8):  # a GSV block trickling in for 0.7 s
+        driver.feed(gsv, T0 + 0.1 * k)
+        assert driver.flush_idle(T0 + 0.1 * k + 0.05) == []
+    driver.feed(gst[:20], T0 + 1.1)  # half a sentence is traffic too
+    assert driver.flush_idle(T0 + 1.5) == []
+    driver.feed(gst[20:], T0 + 1.2)
+    (out,) = driver.flush_idle(T0 + 1.71)
+    assert out.fix.accuracy_source == "GST"
+    assert driver.assembler.stats.late_sentences == 0
+
+
+def test_a_sentence_for_a_published_epoch_extends_it_and_the_next_epochs_wait_for_it():
     driver = GnssDriver(DriverConfig())
-    outs = driver.feed(gga("120000.00") + vtg(1.0) + gga("120001.00") + vtg(2.0), T0)
-    # The first epoch closed by the time change, which taught {GGA, VTG}: the second closed
-    # as soon as its VTG was in.
-    assert len(outs) == 2
-    outs = driver.feed(gga("120002.00") + vtg(3.0), T0 + 1)
-    assert len(outs) == 1
-    outs = driver.feed(llq("120002.00"), T0 + 1.1)  # receiver now also sends LLQ: late
-    assert outs == [] and driver.assembler.stats.late_sentences == 1
-    assert driver.feed(gga("120003.00") + vtg(4.0), T0 + 2) == []  # waits for LLQ now
-    (out,) = driver.feed(llq("120003.00"), T0 + 2.1)
-    assert out.fix.accuracy_source == "LLQ"
+    outs = []
+    for k in range(3):
+        outs += driver.feed(gga(f"12000{k}.00") + vtg(1.0 + k), T0 + k)
+    # Epochs 0 and 1 closed by the next GGA confirmed {GGA, VTG}: epoch 2 is out at its VTG.
+    assert len(outs) == 3
+    early = outs[-1]
+    # The receiver also sends HDT and ZDA: they extend epoch 2 instead of being dropped.
+    assert driver.feed(hdt(90.0) + zda("120002.00"), T0 + 2.1) == []
+    (ext,) = driver.feed(gga("120003.00") + vtg(4.0) + hdt(91.0) + zda("120003.00"), T0 + 3)
+    assert ext.extends and ext.stamp_s == early.stamp_s and ext.utc == early.utc
+    assert ext.fix is None and ext.velocity is None  # published with the early close
+    assert ext.attitude.source == "HDT"
+    # Epoch 3 waited for HDT and ZDA; closed by epoch 4's GGA it confirms the new content.
+    third, fourth = driver.feed(gga("120004.00") + vtg(5.0) + hdt(92.0) + zda("120004.00"), T0 + 4)
+    assert speeds([third, fourth]) == [4.0, 5.0]
+    assert third.attitude is not None and fourth.attitude is not None
+    stats = driver.assembler.stats
+    assert (stats.late_sentences, stats.extended_epochs, driver.stats.extensions) == (0, 1, 1)
+
+
+def test_a_partial_first_epoch_does_not_teach_its_content():
+    def gll(t: str) -> bytes:
+        return nmea(f"GPGLL,5702.12345,N,00959.54321,E,{t},A,A")
+
+    def rmc(t: str) -> bytes:
+        return nmea(f"GPRMC,{t},A,5702.12345,N,00959.54321,E,010.0,090.0,141123,,,A")
+
+    driver = GnssDriver(DriverConfig())
+    # The stream starts in the middle of an epoch: only its GLL arrives whole.
+    outs = driver.feed(gll("120000.00"), T0)
+    for k in range(1, 5):
+        t = f"12000{k}.00"
+        outs += driver.feed(gll(t) + gga(t) + rmc(t), T0 + k)
+    # Epochs 1 and 2 are closed by the next GLL (no early close taught by epoch 0), 3 and 4 at
+    # their RMC: every epoch has its GGA.
+    assert [o.fix.position_source for o in outs] == ["GLL"] + ["GGA"] * 4
+    assert all(o.velocity is not None for o in outs[1:])
+    assert driver.assembler.stats.late_sentences == 0
 
 
 def test_duplicates_are_dropped_and_counted():
@@ -210,3 +265,25 @@ def test_any_chunking_and_sentence_order_gives_one_output_per_epoch(sizes, order
     assert [round(o.utc.utc_s % 60) for o in outputs] == list(range(epochs))
     assert speeds(outputs) == [10.0 + k for k in range(epochs)]
     assert driver.assembler.stats.late_sentences == 0
+
+
+def test_use_gnss_time_stamps_with_the_utc_and_still_measures_the_host_offset():
+    baud, latency, offset = 9600, 0.05, 0.0423  # host = UTC + 42.3 ms at the first byte
+    config = DriverConfig(baud=baud, latency_s=latency)
+    envelope, gnss = GnssDriver(config), GnssDriver(dataclasses.replace(config, use_gnss_time=True))
+    compared = 0
+    for k in range(12):
+        t = f"1200{k:02d}.00"
+        first_byte = 1_415_966_400.0 + k + offset
+        wire = 0
+        for sentence in (vtg(10.0), gga(t), llq(t, "111414")):
+            wire += len(sentence)
+            arrival = first_byte + wire * 10 / baud + 0.003 * (k % 3)
+            for a, b in zip(
+                envelope.feed(sentence, arrival), gnss.feed(sentence, arrival), strict=True
+            ):
+                assert b.stamp_s == b.utc.utc_s  # the UTC instant itself
+                assert b.host_s == a.host_s == a.stamp_s  # the envelope as before
+                compared += 1
+    assert compared == 12
+    assert gnss.clock_offset_s() == pytest.approx(offset, abs=1e-6)

@@ -108,7 +108,7 @@ def test_leica_fix_velocity_covariance_and_stamps():
         collector = _run(
             dev,
             Receiver.LEICA,
-            lambda c: c.count("gnss/fix") >= 3 and c.count("/diagnostics") >= 3,
+            lambda c: c.count("gnss/fix") >= 4 and c.count("/diagnostics") >= 3,
             12.0,
         )
     fixes, utc_of = collector.get("gnss/fix"), _utc_by_stamp(collector)
@@ -145,10 +145,11 @@ def test_leica_fix_velocity_covariance_and_stamps():
     assert int(values["bad_checksum"]) == int(values["late_sentences"]) == 0
     # Host minus UTC: the emulator's 20 ms output delay (plus the smallest receive delay).
     assert float(values["clock_offset_ms"]) == pytest.approx(20.0, abs=10.0)
-    # After the first epoch (ended by the idle time-out) each is published as soon as its LLQ is
-    # in, ~0.21 s after its UTC (~190 bytes at 9600 baud), not 0.5 s idle or 1 s later.
+    # After two epochs ended by the idle time-out (their same content is then confirmed) each
+    # is published as soon as its LLQ is in, ~0.21 s after its UTC (~190 bytes at 9600 baud),
+    # not 0.5 s idle or 1 s later.
     received = collector.receive_times["gnss/fix"]
-    assert all(t - stamp_s(f) < 0.6 for f, t in zip(fixes[1:], received[1:], strict=True))
+    assert all(t - stamp_s(f) < 0.6 for f, t in zip(fixes[2:], received[2:], strict=True))
     assert float(values["latency_ms"]) > 190
 
 
@@ -193,6 +194,74 @@ def test_adu5_setup_commands_and_vehicle_attitude(offsets_in_receiver):
     assert values["setup"] == "7 ACK"
     assert values["date_source"] == "host"
     assert float(values["rate_hz"]) == pytest.approx(5.0, rel=0.3)
+
+
+def test_adu5_that_never_answers_loses_no_epoch_to_the_setup():
+    recorder = Recorder()
+    sent: list[tuple[float, float]] = []  # (UTC, host time written)
+    config = EmulatorConfig(receiver=Receiver.ADU5, answer_commands=False)
+
+    def on_epoch(utc_s: float, truth: Truth) -> None:
+        recorder(utc_s, truth)
+        sent.append((utc_s, time.time()))
+
+    with GnssEmulator(constant_velocity(VELOCITY), config, on_epoch=on_epoch) as dev:
+        node = _node(dev, Receiver.ADU5)
+        collector = Collector(TOPICS)
+        try:
+            with spinning(node, collector.node):
+                assert wait_for(lambda: dev.commands, 10.0)
+                opened = time.time()  # the port opened before the first command came
+                # 7 commands x 0.5 s without an answer, then 1 s more.
+                assert wait_for(lambda: len(dev.commands) == 7, 6.0)
+                time.sleep(1.0)
+                end = time.time()
+                time.sleep(0.3)
+        finally:
+            node.close()
+            node.destroy_node()
+            collector.node.destroy_node()
+    expected = {round(utc, 2) for utc, written in sent if opened + 0.2 < written < end}
+    assert len(expected) >= 15  # the set-up takes 3.5 s at 5 Hz
+    published = set(_utc_by_stamp(collector).values())
+    published = {round(u, 2) for u in published}
+    assert expected <= published, sorted(expected - published)
+    attitudes = {round(stamp_s(m), 6) for m in collector.get("gnss/attitude")}
+    utc_of = _utc_by_stamp(collector)
+    assert expected <= {round(utc_of[s], 2) for s in attitudes}
+    values = diagnostic_values(collector.get("/diagnostics")[-1])
+    assert values["setup"] == "7 no answer"
+
+
+def test_use_gnss_time_stamps_fixes_with_the_sentences_utc():
+    recorder = Recorder()
+    # The host clock is the UTC source here; the receiver's output delay is 60 ms.
+    config = EmulatorConfig(receiver=Receiver.LEICA, output_latency_s=0.06)
+    with GnssEmulator(constant_velocity(VELOCITY), config, on_epoch=recorder) as dev:
+        collector = _run(
+            dev,
+            Receiver.LEICA,
+            lambda c: c.count("gnss/fix") >= 4 and c.count("/diagnostics") >= 3,
+            12.0,
+            use_gnss_time=True,
+            gnss_time_offset_warn=0.03,
+        )
+    with recorder.lock:
+        sent = set(recorder.truth)
+    fixes = collector.get("gnss/fix")
+    for fix in fixes:
+        utc = round(stamp_s(fix), 2)
+        assert utc in sent and abs(stamp_s(fix) - utc) < 1e-3  # the sentence's UTC, < 1 ms
+    # TimeReference keeps the envelope mapping as without use_gnss_time: the UTC on the host
+    # clock (60 ms output delay) minus the ``latency`` parameter (LATENCY).
+    for ref in collector.get("gnss/time_reference")[3:]:
+        utc = ref.time_ref.sec + ref.time_ref.nanosec * 1e-9
+        assert stamp_s(ref) - utc == pytest.approx(0.06 - LATENCY, abs=0.015)
+    last = collector.get("/diagnostics")[-1]
+    values = diagnostic_values(last)
+    assert values["time_mode"] == "gnss"
+    assert float(values["clock_offset_ms"]) == pytest.approx(60.0, abs=15.0)
+    assert last.status[0].level == b"\x01" and "host - UTC" in last.status[0].message
 
 
 def test_custom_setup_commands_and_a_rejected_one():
@@ -295,6 +364,8 @@ def test_adu5_fault_run():
         ("adu5_vectors", [0.0, 1.0], "9 values"),
         ("attitude_sigma_rpy", [0.1, 0.1], "3 values"),
         ("adu5_port", "C", "not one of"),
+        ("llq_projection", "EPSG:4326", "not a projected CRS"),
+        ("llq_projection", "EPSG:0", "unknown coordinate reference system"),
     ],
 )
 def test_bad_parameters_are_rejected_with_a_clear_message(name, value, fragment):

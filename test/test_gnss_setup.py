@@ -91,18 +91,26 @@ class FakeAdu5Port:
         chunk, self._pending = self._pending[:size], self._pending[size:]
         return chunk
 
+    @property
+    def in_waiting(self) -> int:
+        return len(self._pending)
+
 
 def test_run_setup_reads_ack_nak_and_silence():
     port = FakeAdu5Port(
         [frame_sentence("PASHR,ACK"), frame_sentence("PASHR,NAK"), b"$PASHR,ACK*3E\r\n"]
     )
     log: list[str] = []
+    passed_on: list[bytes] = []
     results = run_setup(
         port,
         ["$PASHS,ELM,15", "$PASHS,ELM,99", "$PASHS,NME,PER,0.2"],
         answer_timeout_s=0.05,
         log=log.append,
+        on_data=passed_on.append,
     )
+    # Everything read while waiting is passed on: the streamed GGAs too.
+    assert b"".join(passed_on).count(frame_sentence("GPGGA,,,,,,0,00,99.99,,,,,,")) == 3
     assert [r.answer for r in results] == [Answer.ACK, Answer.NAK, Answer.NONE]  # bad checksum
     assert port.written[0] == b"$PASHS,ELM,15\r\n"
     assert log == ["$PASHS,ELM,15: ACK", "$PASHS,ELM,99: NAK", "$PASHS,NME,PER,0.2: no answer"]

@@ -135,11 +135,43 @@ def test_no_fix_never_carries_a_position(bodies):
     assert solver.stats.no_fix == 1
 
 
-def test_missing_geoid_separation_gives_unknown_altitude_and_counts_an_empty_field():
+def test_missing_geoid_separation_is_taken_from_egm96():
     (solution, solver) = solve("GPGGA,123519.00,4807.038,N,01131.000,W,4,10,0.9,545.4,M,,M,,")
     assert solution.fix.fix_type is FixType.RTK_FIXED
-    assert math.isnan(solution.fix.alt_m)
-    assert solver.stats.empty_fields == 1
+    # EGM96 N at 48.1173 N, 11.5167 W: 54.262 m on the 5' grid of the egm96 package.
+    assert solution.fix.alt_m == pytest.approx(545.4 + 54.262, abs=0.05)
+    assert solver.stats.geoid_altitudes == 1 and solver.fields.empty_fields == 0
+    (no_msl, _) = solve("GPGGA,123519.00,4807.038,N,01131.000,W,4,10,0.9,,M,,M,,")
+    assert math.isnan(no_msl.fix.alt_m)
+
+
+@pytest.mark.parametrize(
+    ("modes", "fix_type", "service"),
+    [
+        ("AAN", FixType.SPS, 1 | 2),  # GPS and GLONASS autonomous, Galileo none
+        ("DAA", FixType.DGPS, 1 | 2 | 8),
+        ("NRNF", FixType.RTK_FIXED, 2 | 4),  # GLONASS RTK fixed, BeiDou float
+        ("NNN", FixType.NO_FIX, 1),
+    ],
+)
+def test_gns_is_a_position_source_with_its_mode_letters(modes, fix_type, service):
+    (solution, _) = solve(
+        f"GNGNS,123519.00,4807.038,N,01131.000,W,{modes},12,0.9,545.4,46.9,,",
+        "GNGLL,4807.038,N,01131.000,W,123519.00,A,A",
+    )
+    fix = solution.fix
+    assert fix.fix_type is fix_type and fix.service == service
+    if fix_type is not FixType.NO_FIX:
+        assert fix.position_source == "GNS" and fix.satellites == 12
+        assert fix.alt_m == pytest.approx(545.4 + 46.9)
+        # HDOP 0.9 of the GNS x UERE.
+        uere = UereTable().for_fix(fix_type)
+        assert cov(fix)[0, 0] == pytest.approx((0.9 * uere) ** 2 / 2)
+
+
+def test_gns_with_too_few_satellites_is_no_fix():
+    (solution, solver) = solve("GNGNS,123519.00,4807.038,N,01131.000,W,AA,03,0.9,545.4,46.9,,")
+    assert solution.fix.fix_type is FixType.NO_FIX and solver.stats.too_few_satellites == 1
 
 
 def test_rmc_position_with_mode_letters_and_pat_position():
@@ -189,7 +221,7 @@ def test_rmc_velocity_knots_and_invalid_or_incomplete_velocities():
     assert rmc.velocity.vel_enu_m_s == pytest.approx((5.144444, 0.0, 0.0), abs=1e-6)
     assert solve("GPVTG,,T,,M,,N,,K,N")[0].velocity is None
     (no_course, solver) = solve("GPVTG,,T,,M,003.0,N,005.6,K,A")
-    assert no_course.velocity is None and solver.stats.empty_fields == 1
+    assert no_course.velocity is None and solver.fields.empty_fields == 1
     (standing, _) = solve("GPVTG,,T,,M,000.0,N,000.0,K,A")
     assert standing.velocity.vel_enu_m_s == (0.0, 0.0, 0.0)
 
@@ -265,3 +297,49 @@ def test_hdt_gives_heading_only():
     assert np.diag(c) == pytest.approx(
         [UNKNOWN_VARIANCE, UNKNOWN_VARIANCE, math.radians(0.07) ** 2]
     )
+
+
+def utm_northing_on_the_central_meridian(lat_deg: float) -> float:
+    """k0 x the GRS80 meridian arc (the classical series; independent of PROJ)."""
+    a, f, k0 = 6_378_137.0, 1 / 298.257222101, 0.9996
+    e2 = f * (2 - f)
+    e4, e6 = e2 * e2, e2 * e2 * e2
+    phi = math.radians(lat_deg)
+    arc = a * (
+        (1 - e2 / 4 - 3 * e4 / 64 - 5 * e6 / 256) * phi
+        - (3 * e2 / 8 + 3 * e4 / 32 + 45 * e6 / 1024) * math.sin(2 * phi)
+        + (15 * e4 / 256 + 45 * e6 / 1024) * math.sin(4 * phi)
+        - (35 * e6 / 3072) * math.sin(6 * phi)
+    )
+    return k0 * arc
+
+
+def test_llq_grid_position_through_the_configured_projection():
+    northing = utm_northing_on_the_central_meridian(57.0)
+    body = f"GPLLQ,123519.00,051005,500000.000,M,{northing:.3f},M,3,12,0.025,76.69,M"
+    solver = EpochSolver(
+        SolutionConfig(llq_projection="EPSG:25832"), AttitudeConverter(AttitudeConfig())
+    )
+    (solution, _) = solve(body, solver=solver)
+    fix = solution.fix
+    # ETRS89 / UTM zone 32N: easting 500 km is the 9 deg E central meridian.
+    assert (fix.lat_deg, fix.lon_deg) == pytest.approx((57.0, 9.0), abs=1e-7)
+    assert fix.fix_type is FixType.RTK_FIXED and fix.position_source == "LLQ"
+    assert fix.alt_m == pytest.approx(76.69) and fix.satellites == 12
+    assert fix.accuracy_source == "LLQ"
+    # Without a projection LLQ gives no position; GGA wins over LLQ when both are there.
+    (no_grid, _) = solve(body)
+    assert no_grid.fix is None
+    (both, _) = solve(GGA_FLOAT, body, solver=solver)
+    assert both.fix.position_source == "GGA"
+
+
+def test_llq_grid_position_outside_the_projection_or_in_feet_is_rejected():
+    solver = EpochSolver(
+        SolutionConfig(llq_projection="EPSG:25832"), AttitudeConverter(AttitudeConfig())
+    )
+    (far, _) = solve("GPLLQ,123519.00,051005,9e7,M,9e7,M,3,12,0.025,76.69,M", solver=solver)
+    (feet, _) = solve("GPLLQ,123519.00,051005,5e5,f,6e6,f,3,12,0.025,76.69,M", solver=solver)
+    assert far.fix.fix_type is FixType.NO_FIX and feet.fix.fix_type is FixType.NO_FIX
+    assert solver.fields.rejected["LLQ.easting"] == 1
+    assert solver.fields.rejected["LLQ.easting_unit"] == 1

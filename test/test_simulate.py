@@ -280,7 +280,7 @@ def test_gnss_messages_are_what_gnss_node_publishes():
             solution = receiver.solve(utc_s, epoch)
             utc = UtcTime(utc_s, DateSource.RECEIVER)
             stub._publish(
-                [EpochOutput(utc_s, utc, solution.fix, solution.velocity, solution.attitude)]
+                [EpochOutput(utc_s, utc_s, utc, solution.fix, solution.velocity, solution.attitude)]
             )
         wanted = (
             [("_att_pub", T.GNSS_ATTITUDE)]
