@@ -195,8 +195,8 @@ def provisional_lines(provisional: ProvisionalBiases) -> list[str]:
             else f"{yaml_number(cover.floor.value * k)} (last point, the curve still falls)"
         )
         lines.append(
-            f"  {axis.name}: B {floor}, sigma at T {_term_text(cover.sigma_fit, unit)} -> {yaml_number(cover.sigma * k)}"
-            f" {unit.label}; {needed}"
+            f"  {axis.name}: B {floor}, sigma at T {_term_text(cover.sigma_fit, unit)}"
+            f" -> {yaml_number(cover.sigma * k)} {unit.label}; {needed}"
         )
     return lines
 
