@@ -72,6 +72,9 @@ class TriadErrors:
     bias, bias_sigma: turn-on bias, fixed part and std of the per-power-up draw [u].
     scale_pos, scale_neg: scale-factor error for positive/negative input [fraction];
     scale_sigma: std of a per-power-up draw added to both [fraction].
+    scale_large_pos, scale_large_neg, large_input: the scale factors for inputs of magnitude
+    at least large_input [u] (Aalborg report §9.1.1: one value at ±0.2 g, another at ±1 g;
+    inf: one range), with the same draw.
     misalignment_rad: off-diagonal A[i][j] = sensitivity of axis i to input j [rad];
     misalignment_sigma_rad: std of a per-power-up draw of every off-diagonal element.
     resolution: one output count [u] (0 = no quantisation); full_scale: largest magnitude [u];
@@ -89,6 +92,9 @@ class TriadErrors:
     scale_pos: Vec3 = _ZERO3
     scale_neg: Vec3 = _ZERO3
     scale_sigma: Vec3 = _ZERO3
+    scale_large_pos: Vec3 = _ZERO3
+    scale_large_neg: Vec3 = _ZERO3
+    large_input: float = math.inf
     misalignment_rad: Mat3 = _ZERO33
     misalignment_sigma_rad: float = 0.0
     resolution: float = 0.0
@@ -128,21 +134,26 @@ def _deg_s_per_g(value: float) -> float:
     return deg_s(value) / STANDARD_GRAVITY_M_S2
 
 
-#: Crossbow IMU400CC-100 (Aalborg notes). Datasheet §1.2: range ±100 °/s / ±2 g, RW < 2.25 °/√h,
-#: < 0.1 m/s/√h. Measured: white noise from the per-axis σ of (7.14) with the bandwidths of §1.3
-#: (independent samples at 25 Hz gyro / 75 Hz accelerometer) as in (5.21), RW = 60σ/√BW, which
-#: gives the report's 2.98 °/√h on average; turn-on biases and their day-to-day std from §3.3
-#: (Fig. 5-36 gyro, Fig. 5-34 accelerometer, both S2); asymmetric scale factors Fig. 5-30 (gyro D2,
-#: ±15 °/s) and Fig. 5-33 (accelerometer S1 mod, ±0.2 g); g-dependent gyro bias Fig. 5-37 (rows =
-#: gyro axis, units (°/s)/g; both readings of the garbled header are within their σ). Bias
-#: instability: no datasheet value; the std of the six field standstill means (Fig. 9-9) for the
-#: gyros and of the 30-min tube-level setups (Fig. 5-28) for the accelerometers, with an assumed
-#: 300 s correlation time (the drives were 4 min apart). Counts and range from §2.4: 150/32768 °/s
-#: and 3/32768 g per count, ±150 °/s and ±3 g readable. Misalignment was not measured (§3.4: ignored
-#: for MEMS). Noise bandwidths 25 Hz / 75 Hz (§1.2, the bandwidths (5.21) divides by, §1.3).
-#: Temperature about 28 °C on the drives (§7.1.3, Fig. 8-3); the ±0.5 °C power-up spread and the
-#: drift to within ±1 °C over 30 min are assumptions (the unit stayed within 24-28 °C, §4).
-#: Axes are imu_link FLU; the driver owns the device's own sign conventions.
+#: Crossbow IMU400CC-100 (Aalborg notes). Datasheet §1.2: range ±100 °/s / ±2 g, RW < 2.25 °/√h, <
+#: 0.1 m/s/√h. Measured: white noise from the per-axis σ of (7.14) with the bandwidths of §1.3
+#: (independent samples at 25 Hz gyro / 75 Hz accelerometer) as in (5.21), RW = 60σ/√BW, which gives
+#: the report's 2.98 °/√h on average; turn-on biases and their day-to-day std from §3.3 (Fig. 5-36
+#: gyro, Fig. 5-34 accelerometer, both S2); asymmetric scale factors Fig. 5-30 (gyro D2, ±15 °/s)
+#: and Fig. 5-33 (accelerometer S1 mod, ±0.2 g), the accelerometers' at ±1 g (S2, symmetric, Fig.
+#: 5-35) from IMU400CC_LARGE_INPUT_MG on (§9.1.1); g-dependent gyro bias Fig. 5-37 (rows = gyro
+#: axis, units (°/s)/g; both readings of the garbled header are within their σ). Bias instability:
+#: no datasheet value; the std of the six field standstill means (Fig. 9-9) for the gyros and of the
+#: 30-min tube-level setups (Fig. 5-28) for the accelerometers, with an assumed 300 s correlation
+#: time (the drives were 4 min apart). Counts and range from §2.4: 150/32768 °/s and 3/32768 g per
+#: count, ±150 °/s and ±3 g readable. Misalignment was not measured (§3.4: ignored for MEMS). Noise
+#: bandwidths 25 Hz / 75 Hz (§1.2, the bandwidths (5.21) divides by, §1.3). Temperature about 28 °C
+#: on the drives (§7.1.3, Fig. 8-3); the ±0.5 °C power-up spread and the drift to within ±1 °C over
+#: 30 min are assumptions (the unit stayed within 24-28 °C, §4). Axes are imu_link FLU; the driver
+#: owns the device's own sign conventions.
+#: Input size [mg] from which the IMU400CC's accelerometers take their ±1 g scale: the report
+#: corrects by input size (§9.1.1) without stating where it switches; the project takes the
+#: middle of its two calibration inputs, 0.2 g and 1 g.
+IMU400CC_LARGE_INPUT_MG = 600.0
 IMU400CC = ImuProfile(
     name="imu400cc",
     rate_hz=134.0,
@@ -168,6 +179,9 @@ IMU400CC = ImuProfile(
         bias_sigma=_each(mg, 0.2, 0.3, 0.2),
         scale_pos=_each(percent, 0.0652, 0.0309, -0.0202),
         scale_neg=_each(percent, 0.0172, 0.0340, 0.0846),
+        scale_large_pos=_each(percent, -0.2953, -0.0803, -0.0002),
+        scale_large_neg=_each(percent, -0.2953, -0.0803, -0.0002),
+        large_input=mg(IMU400CC_LARGE_INPUT_MG),
         resolution=mg(3000.0 / 32768.0),
         full_scale=mg(3000.0),
         bandwidth_hz=75.0,
@@ -270,6 +284,8 @@ class _TriadModel:
         scale_draw = np.array(e.scale_sigma) * turn_on.standard_normal(3)
         self.scale_pos = np.array(e.scale_pos) + scale_draw
         self.scale_neg = np.array(e.scale_neg) + scale_draw
+        self.scale_large_pos = np.array(e.scale_large_pos) + scale_draw
+        self.scale_large_neg = np.array(e.scale_large_neg) + scale_draw
         off_diagonal = 1.0 - np.eye(3)
         self.misalignment = (
             np.array(e.misalignment_rad)
@@ -293,7 +309,11 @@ class _TriadModel:
 
     def apply(self, truth: FloatArray, dt_s: FloatArray, extra: FloatArray) -> FloatArray:
         """Measured values (n, 3) for true inputs (n, 3); extra is added before quantisation."""
-        scale = np.where(truth >= 0.0, self.scale_pos, self.scale_neg)
+        scale = np.where(
+            np.abs(truth) >= self.errors.large_input,
+            np.where(truth >= 0.0, self.scale_large_pos, self.scale_large_neg),
+            np.where(truth >= 0.0, self.scale_pos, self.scale_neg),
+        )
         out = (
             truth * (1.0 + scale)
             + truth @ self.misalignment.T
