@@ -6,7 +6,8 @@ report's numbers, asserts nothing (docs/accuracy.md quotes the output).
    initial state, with only the IMU400CC's random errors (white noise, band-limited as the
    device; the Gauss-Markov bias instability, drawn stationary at the start; quantisation): no
    turn-on bias, scale factor or g-dependence. Mean horizontal and Down deviation over RUNS runs
-   at 5...180 s; the report used 1000 pieces of 180 s of its 50 h static record.
+   at 5...180 s; the report used 1000 pieces of 180 s of its 50 h static record. Then the white
+   noise alone, at the profile's density and at WHITE_SCALE_FIT times it.
 2. Free-inertial replay (report §9.1.3-§9.1.5, calibrations 03-05): SEEDS simulated test-pattern
    drives (60 s standstill, 180 s of urban driving) of the imu400cc profile with Leica RTK and
    ADU5, ``gnss_ins replay --free-inertial 60`` with the shipped calibration
