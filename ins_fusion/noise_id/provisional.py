@@ -20,8 +20,9 @@ nothing, the tool writes what the record supports, marked as provisional:
   than the truth, and
 - the node's σ: the larger of B and σ_fit's upper limit, a Gauss-Markov bias that covers both
   the floor of the curve (a Gauss-Markov hump peaks at 0.617 σ, the floor reads 0.664 B) and
-  the fit's interval. On the simulated IMU400CC (bench/bench_allan.py, docs/allan.md §6) 40 min
-  give 0.7-2 times the true σ for the gyros and about 0.9 for the accelerometers;
+  the fit's interval. On 40 min of the simulated IMU400CC (bench/bench_allan_provisional.py,
+  docs/allan.md §6) that is 0.5-3.7 times the true σ for the gyros (median 1.0-1.9) and
+  0.86-1.05 for the accelerometers;
 - the record length that would pin σ and T (analysis.needed_record_s for the node's noise).
 """
 
