@@ -112,15 +112,11 @@ class TriadCalibration:
         x = measured[0] - self.bias[0] - extra_bias[0]
         y = measured[1] - self.bias[1] - extra_bias[1]
         z = measured[2] - self.bias[2] - extra_bias[2]
+        pattern = (x < 0.0) | (y < 0.0) << 1 | (z < 0.0) << 2
         big = self.large_input
-        m = self._inverses[
-            (x < 0.0)
-            | (y < 0.0) << 1
-            | (z < 0.0) << 2
-            | (abs(x) >= big) << 3
-            | (abs(y) >= big) << 4
-            | (abs(z) >= big) << 5
-        ]
+        if big != math.inf:
+            pattern |= (abs(x) >= big) << 3 | (abs(y) >= big) << 4 | (abs(z) >= big) << 5
+        m = self._inverses[pattern]
         return (
             m[0] * x + m[1] * y + m[2] * z,
             m[3] * x + m[4] * y + m[5] * z,
