@@ -134,22 +134,22 @@ def _deg_s_per_g(value: float) -> float:
     return deg_s(value) / STANDARD_GRAVITY_M_S2
 
 
-#: Crossbow IMU400CC-100 (Aalborg notes). Datasheet §1.2: range ±100 °/s / ±2 g, RW < 2.25 °/√h, <
-#: 0.1 m/s/√h. Measured: white noise from the per-axis σ of (7.14) with the bandwidths of §1.3
-#: (independent samples at 25 Hz gyro / 75 Hz accelerometer) as in (5.21), RW = 60σ/√BW, which gives
-#: the report's 2.98 °/√h on average; turn-on biases and their day-to-day std from §3.3 (Fig. 5-36
-#: gyro, Fig. 5-34 accelerometer, both S2); asymmetric scale factors Fig. 5-30 (gyro D2, ±15 °/s)
-#: and Fig. 5-33 (accelerometer S1 mod, ±0.2 g), the accelerometers' at ±1 g (S2, symmetric, Fig.
-#: 5-35) from IMU400CC_LARGE_INPUT_MG on (§9.1.1); g-dependent gyro bias Fig. 5-37 (rows = gyro
-#: axis, units (°/s)/g; both readings of the garbled header are within their σ). Bias instability:
-#: no datasheet value; the std of the six field standstill means (Fig. 9-9) for the gyros and of the
-#: 30-min tube-level setups (Fig. 5-28) for the accelerometers, with an assumed 300 s correlation
-#: time (the drives were 4 min apart). Counts and range from §2.4: 150/32768 °/s and 3/32768 g per
-#: count, ±150 °/s and ±3 g readable. Misalignment was not measured (§3.4: ignored for MEMS). Noise
-#: bandwidths 25 Hz / 75 Hz (§1.2, the bandwidths (5.21) divides by, §1.3). Temperature about 28 °C
-#: on the drives (§7.1.3, Fig. 8-3); the ±0.5 °C power-up spread and the drift to within ±1 °C over
-#: 30 min are assumptions (the unit stayed within 24-28 °C, §4). Axes are imu_link FLU; the driver
-#: owns the device's own sign conventions.
+#: Crossbow IMU400CC-100 (Aalborg notes). Datasheet §1.2: range ±100 °/s / ±2 g, RW < 2.25 °/√h,
+#: < 0.1 m/s/√h. Measured: white noise from the per-axis σ of (7.14) with the bandwidths of §1.3
+#: (independent samples at 25 Hz gyro / 75 Hz accelerometer) as in (5.21), RW = 60σ/√BW, which
+#: gives the report's 2.98 °/√h on average; turn-on biases and their day-to-day std from §3.3
+#: (Fig. 5-36 gyro, Fig. 5-34 accelerometer, both S2); asymmetric scale factors Fig. 5-30 (gyro D2,
+#: ±15 °/s) and Fig. 5-33 (accelerometer S1 mod, ±0.2 g); g-dependent gyro bias Fig. 5-37 (rows =
+#: gyro axis, units (°/s)/g; both readings of the garbled header are within their σ). Bias
+#: instability: no datasheet value; the std of the six field standstill means (Fig. 9-9) for the
+#: gyros and of the 30-min tube-level setups (Fig. 5-28) for the accelerometers, with an assumed
+#: 300 s correlation time (the drives were 4 min apart). Counts and range from §2.4: 150/32768 °/s
+#: and 3/32768 g per count, ±150 °/s and ±3 g readable. Misalignment was not measured (§3.4: ignored
+#: for MEMS). Noise bandwidths 25 Hz / 75 Hz (§1.2, the bandwidths (5.21) divides by, §1.3).
+#: Temperature about 28 °C on the drives (§7.1.3, Fig. 8-3); the ±0.5 °C power-up spread and the
+#: drift to within ±1 °C over 30 min are assumptions (the unit stayed within 24-28 °C, §4).
+#: Axes are imu_link FLU; the driver owns the device's own sign conventions. Accelerometer scale
+#: from IMU400CC_LARGE_INPUT_MG on: the ±1 g values of S2 (symmetric, Fig. 5-35; §9.1.1).
 #: Input size [mg] from which the IMU400CC's accelerometers take their ±1 g scale: the report
 #: corrects by input size (§9.1.1) without stating where it switches; the project takes the
 #: middle of its two calibration inputs, 0.2 g and 1 g.
