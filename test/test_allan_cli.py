@@ -55,14 +55,44 @@ def test_white_noise_from_a_static_bag(bag, tmp_path, capsys):
     assert "# record: 300.0 s, 40200 samples at 134.000 Hz (0 missing)" in text
 
 
-def test_bias_instability_needs_a_longer_record(bag, tmp_path, capsys):
+def test_strict_terms_refuse_a_bias_the_record_does_not_pin(bag, tmp_path, capsys):
     output = tmp_path / "noise.yaml"
-    code, out, err = _allan(capsys, bag, "-o", output)
+    code, out, err = _allan(capsys, bag, "--terms", "white,bias", "-o", output)
     assert code == 2
     assert "ARW N" in out  # the table is printed all the same
     assert "does not give the requested terms (white, bias)" in err
     assert "bias instability" in err and "no parameter file written" in err
     assert not output.exists()
+
+
+@pytest.fixture(scope="module")
+def bag_40_min(tmp_path_factory):
+    path = tmp_path_factory.mktemp("allan") / "static40"
+    write_imu_bag(path, static_record(IMU400CC, 2400.0, seed=10, band_limited=True))
+    return path
+
+
+def test_a_40_min_record_gives_a_provisional_bias(bag_40_min, tmp_path, capsys):
+    """Issue 14: a user's 40 min static record writes a noise file: white noise within 5 %, the
+    bias instability within a factor 2 of the simulated unit's, marked provisional, with the
+    record length that would pin it."""
+    output = tmp_path / "noise.yaml"
+    code, _, err = _allan(capsys, bag_40_min, "-o", output)
+    assert code == 0, err
+    loaded = load_yaml(output, "ins_fusion_node", PARAMETERS)
+    assert loaded["imu_noise.gyro_arw"] == pytest.approx([2.82, 2.75, 3.30], rel=0.05)
+    assert loaded["imu_noise.accel_vrw"] == pytest.approx([0.0201, 0.0263, 0.0249], rel=0.05)
+    gyro = np.array(loaded["imu_noise.gyro_bias_instability"]) / [10.8, 6.84, 18.4]  # deg/h
+    accel = np.array(loaded["imu_noise.accel_bias_instability"]) / 0.4  # mg
+    assert np.all((np.concatenate([gyro, accel]) > 0.5) & (np.concatenate([gyro, accel]) < 2.0))
+    # T: the hump of the longest cluster time the record gives (480 s / 1.89).
+    assert loaded["imu_noise.bias_correlation_time"] == pytest.approx(254.0, rel=0.01)
+    text = output.read_text()
+    assert "# PROVISIONAL bias instability: this record does not pin it on 6 axes" in text
+    assert text.count("; PROVISIONAL (above)") == 3
+    for name in ("gyro x", "gyro y", "gyro z", "accel x", "accel y", "accel z"):
+        assert f"warning: {name}: B " in err
+    assert err.count("of record would pin it") == 6
 
 
 def test_missing_topic_wrong_type_and_bad_bag_are_refused(bag, tmp_path, capsys):

@@ -18,7 +18,7 @@ from ins_fusion.calibration_id import procedures
 from ins_fusion.calibration_id.model import Site
 from ins_fusion.calibration_id.record import write_bag
 from ins_fusion.core.calibration import ImuCalibration
-from ins_fusion.core.units import deg_s, mg
+from ins_fusion.core.units import STANDARD_GRAVITY_M_S2, deg_s, mg
 from ins_fusion.sim.imu_model import IMU400CC
 from ins_fusion.tools.cli import main
 
@@ -97,8 +97,9 @@ def test_six_position_writes_the_file_the_fusion_node_reads(six_bag, tmp_path, c
         assert np.all(np.abs(np.subtract(triad.bias, truth.bias)) < 3 * np.array(triad.bias_sigma))
     accel = calibration.accel
     for estimate, sigma, truth in (
-        (accel.scale_positive, accel.scale_positive_sigma, model.accel.scale_pos),
-        (accel.scale_negative, accel.scale_negative_sigma, model.accel.scale_neg),
+        # one range: the six positions see ±1 g, the simulated IMU400CC's large range
+        (accel.scale_positive, accel.scale_positive_sigma, model.accel.scale_large_pos),
+        (accel.scale_negative, accel.scale_negative_sigma, model.accel.scale_large_neg),
     ):
         assert np.all(np.abs(np.subtract(estimate, truth)) < 3 * np.array(sigma))
     assert np.all(np.array(calibration.g_sensitivity_sigma) > 0.0)
@@ -121,6 +122,34 @@ def test_merging_into_a_base_file_keeps_its_other_terms(six_bag, tmp_path):
     low, high = merged.temperature_range_c  # the base's range, widened by the data's
     assert low == min(24.0, round(record.temperature_c.min(), 2))
     assert high == max(28.0, round(record.temperature_c.max(), 2))
+
+
+def test_six_positions_with_scale_ranges_give_the_large_range(six_bag, tmp_path):
+    """--scale-ranges 0.6: the six positions (±1 g) give the report's S2 range (the simulated
+    IMU400CC carries Fig. 5-35's ±1 g values from 0.6 g on); merged into the shipped file, whose
+    ±0.2 g values (S1 mod) stay, the result is the report's two-range model."""
+    bag, _, model = six_bag
+    out = tmp_path / "ranges.yaml"
+    base = REPO / "config" / "imu400cc_calibration.yaml"
+    argv = ("-o", out, "--scale-ranges", "0.6", "--base", base)
+    assert _calibrate("six-position", bag, *STATIC, *argv) == 0
+    merged, original = ImuCalibration.from_yaml(out), ImuCalibration.from_yaml(base)
+    assert merged.accel.large_input == pytest.approx(0.6 * STANDARD_GRAVITY_M_S2)
+    assert merged.accel.scale_positive == original.accel.scale_positive
+    for estimate, sigma, truth in (
+        (
+            merged.accel.scale_large_positive,
+            merged.accel.scale_large_positive_sigma,
+            model.accel.scale_large_pos,
+        ),
+        (
+            merged.accel.scale_large_negative,
+            merged.accel.scale_large_negative_sigma,
+            model.accel.scale_large_neg,
+        ),
+    ):
+        assert np.all(np.abs(np.subtract(estimate, truth)) < 3 * np.array(sigma))
+    assert _calibrate("rate-table", bag, "--rate", "15", "--scale-ranges", "0.6") == 2
 
 
 def test_bias_instability_from_the_fusion_parameters_widens_the_sigmas(six_bag, tmp_path):

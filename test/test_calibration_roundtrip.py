@@ -48,13 +48,26 @@ def _segments(record):
     return detect(record, 0, DetectorSettings())
 
 
-#: IMU400CC with a strongly asymmetric accelerometer scale (S+ and S- differ by 0.4-0.6 %).
+#: IMU400CC with a strongly asymmetric accelerometer scale (S+ and S- differ by 0.4-0.6 %), one
+#: range.
 ASYMMETRIC = dataclasses.replace(
     IMU400CC,
     accel=dataclasses.replace(
-        IMU400CC.accel, scale_pos=(3e-3, -2e-3, 5e-3), scale_neg=(-3e-3, 2e-3, -1e-3)
+        IMU400CC.accel,
+        scale_pos=(3e-3, -2e-3, 5e-3),
+        scale_neg=(-3e-3, 2e-3, -1e-3),
+        large_input=math.inf,
     ),
 )
+
+
+def _scale_at_1g(model, profile):
+    """The accelerometer scale (S+, S-) a six-position test sees: the large range when the
+    profile has two (the IMU400CC: the report's ±1 g values, §9.1.1)."""
+    a = model.accel
+    if math.isfinite(profile.accel.large_input):
+        return a.scale_large_pos, a.scale_large_neg
+    return a.scale_pos, a.scale_neg
 
 
 @pytest.mark.parametrize(
@@ -69,8 +82,9 @@ def test_six_position_recovers_imu400cc_errors(profile, seed, level_deg):
     result = static.six_position(_segments(record), options)
     assert [label.split()[0] for label in result.labels] == ["+z", "-z", "+x", "-x", "+y", "-y"]
     _within(result, Quantity.ACCEL_BIAS, model.accel.bias)
-    pos = _within(result, Quantity.ACCEL_SCALE_POSITIVE, model.accel.scale_pos)
-    _within(result, Quantity.ACCEL_SCALE_NEGATIVE, model.accel.scale_neg)
+    scale_pos, scale_neg = _scale_at_1g(model, profile)
+    pos = _within(result, Quantity.ACCEL_SCALE_POSITIVE, scale_pos)
+    _within(result, Quantity.ACCEL_SCALE_NEGATIVE, scale_neg)
     _within(result, Quantity.GYRO_BIAS, model.gyro.bias)
     _within(result, Quantity.GYRO_G_SENSITIVITY, profile.gyro_g_sensitivity)
     if profile is ASYMMETRIC:  # the asymmetry is resolved, and S2's symmetric S is the mean
@@ -91,7 +105,7 @@ def test_salychev_symmetric_scale_is_the_mean_of_the_asymmetric_truth():
     record, model = procedures.simulate(steps, IMU400CC, SITE, 3)
     options = static.StaticOptions(SITE, LEVEL, _instability(IMU400CC), static.Scale.SYMMETRIC)
     result = static.six_position(_segments(record), options, salychev=True)
-    s_pos, s_neg = model.accel.scale_pos, model.accel.scale_neg
+    s_pos, s_neg = _scale_at_1g(model, IMU400CC)
     _within(result, Quantity.ACCEL_BIAS, model.accel.bias + SITE.gravity_m_s2 * (s_pos - s_neg) / 2)
     _within(result, Quantity.ACCEL_SCALE_POSITIVE, (s_pos + s_neg) / 2)
     _within(result, Quantity.GYRO_BIAS, model.gyro.bias)
@@ -126,6 +140,7 @@ def test_known_attitude_recovers_misalignment_scale_and_g_dependence():
     accel = dataclasses.replace(
         IMU400CC.accel,
         misalignment_rad=((0.0, 2e-3, -1e-3), (1.5e-3, 0.0, 3e-3), (-2e-3, 1e-3, 0.0)),
+        large_input=math.inf,
     )
     profile = dataclasses.replace(IMU400CC, accel=accel)
     rpy = _rpy_grid()
@@ -144,6 +159,44 @@ def test_known_attitude_recovers_misalignment_scale_and_g_dependence():
     assert np.all(mis.sigma[~np.eye(3, dtype=bool)] < 1e-3)  # resolves mrad misalignment
     _within(result, Quantity.GYRO_BIAS, model.gyro.bias)
     _within(result, Quantity.GYRO_G_SENSITIVITY, profile.gyro_g_sensitivity)
+
+
+def test_s1_mod_and_s2_positions_give_the_reports_two_scale_ranges():
+    """The report's procedure (§5.4, notes §4.5): each axis vertical, up and down (S2, ±1 g),
+    then x and y tilted about 9° up and down (S1 mod, ±0.16 g). On the simulated IMU400CC,
+    which carries the report's S1 mod values at ±0.2 g (Fig. 5-33: x +0.0652 % / +0.0172 %)
+    and its S2 values at ±1 g (Fig. 5-35: x -0.2953 %), known-attitude with two ranges gives
+    both back; one range cannot hold them. The accelerometer bias instability is left out (the
+    report's values are means of about 30 daily calibrations; one day's 0.4 mg would hide the
+    0.05 % asymmetry at 0.16 g) and the levelling is 0.0005°."""
+    profile = dataclasses.replace(
+        IMU400CC, accel=dataclasses.replace(IMU400CC.accel, bias_instability=(0.0, 0.0, 0.0))
+    )
+    tilt = 9.0
+    rpy_deg = [(0, 0, 0), (180, 0, 0), (0, -89, 0), (0, 89, 0), (89, 0, 0), (-89, 0, 0)]
+    rpy_deg += [(0, -tilt, 0), (0, tilt, 0), (tilt, 0, 0), (-tilt, 0, 0)]
+    rpy = [tuple(math.radians(a) for a in angles) for angles in rpy_deg]
+    level = math.radians(0.0005)
+    rng = np.random.default_rng(8)
+    attitudes = [Rotation.from_euler("ZYX", [y, p, r]) for r, p, y in rpy]
+    steps = procedures.multi_position(
+        [procedures.tilted(a, level, rng) for a in attitudes], 60.0, 5.0
+    )
+    record, model = procedures.simulate(steps, profile, SITE, 8)
+    options = static.StaticOptions(
+        SITE, level, _instability(profile), large_input_m_s2=profile.accel.large_input
+    )
+    result = static.known_attitude(_segments(record), rpy, options)
+    small = _within(result, Quantity.ACCEL_SCALE_POSITIVE, model.accel.scale_pos)
+    _within(result, Quantity.ACCEL_SCALE_NEGATIVE, model.accel.scale_neg)
+    large = _within(result, Quantity.ACCEL_SCALE_LARGE_POSITIVE, model.accel.scale_large_pos)
+    _within(result, Quantity.ACCEL_SCALE_LARGE_NEGATIVE, model.accel.scale_large_neg)
+    # x: +0.0652 % at +0.16 g against -0.2953 % at +1 g, told apart by far more than their σ
+    assert small.value[0] - large.value[0] > 5 * math.hypot(small.sigma[0], large.sigma[0])
+    one_range = static.known_attitude(
+        _segments(record), rpy, dataclasses.replace(options, large_input_m_s2=math.inf)
+    )
+    assert one_range.fits[0].chi2 > 10 * result.fits[0].chi2
 
 
 def test_unknown_attitude_recovers_accelerometer_and_gyro_bias():

@@ -18,7 +18,7 @@ from ins_fusion.core.config import NODE_NAME, FusionConfig, StopDetectorConfig
 from ins_fusion.core.rotation import MAT_FLU_FRD, quat_from_euler
 from ins_fusion.core.stop_detector import StopDetector
 from ins_fusion.core.strapdown import NavState
-from ins_fusion.core.units import DEG, STANDARD_GRAVITY_M_S2
+from ins_fusion.core.units import DEG, STANDARD_GRAVITY_M_S2, mg
 from ins_fusion.fusion_params import PARAMETERS
 from ins_fusion.sim.imu_model import IMU400CC, ImuErrorModel, ImuProfile, TriadErrors
 
@@ -182,9 +182,36 @@ def test_correction_inverts_the_deterministic_error_model():
         assert r == pytest.approx(rate[k], abs=1e-12)
 
 
+def test_two_range_accelerometer_scale_of_the_aalborg_report():
+    """Report §9.1.1: the observation is corrected with the scale for its size. x: +0.0652 %
+    at +0.2 g, +0.0172 % at -0.2 g (S1 mod, Fig. 5-33), -0.2953 % at ±1 g (S2, Fig. 5-35), bias
+    5.4 mg (Fig. 5-34); the switch at 0.6 g is the file's (the report does not state it)."""
+    x = {
+        "bias_mg": [5.4, 0.0, 0.0],
+        "scale_positive_percent": [0.0652, 0.0, 0.0],
+        "scale_negative_percent": [0.0172, 0.0, 0.0],
+        "scale_large_positive_percent": [-0.2953, 0.0, 0.0],
+        "scale_large_negative_percent": [-0.2953, 0.0, 0.0],
+        "large_input_g": 0.6,
+    }
+    cal = ImuCalibration.from_mapping({"accel": x})
+    g, bias = STANDARD_GRAVITY_M_S2, mg(5.4)
+    for true_g, scale in ((1.0, -0.002953), (-1.0, -0.002953), (0.2, 0.000652), (-0.2, 0.000172)):
+        measured = bias + true_g * g * (1.0 + scale)
+        _, force = cal.correct((0.0, 0.0, 0.0), (measured, 0.0, 0.0))
+        assert force[0] == pytest.approx(true_g * g, abs=1e-12)
+    # The same file without the large range (one scale per sign) leaves -3.60 mg at +1 g:
+    # (1 - 0.002953) / (1 + 0.000652) - 1 = -0.003603.
+    one = ImuCalibration.from_mapping({"accel": {k: v for k, v in x.items() if "large" not in k}})
+    _, force = one.correct((0.0, 0.0, 0.0), (bias + g * (1.0 - 0.002953), 0.0, 0.0))
+    assert (force[0] - g) / mg(1.0) == pytest.approx(-3.603, abs=1e-3)
+
+
 @pytest.mark.parametrize(
     ("section", "message"),
     [
+        ({"accel": {"scale_large_positive_percent": [0.0, 0.0, 0.0]}}, "needs large_input_g"),
+        ({"gyro": {"large_input_deg_s": -1.0}}, "must be positive"),
         ({"gyro": {"bias_deg_s": [1.0, 2.0]}}, "three values"),
         ({"gyro": {"bias": [1.0, 2.0, 3.0]}}, "unknown key"),
         ({"accel": {"misalignment_mrad": [[0, 0, 0], [0, 0]]}}, "three rows"),

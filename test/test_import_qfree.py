@@ -203,7 +203,7 @@ def test_unwrapping_restarts_after_a_time_gap():
         )
         for k, (ms, r) in enumerate(zip(stamps, rates, strict=True))
     ]
-    series = qfree.imu_series(samples, gyro_unit="mdps")
+    series = qfree.imu_series(samples, gyro=qfree.SensorTransform("mdps", np.eye(3)))
     assert series.wraps == []
     np.testing.assert_allclose(series.rate_rad_s[:, 0], np.radians(np.array(rates) / 1000))
 
@@ -214,11 +214,51 @@ def test_mounting_rotation_is_proper_and_rotates_vectors_and_covariances():
     np.testing.assert_allclose(qfree.mounting_rotation(0, 0, 90) @ [1, 0, 0], [0, 1, 0], atol=1e-12)
     np.testing.assert_allclose(qfree.mounting_rotation(90, 0, 0) @ [0, 1, 0], [0, 0, 1], atol=1e-12)
     sample = qfree.MemsSample(qfree.Stamp("m", 1, 2, 1, 1, T0, 0, 0, 0), (1000, 0, 0), (0, 0, 500))
-    series = qfree.imu_series([sample], accel_unit="mg", gyro_unit="dps", mounting_deg=(0, 0, 90))
+    series = qfree.imu_series(
+        [sample],
+        accel=qfree.SensorTransform.mounted("mg", (0, 0, 90)),
+        gyro=qfree.SensorTransform.mounted("dps", (0, 0, 90)),
+    )
     np.testing.assert_allclose(series.accel_m_s2[0], [0, G0, 0], atol=1e-12)
     np.testing.assert_allclose(series.rate_rad_s[0], [0, 0, math.radians(500)])
     variances = series.accel_variance_m2_s4
     np.testing.assert_allclose(variances, [2.189e-4, 1.877e-4, 3.517e-4])  # x, y swapped
+
+
+def test_thesis_preset_reproduces_its_program_lines():
+    """NTNU notes §5 (thesis appendix 6.5), with (2.1)-(2.3) as printed and orientation =
+    [0, 0.438057067391664, -0.01816728115647]:
+    fis_b = Rz(pi)*Ry(o2)*Rx(o3) * 0.97396*9.82171*acc/1000 and
+    ois_b = deg2rad(Rz(0)*Ry(o2)*Rx(-o3) * (-gyro/1000)), b = x forward, y right, z down;
+    imu_link is FLU. The IMU stamps are 1.24 s later (62 samples at 50 Hz)."""
+
+    def rx(a):
+        return np.array([[1, 0, 0], [0, math.cos(a), math.sin(a)], [0, -math.sin(a), math.cos(a)]])
+
+    def ry(b):
+        return np.array([[math.cos(b), 0, -math.sin(b)], [0, 1, 0], [math.sin(b), 0, math.cos(b)]])
+
+    def rz(g):
+        return np.array([[math.cos(g), math.sin(g), 0], [-math.sin(g), math.cos(g), 0], [0, 0, 1]])
+
+    o2, o3 = 0.438057067391664, -0.01816728115647
+    acc, gyro = np.array([-123.0, 45.0, 987.0]), np.array([1500.0, -700.0, 2500.0])
+    fis_b = rz(math.pi) @ ry(o2) @ rx(o3) @ (0.97396 * 9.82171 * acc / 1000)
+    ois_b = np.radians(rz(0) @ ry(o2) @ rx(-o3) @ (-gyro / 1000))
+    sample = qfree.MemsSample(qfree.Stamp("t", 1, 2, 1, 1, T0, 0, 0, 0), tuple(acc), tuple(gyro))
+    accel_t, gyro_t = qfree.thesis_transforms()
+    series = qfree.imu_series(
+        [sample], accel=accel_t, gyro=gyro_t, time_shift_s=qfree.THESIS_LATENCY_S
+    )
+    frd = np.array([1.0, -1.0, -1.0])
+    np.testing.assert_allclose(series.accel_m_s2[0] * frd, fis_b, rtol=1e-14, atol=1e-14)
+    np.testing.assert_allclose(series.rate_rad_s[0] * frd, ois_b, rtol=1e-14, atol=1e-14)
+    assert series.utc_ns[0] - T0 == 1_240_000_000
+    # 1000 mg reads 0.97396 * 9.82171 = 9.5659... m/s²; the gyro's matrix is a reflection
+    z = qfree.imu_series([qfree.MemsSample(sample.stamp, (0, 0, 1000), (0, 0, 0))], accel=accel_t)
+    assert np.linalg.norm(z.accel_m_s2[0]) == pytest.approx(0.97396 * 9.82171, rel=1e-14)
+    assert np.linalg.det(accel_t.matrix) == pytest.approx(1.0)
+    assert np.linalg.det(gyro_t.matrix) == pytest.approx(-1.0)
 
 
 # ---------------------------------------------------------------------------- import tool
@@ -309,6 +349,29 @@ def test_import_options_units_mounting_wrap_storage(tmp_path: Path):
     np.testing.assert_allclose([accel.x, accel.y, accel.z], [0.007 * G0, 0.012 * G0, 1.0 * G0])
     rate_z = np.array([m.angular_velocity.z for _, m in msgs["/imu/data_raw"]])
     assert rate_z.min() < -0.5  # the wrapped values were kept
+
+
+def test_per_sensor_mountings_preset_and_time_shift(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+):
+    plain = read(import_fixtures(tmp_path / "plain")[1])["/imu/data_raw"]
+    code, bag = import_fixtures(
+        tmp_path / "split", "--accel-mounting", "0,0,90", "--gyro-mounting", "0,0,180",
+        "--time-shift", "0.5",
+    )  # fmt: skip
+    assert code == 0
+    split = read(bag)["/imu/data_raw"]
+    assert split[0][0] - plain[0][0] == 500_000_000
+    a, b = plain[0][1], split[0][1]
+    f0, f1 = a.linear_acceleration, b.linear_acceleration
+    np.testing.assert_allclose([f1.x, f1.y, f1.z], [-f0.y, f0.x, f0.z], atol=1e-12)
+    w0, w1 = a.angular_velocity, b.angular_velocity
+    np.testing.assert_allclose([w1.x, w1.y, w1.z], [-w0.x, -w0.y, w0.z], atol=1e-12)
+    code, bag = import_fixtures(tmp_path / "thesis", "--preset", "thesis")
+    assert code == 0 and "MEMS stamps shifted by +1.24 s" in capsys.readouterr().out
+    assert read(bag)["/imu/data_raw"][0][0] - plain[0][0] == 1_240_000_000
+    code, _ = import_fixtures(tmp_path / "both", "--preset", "thesis", "--mounting", "0,0,90")
+    assert code == 2 and "not with --mounting" in capsys.readouterr().err
 
 
 def test_equipment_filter_and_failures(tmp_path: Path, capsys: pytest.CaptureFixture[str]):

@@ -198,12 +198,35 @@ def test_sweep_ranks_settings_and_applies_overrides(bag, tmp_path, capsys):
         (["--rank-by", "yaw_rms"], "--rank-by ranks the runs of a --sweep"),
         (["--sweep", "use_nhc=true,false", "--sweep", "use_nhc=false"], "swept twice"),
         (["--set", "calibration_file=/no/such.yaml"], "cannot read calibration file"),
+        (["--free-inertial", "500"], "--free-inertial 500 is after the IMU data end"),
+        (["--free-inertial", "30", "--outage", "40:5"], "not with --outage or --sweep"),
+        (["--free-inertial", "-1"], "START must be a finite number >= 0"),
     ],
 )
 def test_bad_input_is_refused_with_exit_status_2(bag, capsys, argv, message):
     code, _, err = _replay(capsys, bag, *argv)
     assert code == 2
     assert message in err
+
+
+def test_free_inertial_withholds_gnss_and_reports_the_drift(bag, tmp_path, capsys):
+    """--free-inertial 30: no GNSS message from 30 s on is used, no pseudo-measurement at all,
+    and the drift against the withheld fixes 5...180 s later is printed and reported (the bag
+    ends 60 s after START: the later times are not bracketed by a fix)."""
+    report = tmp_path / "free.json"
+    code, out, err = _replay(capsys, bag, "--free-inertial", "30", "--report", report)
+    assert code == 0, err
+    assert "free-inertial from 30 s (GNSS withheld, no ZUPT/ZARU/NHC)" in out
+    data = json.loads(report.read_text())
+    section = data["free_inertial"]
+    assert section["elapsed_s"] == [5, 10, 15, 20, 30, 40, 50, 60, 120, 180]
+    horizontal = section["horizontal_m"]
+    assert all(v is not None for v in horizontal[:7]) and horizontal[-2:] == [None, None]
+    assert horizontal[0] < horizontal[6]  # the unaided INS drifts
+    assert data["dropped_messages"]["fix"] == int(DURATION_S) - 30
+    for kind in ("zupt", "zaru", "nhc"):
+        assert data["measurements"][kind]["used"] == 0
+    assert data["parameters"] == {"use_zupt": False, "use_zaru": False, "use_nhc": False}
 
 
 def test_missing_or_unreadable_bag_is_refused(tmp_path, capsys):

@@ -98,6 +98,30 @@ def test_deterministic_errors_follow_the_observation_equation():
     assert measured[1, 0] == pytest.approx(-0.5 * 0.99 + 1e-3 * 0.5 + 2e-3 * 0.2 + 0.01 + 1e-3 * G)
 
 
+def test_imu400cc_accelerometer_scale_depends_on_the_input_size():
+    """Aalborg report §9.1.1: the scale by input size. The x accelerometer's scale error is
+    +0.0652 % at +0.2 g and +0.0172 % at -0.2 g (S1 mod, Fig. 5-33) but -0.2953 % at ±1 g (S2,
+    Fig. 5-35); z: -0.0202 % at +0.2 g, -0.0002 % at 1 g."""
+    accel = dataclasses.replace(
+        IDEAL.accel,
+        **{
+            k: getattr(IMU400CC.accel, k)
+            for k in ("scale_pos", "scale_neg", "scale_large_pos", "scale_large_neg", "large_input")
+        },
+    )
+    profile = dataclasses.replace(IDEAL, accel=accel)
+    inputs_g = np.array([1.0, -1.0, 0.2, -0.2])
+    force = np.zeros((4, 3))
+    force[:, 0] = force[:, 2] = inputs_g * G
+    _, measured = ImuErrorModel(profile, seed=0).apply(np.arange(4) * 0.01, np.zeros((4, 3)), force)
+    scale_percent = (measured[:, [0, 2]] / force[:, [0, 2]] - 1.0) * 100.0
+    # imu_link x reads minus device x (axis map x, accelerometer sign -1): a FLU input of +0.2 g
+    # is a device input of -0.2 g and takes the device's negative-input value, and vice versa;
+    # imu_link z reads device z (map -z, sign -1).
+    assert scale_percent[:, 0] == pytest.approx([-0.2953, -0.2953, 0.0172, 0.0652], abs=1e-12)
+    assert scale_percent[:, 1] == pytest.approx([-0.0002, -0.0002, -0.0202, 0.0846], abs=1e-12)
+
+
 def test_quantisation_and_saturation_of_the_imu400cc():
     t = np.arange(3) / 134.0
     rate = np.array([[0.0, 0.0, math.radians(400.0)]] * 3)

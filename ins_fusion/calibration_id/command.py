@@ -119,6 +119,12 @@ def _check_usage(args: argparse.Namespace) -> None:
         "known-attitude",
     ):
         raise UsageError("--accel-scale is for six-position, salychev and known-attitude")
+    if args.scale_ranges is not None and (
+        method not in ("six-position", "salychev", "known-attitude") or not args.scale_ranges > 0
+    ):
+        raise UsageError(
+            "--scale-ranges is a positive G for six-position, salychev, known-attitude"
+        )
     for path in (args.output, args.report, args.plot):
         if path is not None and path.is_dir():
             raise UsageError(f"{path} is a directory")
@@ -214,6 +220,7 @@ def _run_method(
             static.Scale(
                 args.accel_scale or ("symmetric" if method == "salychev" else "asymmetric")
             ),
+            math.inf if args.scale_ranges is None else args.scale_ranges * STANDARD_GRAVITY_M_S2,
         )
         if method == "known-attitude":
             return static.known_attitude(statics, args.attitudes, options), None

@@ -37,6 +37,8 @@ class Quantity(Enum):
     ACCEL_BIAS = ("accel", "bias_mg", mg(1.0), "mg")
     ACCEL_SCALE_POSITIVE = ("accel", "scale_positive_percent", 1e-2, "%")
     ACCEL_SCALE_NEGATIVE = ("accel", "scale_negative_percent", 1e-2, "%")
+    ACCEL_SCALE_LARGE_POSITIVE = ("accel", "scale_large_positive_percent", 1e-2, "%")
+    ACCEL_SCALE_LARGE_NEGATIVE = ("accel", "scale_large_negative_percent", 1e-2, "%")
     ACCEL_MISALIGNMENT = ("accel", "misalignment_mrad", 1e-3, "mrad")
 
     def __init__(self, triad: str, key: str, unit: float, unit_text: str) -> None:
@@ -99,7 +101,8 @@ class FitSummary:
 @dataclass
 class CalibrationResult:
     """What a method found: estimates, residuals, the segments used with a label each, notes
-    for the report (warnings, what was not estimated)."""
+    for the report (warnings, what was not estimated), and the input size [m/s²] from which
+    the accelerometer scale is the large-range term (None: one range)."""
 
     method: str
     segments: list[Segment]
@@ -108,6 +111,7 @@ class CalibrationResult:
     residuals: list[Residual] = field(default_factory=list)
     fits: list[FitSummary] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    accel_large_input_m_s2: float | None = None
 
     def estimate(self, quantity: Quantity) -> Estimate | None:
         """The written estimate of a quantity, if any."""
@@ -146,6 +150,10 @@ def calibration_mapping(
             result.notes.append(f"{q.label}: components not estimated are {kept}")
         triads[q.triad][q.key] = _rounded(value)
         triads[q.triad][_sigma_key(q.key)] = _rounded(sigma)
+    if result.accel_large_input_m_s2 is not None:
+        triads["accel"]["large_input_g"] = float(
+            f"{result.accel_large_input_m_s2 / STANDARD_GRAVITY_M_S2:.6g}"
+        )
     ranges = [r for r in (section.get("temperature_range_c"), temperature_range_c) if r]
     if ranges:
         section["temperature_range_c"] = [

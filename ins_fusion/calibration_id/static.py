@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import StrEnum
 
 import numpy as np
@@ -82,12 +82,44 @@ class Scale(StrEnum):
 
 @dataclass(frozen=True)
 class StaticOptions:
-    """Site, attitude (level) σ of the positions [rad], bias instability, scale model."""
+    """Site, attitude (level) σ of the positions [rad], bias instability, scale model, and
+    the input size [m/s²] from which the accelerometer scale is a second, large-range term
+    (inf: one range; Aalborg report §9.1.1, ImuCalibration's scale_large_*)."""
 
     site: Site
     level_sigma_rad: float = math.radians(0.1)
     instability: BiasInstability = field(default_factory=BiasInstability)
     accel_scale: Scale = Scale.ASYMMETRIC
+    large_input_m_s2: float = math.inf
+
+
+#: The calibration terms of the accelerometer scale by (large range, positive input).
+_SCALES = {
+    (False, True): Quantity.ACCEL_SCALE_POSITIVE,
+    (False, False): Quantity.ACCEL_SCALE_NEGATIVE,
+    (True, True): Quantity.ACCEL_SCALE_LARGE_POSITIVE,
+    (True, False): Quantity.ACCEL_SCALE_LARGE_NEGATIVE,
+}
+#: Scale-factor terms of an accelerometer axis: (range is large, sign or None for symmetric).
+_ScaleTerm = tuple[bool, float | None]
+
+
+def _scale_columns(
+    f: FloatArray, symmetric: bool, large_input: float
+) -> list[tuple[_ScaleTerm, FloatArray]]:
+    """Design columns of the scale terms for true inputs f [m/s²] of one axis: per range (one,
+    or small and large) one symmetric column or one per sign; terms no input reaches are left
+    out (not estimated)."""
+    columns = []
+    for large in (False, True) if math.isfinite(large_input) else (False,):
+        in_range = (np.abs(f) >= large_input) == large
+        part = np.where(in_range, f, 0.0)
+        signs: tuple[float | None, ...] = (None,) if symmetric else (1.0, -1.0)
+        for sign in signs:
+            column = part if sign is None else np.where(part * sign > 0.0, part, 0.0)
+            if np.any(column != 0.0):
+                columns.append(((large, sign), column))
+    return columns
 
 
 @dataclass(frozen=True)
@@ -228,8 +260,13 @@ def fit_accel(
         if vertical_only
         else ("S3 least squares" if misalignment else "S1 (5.1) + S1 mod (5.5)/(5.6), α = 90°")
     )
-    bias, scale_pos, scale_neg = (np.full(3, math.nan) for _ in range(3))
-    bias_s, scale_pos_s, scale_neg_s = (np.full(3, math.nan) for _ in range(3))
+    bias, bias_s = np.full(3, math.nan), np.full(3, math.nan)
+    # (large range, positive) -> value and σ per axis; NaN: not estimated
+    scales = {
+        (large, positive): (np.full(3, math.nan), np.full(3, math.nan))
+        for large in (False, True)
+        for positive in (True, False)
+    }
     mis, mis_s = np.zeros((3, 3)), np.zeros((3, 3))
     for i in range(3):
         rows = [
@@ -242,12 +279,14 @@ def fit_accel(
         others = [j for j in range(3) if j != i]
         columns = [np.ones(len(used))]
         names = [f"accel bias {AXES[i]}"]
-        if symmetric:
-            columns.append(f[:, i])
-            names.append(f"accel scale {AXES[i]}")
-        else:
-            columns += [np.maximum(f[:, i], 0.0), np.minimum(f[:, i], 0.0)]
-            names += [f"accel scale + {AXES[i]} (axis up)", f"accel scale - {AXES[i]} (axis down)"]
+        terms = _scale_columns(f[:, i], symmetric, options.large_input_m_s2)
+        for (large, sign), column in terms:
+            columns.append(column)
+            names.append(
+                f"accel scale{' large' if large else ''}"
+                + ("" if sign is None else (" +" if sign > 0 else " -"))
+                + f" {AXES[i]}"
+            )
         if misalignment:
             columns += [f[:, j] for j in others]
             names += [f"accel misalignment {AXES[i]}{AXES[j]}" for j in others]
@@ -260,9 +299,10 @@ def fit_accel(
         )
         x, sx = fit.params, fit.sigma
         bias[i], bias_s[i] = x[0], sx[0]
-        scale_pos[i], scale_pos_s[i] = x[1] - 1.0, sx[1]
-        scale_neg[i], scale_neg_s[i] = (x[1], sx[1]) if symmetric else (x[2], sx[2])
-        scale_neg[i] -= 1.0
+        for k, ((large, sign), _) in enumerate(terms, start=1):
+            for positive in (True, False) if sign is None else (sign > 0,):
+                value, sigma = scales[large, positive]
+                value[i], sigma[i] = x[k] - 1.0, sx[k]
         if misalignment:
             mis[i, others], mis_s[i, others] = x[-2:], sx[-2:]
         if written:
@@ -272,11 +312,16 @@ def fit_accel(
                 for k, r, n in zip(rows, fit.residuals, fit.normalized, strict=True)
             ]
     label = f"{source}, {options.accel_scale.value} scale"
-    result.estimates += [
-        Estimate(Quantity.ACCEL_BIAS, bias, bias_s, label, written),
-        Estimate(Quantity.ACCEL_SCALE_POSITIVE, scale_pos, scale_pos_s, label, written),
-        Estimate(Quantity.ACCEL_SCALE_NEGATIVE, scale_neg, scale_neg_s, label, written),
-    ]
+    result.estimates.append(Estimate(Quantity.ACCEL_BIAS, bias, bias_s, label, written))
+    ranged = math.isfinite(options.large_input_m_s2)
+    for (large, positive), (value, sigma) in scales.items():
+        # Two ranges: a term no position reaches is left out (kept from a base file).
+        if not np.all(np.isnan(value)) if ranged else not large:
+            result.estimates.append(
+                Estimate(_SCALES[large, positive], value, sigma, label, written)
+            )
+    if ranged:
+        result.accel_large_input_m_s2 = options.large_input_m_s2
     if misalignment:
         result.estimates.append(Estimate(Quantity.ACCEL_MISALIGNMENT, mis, mis_s, label, written))
 
@@ -329,7 +374,7 @@ def six_position(
     fit_accel(positions, options, result, misalignment=False, written=True)
     fit_accel(
         positions,
-        StaticOptions(options.site, options.level_sigma_rad, options.instability, other),
+        replace(options, accel_scale=other),
         result,
         misalignment=False,
         written=False,

@@ -10,6 +10,13 @@ off-diagonal misalignment, b the bias and G the g-dependent gyro bias. The corre
 y = (I + diag(s±) + A)⁻¹ (ỹ - b - G f), which for A = 0 is Aalborg (9.1)/(9.2) per axis. The
 sign is taken from ỹ - b. The accelerometers are corrected first; their result is the f of G f.
 
+Two input ranges (Aalborg notes §3.2 after (9.2), report §9.1.1): the report measured the
+accelerometer scale at ±0.2 g (S1 mod, per sign) and at ±1 g (S2) and, instead of a
+non-linearity term, corrected each observation with the value for its input size. A triad may
+carry a second pair s±_large with a threshold: an axis with |ỹ - b| at or above it takes s±_large,
+below it s±. The report does not state its threshold; the file must (``large_input_g`` /
+``large_input_deg_s``). Without large-range keys every input uses s±, as before.
+
 File format (``imu_calibration:`` section; every term optional, zero when absent; the
 ``gnss_ins calibrate`` tool writes the same keys), in user units named by the key suffix, each
 term with its 1σ (the day-to-day scatter of the laboratory estimate):
@@ -30,6 +37,9 @@ term with its 1σ (the day-to-day scatter of the laboratory estimate):
       accel:
         bias_mg: [x, y, z]                      # and bias_sigma_mg
         scale_positive_percent / scale_negative_percent / misalignment_mrad as for the gyros
+        scale_large_positive_percent: [x, y, z] # optional second range, with its sigma,
+        scale_large_negative_percent: [x, y, z] # used for |input| >= large_input_g
+        large_input_g: 0.6                      # (the gyros: large_input_deg_s)
 
 Each ``*_sigma_*`` key sits next to its value key (``misalignment_sigma_mrad``, ...).
 
@@ -72,7 +82,8 @@ class TriadCalibration:
     """Deterministic errors of one triad (SI, imu_link FLU axes) and their 1σ.
 
     bias [rad/s or m/s²]; scale_positive / scale_negative: scale-factor error for positive /
-    negative input [fraction]; misalignment_rad: off-diagonal A[i][j] [rad].
+    negative input [fraction]; scale_large_*: the same for inputs of magnitude ≥ large_input
+    [rad/s or m/s²] (inf: one range); misalignment_rad: off-diagonal A[i][j] [rad].
     """
 
     bias: Vec3 = _ZERO3
@@ -83,6 +94,17 @@ class TriadCalibration:
     scale_negative_sigma: Vec3 = _ZERO3
     misalignment_rad: Mat3 = _ZERO33
     misalignment_sigma_rad: Mat3 = _ZERO33
+    scale_large_positive: Vec3 = _ZERO3
+    scale_large_positive_sigma: Vec3 = _ZERO3
+    scale_large_negative: Vec3 = _ZERO3
+    scale_large_negative_sigma: Vec3 = _ZERO3
+    large_input: float = math.inf
+
+    def _scale(self, negative: bool, large: bool, axis: int) -> float:
+        """Scale-factor error [fraction] of ``axis`` for an input of that sign and range."""
+        if large:
+            return (self.scale_large_negative if negative else self.scale_large_positive)[axis]
+        return (self.scale_negative if negative else self.scale_positive)[axis]
 
     def in_flu(self, axes: AxisMap, sign: float) -> TriadCalibration:
         """These terms, given per device axis of a triad whose output is ``sign`` (±1) times
@@ -91,25 +113,34 @@ class TriadCalibration:
         scale_sigma = axes.scale_pair_to_flu(
             self.scale_positive_sigma, self.scale_negative_sigma, sign
         )
-        return TriadCalibration(
+        large = axes.scale_pair_to_flu(self.scale_large_positive, self.scale_large_negative, sign)
+        large_sigma = axes.scale_pair_to_flu(
+            self.scale_large_positive_sigma, self.scale_large_negative_sigma, sign
+        )
+        return replace(
+            self,
             bias=_vec(sign * axes.to_flu(self.bias)),
             bias_sigma=_vec(axes.permute_to_flu(self.bias_sigma)),
             scale_positive=_vec(scale[0]),
             scale_positive_sigma=_vec(scale_sigma[0]),
             scale_negative=_vec(scale[1]),
             scale_negative_sigma=_vec(scale_sigma[1]),
+            scale_large_positive=_vec(large[0]),
+            scale_large_positive_sigma=_vec(large_sigma[0]),
+            scale_large_negative=_vec(large[1]),
+            scale_large_negative_sigma=_vec(large_sigma[1]),
             misalignment_rad=_mat(axes.matrix_to_flu(self.misalignment_rad)),
             misalignment_sigma_rad=_mat(abs(axes.matrix_to_flu(self.misalignment_sigma_rad))),
         )
 
     @functools.cached_property
     def _inverses(self) -> tuple[tuple[float, ...], ...]:
-        """(I + diag(s±) + A)⁻¹ row-major for the 8 sign patterns (bit i set = axis i < 0)."""
+        """(I + diag(s) + A)⁻¹ row-major for the 64 patterns: bit i set = axis i < 0, bit i + 3
+        set = axis i in the large range."""
         inverses = []
-        for signs in range(8):
+        for pattern in range(64):
             scale = [
-                self.scale_negative[i] if signs >> i & 1 else self.scale_positive[i]
-                for i in range(3)
+                self._scale(bool(pattern >> i & 1), bool(pattern >> i + 3 & 1), i) for i in range(3)
             ]
             mat = np.eye(3) + np.diag(scale) + np.array(self.misalignment_rad) * (1 - np.eye(3))
             inverses.append(tuple(float(v) for v in np.linalg.inv(mat).ravel()))
@@ -120,7 +151,11 @@ class TriadCalibration:
         x = measured[0] - self.bias[0] - extra_bias[0]
         y = measured[1] - self.bias[1] - extra_bias[1]
         z = measured[2] - self.bias[2] - extra_bias[2]
-        m = self._inverses[(x < 0.0) | (y < 0.0) << 1 | (z < 0.0) << 2]
+        pattern = (x < 0.0) | (y < 0.0) << 1 | (z < 0.0) << 2
+        big = self.large_input
+        if big != math.inf:
+            pattern |= (abs(x) >= big) << 3 | (abs(y) >= big) << 4 | (abs(z) >= big) << 5
+        m = self._inverses[pattern]
         return (
             m[0] * x + m[1] * y + m[2] * z,
             m[3] * x + m[4] * y + m[5] * z,
@@ -163,8 +198,8 @@ class ImuCalibration:
         accel = _Fields(fields.mapping("accel"), "accel")
         per_g = deg_s(1.0) / STANDARD_GRAVITY_M_S2
         calibration = cls(
-            gyro=_triad(gyro, "bias_deg_s", deg_s(1.0)),
-            accel=_triad(accel, "bias_mg", mg(1.0)),
+            gyro=_triad(gyro, "bias_deg_s", deg_s(1.0), "large_input_deg_s", deg_s(1.0)),
+            accel=_triad(accel, "bias_mg", mg(1.0), "large_input_g", STANDARD_GRAVITY_M_S2),
             g_sensitivity=gyro.matrix("g_sensitivity_deg_s_per_g", per_g),
             g_sensitivity_sigma=gyro.matrix("g_sensitivity_sigma_deg_s_per_g", per_g),
             temperature_range_c=fields.temperature_range(),
@@ -208,10 +243,18 @@ class ImuCalibration:
         return low <= temperature_c <= high
 
 
-def _triad(fields: _Fields, bias_key: str, bias_unit: float) -> TriadCalibration:
+def _triad(
+    fields: _Fields, bias_key: str, bias_unit: float, large_key: str, large_unit: float
+) -> TriadCalibration:
     sigma_key = bias_key.replace("bias_", "bias_sigma_")
     pct = percent(1.0)
     mrad = 1e-3
+    large = fields.scalar(large_key, large_unit)
+    large_keys = ("scale_large_positive_percent", "scale_large_negative_percent")
+    if large is None and any(fields.has(k) for k in large_keys):
+        raise CalibrationError(
+            f"{fields.where}: scale_large_* needs {large_key}, the input size where it applies"
+        )
     return TriadCalibration(
         bias=fields.vector(bias_key, bias_unit),
         bias_sigma=fields.vector(sigma_key, bias_unit),
@@ -221,6 +264,11 @@ def _triad(fields: _Fields, bias_key: str, bias_unit: float) -> TriadCalibration
         scale_negative_sigma=fields.vector("scale_negative_sigma_percent", pct),
         misalignment_rad=fields.matrix("misalignment_mrad", mrad),
         misalignment_sigma_rad=fields.matrix("misalignment_sigma_mrad", mrad),
+        scale_large_positive=fields.vector(large_keys[0], pct),
+        scale_large_positive_sigma=fields.vector("scale_large_positive_sigma_percent", pct),
+        scale_large_negative=fields.vector(large_keys[1], pct),
+        scale_large_negative_sigma=fields.vector("scale_large_negative_sigma_percent", pct),
+        large_input=math.inf if large is None else large,
     )
 
 
@@ -236,9 +284,28 @@ class _Fields:
         self._where = where
         self._used: set[str] = set(self._TEXT)
 
+    @property
+    def where(self) -> str:
+        """The mapping's name in messages."""
+        return self._where
+
     def _get(self, key: str) -> Any:
         self._used.add(key)
         return self._section.get(key)
+
+    def has(self, key: str) -> bool:
+        """Whether the mapping holds ``key``."""
+        return key in self._section
+
+    def scalar(self, key: str, unit: float) -> float | None:
+        """A positive number times ``unit``, None when absent."""
+        value = self._get(key)
+        if value is None:
+            return None
+        number = _numbers([value], f"{self._where}.{key}")[0]
+        if number <= 0.0:
+            raise CalibrationError(f"{self._where}.{key}: must be positive, got {value!r}")
+        return number * unit
 
     def mapping(self, key: str) -> Mapping[str, Any]:
         value = self._get(key)

@@ -12,6 +12,8 @@
 - ``likelihood``: the Allan fit's terms with the bias and random walk of the Whittle fit.
 - ``analysis``: every gyro and accelerometer axis of a record, the user-facing units, the length
   a record needs and what a report lacks for the requested terms.
+- ``provisional``: a bias instability the record is too short to pin, written all the same
+  (IEEE 952 floor and a Gauss-Markov σ fitted at the longest time the record shows), flagged.
 - ``output``: the summary table and the ROS parameter file of ins_fusion_node (imu_noise.*).
 - ``plot``: the log-log figure with the data and the fitted lines.
 - ``synthetic``: static records of a simulated IMU (ins_fusion.sim) and their bags, for the

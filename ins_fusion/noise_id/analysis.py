@@ -155,7 +155,8 @@ def identify(
     return NoiseReport(tuple(axes), clock, len(record.t_s), record.duration_s, confidence, source)
 
 
-def _hours(seconds: float) -> str:
+def hours(seconds: float) -> str:
+    """A duration for messages: seconds below an hour, hours below 3 days, else days."""
     if seconds < 3600.0:
         return f"{seconds:.0f} s"
     return f"{seconds / 3600.0:.1f} h" if seconds < 72 * 3600.0 else f"{seconds / 86400.0:.1f} days"
@@ -189,16 +190,18 @@ def _shortfall(errors: tuple[float, float]) -> float:
     return max(errors[0] / MAX_SIGMA_ERROR, errors[1] / MAX_TIME_ERROR)
 
 
-def _needed_record_s(axis: AxisNoise, bias: BiasInstability) -> float:
-    """Record length [s] at which the fitted noise would give the wanted precision: the errors
-    fall about as 1/sqrt(length), refined with the expected errors of the longer record."""
-    _, white, sigma2, walk = axis.terms.coefficients
-    model = SpectralModel(white, sigma2, walk, bias.time_constant_s)
-    rate = axis.curve.rate_hz
-    length = axis.curve.record_s * _shortfall(bias.errors) ** 2
+def needed_record_s(model: SpectralModel, curve: AllanCurve, errors: tuple[float, float]) -> float:
+    """Record length [s] at which noise ``model`` would give a Gauss-Markov bias σ within
+    MAX_SIGMA_ERROR and T within MAX_TIME_ERROR (1σ), from the relative errors (σ, T) of the
+    curve's record: the errors fall about as 1/sqrt(length), refined with the expected errors
+    of the longer record; inf when the bias cannot be told from the other terms at all."""
+    rate = curve.rate_hz
+    length = curve.record_s * _shortfall(errors) ** 2
     for _ in range(_LENGTH_ITERATIONS):
-        errors = expected_errors(model, rate, round(length * rate))
-        length *= _shortfall((errors[BIAS], errors[LOG_TIME])) ** 2
+        if not math.isfinite(length):
+            return math.inf
+        expected = expected_errors(model, rate, round(length * rate))
+        length *= _shortfall((expected[BIAS], expected[LOG_TIME])) ** 2
     return length
 
 
@@ -206,21 +209,24 @@ def _gauss_markov_shortcoming(axis: AxisNoise, bias: BiasInstability) -> str | N
     if _shortfall(bias.errors) <= 1.0:
         return None
     record_s = axis.curve.record_s
-    needed = _needed_record_s(axis, bias) if math.isfinite(_shortfall(bias.errors)) else math.inf
+    _, white, sigma2, walk = axis.terms.coefficients
+    model = SpectralModel(white, sigma2, walk, bias.time_constant_s)
+    needed = needed_record_s(model, axis.curve, bias.errors)
     return (
         f"{axis.name}: bias instability σ ±{bias.errors[0]:.1%}, T ±{bias.errors[1]:.1%} (1σ) "
-        f"from this {_hours(record_s)} record; σ within {2 * MAX_SIGMA_ERROR:.0%} and T within "
+        f"from this {hours(record_s)} record; σ within {2 * MAX_SIGMA_ERROR:.0%} and T within "
         f"{2 * MAX_TIME_ERROR:.0%} (95 %) needs "
-        + (f"≥ {_hours(needed)} of record" if math.isfinite(needed) else "a far longer record")
+        + (f"≥ {hours(needed)} of record" if math.isfinite(needed) else "a far longer record")
     )
 
 
-def _bias_shortcoming(axis: AxisNoise) -> str | None:
+def bias_shortcoming(axis: AxisNoise) -> str | None:
+    """Why the axis's bias instability falls short of the wanted precision (None: it does not)."""
     bias, curve = axis.terms.bias, axis.curve
     if bias is None:
         return (
             f"{axis.name}: no bias instability stands out of the scatter up to τ = "
-            f"{curve.tau_s[-1]:.0f} s (the longest a {_hours(curve.record_s)} record gives): "
+            f"{curve.tau_s[-1]:.0f} s (the longest a {hours(curve.record_s)} record gives): "
             "neither a flat floor nor a Gauss-Markov hump; record at least twice as long"
         )
     if bias.model == GAUSS_MARKOV:
@@ -232,8 +238,8 @@ def _bias_shortcoming(axis: AxisNoise) -> str | None:
     return (
         f"{axis.name}: bias instability ({bias.model}) is read at τ = {bias.read_tau_s:.0f} s "
         f"with {edf:.1f} degrees of freedom (≥ {MIN_BIAS_EDF:g} wanted, Allan deviation 1σ ≈ "
-        f"{100.0 / math.sqrt(2.0 * MIN_BIAS_EDF):.0f} %); that needs ≥ {_hours(needed)} of "
-        f"record, this one has {_hours(curve.record_s)}"
+        f"{100.0 / math.sqrt(2.0 * MIN_BIAS_EDF):.0f} %); that needs ≥ {hours(needed)} of "
+        f"record, this one has {hours(curve.record_s)}"
     )
 
 
@@ -243,7 +249,7 @@ def shortcomings(report: NoiseReport, terms: Sequence[str]) -> list[str]:
     for axis in report.axes:
         if "white" in terms and not axis.terms.white.visible:
             problems.append(f"{axis.name}: no white-noise (-1/2) slope in the Allan deviation")
-        if "bias" in terms and (problem := _bias_shortcoming(axis)) is not None:
+        if "bias" in terms and (problem := bias_shortcoming(axis)) is not None:
             problems.append(problem)
         if "rrw" in terms and not axis.terms.random_walk.visible:
             bound = axis.terms.random_walk.high * axis.sensor.random_walk.per_si

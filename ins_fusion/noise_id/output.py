@@ -5,9 +5,11 @@ Parameter names and units are the node's own (ins_fusion.fusion_params.PARAMETER
 imu_noise.gyro_arw [deg/sqrt(h)] and imu_noise.accel_vrw [m/s/sqrt(h)] (white-noise densities),
 imu_noise.gyro_bias_instability [deg/h] and imu_noise.accel_bias_instability [mg] (stationary σ
 of the Gauss-Markov biases), per imu_link axis, and one imu_noise.bias_correlation_time [s] for
-all biases: the geometric mean of the six axes' times. Every value is checked with the node's
-Param specs before it is written. The node has no random-walk or quantisation parameter; those,
-the classic read-offs and the confidence intervals are the file's comments (the summary table).
+all biases: the geometric mean of the six axes' times. A provisional bias (noise_id.provisional,
+a record too short to pin it) is written with its σ and time and marked PROVISIONAL. Every
+value is checked with the node's Param specs before it is written. The node has no random-walk
+or quantisation parameter; those, the classic read-offs and the confidence intervals are the
+file's comments (the summary table).
 """
 
 from __future__ import annotations
@@ -19,7 +21,17 @@ from typing import Any
 
 from gnss_ins_common.params import ParameterValueError, validate
 from ins_fusion.fusion_params import PARAMETERS
-from ins_fusion.noise_id.analysis import ACCEL, GYRO, SENSORS, AxisNoise, NoiseReport, Sensor, Unit
+from ins_fusion.noise_id.analysis import (
+    ACCEL,
+    GYRO,
+    SENSORS,
+    AxisNoise,
+    NoiseReport,
+    Sensor,
+    Unit,
+    hours,
+)
+from ins_fusion.noise_id.provisional import ProvisionalBiases
 from ins_fusion.noise_id.terms import BiasInstability, Term
 
 NODE_NAME = "ins_fusion_node"
@@ -122,10 +134,17 @@ def _bias(axis: AxisNoise) -> BiasInstability:
     return axis.terms.bias
 
 
-def fusion_parameters(report: NoiseReport, terms: Sequence[str]) -> dict[str, Any]:
+def fusion_parameters(
+    report: NoiseReport, terms: Sequence[str], provisional: ProvisionalBiases | None = None
+) -> dict[str, Any]:
     """ins_fusion_node's imu_noise.* values for the requested terms (rounded to 4 significant
-    digits), validated with the node's specs (ParameterValueError if out of range or missing)."""
+    digits), validated with the node's specs (ParameterValueError if out of range or missing).
+    With ``provisional``, its axes get their provisional σ and every bias its time."""
     values: dict[str, Any] = {}
+
+    def sigma(axis: AxisNoise) -> float:
+        cover = None if provisional is None else provisional.of(axis)
+        return _bias(axis).sigma.value if cover is None else cover.sigma
 
     def per_axis(sensor: Sensor, pick: Callable[[AxisNoise], float], unit: Unit) -> list[float]:
         return [_rounded(pick(a) * unit.per_si) for a in report.of(sensor)]
@@ -134,15 +153,14 @@ def fusion_parameters(report: NoiseReport, terms: Sequence[str]) -> dict[str, An
         values["imu_noise.gyro_arw"] = per_axis(GYRO, lambda a: a.terms.white.value, GYRO.white)
         values["imu_noise.accel_vrw"] = per_axis(ACCEL, lambda a: a.terms.white.value, ACCEL.white)
     if "bias" in terms:
-        biases = [_bias(a) for a in report.axes]
-        values["imu_noise.gyro_bias_instability"] = per_axis(
-            GYRO, lambda a: _bias(a).sigma.value, GYRO.bias
-        )
-        values["imu_noise.accel_bias_instability"] = per_axis(
-            ACCEL, lambda a: _bias(a).sigma.value, ACCEL.bias
-        )
-        mean_log_time = sum(math.log(b.time_constant_s) for b in biases) / len(biases)
-        values["imu_noise.bias_correlation_time"] = _rounded(math.exp(mean_log_time))
+        values["imu_noise.gyro_bias_instability"] = per_axis(GYRO, sigma, GYRO.bias)
+        values["imu_noise.accel_bias_instability"] = per_axis(ACCEL, sigma, ACCEL.bias)
+        if provisional is not None:
+            time_constant = provisional.time_constant_s
+        else:
+            biases = [_bias(a) for a in report.axes]
+            time_constant = math.exp(sum(math.log(b.time_constant_s) for b in biases) / len(biases))
+        values["imu_noise.bias_correlation_time"] = _rounded(time_constant)
     return {name: validate(_SPECS[name], value) for name, value in values.items()}
 
 
@@ -155,8 +173,39 @@ _COMMENTS = {
 }
 
 
-def parameter_file(report: NoiseReport, parameters: dict[str, Any]) -> str:
-    """The YAML text: provenance and the summary table as comments, then the parameters."""
+def provisional_lines(provisional: ProvisionalBiases) -> list[str]:
+    """The provisional axes: floor B, fitted σ, the node's σ, and the record that would pin it."""
+    lines = [
+        f"PROVISIONAL bias instability: this record does not pin it on {len(provisional.axes)} "
+        f"axes; the node gets a conservative Gauss-Markov bias, T = "
+        f"{provisional.time_constant_s:.0f} s for all axes, and per axis sigma = the larger of "
+        "the IEEE 952 floor B (minimum / 0.664) and the upper limit of the sigma fitted at T:",
+    ]
+    for cover in provisional.axes:
+        axis, unit = cover.axis, cover.axis.sensor.bias
+        k = unit.per_si
+        needed = (
+            f"≥ {hours(cover.needed_s)} of record would pin it"
+            if math.isfinite(cover.needed_s)
+            else "no record length pins it"
+        )
+        floor = (
+            _term_text(cover.floor, unit)
+            if cover.floor.visible
+            else f"{yaml_number(cover.floor.value * k)} (last point, the curve still falls)"
+        )
+        lines.append(
+            f"  {axis.name}: B {floor}, sigma at T {_term_text(cover.sigma_fit, unit)}"
+            f" -> {yaml_number(cover.sigma * k)} {unit.label}; {needed}"
+        )
+    return lines
+
+
+def parameter_file(
+    report: NoiseReport, parameters: dict[str, Any], provisional: ProvisionalBiases | None = None
+) -> str:
+    """The YAML text: provenance and the summary table as comments (and the provisional axes),
+    then the parameters."""
     header = [
         "Noise of the IMU identified by `gnss_ins allan` (overlapping Allan deviation, IEEE 952",
         "slopes fitted together; Gauss-Markov bias and random walk by the Whittle likelihood of",
@@ -166,6 +215,7 @@ def parameter_file(report: NoiseReport, parameters: dict[str, Any]) -> str:
         "     --params-file THIS_FILE ;  gnss_ins replay BAG --params THIS_FILE",
         "",
         *summary_table(report),
+        *([] if provisional is None or not provisional.axes else provisional_lines(provisional)),
     ]
     lines = [f"# {line}".rstrip() for line in header]
     lines += [f"{NODE_NAME}:", "  ros__parameters:"]
@@ -180,10 +230,18 @@ def parameter_file(report: NoiseReport, parameters: dict[str, Any]) -> str:
             if isinstance(value, list)
             else yaml_number(value)
         )
-        lines.append(f"      {key}: {text}  # {_COMMENTS[name]}")
+        comment = _COMMENTS[name]
+        if provisional is not None and provisional.axes and "bias" in name:
+            comment += "; PROVISIONAL (above)"
+        lines.append(f"      {key}: {text}  # {comment}")
     return "\n".join(lines) + "\n"
 
 
-def write_parameter_file(path: Path, report: NoiseReport, parameters: dict[str, Any]) -> None:
-    """Write parameter_file(report, parameters) to path."""
-    path.write_text(parameter_file(report, parameters), encoding="utf-8")
+def write_parameter_file(
+    path: Path,
+    report: NoiseReport,
+    parameters: dict[str, Any],
+    provisional: ProvisionalBiases | None = None,
+) -> None:
+    """Write parameter_file(report, parameters, provisional) to path."""
+    path.write_text(parameter_file(report, parameters, provisional), encoding="utf-8")

@@ -18,6 +18,7 @@ from ins_fusion.core.calibration import CalibrationError
 from ins_fusion.core.config import NODE_NAME, FusionConfig
 from ins_fusion.core.engine import InsEngine
 from ins_fusion.fusion_params import PARAMETERS
+from ins_fusion.replay import free_inertial
 from ins_fusion.replay.frames import IMU_FRAME, comparison_frame, is_imu_frame
 from ins_fusion.replay.inputs import InputError, ReplayInputs, load_bag
 from ins_fusion.replay.outages import Outage
@@ -29,6 +30,7 @@ from ins_fusion.replay.report import Report, format_table, to_json
 from ins_fusion.replay.settings import grid
 from ins_fusion.replay.sweep import format_sweep, run_sweep
 from ins_fusion.replay.topics import DEFAULT_REFERENCE
+from ins_fusion.replay.withheld import WithheldEvaluation
 from ins_fusion.tools.bag_io import BagError
 from ins_fusion.tools.progress import Progress
 
@@ -56,7 +58,8 @@ def _parameters(args: argparse.Namespace) -> dict[str, Any]:
         )
     except ParameterValueError as exc:
         raise UsageError(str(exc)) from None
-    return {**base, **dict(args.settings)}
+    unaided = free_inertial.UNAIDED if args.free_inertial is not None else {}
+    return {**base, **dict(args.settings), **unaided}
 
 
 def _check_engine(parameters: dict[str, Any]) -> None:
@@ -74,6 +77,8 @@ def _check_usage(args: argparse.Namespace) -> None:
         raise UsageError("--rank-by ranks the runs of a --sweep")
     if args.workers is not None and args.workers < 1:
         raise UsageError("--workers must be at least 1")
+    if args.free_inertial is not None and (args.outage or args.sweep):
+        raise UsageError("--free-inertial withholds GNSS itself: not with --outage or --sweep")
     if args.output is not None and args.output.exists():
         raise UsageError(f"{args.output} exists already, not overwriting")
 
@@ -141,11 +146,20 @@ def _run(args: argparse.Namespace) -> int:
     reference = None if inputs.reference is None else (args.reference or DEFAULT_REFERENCE)
     _frame_note(inputs, parameters)
     outages: list[Outage] = args.outage
+    if args.free_inertial is not None:
+        if args.free_inertial >= inputs.duration_s:
+            raise UsageError(
+                f"--free-inertial {args.free_inertial:g} is after the IMU data end"
+                f" ({inputs.duration_s:.1f} s after the first IMU stamp)"
+            )
+        outages = [free_inertial.outage(args.free_inertial, inputs.duration_s)]
     if settings:
         return _sweep(args, inputs, parameters, settings, outages, reference)
     with Progress("fuse", total=len(inputs.imu), unit="samples") as bar:
         result = replay(inputs, parameters, outages, reference, lambda done, _: bar.update(done))
     print(format_table(result.report))
+    if args.free_inertial is not None:
+        _free_inertial(args.free_inertial, result)
     if args.report is not None:
         _write_report(args.report, result.report)
     if not len(result.run.track.t_s):
@@ -157,6 +171,14 @@ def _run(args: argparse.Namespace) -> int:
         return 1
     _write_outputs(args, inputs, parameters, result, outages)
     return 0
+
+
+def _free_inertial(start_s: float, result: Replay) -> None:
+    """Print the drift of the unaided run and add it to the report."""
+    withheld = result.withheld if result.withheld is not None else WithheldEvaluation.empty()
+    run = free_inertial.drift(withheld, start_s, free_inertial.ELAPSED_S)
+    print(free_inertial.format_drift(run, start_s))
+    result.report["free_inertial"] = free_inertial.report_section(run, start_s)
 
 
 def _write_report(path: Path, report: Report) -> None:

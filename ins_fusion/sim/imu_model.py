@@ -74,6 +74,9 @@ class TriadErrors:
     bias, bias_sigma: turn-on bias, fixed part and std of the per-power-up draw [u].
     scale_pos, scale_neg: scale-factor error for positive/negative input [fraction];
     scale_sigma: std of a per-power-up draw added to both [fraction].
+    scale_large_pos, scale_large_neg, large_input: the scale factors for inputs of magnitude
+    at least large_input [u] (Aalborg report §9.1.1: one value at ±0.2 g, another at ±1 g;
+    inf: one range), with the same draw.
     misalignment_rad: off-diagonal A[i][j] = sensitivity of axis i to input j [rad];
     misalignment_sigma_rad: std of a per-power-up draw of every off-diagonal element.
     resolution: one output count [u] (0 = no quantisation); full_scale: largest magnitude [u];
@@ -91,6 +94,9 @@ class TriadErrors:
     scale_pos: Vec3 = _ZERO3
     scale_neg: Vec3 = _ZERO3
     scale_sigma: Vec3 = _ZERO3
+    scale_large_pos: Vec3 = _ZERO3
+    scale_large_neg: Vec3 = _ZERO3
+    large_input: float = math.inf
     misalignment_rad: Mat3 = _ZERO33
     misalignment_sigma_rad: float = 0.0
     resolution: float = 0.0
@@ -103,8 +109,13 @@ class TriadErrors:
         ``axes.to_flu`` of the device output, per FLU axis: the same carry-over as a device-axis
         calibration file (core.calibration, ``axes: device``)."""
         scale_pos, scale_neg = axes.scale_pair_to_flu(self.scale_pos, self.scale_neg, sign)
+        large_pos, large_neg = axes.scale_pair_to_flu(
+            self.scale_large_pos, self.scale_large_neg, sign
+        )
         return replace(
             self,
+            scale_large_pos=_vec(large_pos),
+            scale_large_neg=_vec(large_neg),
             noise_density=_vec(axes.permute_to_flu(self.noise_density)),
             bias_instability=_vec(axes.permute_to_flu(self.bias_instability)),
             bias_correlation_time_s=_vec(axes.permute_to_flu(self.bias_correlation_time_s)),
@@ -174,6 +185,10 @@ def _deg_s_per_g(value: float) -> float:
 #: The report's values are per device axis; they are carried into FLU with the imu400cc_node
 #: defaults (axis_map, accel_sign), as config/imu400cc_calibration.yaml says for the fusion node.
 _IMU400CC_AXES = AxisMap.from_spec(DEFAULT_AXIS_SPEC)
+#: Input size [mg] from which the IMU400CC's accelerometers take their ±1 g scale: the report
+#: corrects by input size (§9.1.1) without stating where it switches; the project takes the
+#: middle of its two calibration inputs, 0.2 g and 1 g.
+IMU400CC_LARGE_INPUT_MG = 600.0
 IMU400CC = ImuProfile(
     name="imu400cc",
     rate_hz=134.0,
@@ -199,6 +214,9 @@ IMU400CC = ImuProfile(
         bias_sigma=_each(mg, 0.2, 0.3, 0.2),
         scale_pos=_each(percent, 0.0652, 0.0309, -0.0202),
         scale_neg=_each(percent, 0.0172, 0.0340, 0.0846),
+        scale_large_pos=_each(percent, -0.2953, -0.0803, -0.0002),
+        scale_large_neg=_each(percent, -0.2953, -0.0803, -0.0002),
+        large_input=mg(IMU400CC_LARGE_INPUT_MG),
         resolution=mg(3000.0 / 32768.0),
         full_scale=mg(3000.0),
         bandwidth_hz=75.0,
@@ -306,6 +324,8 @@ class _TriadModel:
         scale_draw = np.array(e.scale_sigma) * turn_on.standard_normal(3)
         self.scale_pos = np.array(e.scale_pos) + scale_draw
         self.scale_neg = np.array(e.scale_neg) + scale_draw
+        self.scale_large_pos = np.array(e.scale_large_pos) + scale_draw
+        self.scale_large_neg = np.array(e.scale_large_neg) + scale_draw
         off_diagonal = 1.0 - np.eye(3)
         self.misalignment = (
             np.array(e.misalignment_rad)
@@ -329,7 +349,11 @@ class _TriadModel:
 
     def apply(self, truth: FloatArray, dt_s: FloatArray, extra: FloatArray) -> FloatArray:
         """Measured values (n, 3) for true inputs (n, 3); extra is added before quantisation."""
-        scale = np.where(truth >= 0.0, self.scale_pos, self.scale_neg)
+        scale = np.where(
+            np.abs(truth) >= self.errors.large_input,
+            np.where(truth >= 0.0, self.scale_large_pos, self.scale_large_neg),
+            np.where(truth >= 0.0, self.scale_pos, self.scale_neg),
+        )
         out = (
             truth * (1.0 + scale)
             + truth @ self.misalignment.T

@@ -1,12 +1,15 @@
 """`gnss_ins allan`: IMU noise terms from a static record, written as ins_fusion_node parameters.
 
 Reads sensor_msgs/Imu from a bag (header stamps as sample times), refuses records that are
-irregularly sampled, too short for the requested terms (``--terms``) or not static, computes the
-overlapping Allan deviation of the three gyros and three accelerometers and fits the IEEE 952
-terms (ins_fusion.noise_id). Prints a table of the terms per axis; ``-o`` writes the
-imu_noise.* parameters in the node's names and units, ``--plot`` the log-log figure. Exit status
-2 on a bad bag, topic or record, or when the record does not give the requested terms (the table
-and the plot are still produced then, the parameter file is not). docs/allan.md is the guide.
+irregularly sampled, too short for white noise or not static, computes the overlapping Allan
+deviation of the three gyros and three accelerometers and fits the IEEE 952 terms
+(ins_fusion.noise_id). Prints a table of the terms per axis; ``-o`` writes the imu_noise.*
+parameters in the node's names and units, ``--plot`` the log-log figure. Without ``--terms`` a
+bias instability the record does not pin is written provisionally (noise_id.provisional, with
+warnings naming the record length that would pin it); with ``--terms`` every requested term must
+meet the full precision. Exit status 2 on a bad bag, topic or record, or when the record does not
+give the requested terms (the table and the plot are still produced then, the parameter file is
+not). docs/allan.md is the guide.
 """
 
 from __future__ import annotations
@@ -30,8 +33,14 @@ from ins_fusion.noise_id.analysis import (
     identify,
     shortcomings,
 )
-from ins_fusion.noise_id.output import fusion_parameters, summary_table, write_parameter_file
+from ins_fusion.noise_id.output import (
+    fusion_parameters,
+    provisional_lines,
+    summary_table,
+    write_parameter_file,
+)
 from ins_fusion.noise_id.plot import plot_allan
+from ins_fusion.noise_id.provisional import provisional_biases
 from ins_fusion.noise_id.record import (
     ImuRecord,
     RecordError,
@@ -86,9 +95,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--terms",
         type=_terms,
-        default=DEFAULT_TERMS,
         metavar="LIST",
-        help=f"terms the record must give: {', '.join(TERMS)} (default {','.join(DEFAULT_TERMS)})",
+        help=f"strict: terms the record must give to the full precision, {', '.join(TERMS)} "
+        f"(default: {','.join(DEFAULT_TERMS)}, with a provisional bias instability when the "
+        "record is too short to pin it)",
     )
     parser.add_argument(
         "--confidence",
@@ -159,7 +169,7 @@ def run(args: argparse.Namespace) -> int:
         record, first_ns = read_imu(args.bag, args.topic)
         clock = sample_clock(record.t_s)
         check_values(record)
-        check_length(record.duration_s, args.terms)
+        check_length(record.duration_s, args.terms or DEFAULT_TERMS)
         limits = StaticLimits(deg_s(args.max_rate_change), mg(args.max_accel_change))
         check_static(record, clock.rate_hz, limits)
     except (BagError, AnyReaderError, OSError, RecordError) as exc:
@@ -172,17 +182,25 @@ def run(args: argparse.Namespace) -> int:
     if args.plot is not None:
         plot_allan(args.plot, report)
         print(f"plot: {args.plot}")
-    problems = shortcomings(report, args.terms)
+    terms = args.terms or DEFAULT_TERMS
+    provisional = None
+    if args.terms is None:
+        provisional = provisional_biases(report)
+        for line in provisional_lines(provisional) if provisional.axes else ():
+            print(f"gnss_ins allan: warning: {line.strip()}", file=sys.stderr)
+    # Without --terms the provisional bias stands in for one the record does not pin.
+    strict = terms if provisional is None else tuple(t for t in terms if t != "bias")
+    problems = shortcomings(report, strict)
     if problems:
         return _error(
-            f"the record does not give the requested terms ({', '.join(args.terms)}); no "
+            f"the record does not give the requested terms ({', '.join(terms)}); no "
             "parameter file written:\n  " + "\n  ".join(problems)
         )
     if args.output is not None:
         try:
-            parameters = fusion_parameters(report, args.terms)
+            parameters = fusion_parameters(report, terms, provisional)
         except ParameterValueError as exc:
             return _error(f"identified values outside the node's ranges: {exc}")
-        write_parameter_file(args.output, report, parameters)
+        write_parameter_file(args.output, report, parameters, provisional)
         print(f"parameters: {args.output}")
     return 0

@@ -85,6 +85,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         " symmetric)",
     )
     site.add_argument(
+        "--scale-ranges",
+        type=float,
+        metavar="G",
+        help="two-range accelerometer scale (Aalborg report §9.1.1): inputs of at least G [g]"
+        " get the large-range scale (scale_large_*), smaller ones the usual one; six-position"
+        " positions (±1 g) give the large range only, tilted known-attitude positions the small",
+    )
+    site.add_argument(
         "--positions",
         type=argument_type(command.parse_positions),
         metavar="+z,-z,...",

@@ -13,8 +13,10 @@ header.stamp = bag time = the UTC date/time columns of the line:
   NED velocity (columns 27–29) of good epochs that have one; linear covariance (0.43 m/s)² per
   axis (Table 4.9), angular variances 1e6 (not measured, as gnss_node).
 - ``/imu/data_raw`` (sensor_msgs/Imu, frame ``imu_link``, REP-145): specific force m/s², rate
-  rad/s, rotated by ``--mounting``; orientation_covariance[0] = −1; diagonal covariances from the
-  bench variances of Tables 4.4/4.5.
+  rad/s, rotated by ``--mounting`` (or per sensor ``--accel-mounting``/``--gyro-mounting``, or
+  the thesis's own transforms with ``--preset thesis``); stamps plus ``--time-shift``;
+  orientation_covariance[0] = −1; diagonal covariances from the bench variances of Tables
+  4.4/4.5.
 - ``/ground_truth/fix`` and ``/ground_truth/vel``: the same from equipment id 6 (the SPAN
   reference), frame ``base_link``.
 """
@@ -57,15 +59,36 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--reference", type=Path, help="GNSS log of the reference (equipment id 6)")
     parser.add_argument("-o", "--output", type=Path, required=True, help="bag directory to create")
     parser.add_argument("--storage", choices=sorted(STORAGES), default="mcap")
-    parser.add_argument("--accel-unit", choices=sorted(qfree.ACCEL_UNITS), default="mg")
-    parser.add_argument("--gyro-unit", choices=sorted(qfree.GYRO_UNITS), default="mdps")
+    parser.add_argument("--accel-unit", choices=sorted(qfree.ACCEL_UNITS))
+    parser.add_argument("--gyro-unit", choices=sorted(qfree.GYRO_UNITS))
     parser.add_argument(
         "--mounting",
         type=_mounting,
-        default=(0.0, 0.0, 0.0),
         metavar="ROLL,PITCH,YAW",
-        help="rotation (deg) from the logger's sensor axes to imu_link: R = Rz(yaw)·Ry(pitch)·"
-        "Rx(roll); e.g. the thesis mount: -1.04,25.10,180",
+        help="rotation (deg) from the logger's sensor axes to imu_link for both sensors: "
+        "R = Rz(yaw)·Ry(pitch)·Rx(roll)",
+    )
+    for sensor in ("accel", "gyro"):
+        parser.add_argument(
+            f"--{sensor}-mounting",
+            type=_mounting,
+            metavar="ROLL,PITCH,YAW",
+            help=f"the same for the {'accelerometer' if sensor == 'accel' else 'gyro'} alone "
+            "(instead of --mounting)",
+        )
+    parser.add_argument(
+        "--preset",
+        choices=("thesis",),
+        help="thesis: the NTNU thesis's own accelerometer and gyro transforms (its program, "
+        "appendix 6.5: accel x 0.97396 x 9.82171 with Rz(pi)Ry Rx, gyro negated with the "
+        "opposite roll sign) and its 1.24 s IMU delay; not with the unit and mounting options",
+    )
+    parser.add_argument(
+        "--time-shift",
+        type=float,
+        metavar="SECONDS",
+        help="added to the MEMS stamps (the thesis delayed its IMU data by 1.24 s to meet the "
+        "late GNSS; default 0, with --preset thesis 1.24)",
     )
     parser.add_argument(
         "--equipment",
@@ -87,6 +110,22 @@ def _mounting(text: str) -> tuple[float, float, float]:
             f"expected ROLL,PITCH,YAW in degrees, got {text!r}"
         ) from None
     return roll, pitch, yaw
+
+
+def _transforms(args: argparse.Namespace) -> tuple[qfree.SensorTransform, qfree.SensorTransform]:
+    """(accelerometer, gyro) transforms of the options; ValueError for a preset combined with
+    unit or mounting options."""
+    options = ("accel_unit", "gyro_unit", "mounting", "accel_mounting", "gyro_mounting")
+    if args.preset == "thesis":
+        given = [f"--{o.replace('_', '-')}" for o in options if getattr(args, o) is not None]
+        if given:
+            raise ValueError(f"--preset thesis sets the transforms itself, not with {given[0]}")
+        return qfree.thesis_transforms()
+    both = args.mounting or (0.0, 0.0, 0.0)
+    return (
+        qfree.SensorTransform.mounted(args.accel_unit or "mg", args.accel_mounting or both),
+        qfree.SensorTransform.mounted(args.gyro_unit or "mdps", args.gyro_mounting or both),
+    )
 
 
 def _listed(items: Sequence[object], what: str) -> None:
@@ -205,7 +244,12 @@ def run(args: argparse.Namespace) -> int:
     epochs: list[qfree.GnssEpoch] = [
         e for log in (gnss, *reference) for e in _validated(log, qfree_checks.gnss_problem, refused)
     ]
-    mems_units = {"accel_unit": args.accel_unit, "gyro_unit": args.gyro_unit}
+    try:
+        accel, gyro = _transforms(args)
+    except ValueError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    mems_units = {"accel_unit": accel.unit, "gyro_unit": gyro.unit}
     mems_records = _validated(mems, partial(qfree_checks.mems_problem, **mems_units), refused)
 
     def selected(equipment_id: int) -> bool:
@@ -222,12 +266,10 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
     samples = [s for s in mems_records if selected(s.stamp.equipment_id)]
+    default_shift = qfree.THESIS_LATENCY_S if args.preset == "thesis" else 0.0
+    shift_s = default_shift if args.time_shift is None else args.time_shift
     series = qfree.imu_series(
-        samples,
-        accel_unit=args.accel_unit,
-        gyro_unit=args.gyro_unit,
-        mounting_deg=args.mounting,
-        unwrap=not args.keep_gyro_wrap,
+        samples, accel=accel, gyro=gyro, unwrap=not args.keep_gyro_wrap, time_shift_s=shift_s
     )
     _listed(series.wraps, "gyro wrap")
     events, no_velocity = _events(epochs, series, selected)
@@ -266,6 +308,15 @@ def run(args: argparse.Namespace) -> int:
         )
     else:
         print("  gyro 16-bit wrap: none")
-    if any(args.mounting):
-        print("  mounting (roll, pitch, yaw) deg: {:g}, {:g}, {:g}".format(*args.mounting))
+    if args.preset is not None:
+        print(f"  transforms: preset {args.preset}")
+    for name, value in (
+        ("mounting", args.mounting),
+        ("accelerometer mounting", args.accel_mounting),
+        ("gyro mounting", args.gyro_mounting),
+    ):
+        if value is not None and any(value):
+            print("  {} (roll, pitch, yaw) deg: {:g}, {:g}, {:g}".format(name, *value))
+    if shift_s:
+        print(f"  MEMS stamps shifted by {shift_s:+g} s")
     return 0

@@ -9,7 +9,9 @@ seconds after the first IMU stamp). With reference topics (``PREFIX/fix``, ``PRE
 stamps, in the reference's frame (base_link, or the IMU when its frame_id is the IMU's); with or
 without them, each outage is scored against the GNSS fixes it withheld (the fused antenna at
 each fix stamp). Prints a short table; ``--report`` writes the JSON report, ``--plot`` the
-figure, ``--output`` the fused /ins/odometry and /ins/fix as a bag. ``--sweep NAME=V1,V2,...``
+figure, ``--output`` the fused /ins/odometry and /ins/fix as a bag. ``--free-inertial START``
+withholds every GNSS message from START on and turns the pseudo-measurements off, the Aalborg
+report's unaided evaluation (ins_fusion.replay.free_inertial). ``--sweep NAME=V1,V2,...``
 (repeatable: the grid of all combinations) replays every setting and ranks them by
 ``--rank-by``. docs/replay.md describes the report. Exit status 2 on bad input.
 """
@@ -24,6 +26,13 @@ from ins_fusion.replay.ranking import DEFAULT_RANK_BY, RANK_METRICS
 from ins_fusion.replay.settings import parse_setting, parse_sweep
 from ins_fusion.replay.topics import DEFAULT_REFERENCE, DEFAULT_TOPICS, TopicMap
 from ins_fusion.tools.cli import argument_type
+
+
+def _start(text: str) -> float:
+    value = float(text)
+    if not (value >= 0.0 and value < float("inf")):
+        raise ValueError(f"START must be a finite number >= 0, got {text!r}")
+    return value
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -49,6 +58,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="START:DURATION",
         help="drop GNSS fix/velocity/attitude stamped in this window [s after the first IMU "
         "stamp] and score the fused antenna against the withheld fixes (repeatable)",
+    )
+    parser.add_argument(
+        "--free-inertial",
+        type=argument_type(_start),
+        metavar="START",
+        help="the Aalborg report's evaluation: withhold all GNSS from START [s after the first "
+        "IMU stamp] on, no ZUPT/ZARU/NHC, and print the drift against the withheld fixes "
+        "5...180 s after START",
     )
     parser.add_argument(
         "--reference",
