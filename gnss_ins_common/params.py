@@ -113,15 +113,26 @@ def validate_all(specs: Sequence[Param], values: Mapping[str, Any]) -> dict[str,
 
 def file_values(path: Path, node_name: str) -> dict[str, Any]:
     """The parameters a ROS parameter file gives ``node_name`` (its ``NAME``, ``/NAME`` or ``/**``
-    section), nested maps flattened to dotted names; nothing validated or defaulted."""
+    section), nested maps flattened to dotted names; nothing validated or defaulted. A file with
+    none of these sections (a foreign file: its values would silently not apply) is refused; an
+    empty file gives no parameters."""
     try:
         document = yaml.safe_load(path.read_text()) or {}
     except (OSError, yaml.YAMLError) as exc:
         raise ParameterValueError(f"cannot read parameter file {path}: {exc}") from exc
-    for key in (node_name, f"/{node_name}", "/**"):
+    keys = (node_name, f"/{node_name}", "/**")
+    if not isinstance(document, Mapping):
+        raise ParameterValueError(f"parameter file {path} is not a map of node sections")
+    for key in keys:
         if key in document:
             return _flatten((document[key] or {}).get("ros__parameters", {}))
-    return {}
+    if not document:
+        return {}
+    found = ", ".join(map(str, document))
+    raise ParameterValueError(
+        f"parameter file {path} has no section for {node_name} (top keys: {found});"
+        f" expected one of {', '.join(keys)}"
+    )
 
 
 def load_yaml(path: Path, node_name: str, specs: Sequence[Param]) -> dict[str, Any]:

@@ -86,3 +86,15 @@ def test_load_yaml_reads_a_wildcard_section(tmp_path):
     path = tmp_path / "p.yaml"
     path.write_text("/**:\n  ros__parameters:\n    count: 7\n")
     assert load_yaml(path, "any_node", SPECS)["count"] == 7
+
+
+def test_load_yaml_refuses_a_file_without_the_node_section(tmp_path):
+    path = tmp_path / "p.yaml"
+    path.write_text("other_node:\n  ros__parameters:\n    count: 7\n")
+    with pytest.raises(ParameterValueError, match=r"no section for my_node \(top keys: other"):
+        load_yaml(path, "my_node", SPECS)
+    path.write_text("- 1\n- 2\n")
+    with pytest.raises(ParameterValueError, match="not a map of node sections"):
+        load_yaml(path, "my_node", SPECS)
+    path.write_text("")
+    assert load_yaml(path, "my_node", SPECS)["count"] == validate_all(SPECS, {})["count"]
