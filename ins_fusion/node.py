@@ -14,6 +14,7 @@ their own stamps by the engine (late GNSS data are rolled back and re-propagated
 from __future__ import annotations
 
 import math
+import time
 from typing import Any
 
 import numpy as np
@@ -36,6 +37,7 @@ from ins_fusion.core.engine import InsEngine, InsSolution
 from ins_fusion.fusion_params import PARAMETERS as FUSION_PARAMETERS
 from ins_fusion.ros_tf import TfBroadcaster
 from ins_fusion.solution_out import fill_fused_fix, fill_odometry, publishable
+from ins_fusion.status_log import WARN, StatusLog
 
 #: One table for the node and `gnss_ins replay` (ins_fusion/fusion_params.py).
 PARAMETERS = FUSION_PARAMETERS
@@ -64,6 +66,7 @@ class InsFusionNode(Node):
         self._rate_covariance = np.eye(3).ravel() * self._rate_variance
         self._odom_msg, self._fix_msg, self._imu_msg = Odometry(), NavSatFix(), Imu()
         self._bad_imu_messages = 0
+        self._status_log = StatusLog()  # what /diagnostics shows, on the console (rate-limited)
 
         sensor_qos = QoSProfile(depth=200, reliability=ReliabilityPolicy.BEST_EFFORT)
         endpoints = Endpoints(self)
@@ -180,6 +183,12 @@ class InsFusionNode(Node):
             message = status.state
         if not temperature_ok:
             level, message = diag.WARN, f"{message}; IMU temperature outside the calibration range"
+        logger = self.get_logger()
+        for log_level, line in self._status_log.update(status, time.monotonic()):
+            if log_level == WARN:  # one severity per call site (rclpy)
+                logger.warning(line)
+            else:
+                logger.info(line)
         for warning in status.warnings[self._warned :]:
             self.get_logger().warning(warning)
         self._warned = len(status.warnings)
