@@ -29,7 +29,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     for role, port in DEFAULT_PORTS.items():
         parser.add_argument(f"--{role}-port", default=port, help=f"serial port of the {role}")
     parser.add_argument("--no-adu5", action="store_true", help="run without the ADU5")
-    parser.add_argument("--log-dir", type=Path, default=Path("gnss_ins_logs"))
+    parser.add_argument(
+        "--log-dir", type=Path, default=Path("gnss_ins_logs"), help="one NAME.log per node"
+    )
 
 
 def run(args: argparse.Namespace) -> int:
