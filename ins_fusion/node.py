@@ -4,15 +4,17 @@ Subscribes ``imu/data_raw`` (sensor_msgs/Imu), ``gnss/fix`` (NavSatFix), ``gnss/
 (TwistWithCovarianceStamped, ENU) and ``gnss/attitude`` (Imu orientation); publishes
 ``ins/odometry`` (nav_msgs/Odometry in ``map`` = ENU tangent plane at the datum, child
 ``base_link``), ``ins/fix`` (NavSatFix of base_link), ``ins/imu`` (orientation of base_link with
-bias-corrected rates) and ``/diagnostics``. Outputs are published from the IMU callback as soon
-as the sample is processed, at most at ``output_rate`` (by stamp). All callbacks run on one
-executor thread, so the engine needs no locking; measurements are applied at their own stamps by
-the engine (late GNSS data are rolled back and re-propagated there).
+bias-corrected rates), ``/diagnostics`` and TF (ins_fusion.tf_frames: the odometry's transform on
+``/tf`` per ``tf_mode``, the sensor frames on ``/tf_static``). Outputs are published from the
+IMU callback as soon as the sample is processed, at most at ``output_rate`` (by stamp). All
+callbacks run on one executor thread, so the engine needs no locking; measurements are applied at
+their own stamps by the engine (late GNSS data are rolled back and re-propagated there).
 """
 
 from __future__ import annotations
 
 import math
+import time
 from typing import Any
 
 import numpy as np
@@ -28,12 +30,14 @@ from gnss_ins_common.ros_endpoints import Endpoints
 from gnss_ins_common.ros_node_main import run_node
 from gnss_ins_common.ros_params import declare_parameters
 from imu400cc_driver.device_clock import NOMINAL_RATE_HZ
-from ins_fusion import cdr_fields, messages_in
+from ins_fusion import cdr_fields, messages_in, tf_frames
 from ins_fusion.cdr_fields import CdrError
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.engine import InsEngine, InsSolution
 from ins_fusion.fusion_params import PARAMETERS as FUSION_PARAMETERS
+from ins_fusion.ros_tf import TfBroadcaster
 from ins_fusion.solution_out import fill_fused_fix, fill_odometry, publishable
+from ins_fusion.status_log import WARN, StatusLog
 
 #: One table for the node and `gnss_ins replay` (ins_fusion/fusion_params.py).
 PARAMETERS = FUSION_PARAMETERS
@@ -49,7 +53,7 @@ class InsFusionNode(Node):
         self.params = values
         config = FusionConfig.from_parameters(values)
         self.engine = InsEngine(config)
-        self._map_frame = config.map_frame
+        self._map_frame = tf_frames.world_frame(values)
         self._base_frame = config.base_frame
         self._output_period_s = 1.0 / config.output_rate_hz
         self._last_output_s = -math.inf
@@ -66,6 +70,7 @@ class InsFusionNode(Node):
         # IMU stamp [s] from which the state is 'navigating' again after an outage; None: not
         # recovering (never degraded, or degraded now). -inf: navigating from the start.
         self._navigating_since_s: float | None = -math.inf
+        self._status_log = StatusLog()  # what /diagnostics shows, on the console (rate-limited)
 
         sensor_qos = QoSProfile(depth=200, reliability=ReliabilityPolicy.BEST_EFFORT)
         endpoints = Endpoints(self)
@@ -85,6 +90,9 @@ class InsFusionNode(Node):
         self._fix_pub = endpoints.publisher(NavSatFix, "ins/fix", 50)
         self._imu_pub = endpoints.publisher(Imu, "ins/imu", 50)
         self._diagnostics = diag.DiagnosticsPublisher(self, endpoints)
+        self._tf = TfBroadcaster(
+            self, tf_frames.static_transforms(values), dynamic=values["tf_mode"] != "none"
+        )
         self.create_timer(values["diagnostics_period"], self._publish_diagnostics)
         self.get_logger().info(
             f"fusing imu/data_raw + gnss/* into ins/odometry at {config.output_rate_hz:g} Hz"
@@ -150,6 +158,7 @@ class InsFusionNode(Node):
             self._odom_msg, solution, self._map_frame, self._base_frame, self._rate_variance
         )
         self._odom_pub.publish(odom)
+        self._tf.send(odom)
         self._fix_pub.publish(fill_fused_fix(self._fix_msg, solution, self._base_frame))
 
         imu = fill_orientation(
@@ -192,6 +201,12 @@ class InsFusionNode(Node):
             message = f"{message}; last reset: {status.last_reset_reason}"
         if not temperature_ok:
             level, message = diag.WARN, f"{message}; IMU temperature outside the calibration range"
+        logger = self.get_logger()
+        for log_level, line in self._status_log.update(status, time.monotonic()):
+            if log_level == WARN:  # one severity per call site (rclpy)
+                logger.warning(line)
+            else:
+                logger.info(line)
         for warning in status.warnings[self._warned :]:
             self.get_logger().warning(warning)
         self._warned = len(status.warnings)

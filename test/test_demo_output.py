@@ -1,12 +1,18 @@
-"""gnss_ins demo never deletes what it did not write (issue 12): its output directory is
-created, or cleared of an earlier demo's entries, or refused."""
+"""gnss_ins demo never deletes what it did not write: its output directory is created, or
+cleared of an earlier demo's entries, or refused; SIGTERM/SIGHUP stop its children."""
 
 from __future__ import annotations
 
+import os
+import signal
+import subprocess
 from pathlib import Path
+
+import pytest
 
 from ins_fusion.tools import cli
 from ins_fusion.tools.demo import _prepare_output
+from ins_fusion.tools.processes import gnss_ins_command
 
 
 def test_a_new_directory_is_created_and_marked(tmp_path: Path) -> None:
@@ -46,3 +52,30 @@ def test_a_file_in_the_way_is_refused(tmp_path: Path) -> None:
     path = tmp_path / "demo"
     path.write_text("x")
     assert "not a directory" in (_prepare_output(path) or "")
+
+
+@pytest.mark.ros
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP])
+def test_a_terminated_demo_stops_its_children(tmp_path: Path, signum: int) -> None:
+    demo = subprocess.Popen(
+        gnss_ins_command("demo", "--duration", "40", "--output-dir", str(tmp_path / "demo")),
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    assert demo.stdout is not None
+    lines = []
+    for line in demo.stdout:  # until the nodes and the recorder run
+        lines.append(line)
+        if "recording:" in line:
+            break
+    assert any("ROS_DOMAIN_ID=" in line for line in lines), lines
+    children = subprocess.run(
+        ["ps", "-o", "pid=", "--ppid", str(demo.pid)], capture_output=True, text=True
+    ).stdout.split()
+    assert len(children) == 6  # simulator, four nodes, recorder
+    demo.send_signal(signum)
+    demo.communicate(timeout=120)
+    assert demo.returncode == 130
+    for pid in map(int, children):
+        with pytest.raises(ProcessLookupError):
+            os.kill(pid, 0)

@@ -128,3 +128,15 @@ def test_every_numeric_node_parameter_refuses_nan_and_inf(spec):
 def test_frame_names_must_be_non_empty_without_spaces(spec, value):
     with pytest.raises(ParameterValueError, match=f"parameter '{spec.name}'.*frame name"):
         validate(spec, value)
+
+
+def test_load_yaml_refuses_a_file_without_the_node_section(tmp_path):
+    path = tmp_path / "p.yaml"
+    path.write_text("other_node:\n  ros__parameters:\n    count: 7\n")
+    with pytest.raises(ParameterValueError, match=r"no section for my_node \(top keys: other"):
+        load_yaml(path, "my_node", SPECS)
+    path.write_text("- 1\n- 2\n")
+    with pytest.raises(ParameterValueError, match="must be a mapping of node names"):
+        load_yaml(path, "my_node", SPECS)
+    path.write_text("")
+    assert load_yaml(path, "my_node", SPECS)["count"] == validate_all(SPECS, {})["count"]

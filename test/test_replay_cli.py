@@ -185,6 +185,10 @@ def test_sweep_ranks_settings_and_applies_overrides(bag, tmp_path, capsys):
             " sensor_msgs/msg/Imu",
         ),
         (["--topics", "imu=/gnss/fix"], "topic /gnss/fix is given for more than one role"),
+        (
+            ["--topics", "fix=/leica/gnss/fix,attitude=/adu5/gnss/attitude"],
+            "--topics names fix=/leica/gnss/fix, attitude=/adu5/gnss/attitude, not in the bag",
+        ),
         (["--reference", "/truth"], "no reference topic /truth/fix"),
         (["--reference", "/gnss"], "reference topic(s) /gnss/attitude, /gnss/fix, /gnss/vel are"),
         (["--outage", "500:10"], "starts after the IMU data ends"),
@@ -251,6 +255,27 @@ def test_bad_parameter_file_and_existing_output_are_refused(bag, tmp_path, capsy
     assert (code, "cannot read parameter file" in err) == (2, True)
     code, _, err = _replay(capsys, bag, "--output", tmp_path)
     assert (code, "exists already" in err) == (2, True)
+    foreign = tmp_path / "foreign.yaml"
+    foreign.write_text("gnss_node:\n  ros__parameters:\n    baud: 9600\n")
+    code, _, err = _replay(capsys, bag, "--params", foreign)
+    assert code == 2
+    assert "has no section for ins_fusion_node (top keys: gnss_node)" in err
+
+
+def test_outputs_not_written_are_named_with_the_reason(bag, tmp_path, capsys):
+    """Without the IMU's first 60 s and GNSS there is no alignment: no plot, no fused bag."""
+    plot, fused = tmp_path / "p.png", tmp_path / "fused"
+    short = tmp_path / "imu_only"
+    with BagReader(bag) as reader, BagWriter(short) as writer:
+        writer.add_topic("/imu/data_raw", reader.topics["/imu/data_raw"].msgtype)
+        for msg in reader.messages(["/imu/data_raw"]):
+            if msg.log_time_ns < reader.start_ns + 3_000_000_000:
+                writer.write(msg.topic, msg.log_time_ns, msg.message)
+    code, _, err = _replay(capsys, short, "--plot", plot, "--output", fused)
+    assert code == 1
+    assert f"plot {plot} not written: there is no fused solution" in err
+    assert f"fused bag {fused} not written: there is no fused solution" in err
+    assert not plot.exists() and not fused.exists()
 
 
 def test_bag_without_reference_is_replayed_without_accuracy(bag, tmp_path, capsys):

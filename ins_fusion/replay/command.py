@@ -168,6 +168,7 @@ def _run(args: argparse.Namespace) -> int:
             " standstill or GNSS course/attitude and a fix?)",
             file=sys.stderr,
         )
+        _not_written(args, "there is no fused solution")
         return 1
     _write_outputs(args, inputs, parameters, result, outages)
     return 0
@@ -179,6 +180,13 @@ def _free_inertial(start_s: float, result: Replay) -> None:
     run = free_inertial.drift(withheld, start_s, free_inertial.ELAPSED_S)
     print(free_inertial.format_drift(run, start_s))
     result.report["free_inertial"] = free_inertial.report_section(run, start_s)
+
+
+def _not_written(args: argparse.Namespace, reason: str) -> None:
+    """Name the requested plot and fused bag that are not written, and why (stderr)."""
+    for label, path in (("plot", args.plot), ("fused bag", args.output)):
+        if path is not None:
+            print(f"gnss_ins replay: {label} {path} not written: {reason}", file=sys.stderr)
 
 
 def _write_report(path: Path, report: Report) -> None:
@@ -205,6 +213,8 @@ def _write_outputs(
                 args.plot, result.compared_track, inputs.t0_s, result.evaluation, outages, title
             )
         except (OSError, ValueError) as exc:
+            if args.output is not None:
+                print(f"gnss_ins replay: fused bag {args.output} not written", file=sys.stderr)
             raise UsageError(f"cannot write the plot {args.plot}: {exc}") from None
         print(f"plot: {args.plot}")
     if args.output is not None:

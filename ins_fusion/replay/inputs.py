@@ -120,7 +120,8 @@ def load_bag(
     """Read the sensor and reference topics of a bag.
 
     Raises InputError when the bag is missing or unreadable, has no IMU messages on
-    ``topics.imu``, or a selected topic has the wrong type; also when ``reference_required``
+    ``topics.imu``, a topic named by the user (``topics.named``) is absent or a selected topic
+    has the wrong type; also when ``reference_required``
     and ``PREFIX/fix`` is missing. Missing GNSS topics are allowed (the node treats them as
     optional). ``progress(done, total)`` is called every few thousand messages.
     """
@@ -147,6 +148,13 @@ def load_bag(
                 raise InputError(
                     f"{path}: no IMU messages on {topics.imu} (topics: {listing or 'none'});"
                     " choose the IMU topic with --topics imu=TOPIC"
+                )
+            named = [(r, t) for t, r in roles.items() if r in topics.named]
+            if absent := [f"{r}={t}" for r, t in named if t not in available]:
+                listing = ", ".join(sorted(available)) or "none"
+                raise InputError(
+                    f"{path}: --topics names {', '.join(absent)}, not in the bag"
+                    f" (topics: {listing})"
                 )
             if shared := sorted(set(ref_topics) & {*roles, topics.imu}):
                 raise InputError(

@@ -6,7 +6,7 @@ loading them.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 #: ROS message types of the inputs and references, as rosbags names them.
 IMU_TYPE = "sensor_msgs/msg/Imu"
@@ -43,6 +43,8 @@ class TopicMap:
     fix: str = "/gnss/fix"
     vel: str = "/gnss/vel"
     attitude: str = "/gnss/attitude"
+    #: Roles the user named (``parse``): their topics must be in the bag.
+    named: tuple[str, ...] = field(default=(), compare=False)
 
     def __post_init__(self) -> None:
         topics = list(self.by_role().values())
@@ -62,7 +64,7 @@ class TopicMap:
                     f" {', '.join(SENSOR_TYPES)}"
                 )
             values[role] = _absolute(topic)
-        return cls(**values)
+        return cls(**values, named=tuple(values))
 
     def by_role(self) -> dict[str, str]:
         """{role: topic} for the roles of SENSOR_TYPES."""

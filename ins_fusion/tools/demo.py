@@ -18,6 +18,7 @@ import json
 import os
 import random
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -53,23 +54,32 @@ REPLAY_TOPICS = (
 )
 
 
+#: The test pattern's standstill before the drive [s] (ins_fusion.sim.scenarios).
+STANDSTILL_S = 60.0
+
+
+def _stop_on_signal(signum: int, _frame: object) -> None:
+    """SIGTERM/SIGHUP end the demo as Ctrl-C does: the children are stopped in ``finally``."""
+    raise KeyboardInterrupt(signal.Signals(signum).name)
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Demo options."""
     parser.add_argument("--duration", type=float, default=150.0, help="simulated drive [s]")
     parser.add_argument("--seed", type=int, default=1, help="seed of the sensor errors")
-    parser.add_argument("--output-dir", type=Path, default=Path("gnss_ins_demo"))
+    parser.add_argument(
+        "--output-dir", type=Path, default=Path("gnss_ins_demo"), help="bags, logs, report, plot"
+    )
     parser.add_argument(
         "--outage",
         action="append",
         default=None,
         metavar="START:DURATION",
         help="GNSS outage injected in the offline replay [s after the first IMU sample] "
-        "(default: 20 s outages 20 s and 55 s into the drive, where the drive is long enough)",
+        f"(default: 20 s outages at {STANDSTILL_S + 20:g} s and {STANDSTILL_S + 55:g} s, i.e."
+        f" 20 s and 55 s after the {STANDSTILL_S:g} s standstill, where the drive is long"
+        " enough)",
     )
-
-
-#: The test pattern's standstill before the drive [s] (ins_fusion.sim.scenarios).
-STANDSTILL_S = 60.0
 
 
 def _default_outages(duration_s: float) -> list[str]:
@@ -196,6 +206,12 @@ def run(args: argparse.Namespace) -> int:
     drive, truth, merged = out / "drive", out / "truth", out / "drive_with_truth"
     started = time.monotonic()
     print(f"gnss_ins demo: {args.duration:.0f} s simulated drive in real time, output in {out}/")
+    print(
+        f"  ROS_DOMAIN_ID={env['ROS_DOMAIN_ID']} (localhost only): watch with e.g."
+        f" ROS_DOMAIN_ID={env['ROS_DOMAIN_ID']} ros2 topic echo /ins/odometry"
+    )
+    for signum in (signal.SIGTERM, signal.SIGHUP):
+        signal.signal(signum, _stop_on_signal)
     try:
         simulator = processes.start(
             "simulate",
@@ -237,8 +253,7 @@ def run(args: argparse.Namespace) -> int:
             processes.start(spec.name, command(spec, None, port, extras.get(spec, ())))
         processes.start("record", gnss_ins_command("record", "-o", str(drive), *RECORDED))
         print("  nodes running: imu400cc_node, leica/gnss_node, adu5/gnss_node, ins_fusion_node")
-        print("  recording ...", flush=True)
-        simulator.wait(timeout=args.duration + 60)
+        _wait_recording(simulator, args.duration)
         time.sleep(1.0)  # the last messages reach the recorder
     finally:
         failed = processes.stop_all()
@@ -278,6 +293,19 @@ def run(args: argparse.Namespace) -> int:
     report = json.loads(report_path.read_text())
     _print_summary(live, report, out, time.monotonic() - started)
     return 0 if live else 1
+
+
+def _wait_recording(simulator: subprocess.Popen[str], duration_s: float) -> None:
+    """Wait for the simulated drive to end, printing the time left every 10 s."""
+    start = time.monotonic()
+    while True:
+        left = duration_s - (time.monotonic() - start)
+        print(f"  recording: {max(left, 0.0):.0f} s of {duration_s:.0f} s left", flush=True)
+        try:
+            simulator.wait(timeout=10.0 if left > -60.0 else None)
+            return
+        except subprocess.TimeoutExpired:
+            continue
 
 
 def _print_summary(live: dict[str, float], report: dict, out: Path, total_s: float) -> None:

@@ -1,8 +1,10 @@
 """`gnss_ins launch`: start the vehicle's nodes for real hardware on a machine without `ros2`.
 
 The same nodes, namespaces and remappings as launch/vehicle.launch.py (ins_fusion.vehicle_nodes),
-each in its own process, until Ctrl-C/SIGTERM; a node that dies is reported and the others are
-stopped, so a broken cable or port never leaves half a system running silently.
+each in its own process, until Ctrl-C/SIGTERM; a port that does not exist, every WARN/ERROR line
+of a node's log (rate-limited by the nodes) and a node that dies are reported on the console, and
+when one dies the others are stopped, so a broken cable or port never leaves half a system running
+silently.
 """
 
 from __future__ import annotations
@@ -27,7 +29,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     for role, port in DEFAULT_PORTS.items():
         parser.add_argument(f"--{role}-port", default=port, help=f"serial port of the {role}")
     parser.add_argument("--no-adu5", action="store_true", help="run without the ADU5")
-    parser.add_argument("--log-dir", type=Path, default=Path("gnss_ins_logs"))
+    parser.add_argument(
+        "--log-dir", type=Path, default=Path("gnss_ins_logs"), help="one NAME.log per node"
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -53,9 +57,18 @@ def run(args: argparse.Namespace) -> int:
             port = ports[spec.port_role] if spec.port_role else None
             group.start(spec.name, command(spec, args.config, port))
             print(f"started {spec.name}" + (f" on {port}" if port else ""), flush=True)
-        print(f"logs in {args.log_dir}/; Ctrl-C to stop", flush=True)
+            if port is not None and not Path(port).exists():
+                print(
+                    f"warning: {port} does not exist; {spec.name} keeps trying to open it",
+                    flush=True,
+                )
+        print(f"logs in {args.log_dir}/ (their warnings and errors also here); Ctrl-C to stop")
         while not stop and not group.exited():
+            for line in group.problems():
+                print(line, flush=True)
             time.sleep(0.2)
+        for line in group.problems():
+            print(line, flush=True)
         ended = group.exited()
     finally:
         group.stop_all()

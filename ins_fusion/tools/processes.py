@@ -9,6 +9,9 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+#: Console lines of a ROS node (rcutils format) or of Python that report a problem.
+_PROBLEM_PREFIXES = ("[WARN]", "[ERROR]", "[FATAL]", "Traceback")
+
 
 class ProcessGroup:
     """Processes stopped with SIGINT (a clean ROS shutdown) in reverse start order."""
@@ -18,6 +21,7 @@ class ProcessGroup:
         log_dir.mkdir(parents=True, exist_ok=True)
         self.log_dir, self.env = log_dir, dict(env) if env is not None else None
         self.running: list[tuple[str, subprocess.Popen[str]]] = []
+        self._read: dict[str, int] = {}  # bytes of each NAME.log already scanned by problems()
 
     def start(self, name: str, command: Sequence[str], **kwargs: Any) -> subprocess.Popen[str]:
         """Start ``command``; its output goes to NAME.log unless ``stdout`` is given."""
@@ -30,6 +34,29 @@ class ProcessGroup:
         process = subprocess.Popen(list(command), **options)
         self.running.append((name, process))
         return process
+
+    def problems(self, limit: int = 3) -> list[str]:
+        """New WARN/ERROR/FATAL lines (and tracebacks) of the processes' logs since the last
+        call, as ``NAME: line``; at most ``limit`` per process, the rest counted."""
+        found: list[str] = []
+        for name, _ in self.running:
+            path = self.log_dir / f"{name}.log"
+            if not path.exists():
+                continue
+            with path.open("rb") as log:
+                log.seek(self._read.get(name, 0))
+                text = log.read()
+            complete = text[: text.rfind(b"\n") + 1]  # a line still being written waits
+            self._read[name] = self._read.get(name, 0) + len(complete)
+            lines = [
+                line
+                for line in complete.decode(errors="replace").splitlines()
+                if line.startswith(_PROBLEM_PREFIXES)
+            ]
+            found += [f"{name}: {line}" for line in lines[:limit]]
+            if len(lines) > limit:
+                found.append(f"{name}: ... {len(lines) - limit} more in {path}")
+        return found
 
     def exited(self) -> list[str]:
         """Names of the processes that have ended."""

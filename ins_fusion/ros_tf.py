@@ -1,0 +1,50 @@
+"""TF broadcasting of ins_fusion_node: /tf from ins/odometry, /tf_static for the sensor frames.
+
+tf2_msgs comes from the sourced ROS install, or without one from the interface package the
+Makefile's ``venv`` target generates (ros_interfaces/tf2_msgs). Same QoS as tf2_ros's
+TransformBroadcaster (depth 100) and StaticTransformBroadcaster (transient local, depth 1).
+"""
+
+from __future__ import annotations
+
+from geometry_msgs.msg import TransformStamped
+from nav_msgs.msg import Odometry
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile
+from tf2_msgs.msg import TFMessage
+
+from ins_fusion.tf_frames import FrameTransform
+
+_STATIC_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+class TfBroadcaster:
+    """Sends the static transforms once at construction; ``send`` mirrors one Odometry."""
+
+    def __init__(self, node: Node, static: list[FrameTransform], dynamic: bool) -> None:
+        self._static_pub = node.create_publisher(TFMessage, "/tf_static", _STATIC_QOS)
+        self._pub = node.create_publisher(TFMessage, "/tf", 100) if dynamic else None
+        stamp = node.get_clock().now().to_msg()
+        transforms = []
+        for frame in static:
+            msg = TransformStamped()
+            msg.header.stamp = stamp
+            msg.header.frame_id, msg.child_frame_id = frame.parent, frame.child
+            t, q = msg.transform.translation, msg.transform.rotation
+            t.x, t.y, t.z = frame.translation_m
+            q.x, q.y, q.z, q.w = frame.quat_xyzw
+            transforms.append(msg)
+        self._static_pub.publish(TFMessage(transforms=transforms))
+        self._msg = TFMessage(transforms=[TransformStamped()])
+
+    def send(self, odom: Odometry) -> None:
+        """The odometry's pose as frame_id → child_frame_id at its stamp (when dynamic)."""
+        if self._pub is None:
+            return
+        tf = self._msg.transforms[0]
+        tf.header = odom.header
+        tf.child_frame_id = odom.child_frame_id
+        p, t = odom.pose.pose.position, tf.transform.translation
+        t.x, t.y, t.z = p.x, p.y, p.z
+        tf.transform.rotation = odom.pose.pose.orientation
+        self._pub.publish(self._msg)
