@@ -43,7 +43,8 @@ class Param:
 
     @property
     def is_frame(self) -> bool:
-        """A TF frame name (``frame_id`` or ``*_frame``): non-empty, without white space."""
+        """A TF frame name (``frame_id`` or ``*_frame``): without white space, and non-empty
+        unless its default is empty (an optional frame: empty = none)."""
         return isinstance(self.default, str) and (
             self.name == "frame_id" or self.name.endswith("_frame")
         )
@@ -61,7 +62,7 @@ class Param:
             return f"expected {type(self.default).__name__}, got {value!r}"
         if self.choices and value not in self.choices:
             return f"'{value}' is not one of {', '.join(self.choices)}"
-        if self.is_frame and (not value or any(c.isspace() for c in value)):
+        if self.is_frame and ((not value and self.default) or any(c.isspace() for c in value)):
             return f"{value!r} is not a frame name (non-empty, no spaces)"
         for item in value if isinstance(value, list) else [value]:
             if isinstance(item, str | bool):
