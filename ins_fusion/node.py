@@ -61,7 +61,6 @@ class InsFusionNode(Node):
         gyro_psd = float(np.mean(np.square(config.imu_noise.gyro_arw)))
         self._rate_variance = gyro_psd * NOMINAL_RATE_HZ
         self._published = 0
-        self._warned = 0  # engine warnings already logged
         self._invalid_outputs = 0
         self._rate_covariance = np.eye(3).ravel() * self._rate_variance
         self._odom_msg, self._fix_msg, self._imu_msg = Odometry(), NavSatFix(), Imu()
@@ -207,9 +206,6 @@ class InsFusionNode(Node):
                 logger.warning(line)
             else:
                 logger.info(line)
-        for warning in status.warnings[self._warned :]:
-            self.get_logger().warning(warning)
-        self._warned = len(status.warnings)
         if status.warnings:
             level, message = diag.WARN, f"{message}; {status.warnings[-1]}"
         values: dict[str, object] = {

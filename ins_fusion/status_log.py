@@ -2,7 +2,8 @@
 
 ``StatusLog.update`` compares each EngineStatus with the last one and returns the lines to log:
 state changes (WARN into degraded, INFO otherwise), filter resets with the last reason, IMU stamps
-that went back and IMU gaps beyond ``gap_rate_hz``. Each kind is logged at most once per
+that went back, IMU gaps beyond ``gap_rate_hz`` and each set-up warning of the engine once
+(``EngineStatus.warnings``, e.g. a unit levelled upside down). Each kind is logged at most once per
 ``interval_s``; what happens in between is summed into the next line.
 """
 
@@ -25,6 +26,7 @@ class StatusLog:
     _start_s: float | None = None
     _counts: dict[str, int] = field(default_factory=dict)
     _logged_at: dict[str, float] = field(default_factory=dict)
+    _warnings: int = 0
 
     def _due(self, kind: str, count: int, now_s: float, min_rate_hz: float = 0.0) -> int:
         """Events of ``kind`` since its last line when a line is due and they come at least at
@@ -55,4 +57,6 @@ class StatusLog:
             lines.append((WARN, f"{back} IMU sample(s) with a stamp before the previous one"))
         if gaps := self._due("gaps", status.imu_gaps, now_s, self.gap_rate_hz):
             lines.append((WARN, f"{gaps} IMU gap(s) (lost or implausible samples, bridged)"))
+        lines += [(WARN, warning) for warning in status.warnings[self._warnings :]]
+        self._warnings = len(status.warnings)
         return lines

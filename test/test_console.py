@@ -47,6 +47,9 @@ def test_status_log_reports_changes_once_per_interval():
         (WARN, "2 IMU sample(s) with a stamp before the previous one"),
         (WARN, "40 IMU gap(s) (lost or implausible samples, bridged)"),
     ]
+    warned = dataclasses.replace(many, warnings=("unit levelled upside down",))
+    assert log.update(warned, 13.5) == [(WARN, "unit levelled upside down")]
+    assert log.update(warned, 30.0) == []  # each engine warning once
 
 
 @pytest.mark.ros
