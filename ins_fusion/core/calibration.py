@@ -119,18 +119,18 @@ class TriadCalibration:
         )
         return replace(
             self,
-            bias=_vec(sign * axes.to_flu(self.bias)),
-            bias_sigma=_vec(axes.permute_to_flu(self.bias_sigma)),
-            scale_positive=_vec(scale[0]),
-            scale_positive_sigma=_vec(scale_sigma[0]),
-            scale_negative=_vec(scale[1]),
-            scale_negative_sigma=_vec(scale_sigma[1]),
-            scale_large_positive=_vec(large[0]),
-            scale_large_positive_sigma=_vec(large_sigma[0]),
-            scale_large_negative=_vec(large[1]),
-            scale_large_negative_sigma=_vec(large_sigma[1]),
-            misalignment_rad=_mat(axes.matrix_to_flu(self.misalignment_rad)),
-            misalignment_sigma_rad=_mat(abs(axes.matrix_to_flu(self.misalignment_sigma_rad))),
+            bias=vec3(sign * axes.to_flu(self.bias)),
+            bias_sigma=vec3(axes.permute_to_flu(self.bias_sigma)),
+            scale_positive=vec3(scale[0]),
+            scale_positive_sigma=vec3(scale_sigma[0]),
+            scale_negative=vec3(scale[1]),
+            scale_negative_sigma=vec3(scale_sigma[1]),
+            scale_large_positive=vec3(large[0]),
+            scale_large_positive_sigma=vec3(large_sigma[0]),
+            scale_large_negative=vec3(large[1]),
+            scale_large_negative_sigma=vec3(large_sigma[1]),
+            misalignment_rad=mat3(axes.matrix_to_flu(self.misalignment_rad)),
+            misalignment_sigma_rad=mat3(abs(axes.matrix_to_flu(self.misalignment_sigma_rad))),
         )
 
     @functools.cached_property
@@ -220,8 +220,8 @@ class ImuCalibration:
             self,
             gyro=self.gyro.in_flu(axes, 1.0),
             accel=self.accel.in_flu(axes, accel_sign),
-            g_sensitivity=_mat(accel_sign * axes.matrix_to_flu(self.g_sensitivity)),
-            g_sensitivity_sigma=_mat(abs(axes.matrix_to_flu(self.g_sensitivity_sigma))),
+            g_sensitivity=mat3(accel_sign * axes.matrix_to_flu(self.g_sensitivity)),
+            g_sensitivity_sigma=mat3(abs(axes.matrix_to_flu(self.g_sensitivity_sigma))),
         )
 
     def correct(self, rate_flu_rad_s: Vec3, force_flu_m_s2: Vec3) -> tuple[Vec3, Vec3]:
@@ -369,12 +369,14 @@ class _Fields:
             raise CalibrationError(f"{self._where}: unknown key(s) {', '.join(unknown)}")
 
 
-def _vec(values: np.ndarray[Any, Any]) -> Vec3:
+def vec3(values: np.ndarray[Any, Any]) -> Vec3:
+    """A 3-vector array as a tuple of floats."""
     return (float(values[0]), float(values[1]), float(values[2]))
 
 
-def _mat(values: np.ndarray[Any, Any]) -> Mat3:
-    return (_vec(values[0]), _vec(values[1]), _vec(values[2]))
+def mat3(values: np.ndarray[Any, Any]) -> Mat3:
+    """A 3x3 array as a tuple of rows."""
+    return (vec3(values[0]), vec3(values[1]), vec3(values[2]))
 
 
 def _numbers(value: Any, where: str) -> list[float]:

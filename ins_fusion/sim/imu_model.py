@@ -33,6 +33,7 @@ import numpy as np
 
 from gnss_ins_common.axes import AxisMap
 from imu400cc_driver.axes import DEFAULT_ACCEL_SIGN, DEFAULT_AXIS_SPEC
+from ins_fusion.core.calibration import mat3, vec3
 from ins_fusion.core.rotation import FloatArray
 from ins_fusion.core.units import (
     DEG,
@@ -114,18 +115,18 @@ class TriadErrors:
         )
         return replace(
             self,
-            scale_large_pos=_vec(large_pos),
-            scale_large_neg=_vec(large_neg),
-            noise_density=_vec(axes.permute_to_flu(self.noise_density)),
-            bias_instability=_vec(axes.permute_to_flu(self.bias_instability)),
-            bias_correlation_time_s=_vec(axes.permute_to_flu(self.bias_correlation_time_s)),
-            random_walk=_vec(axes.permute_to_flu(self.random_walk)),
-            bias=_vec(sign * axes.to_flu(self.bias)),
-            bias_sigma=_vec(axes.permute_to_flu(self.bias_sigma)),
-            scale_pos=_vec(scale_pos),
-            scale_neg=_vec(scale_neg),
-            scale_sigma=_vec(axes.permute_to_flu(self.scale_sigma)),
-            misalignment_rad=_mat(axes.matrix_to_flu(self.misalignment_rad)),
+            scale_large_pos=vec3(large_pos),
+            scale_large_neg=vec3(large_neg),
+            noise_density=vec3(axes.permute_to_flu(self.noise_density)),
+            bias_instability=vec3(axes.permute_to_flu(self.bias_instability)),
+            bias_correlation_time_s=vec3(axes.permute_to_flu(self.bias_correlation_time_s)),
+            random_walk=vec3(axes.permute_to_flu(self.random_walk)),
+            bias=vec3(sign * axes.to_flu(self.bias)),
+            bias_sigma=vec3(axes.permute_to_flu(self.bias_sigma)),
+            scale_pos=vec3(scale_pos),
+            scale_neg=vec3(scale_neg),
+            scale_sigma=vec3(axes.permute_to_flu(self.scale_sigma)),
+            misalignment_rad=mat3(axes.matrix_to_flu(self.misalignment_rad)),
         )
 
 
@@ -153,14 +154,6 @@ class ImuProfile:
     gyro_g_sensitivity: Mat3 = _ZERO33
     temperature: TemperatureSpec = TemperatureSpec()
     source: str = ""
-
-
-def _vec(values: FloatArray) -> Vec3:
-    return (float(values[0]), float(values[1]), float(values[2]))
-
-
-def _mat(values: FloatArray) -> Mat3:
-    return (_vec(values[0]), _vec(values[1]), _vec(values[2]))
 
 
 def _deg_s_per_g(value: float) -> float:
@@ -221,7 +214,7 @@ IMU400CC = ImuProfile(
         full_scale=mg(3000.0),
         bandwidth_hz=75.0,
     ).in_flu(_IMU400CC_AXES, DEFAULT_ACCEL_SIGN),
-    gyro_g_sensitivity=_mat(
+    gyro_g_sensitivity=mat3(
         DEFAULT_ACCEL_SIGN
         * _IMU400CC_AXES.matrix_to_flu(
             [
