@@ -19,4 +19,4 @@ Vec3 = tuple[float, float, float]
 Mat3 = tuple[Vec3, Vec3, Vec3]
 """A 3x3 matrix as three rows."""
 Quat = tuple[float, float, float, float]
-"""A unit quaternion (w, x, y, z), Hamilton convention."""
+"""A unit quaternion (x, y, z, w): Hamilton, scalar last, as in scipy and ROS."""
