@@ -25,6 +25,10 @@ from ins_fusion.replay.outages import Outage, in_any
 
 FloatArray = NDArray[np.float64]
 
+#: A stamp this close before an output tick (in output periods) counts as at it: stamps are
+#: float seconds since 1970 (about 0.24 µs apart), so k / rate after the first one is not exact.
+_TICK_TOLERANCE = 1e-3
+
 
 @dataclass(frozen=True)
 class SolutionTrack:
@@ -111,8 +115,8 @@ def run_fusion(
         "vel": engine.add_gnss_velocity,
         "attitude": engine.add_attitude,
     }
-    period = 1.0 / config.output_rate_hz
-    next_record = t0
+    rate_hz = config.output_rate_hz
+    next_tick = 0.0  # output ticks since t0; the next one is recorded
     solutions: list[InsSolution] = []
     j, n_kept, total = 0, len(kept), len(inputs.imu)
     for k, (t, rate, force) in enumerate(inputs.imu):
@@ -120,11 +124,12 @@ def run_fusion(
             feed[kept[j][1]](kept[j][2])
             j += 1
         engine.add_imu(t, rate, force)
-        if t >= next_record:
+        ticks = (t - t0) * rate_hz + _TICK_TOLERANCE
+        if ticks >= next_tick:
             solution = engine.solution()
             if solution is not None:
                 solutions.append(solution)
-            next_record = t0 + (math.floor((t - t0) / period) + 1.0) * period
+            next_tick = math.floor(ticks) + 1.0
         if progress is not None and k % 2048 == 0:
             progress(k, total)
     for _, role, measurement in kept[j:]:
