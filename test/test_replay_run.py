@@ -7,7 +7,7 @@ import numpy as np
 
 from ins_fusion.core.measurements import GnssFixMeasurement
 from ins_fusion.messages_in import ImuSample
-from ins_fusion.replay.inputs import ReplayInputs
+from ins_fusion.replay.inputs import ImuSeries, ReplayInputs
 from ins_fusion.replay.run import run_fusion
 from ins_fusion.replay.topics import TopicMap
 
@@ -17,10 +17,12 @@ T0_S = 1717236000.0  # stamps in seconds since 1970, as in a bag: k / rate is no
 def test_one_solution_per_output_tick_at_200_hz():
     """200 Hz samples, 50 Hz output: every tick falls on a sample; a stamp a rounding error
     before its tick must not record the next sample too (it did: half the ticks twice)."""
-    imu = [ImuSample(T0_S + k / 200.0, (0.0, 0.0, 0.0), (0.0, 0.0, 9.81)) for k in range(2800)]
+    imu = ImuSeries.from_samples(
+        [ImuSample(T0_S + k / 200.0, (0.0, 0.0, 0.0), (0.0, 0.0, 9.81)) for k in range(2800)]
+    )
     fixes = [
         (k, "fix", GnssFixMeasurement(T0_S + k / 200.0, 57.0, 10.0, 50.0, np.eye(3) * 1e-4))
-        for k in range(0, len(imu), 40)
+        for k in range(0, 2800, 40)
     ]
     run = run_fusion(ReplayInputs("bag", TopicMap(), imu, fixes, None, 0.0), {})
     t = run.track.t_s

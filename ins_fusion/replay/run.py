@@ -15,15 +15,13 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
+from gnss_ins_common.types import BoolArray, FloatArray
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.engine import EngineStatus, InsEngine, InsSolution
 from ins_fusion.core.measurements import GnssFixMeasurement
 from ins_fusion.replay.inputs import Measurement, ReplayInputs
 from ins_fusion.replay.outages import Outage, in_any
-
-FloatArray = NDArray[np.float64]
 
 #: A stamp this close before an output tick (in output periods) counts as at it: stamps are
 #: float seconds since 1970 (about 0.24 µs apart), so k / rate after the first one is not exact.
@@ -45,7 +43,7 @@ class SolutionTrack:
     cov_pos_enu_m2: FloatArray
     cov_vel_enu: FloatArray
     cov_att_enu_rad2: FloatArray
-    aligned: NDArray[np.bool_]
+    aligned: BoolArray
 
     @classmethod
     def from_solutions(cls, solutions: Sequence[InsSolution]) -> SolutionTrack:
@@ -119,7 +117,7 @@ def run_fusion(
     next_tick = 0.0  # output ticks since t0; the next one is recorded
     solutions: list[InsSolution] = []
     j, n_kept, total = 0, len(kept), len(inputs.imu)
-    for k, (t, rate, force) in enumerate(inputs.imu):
+    for k, (t, rate, force) in enumerate(inputs.imu.samples()):
         while j < n_kept and kept[j][0] <= k:
             feed[kept[j][1]](kept[j][2])
             j += 1
