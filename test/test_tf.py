@@ -16,6 +16,7 @@ from ins_fusion.fusion_params import PARAMETERS
 from ins_fusion.node import InsFusionNode
 from ins_fusion.tf_frames import quat_from_rpy_deg, static_transforms, world_frame
 
+pytestmark = pytest.mark.ros
 DEFAULTS = {spec.name: spec.default for spec in PARAMETERS}
 
 
