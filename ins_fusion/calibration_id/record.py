@@ -10,17 +10,17 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from numpy.typing import NDArray
 from rosbags.highlevel import AnyReaderError
 from rosbags.rosbag2 import ReaderError
 from rosbags.serde import SerdeError
 
 from gnss_ins_common.message_fields import stamp_ns
-from ins_fusion.messages_in import imu_sample, stamp_s
+from gnss_ins_common.types import FloatArray
+from ins_fusion.cdr_fields import CdrError, imu_columns
+from ins_fusion.messages_in import stamp_s
 from ins_fusion.sim.messages import fill_imu, fill_temperature, new_message
+from ins_fusion.tools.bag_columns import read_topics
 from ins_fusion.tools.bag_io import BagError, BagReader, BagWriter
-
-FloatArray = NDArray[np.float64]
 
 IMU_TOPIC = "/imu/data_raw"
 TEMPERATURE_TOPIC = "/imu/temperature"
@@ -81,19 +81,24 @@ def read_bag(
             if temperature_topic in reader.topics:
                 _check_topic(reader, path, temperature_topic, TEMPERATURE_TYPE)
                 topics.append(temperature_topic)
-            samples: list[tuple[float, ...]] = []
-            temperatures: list[tuple[float, float]] = []
-            for msg in reader.messages(topics, deserialize=True):
-                if msg.topic == imu_topic:
-                    s = imu_sample(msg.message)
-                    samples.append((s.t_s, *s.rate_flu_rad_s, *s.force_flu_m_s2))
-                else:
-                    temperatures.append((stamp_s(msg.message), float(msg.message.temperature)))
-    except (BagError, AnyReaderError, ReaderError, SerdeError, OSError) as exc:
+            columns = read_topics(reader, topics)
+            temperatures = (
+                [
+                    (stamp_s(message), float(message.temperature))
+                    for message in (
+                        reader.deserialize(data, TEMPERATURE_TYPE)
+                        for data in columns[temperature_topic].payloads
+                    )
+                ]
+                if temperature_topic in columns
+                else []
+            )
+            imu = imu_columns(columns[imu_topic].payloads)
+    except (BagError, AnyReaderError, ReaderError, SerdeError, CdrError, OSError) as exc:
         raise RecordError(f"{path}: {exc}") from None
-    if len(samples) < 2:
-        raise RecordError(f"{path}: {imu_topic} has {len(samples)} message(s)")
-    data = np.array(samples)
+    if len(imu.t_s) < 2:
+        raise RecordError(f"{path}: {imu_topic} has {len(imu.t_s)} message(s)")
+    data = np.column_stack([imu.t_s, imu.rate, imu.force])
     data = data[np.argsort(data[:, 0], kind="stable")]
     data = data[np.concatenate(([True], np.diff(data[:, 0]) > 0.0))]  # repeated stamps
     temp = np.array(temperatures).reshape(-1, 2)

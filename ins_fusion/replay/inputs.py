@@ -36,7 +36,6 @@ from ins_fusion.core.measurements import (
     GnssVelocityMeasurement,
 )
 from ins_fusion.messages_in import ImuSample
-from ins_fusion.replay.bag_columns import read_topics
 from ins_fusion.replay.topics import (
     DEFAULT_REFERENCE,
     DEFAULT_TOPICS,
@@ -44,6 +43,7 @@ from ins_fusion.replay.topics import (
     SENSOR_TYPES,
     TopicMap,
 )
+from ins_fusion.tools.bag_columns import read_topics
 from ins_fusion.tools.bag_io import BagError, BagReader
 
 Measurement = GnssFixMeasurement | GnssVelocityMeasurement | AttitudeMeasurement
@@ -249,7 +249,8 @@ def _read(
         reader, selected, None if progress is None else lambda done: progress(done, total)
     )
     imu_column = columns[imu_topic]
-    imu = ImuSeries(*cdr_fields.imu_columns(imu_column.payloads))
+    decoded = cdr_fields.imu_columns(imu_column.payloads)
+    imu = ImuSeries(decoded.t_s, decoded.rate, decoded.force)
     arrivals: list[tuple[int, int, str, Measurement]] = []  # receive order, k, role, measurement
     for topic, role in roles.items():
         if role == "imu" or topic not in columns:

@@ -22,6 +22,7 @@ import numpy as np
 from rosbags.highlevel import AnyReaderError
 
 from gnss_ins_common.params import ParameterValueError
+from ins_fusion.cdr_fields import CdrError, imu_columns
 from ins_fusion.core.units import deg_s, mg
 from ins_fusion.noise_id.allan import ONE_SIGMA
 from ins_fusion.noise_id.analysis import (
@@ -49,12 +50,11 @@ from ins_fusion.noise_id.record import (
     check_values,
     sample_clock,
 )
+from ins_fusion.tools.bag_columns import read_topics
 from ins_fusion.tools.bag_io import BagError, BagReader, utc_text
 from ins_fusion.tools.progress import Progress
 
 IMU_TYPE = "sensor_msgs/msg/Imu"
-#: Messages read between progress-bar updates.
-_PROGRESS_EVERY = 20_000
 
 
 def _terms(text: str) -> tuple[str, ...]:
@@ -124,7 +124,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def read_imu(path: Path, topic: str) -> tuple[ImuRecord, int]:
     """The Imu samples of ``topic`` in stamp order (times from the header stamps, relative to
-    the first) and the first stamp [ns]; BagError for a missing topic or one of another type."""
+    the first) and the first stamp [ns]; BagError for a missing topic or one of another type.
+    The topic is read as columns (ins_fusion.tools.bag_columns, ins_fusion.cdr_fields)."""
     with BagReader(path) as reader:
         info = reader.topics.get(topic)
         if info is None:
@@ -134,28 +135,17 @@ def read_imu(path: Path, topic: str) -> tuple[ImuRecord, int]:
             )
         if info.msgtype != IMU_TYPE:
             raise BagError(f"{path}: {topic} is {info.msgtype}, not {IMU_TYPE}")
-        stamps = np.empty(info.count, dtype=np.int64)
-        values = np.empty((info.count, 6))
-        count = 0
         with Progress("read", total=info.count, unit="messages") as progress:
-            for item in reader.messages([topic], deserialize=True):
-                if count == info.count:
-                    raise BagError(f"{path}: {topic} holds more messages than its index lists")
-                msg = item.message
-                stamps[count] = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-                w, f = msg.angular_velocity, msg.linear_acceleration
-                values[count] = (w.x, w.y, w.z, f.x, f.y, f.z)
-                count += 1
-                if count % _PROGRESS_EVERY == 0:
-                    progress.update(count)
-            progress.update(count)
-    if not count:
+            payloads = read_topics(reader, [topic], progress.update)[topic].payloads
+            progress.update(len(payloads))
+    if not payloads:
         raise BagError(f"{path}: {topic} has no messages")
+    imu = imu_columns(payloads)
     # Sample order, whatever order the recorder logged them in.
-    order = np.argsort(stamps[:count], kind="stable")
-    stamps, values = stamps[order], values[order]
+    order = np.argsort(imu.stamp_ns, kind="stable")
+    stamps = imu.stamp_ns[order]
     t_s = (stamps - stamps[0]) / 1e9
-    return ImuRecord(t_s, values[:, :3], values[:, 3:]), int(stamps[0])
+    return ImuRecord(t_s, imu.rate[order], imu.force[order]), int(stamps[0])
 
 
 def _error(message: str) -> int:
@@ -172,7 +162,7 @@ def run(args: argparse.Namespace) -> int:
         check_length(record.duration_s, args.terms or DEFAULT_TERMS)
         limits = StaticLimits(deg_s(args.max_rate_change), mg(args.max_accel_change))
         check_static(record, clock.rate_hz, limits)
-    except (BagError, AnyReaderError, OSError, RecordError) as exc:
+    except (BagError, AnyReaderError, CdrError, OSError, RecordError) as exc:
         return _error(str(exc))
     source = f"bag {args.bag}, topic {args.topic}, from {utc_text(first_ns)}"
     axes = len(SENSORS) * len(AXES)
