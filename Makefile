@@ -66,7 +66,7 @@ typecheck: venv
 	$(BIN)/mypy $(MYPY_TARGETS)
 
 pytest: venv
-	$(BIN)/python -m pytest -q -n $(PYTEST_WORKERS) --dist loadgroup
+	$(BIN)/python -m pytest -q -n $(PYTEST_WORKERS) --dist loadgroup --no-loadscope-reorder
 
 test: lint typecheck pytest
 
