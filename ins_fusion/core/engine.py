@@ -111,6 +111,7 @@ from ins_fusion.core.rotation import (
     quat_multiply,
     quat_normalize,
 )
+from ins_fusion.core.smoother import SmootherHooks
 from ins_fusion.core.stop_detector import GNSS_SPEED_MAX_AGE_S, StopDetector
 from ins_fusion.core.strapdown import ImuIncrement, NavState, SampleIntegrator, propagate
 from ins_fusion.core.units import STANDARD_GRAVITY_M_S2
@@ -515,6 +516,11 @@ class InsEngine:
         self._fading = 1.0
         self._levelling = Levelling()
         self._integrator = SampleIntegrator()
+        #: RTS smoother hooks (core.smoother; set by core.smoothed_solution.attach_recorder).
+        self.recorder: SmootherHooks | None = None
+        #: Jacobian of the last solution() (rows ENU position, velocity, attitude of base_link,
+        #: columns the error states core.smoothed_solution.solution_states); reused per call.
+        self.solution_jacobian: FloatArray = self._j_solution
         self._clear()
 
     # ----------------------------------------------------------------------------- inputs
@@ -681,11 +687,13 @@ class InsEngine:
         mt = self.layout.mt
         if mt is None:
             cov = J @ kf.P[: BG + 3, : BG + 3] @ J.T
+            self.solution_jacobian = J  # smoother hook
         else:  # the vehicle's attitude error is ψ + C_nb μ: the mounting states join
             J_mt = self._j_mounting
             J_mt[:, : BG + 3] = J
             J_mt[6:9, BG + 3 :] = (MAT_ENU_NED @ C)[:, 1:3]
             cov = J_mt @ kf.P[np.ix_(self._solution_states, self._solution_states)] @ J_mt.T
+            self.solution_jacobian = J_mt  # smoother hook
         vn, ve, vd = nav.vel_ned_m_s.tolist()
         lat0, lon0, h0 = self.datum
         datum_rad = (math.radians(lat0), math.radians(lon0), h0)
@@ -825,6 +833,8 @@ class InsEngine:
 
     def _clear(self) -> None:
         """Forget everything but the counters and the datum (start, reset)."""
+        if self.recorder is not None:  # smoother hook: the filter starts again
+            self.recorder.on_reset(None if self._filter is None else self._filter.P)
         self._filter = None
         self._state = None
         self._history = []
@@ -900,10 +910,14 @@ class InsEngine:
 
     def _checkpoint(self) -> tuple[_State, FloatArray]:
         assert self._state is not None and self._filter is not None
+        if self.recorder is not None:  # smoother hook: what a rollback to here keeps
+            self.recorder.on_checkpoint(self._state.t_s)
         return self._state.copy(), self._filter.P
 
     def _restore(self, checkpoint: tuple[_State, FloatArray]) -> None:
         assert self._filter is not None
+        if self.recorder is not None:  # smoother hook: drop what the rollback undoes
+            self.recorder.on_rollback(checkpoint[0].t_s)
         self._state = checkpoint[0].copy()
         self._filter.P = checkpoint[1]
         self._filter.gnss_variance = self._state.gnss_variance
@@ -1044,8 +1058,11 @@ class InsEngine:
         if gap is not None:
             assert self._filter is not None
             mat_ni = s.mat_nb @ self._mat_bi
+            P_before = self._filter.P
             self._filter.add_noise(ATT, (mat_ni * gap.angle_var_rad2) @ mat_ni.T)
             self._filter.add_noise(VEL, (mat_ni * gap.velocity_var_m2_s2) @ mat_ni.T)
+            if self.recorder is not None:  # smoother hook: the gap's noise
+                self.recorder.on_noise(P_before, self._filter.P)
         cdth, cdv = s.cov_dth, s.cov_dv
         s.cov_dth = (cdth[0] + ti0, cdth[1] + ti1, cdth[2] + ti2)
         s.cov_dv = (cdv[0] + vi0, cdv[1] + vi1, cdv[2] + vi2)
@@ -1082,6 +1099,7 @@ class InsEngine:
         vn, ve, vd = nav.vel_ned_m_s.tolist()
         gyro_psd, accel_psd = s.imu_psd or (self._gyro_psd, self._accel_psd_floor)
         kf.set_white_noise(gyro_psd * s.q_scale, accel_psd * s.q_scale)
+        P_before = kf.P
         kf.propagate(
             s.cov_dt,
             s.mat_nb @ self._mat_bi,
@@ -1092,6 +1110,8 @@ class InsEngine:
             nav.height_m,
             (vn, ve, vd),
         )
+        if self.recorder is not None:  # smoother hook: a covariance step
+            self.recorder.on_transition(P_before, kf.phi, kf.P)
         if self.layout.gp is not None:  # the estimate of a Gauss-Markov error decays
             decay = math.exp(-s.cov_dt / self.config.gnss_correlation_time_s)
             e = s.gnss_error
@@ -1174,11 +1194,14 @@ class InsEngine:
             # factor that makes the innovation typical (NIS = dof), apply it. Only if no factor
             # does (the innovation lies outside what P spans) widen what the sensor measures.
             factor = fading_factor(z, H @ kf.P @ H.T, R, float(len(z)))
+            P_before = kf.P
             if math.isfinite(factor):
                 kf.scale(factor)
                 self._fading = factor
             else:
                 kf.widen(z, H, R, block)
+            if self.recorder is not None:  # smoother hook: the recovery's noise
+                self.recorder.on_noise(P_before, kf.P)
             result = kf.update(z, H, R, math.inf)
             gated = False
             if live:
@@ -1200,6 +1223,8 @@ class InsEngine:
         """Closed-loop feedback of an error estimate into the nominal state."""
         s = self._state
         assert s is not None
+        if self.recorder is not None:  # smoother hook: the correction of this step
+            self.recorder.on_correction(dx)
         d = dx.tolist()
         nav = s.nav
         r_m, r_n = earth.radii_m(nav.lat_rad)
@@ -1671,6 +1696,7 @@ class InsEngine:
         type, e.g. RTK float after an outage): uncorrelated, at its stationary variance."""
         s, kf = self._state, self._filter
         assert s is not None and kf is not None and self.layout.gp is not None
+        P_before = kf.P
         P = kf.P.copy()
         _restart_block(P, self.layout.gp, np.diag(correlated))
         kf.P = P
@@ -1678,6 +1704,8 @@ class InsEngine:
         s.gnss_reported = (float(reported[0]), float(reported[1]), float(reported[2]))
         s.gnss_error = (0.0, 0.0, 0.0)
         self._set_gnss_variance(correlated)
+        if self.recorder is not None:  # smoother hook: the GNSS error states restart
+            self.recorder.on_restart(P_before, kf.P, range(self.layout.gp, self.layout.gp + 3))
 
     def _set_gnss_variance(self, correlated: FloatArray) -> None:
         """Stationary variance of the correlated GNSS error process per NED axis [m²]."""
@@ -1737,6 +1765,8 @@ class InsEngine:
         heading is known from now on."""
         s, kf = self._state, self._filter
         assert s is not None and kf is not None
+        if self.recorder is not None:  # smoother hook: the heading is set, not estimated
+            self.recorder.on_break(kf.P)
         turn = float(wrap_angle(np.array(yaw - euler_rad(s.mat_nb)[2])))
         nav = s.nav
         antenna_n = s.mat_nb @ self._antenna_arm_b

@@ -128,6 +128,8 @@ class ErrorStateFilter:
         self.layout = layout
         self.P: FloatArray = np.zeros((n, n))
         self._eye = np.eye(n)
+        #: Transition matrix Φ of the last ``propagate`` (a new array per call).
+        self.phi: FloatArray = self._eye
         # F and Q are rebuilt block by block through views; constant blocks are set once.
         F = self._F = np.zeros((n, n))
         F[POS : POS + 3, VEL : VEL + 3] = np.eye(3)
@@ -251,6 +253,7 @@ class ErrorStateFilter:
         P = phi @ (self.P + q) @ phi.T
         P += q
         self.P = P
+        self.phi = phi  # RTS smoother hook (core.smoother): the transition of this interval
 
     def set_white_noise(self, gyro_psd: FloatArray, accel_psd: FloatArray) -> None:
         """White-noise power densities per imu axis from now on: gyro [rad²/s] (ARW²),
