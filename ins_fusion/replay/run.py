@@ -3,7 +3,9 @@
 The engine is fed exactly what ins_fusion_node would receive, in the bag's receive order, minus
 the GNSS messages (fix, velocity, attitude) stamped inside an injected outage. The fused base_link
 solution is recorded at ``output_rate`` (the node's publish rate): at the first IMU sample at or
-after each tick k / output_rate after the first IMU stamp.
+after each tick k / output_rate after the first IMU stamp. With ``smooth`` the run is also
+recorded for the RTS smoother (ins_fusion.core.smoothed_solution), whose backward pass gives the
+smoothed solution at every covariance step once the forward run is done.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from numpy.typing import NDArray
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.engine import EngineStatus, InsEngine, InsSolution
 from ins_fusion.core.measurements import GnssFixMeasurement
+from ins_fusion.core.smoothed_solution import attach_recorder, smoothed_solutions
 from ins_fusion.replay.inputs import Measurement, ReplayInputs
 from ins_fusion.replay.outages import Outage, in_any
 
@@ -71,7 +74,8 @@ class FusionRun:
     (lat_deg, lon_deg, height_m of the map frame; None without any fix), the GNSS messages
     dropped by outages per topic role, the output rate [Hz], the wall time of the run [s], the
     engine's configuration and the fixes the outages withheld (``fix`` role, valid or not, in
-    receive order)."""
+    receive order); with smoothing, the smoothed track (one solution per covariance step) and
+    the wall time of the backward pass [s]."""
 
     track: SolutionTrack
     status: EngineStatus
@@ -81,6 +85,8 @@ class FusionRun:
     fusion_time_s: float
     config: FusionConfig
     withheld_fixes: tuple[GnssFixMeasurement, ...] = ()
+    smoothed: SolutionTrack | None = None
+    smoothing_time_s: float = 0.0
 
 
 def run_fusion(
@@ -88,12 +94,14 @@ def run_fusion(
     parameters: Mapping[str, Any],
     outages: Sequence[Outage] = (),
     progress: Callable[[int, int], None] | None = None,
+    smooth: bool = False,
 ) -> FusionRun:
     """Run a fresh engine configured by the flat parameter dict (validated against
     ins_fusion.fusion_params.PARAMETERS) over ``inputs``; ``progress(done, total)`` counts IMU
-    samples."""
+    samples; ``smooth``: also the RTS smoother's backward pass."""
     config = FusionConfig.from_parameters(parameters)
     engine = InsEngine(config)
+    recorder = attach_recorder(engine) if smooth else None
     start = time.perf_counter()
     t0 = inputs.t0_s
     kept: list[tuple[int, str, Measurement]] = []
@@ -131,13 +139,23 @@ def run_fusion(
         feed[role](measurement)
     if progress is not None:
         progress(total, total)
+    status = engine.status()
+    fusion_time = time.perf_counter() - start
+    smoothed, smoothing_time = None, 0.0
+    if recorder is not None:
+        recorder.finish(engine.covariance)
+        smoothed = SolutionTrack.from_solutions(smoothed_solutions(recorder))
+        recorder.close()
+        smoothing_time = time.perf_counter() - start - fusion_time
     return FusionRun(
         SolutionTrack.from_solutions(solutions),
-        engine.status(),
+        status,
         engine.datum,
         dropped,
         config.output_rate_hz,
-        time.perf_counter() - start,
+        fusion_time,
         config,
         tuple(withheld),
+        smoothed,
+        smoothing_time,
     )
