@@ -105,6 +105,15 @@ class _ClosedLoop:
         )
 
 
+def _model(k: int) -> tuple[np.ndarray, np.ndarray]:
+    """Transition into step k and its noise, the restart and the extra noise folded in."""
+    if k == RESTART_STEP:
+        return M_RESTART @ F, M_RESTART @ Q @ M_RESTART.T + Q_RESTART
+    if k == NOISE_STEP:
+        return F, Q + Q_NOISE
+    return F, Q
+
+
 def _filterpy(zs: dict[int, list[float]]) -> tuple[np.ndarray, np.ndarray]:
     """Open-loop Kalman filter (the restart and the extra noise folded into that step's F and
     Q) and filterpy's RTS smoother, at steps 1..STEPS."""
@@ -112,11 +121,7 @@ def _filterpy(zs: dict[int, list[float]]) -> tuple[np.ndarray, np.ndarray]:
     kf.x, kf.P = X0.copy(), P0.copy()
     xs, ps, fs, qs = [], [], [], []
     for k in range(1, STEPS + 1):
-        f, q = F, Q
-        if k == RESTART_STEP:
-            f, q = M_RESTART @ F, M_RESTART @ Q @ M_RESTART.T + Q_RESTART
-        if k == NOISE_STEP:
-            q = q + Q_NOISE
+        f, q = _model(k)
         kf.predict(F=f, Q=q)
         for z in zs.get(k, []):
             kf.update(np.array([z]), R=R, H=H)
@@ -134,17 +139,13 @@ def _batch(zs: dict[int, list[float]]) -> np.ndarray:
     """The conditional mean of all states 1..STEPS given all measurements, from the joint
     Gaussian of the whole trajectory (no recursion)."""
     n = 3 * (STEPS + 1)
-    # x = G w with w = (x_0, w_1..w_N): each state is a linear function of the noises.
+    # x = A w with w = (x_0, w_1..w_N): each state is a linear function of the noises.
     A = np.zeros((n, n))
     cov_w = np.zeros((n, n))
     cov_w[:3, :3] = P0
     A[:3, :3] = np.eye(3)
     for k in range(1, STEPS + 1):
-        f, q = F, Q
-        if k == RESTART_STEP:
-            f, q = M_RESTART @ F, M_RESTART @ Q @ M_RESTART.T + Q_RESTART
-        if k == NOISE_STEP:
-            q = q + Q_NOISE
+        f, q = _model(k)
         A[3 * k : 3 * k + 3] = f @ A[3 * k - 3 : 3 * k]
         A[3 * k : 3 * k + 3, 3 * k : 3 * k + 3] += np.eye(3)
         cov_w[3 * k : 3 * k + 3, 3 * k : 3 * k + 3] = q
