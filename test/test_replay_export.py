@@ -16,6 +16,7 @@ from scipy.spatial.transform import Rotation
 from gnss_driver import geoid
 from ins_fusion.core.engine import InsSolution
 from ins_fusion.replay.export import CSV_COLUMNS, export
+from ins_fusion.replay.run import SolutionTrack
 
 T0 = 1_717_236_000.25  # 2024-06-01T10:00:00.25Z
 
@@ -55,7 +56,9 @@ def _solutions() -> list[InsSolution]:
 def test_csv_round_trip(tmp_path):
     solutions = _solutions()
     path = tmp_path / "s.csv"
-    assert export(path, solutions, "drive") == 5  # the aligning one is left out
+    assert (
+        export(path, SolutionTrack.from_solutions(solutions), "drive") == 5
+    )  # the aligning one is left out
     with path.open(newline="") as file:
         rows = list(csv.DictReader(file))
     assert tuple(rows[0]) == CSV_COLUMNS
@@ -82,7 +85,7 @@ def test_csv_round_trip(tmp_path):
 def test_gpx_round_trip_with_heights_above_the_geoid(tmp_path):
     solutions = _solutions()
     path = tmp_path / "s.gpx"
-    assert export(path, solutions, "drive smoothed") == 5
+    assert export(path, SolutionTrack.from_solutions(solutions), "drive smoothed") == 5
     gpx = gpxpy.parse(path.read_text())
     (track,) = gpx.tracks
     assert track.name == "drive smoothed"
@@ -100,7 +103,7 @@ def test_gpx_round_trip_with_heights_above_the_geoid(tmp_path):
 def test_nmea_round_trip(tmp_path):
     solutions = _solutions()
     path = tmp_path / "s.nmea"
-    assert export(path, solutions, "drive") == 5
+    assert export(path, SolutionTrack.from_solutions(solutions), "drive") == 5
     text = path.read_bytes().decode("ascii")
     assert text.endswith("\r\n")
     sentences = [pynmea2.parse(line) for line in text.splitlines()]  # checks the checksums
@@ -127,4 +130,4 @@ def test_nmea_round_trip(tmp_path):
 
 def test_an_unknown_suffix_is_refused(tmp_path):
     with pytest.raises(ValueError, match="unknown export format"):
-        export(tmp_path / "s.kml", _solutions(), "drive")
+        export(tmp_path / "s.kml", SolutionTrack.from_solutions(_solutions()), "drive")

@@ -13,7 +13,8 @@ from test_fusion_drives import CALIBRATION, Drive, config, feed, simulate
 from ins_fusion.core import earth
 from ins_fusion.core.calibration import ImuCalibration
 from ins_fusion.core.engine import InsEngine, InsSolution
-from ins_fusion.core.smoothed_solution import attach_recorder, smoothed_solutions
+from ins_fusion.core.smoothed_solution import attach_recorder, smoothed_rows
+from ins_fusion.core.solution_rows import unpack
 
 DURATION_S = 70.0
 #: GNSS (fix, velocity, attitude) withheld by stamp, as `gnss_ins replay --outage` does [s].
@@ -40,7 +41,7 @@ def _smoothed(engine: InsEngine, drive: Drive, events=None) -> list[InsSolution]
     feed(engine, drive, events=events)
     recorder.finish(engine.covariance)
     assert recorder.bytes_on_disk > 0
-    solutions = smoothed_solutions(recorder)
+    solutions = [unpack(row) for row in smoothed_rows(recorder)]
     recorder.close()
     return solutions
 
@@ -115,7 +116,7 @@ def test_the_smoothed_solution_bridges_the_outage(drive):
     recorder = attach_recorder(engine)
     feed(engine, drive, events=events, after_sample=after)
     recorder.finish(engine.covariance)
-    smoothed = smoothed_solutions(recorder)
+    smoothed = [unpack(row) for row in smoothed_rows(recorder)]
     t_f, e_f = _horizontal_errors(forward, drive)
     t_s, e_s = _horizontal_errors(smoothed, drive)
     forward_max = e_f[(t_f >= start) & (t_f < end)].max()

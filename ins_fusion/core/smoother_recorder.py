@@ -321,10 +321,14 @@ class SmootherRecorder:
             )
 
     def close(self) -> None:
-        """Delete the chunks on disk (also done when the recorder is garbage-collected)."""
+        """Forget the records and delete the chunks on disk (also done when the recorder is
+        garbage-collected)."""
         if self._finalizer is not None:
             self._finalizer()
         self._chunks = []
+        self._recent = []
+        self._final = {}
+        self._marks.clear()
 
     # ---------------------------------------------------------------------------- storage
 

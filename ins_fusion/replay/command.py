@@ -264,7 +264,7 @@ def _export(args: argparse.Namespace, result: Replay) -> None:
     assert track is not None
     for path in args.export:
         try:
-            count = export(path, track.solutions, f"{Path(result.report['bag']).name} {which}")
+            count = export(path, track, f"{Path(result.report['bag']).name} {which}")
         except OSError as exc:
             raise UsageError(f"cannot write {path}: {exc}") from None
         print(f"export: {path} ({which}, {count} epochs)")

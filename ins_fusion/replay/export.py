@@ -21,7 +21,6 @@ from __future__ import annotations
 import csv
 import datetime
 import math
-from collections.abc import Sequence
 from pathlib import Path
 
 import gpxpy
@@ -32,8 +31,9 @@ from scipy.spatial.transform import Rotation
 
 from gnss_driver import geoid
 from gnss_ins_common.types import FloatArray
-from ins_fusion.core.engine import InsSolution
+from ins_fusion.core import solution_rows as cols
 from ins_fusion.replay.metrics import rpy_covariance, rpy_deg
+from ins_fusion.replay.run import SolutionTrack
 
 #: Export formats by file suffix.
 FORMATS = (".csv", ".gpx", ".nmea")
@@ -62,45 +62,38 @@ CSV_COLUMNS = (
 _KNOTS_PER_M_S = 3600.0 / 1852.0
 
 
-def _aligned(solutions: Sequence[InsSolution]) -> list[InsSolution]:
-    return [s for s in solutions if s.state != "aligning"]
-
-
 def _sigma(cov: FloatArray) -> FloatArray:
     """Standard deviations of the diagonal of (n, 3, 3) covariances."""
     return np.sqrt(np.maximum(np.diagonal(cov, axis1=1, axis2=2), 0.0))
 
 
-def write_csv(path: Path, solutions: Sequence[InsSolution]) -> int:
+def write_csv(path: Path, track: SolutionTrack) -> int:
     """Write the CSV export; returns the rows written."""
-    rows = _aligned(solutions)
-    rpy = np.zeros((0, 3))
-    sigma_rpy = np.zeros((0, 3))
-    if rows:
-        rpy = rpy_deg(Rotation.from_quat([s.quat_enu_flu_xyzw for s in rows]))
-        cov_att = np.array([s.cov_att_enu_rad2 for s in rows])
-        sigma_rpy = _sigma(rpy_covariance(cov_att, rpy[:, 2]))
-    sigma_pos = _sigma(np.array([s.cov_pos_enu_m2 for s in rows]).reshape(-1, 3, 3))
-    sigma_vel = _sigma(np.array([s.cov_vel_enu for s in rows]).reshape(-1, 3, 3))
+    keep = track.aligned
+    rows = track.rows[keep]
+    rpy = rpy_deg(Rotation.from_quat(rows[:, cols.QUAT])) if len(rows) else np.zeros((0, 3))
+    sigma_rpy = _sigma(rpy_covariance(track.cov_att_enu_rad2[keep], rpy[:, 2]))
+    numbers = np.hstack(
+        (
+            rows[:, cols.VEL],
+            rpy,
+            _sigma(track.cov_pos_enu_m2[keep]),
+            _sigma(track.cov_vel_enu[keep]),
+            sigma_rpy,
+        )
+    )
     with path.open("w", newline="", encoding="utf-8") as file:
         writer = csv.writer(file)
         writer.writerow(CSV_COLUMNS)
-        for i, s in enumerate(rows):
-            values = [
-                *s.vel_enu_m_s,
-                *rpy[i],
-                *sigma_pos[i],
-                *sigma_vel[i],
-                *sigma_rpy[i],
-            ]
+        for row, values in zip(rows, numbers, strict=True):
             writer.writerow(
                 [
-                    f"{s.t_s:.6f}",
-                    f"{s.lat_deg:.9f}",
-                    f"{s.lon_deg:.9f}",
-                    f"{s.height_m:.4f}",
+                    f"{row[cols.T]:.6f}",
+                    f"{row[cols.LAT]:.9f}",
+                    f"{row[cols.LON]:.9f}",
+                    f"{row[cols.HEIGHT]:.4f}",
                     *(f"{v:.6g}" for v in values),
-                    s.state,
+                    cols.STATES[int(row[cols.STATE])],
                 ]
             )
     return len(rows)
@@ -110,22 +103,22 @@ def _utc(t_s: float) -> datetime.datetime:
     return datetime.datetime.fromtimestamp(t_s, datetime.UTC)
 
 
-def write_gpx(path: Path, solutions: Sequence[InsSolution], name: str) -> int:
+def write_gpx(path: Path, track: SolutionTrack, name: str) -> int:
     """Write the GPX export (a track named ``name``); returns the points written."""
     gpx = gpxpy.gpx.GPX()
     gpx.creator = "gnss_ins replay"
-    track = gpxpy.gpx.GPXTrack(name=name)
+    gpx_track = gpxpy.gpx.GPXTrack(name=name)
     segment = gpxpy.gpx.GPXTrackSegment()
-    track.segments.append(segment)
-    gpx.tracks.append(track)
-    rows = _aligned(solutions)
-    for s in rows:
-        msl = s.height_m - geoid.undulation_m(s.lat_deg, s.lon_deg)
-        segment.points.append(
-            gpxpy.gpx.GPXTrackPoint(
-                round(s.lat_deg, 9), round(s.lon_deg, 9), round(msl, 4), _utc(s.t_s)
-            )
+    gpx_track.segments.append(segment)
+    gpx.tracks.append(gpx_track)
+    rows = track.rows[track.aligned]
+    for row in rows:
+        lat, lon, height = float(row[cols.LAT]), float(row[cols.LON]), float(row[cols.HEIGHT])
+        msl = height - geoid.undulation_m(lat, lon)
+        point = gpxpy.gpx.GPXTrackPoint(
+            round(lat, 9), round(lon, 9), round(msl, 4), _utc(float(row[cols.T]))
         )
+        segment.points.append(point)
     path.write_text(gpx.to_xml(version="1.1"), encoding="utf-8")
     return len(rows)
 
@@ -137,17 +130,18 @@ def _nmea_angle(value_deg: float, width: int, signs: str) -> tuple[str, str]:
     return f"{whole:0{width}d}{minutes - 60.0 * whole:010.7f}", signs[value_deg < 0.0]
 
 
-def _nmea_sentences(s: InsSolution) -> list[str]:
-    utc = _utc(s.t_s)
+def _nmea_sentences(row: FloatArray, cov_pos_enu_m2: FloatArray) -> list[str]:
+    utc = _utc(float(row[cols.T]))
     clock = f"{utc:%H%M%S}.{utc.microsecond // 10000:02d}"
-    lat, lat_hemisphere = _nmea_angle(s.lat_deg, 2, "NS")
-    lon, lon_hemisphere = _nmea_angle(s.lon_deg, 3, "EW")
-    separation = geoid.undulation_m(s.lat_deg, s.lon_deg)
-    quality = "6" if s.state == "degraded" else "1"
-    east, north = float(s.vel_enu_m_s[0]), float(s.vel_enu_m_s[1])
+    lat_deg, lon_deg, height = float(row[cols.LAT]), float(row[cols.LON]), float(row[cols.HEIGHT])
+    lat, lat_hemisphere = _nmea_angle(lat_deg, 2, "NS")
+    lon, lon_hemisphere = _nmea_angle(lon_deg, 3, "EW")
+    separation = geoid.undulation_m(lat_deg, lon_deg)
+    quality = "6" if cols.STATES[int(row[cols.STATE])] == "degraded" else "1"
+    east, north = row[cols.VEL][:2].tolist()
     course = math.degrees(math.atan2(east, north)) % 360.0
     speed = math.hypot(east, north) * _KNOTS_PER_M_S
-    sigma_e, sigma_n, sigma_u = _sigma(np.asarray(s.cov_pos_enu_m2)[None])[0]
+    sigma_e, sigma_n, sigma_u = _sigma(cov_pos_enu_m2[None])[0]
     gga = pynmea2.GGA(
         "GP",
         "GGA",
@@ -160,7 +154,7 @@ def _nmea_sentences(s: InsSolution) -> list[str]:
             quality,
             "",
             "",
-            f"{s.height_m - separation:.4f}",
+            f"{height - separation:.4f}",
             "M",
             f"{separation:.3f}",
             "M",
@@ -194,22 +188,23 @@ def _nmea_sentences(s: InsSolution) -> list[str]:
     return [str(gga), str(rmc), str(gst)]
 
 
-def write_nmea(path: Path, solutions: Sequence[InsSolution]) -> int:
+def write_nmea(path: Path, track: SolutionTrack) -> int:
     """Write the NMEA export (GGA, RMC, GST per solution, CRLF); returns the epochs written."""
-    rows = _aligned(solutions)
+    keep = track.aligned
+    rows, covs = track.rows[keep], track.cov_pos_enu_m2[keep]
     with path.open("w", newline="", encoding="ascii") as file:
-        for s in rows:
-            file.writelines(sentence + "\r\n" for sentence in _nmea_sentences(s))
+        for row, cov in zip(rows, covs, strict=True):
+            file.writelines(sentence + "\r\n" for sentence in _nmea_sentences(row, cov))
     return len(rows)
 
 
-def export(path: Path, solutions: Sequence[InsSolution], name: str) -> int:
-    """Write ``solutions`` in the format of ``path``'s suffix (FORMATS); returns the epochs."""
+def export(path: Path, track: SolutionTrack, name: str) -> int:
+    """Write ``track`` in the format of ``path``'s suffix (FORMATS); returns the epochs."""
     suffix = path.suffix.lower()
     if suffix == ".csv":
-        return write_csv(path, solutions)
+        return write_csv(path, track)
     if suffix == ".gpx":
-        return write_gpx(path, solutions, name)
+        return write_gpx(path, track, name)
     if suffix == ".nmea":
-        return write_nmea(path, solutions)
+        return write_nmea(path, track)
     raise ValueError(f"{path}: unknown export format (suffix one of {', '.join(FORMATS)})")

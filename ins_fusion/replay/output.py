@@ -11,6 +11,7 @@ solution's IMU stamp; the RTS-smoothed solution, when given, the same way on
 from __future__ import annotations
 
 import heapq
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 from ins_fusion.core.engine import InsSolution
@@ -23,13 +24,17 @@ SMOOTHED_ODOMETRY_TOPIC, SMOOTHED_FIX_TOPIC = "/ins/smoothed/odometry", "/ins/sm
 ODOMETRY_TYPE, FIX_TYPE = "nav_msgs/msg/Odometry", "sensor_msgs/msg/NavSatFix"
 
 
+def _stamped(k: int, solutions: Sequence[InsSolution]) -> Iterator[tuple[float, int, InsSolution]]:
+    return ((s.t_s, k, s) for s in filter(publishable, solutions))
+
+
 def write_fused_bag(
     path: Path | str,
-    solutions: tuple[InsSolution, ...],
+    solutions: Sequence[InsSolution],
     map_frame: str,
     base_frame: str,
     rate_variance_rad2_s2: float,
-    smoothed: tuple[InsSolution, ...] | None = None,
+    smoothed: Sequence[InsSolution] | None = None,
 ) -> BagSummary:
     """Write /ins/odometry and /ins/fix of every publishable solution (and the smoothed ones
     on their topics) to a new bag at ``path`` (MCAP)."""
@@ -38,10 +43,7 @@ def write_fused_bag(
         tracks.append((SMOOTHED_ODOMETRY_TOPIC, SMOOTHED_FIX_TOPIC, smoothed))
     # Both tracks in one time order (log time = stamp), as a recording would have them.
     merged = heapq.merge(
-        *(
-            [(s.t_s, k, s) for s in filter(publishable, track)]
-            for k, (*_, track) in enumerate(tracks)
-        ),
+        *(_stamped(k, track) for k, (*_, track) in enumerate(tracks)),
         key=lambda item: (item[0], item[1]),
     )
     with BagWriter(path) as writer:

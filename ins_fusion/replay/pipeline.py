@@ -73,12 +73,8 @@ def _score(
     if is_imu_frame(frame, inputs.imu_frame):
         config = run.config
         configured = np.asarray(config.imu_mounting_rpy_rad, dtype=np.float64)
-        mounting = np.array(  # the engine's estimate where it has one
-            [
-                configured if s.imu_mounting_rpy_rad is None else s.imu_mounting_rpy_rad
-                for s in track.solutions
-            ]
-        ).reshape(-1, 3)
+        estimated = track.imu_mounting_rpy_rad  # the engine's estimate where it has one
+        mounting = np.where(np.isnan(estimated), configured, estimated)
         compared = moved_track(track, config.imu_lever_arm_flu_m, mounting)
     if inputs.reference is not None and run.datum is not None:
         evaluation = evaluate(

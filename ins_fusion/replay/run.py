@@ -19,10 +19,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ins_fusion.core import solution_rows
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.engine import EngineStatus, InsEngine, InsSolution
 from ins_fusion.core.measurements import GnssFixMeasurement
-from ins_fusion.core.smoothed_solution import attach_recorder, smoothed_solutions
+from ins_fusion.core.smoothed_solution import attach_recorder, smoothed_rows
 from ins_fusion.replay.inputs import Measurement, ReplayInputs
 from ins_fusion.replay.outages import Outage, in_any
 
@@ -31,12 +32,15 @@ FloatArray = NDArray[np.float64]
 
 @dataclass(frozen=True)
 class SolutionTrack:
-    """Fused base_link solutions in time order (see InsSolution for frames and units), with
-    the fields stacked over time: t_s (n,), pos_enu_m (n, 3), quat_enu_flu_xyzw (n, 4),
-    vel_enu_m_s (n, 3), cov_pos_enu_m2 / cov_vel_enu / cov_att_enu_rad2 (n, 3, 3);
-    ``aligned`` (n,) is False while the engine is still 'aligning' (heading unknown)."""
+    """Fused base_link solutions in time order, held as rows of core.solution_rows (``rows``;
+    ``solutions``: each InsSolution built when asked for; see InsSolution for frames and units),
+    with the fields the evaluation uses stacked over time: t_s (n,), pos_enu_m (n, 3),
+    quat_enu_flu_xyzw (n, 4), vel_enu_m_s (n, 3), cov_pos_enu_m2 / cov_vel_enu /
+    cov_att_enu_rad2 (n, 3, 3); ``aligned`` (n,) is False while the engine is still
+    'aligning' (heading unknown). A track moved to another frame (replay.frames) replaces the
+    stacked fields; ``rows`` stay those of base_link."""
 
-    solutions: tuple[InsSolution, ...]
+    rows: FloatArray
     t_s: FloatArray
     pos_enu_m: FloatArray
     quat_enu_flu_xyzw: FloatArray
@@ -47,25 +51,40 @@ class SolutionTrack:
     aligned: NDArray[np.bool_]
 
     @classmethod
+    def from_rows(cls, rows: FloatArray) -> SolutionTrack:
+        """The track of an (n, solution_rows.WIDTH) array of rows (the fields are views)."""
+        rows = rows.reshape(-1, solution_rows.WIDTH)
+        return cls(
+            rows,
+            rows[:, solution_rows.T],
+            rows[:, solution_rows.POS],
+            rows[:, solution_rows.QUAT],
+            rows[:, solution_rows.VEL],
+            rows[:, solution_rows.COV_POS].reshape(-1, 3, 3),
+            rows[:, solution_rows.COV_VEL].reshape(-1, 3, 3),
+            rows[:, solution_rows.COV_ATT].reshape(-1, 3, 3),
+            rows[:, solution_rows.STATE] != solution_rows.STATES.index("aligning"),
+        )
+
+    @classmethod
     def from_solutions(cls, solutions: Sequence[InsSolution]) -> SolutionTrack:
         """Stack a sequence of solutions (may be empty)."""
+        return cls.from_rows(np.array([solution_rows.pack(s) for s in solutions]))
 
-        def stack(name: str, shape: tuple[int, ...]) -> FloatArray:
-            if not solutions:
-                return np.zeros((0, *shape))
-            return np.array([getattr(s, name) for s in solutions], dtype=np.float64)
+    @property
+    def solutions(self) -> Sequence[InsSolution]:
+        """The recorded base_link solutions."""
+        return solution_rows.Solutions(self.rows)
 
-        return cls(
-            tuple(solutions),
-            stack("t_s", ()),
-            stack("pos_enu_m", (3,)),
-            stack("quat_enu_flu_xyzw", (4,)),
-            stack("vel_enu_m_s", (3,)),
-            stack("cov_pos_enu_m2", (3, 3)),
-            stack("cov_vel_enu", (3, 3)),
-            stack("cov_att_enu_rad2", (3, 3)),
-            np.array([s.state != "aligning" for s in solutions], dtype=np.bool_),
-        )
+    @property
+    def rate_flu_rad_s(self) -> FloatArray:
+        """Bias-corrected base_link rates (n, 3) [rad/s]."""
+        return self.rows[:, solution_rows.RATE]
+
+    @property
+    def imu_mounting_rpy_rad(self) -> FloatArray:
+        """The engine's estimated IMU mounting (n, 3) [rad]; NaN rows where not estimated."""
+        return self.rows[:, solution_rows.MOUNTING]
 
 
 @dataclass(frozen=True)
@@ -121,7 +140,7 @@ def run_fusion(
     }
     period = 1.0 / config.output_rate_hz
     next_record = t0
-    solutions: list[InsSolution] = []
+    solutions = solution_rows.RowBuffer()
     j, n_kept, total = 0, len(kept), len(inputs.imu)
     for k, (t, rate, force) in enumerate(inputs.imu):
         while j < n_kept and kept[j][0] <= k:
@@ -131,7 +150,7 @@ def run_fusion(
         if t >= next_record:
             solution = engine.solution()
             if solution is not None:
-                solutions.append(solution)
+                solutions.append(solution_rows.pack(solution))
             next_record = t0 + (math.floor((t - t0) / period) + 1.0) * period
         if progress is not None and k % 2048 == 0:
             progress(k, total)
@@ -144,11 +163,11 @@ def run_fusion(
     smoothed, smoothing_time = None, 0.0
     if recorder is not None:
         recorder.finish(engine.covariance)
-        smoothed = SolutionTrack.from_solutions(smoothed_solutions(recorder))
+        smoothed = SolutionTrack.from_rows(smoothed_rows(recorder))
         recorder.close()
         smoothing_time = time.perf_counter() - start - fusion_time
     return FusionRun(
-        SolutionTrack.from_solutions(solutions),
+        SolutionTrack.from_rows(solutions.rows()),
         status,
         engine.datum,
         dropped,
