@@ -17,8 +17,8 @@ references to the engine's own arrays (they are never modified in place); once m
 chunks (``chunk_records``) are held, the oldest chunk is packed (P as upper triangles) and
 written to disk as one ``.npy`` file in a temporary directory (removed by ``close``), unless a
 rollback could still reach it (``horizon_s`` covers the engine's history). The backward pass
-reads the chunks back newest first, memory-mapped. With the 21 error states of the default
-configuration a record takes 1 130 numbers (9 kB); 10–20 records per second of drive.
+reads the chunks back newest first, memory-mapped. With the 20 error states of the default
+configuration a record takes 1 023 numbers (8.2 kB); 10–20 records per second of drive.
 """
 
 from __future__ import annotations
@@ -30,6 +30,7 @@ from collections import deque
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -96,8 +97,7 @@ class _Record:
         self.correction = correction
 
 
-@dataclass(frozen=True)
-class _Mark:
+class _Mark(NamedTuple):
     """Recorder state at a checkpoint: stamp, records so far, the newest one's correction (an
     array replaced, never changed in place) and the segment counter."""
 
@@ -236,8 +236,9 @@ class SmootherRecorder:
             marks.pop()
         while marks and marks[0].t_s < t_s - self._horizon_s:
             marks.popleft()
-        newest = self._recent[-1].correction if self._recent else None
-        marks.append(_Mark(t_s, self.records, newest, self._segment))
+        recent = self._recent
+        newest = recent[-1].correction if recent else None
+        marks.append(_Mark(t_s, self._spilled + len(recent), newest, self._segment))
 
     def on_rollback(self, t_s: float) -> None:
         """Back to the checkpoint at t_s: drop what followed it."""

@@ -24,30 +24,29 @@ POS, VEL, QUAT, RATE = slice(4, 7), slice(7, 10), slice(10, 14), slice(14, 17)
 COV_POS, COV_VEL, COV_ATT = slice(17, 26), slice(26, 35), slice(35, 44)
 GYRO, ACCEL, MOUNTING, STATE = slice(44, 47), slice(47, 50), slice(50, 53), 53
 WIDTH = 54
+_NO_MOUNTING = (np.nan, np.nan, np.nan)
 
 
 def pack(solution: InsSolution) -> FloatArray:
     """The row of one solution."""
-    row = np.empty(WIDTH)
-    row[[T, LAT, LON, HEIGHT]] = (
-        solution.t_s,
-        solution.lat_deg,
-        solution.lon_deg,
-        solution.height_m,
-    )
-    row[POS] = solution.pos_enu_m
-    row[VEL] = solution.vel_enu_m_s
-    row[QUAT] = solution.quat_enu_flu_xyzw
-    row[RATE] = solution.rate_flu_rad_s
-    row[COV_POS] = np.ravel(solution.cov_pos_enu_m2)
-    row[COV_VEL] = np.ravel(solution.cov_vel_enu)
-    row[COV_ATT] = np.ravel(solution.cov_att_enu_rad2)
-    row[GYRO] = solution.gyro_bias_flu_rad_s
-    row[ACCEL] = solution.accel_bias_flu_m_s2
     mounting = solution.imu_mounting_rpy_rad
-    row[MOUNTING] = np.nan if mounting is None else mounting
-    row[STATE] = STATES.index(solution.state)
-    return row
+    return np.concatenate(
+        (
+            (solution.t_s, solution.lat_deg, solution.lon_deg, solution.height_m),
+            solution.pos_enu_m,
+            solution.vel_enu_m_s,
+            solution.quat_enu_flu_xyzw,
+            solution.rate_flu_rad_s,
+            np.ravel(solution.cov_pos_enu_m2),
+            np.ravel(solution.cov_vel_enu),
+            np.ravel(solution.cov_att_enu_rad2),
+            solution.gyro_bias_flu_rad_s,
+            solution.accel_bias_flu_m_s2,
+            _NO_MOUNTING if mounting is None else mounting,
+            (STATES.index(solution.state),),
+        ),
+        dtype=np.float64,
+    )
 
 
 def unpack(row: FloatArray) -> InsSolution:
