@@ -14,10 +14,9 @@ from pathlib import Path
 from typing import Any
 
 from gnss_ins_common.params import load_yaml, validate_all
+from gnss_ins_common.types import Vec3
 from ins_fusion.core.units import deg_h, deg_s, deg_sqrt_h, m_s_sqrt_h, mg, ppm
 from ins_fusion.fusion_params import PARAMETERS
-
-Vec3 = tuple[float, float, float]
 
 #: Node name of the parameter section in config/ins_fusion.yaml.
 NODE_NAME = "ins_fusion_node"

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ins_fusion.core.rotation import FloatArray
+from gnss_ins_common.types import FloatArray
 from ins_fusion.core.units import DEG, deg_s, mg
 
 #: Largest share of samples that may be missing (dropped packets); the series is joined at the

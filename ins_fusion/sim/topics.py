@@ -34,9 +34,9 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from gnss_driver.profiles import Receiver
+from gnss_ins_common.types import FloatArray
 from imu400cc_driver.device_clock import PACKET_TRANSMISSION_S
 from imu400cc_driver.protocol import TEMPERATURE_VARIANCE_C2, Scaling
-from ins_fusion.core.rotation import FloatArray
 from ins_fusion.sim import gnss_model, imu_model, vibration
 from ins_fusion.sim.gnss_model import GnssErrorModel, GnssSchedule, SkyMask, SkyZone
 from ins_fusion.sim.imu_model import ImuErrorModel
