@@ -34,12 +34,12 @@ from ins_fusion import cdr_fields, messages_in, tf_frames
 from ins_fusion.cdr_fields import CdrError
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.engine import InsEngine, InsSolution
-from ins_fusion.fusion_params import PARAMETERS as FUSION_PARAMETERS
+from ins_fusion.core.params import PARAMETERS as FUSION_PARAMETERS
 from ins_fusion.ros_tf import TfBroadcaster
 from ins_fusion.solution_out import fill_fused_fix, fill_odometry, publishable
 from ins_fusion.status_log import WARN, StatusLog
 
-#: One table for the node and `gnss_ins replay` (ins_fusion/fusion_params.py).
+#: One table for the node and `gnss_ins replay` (ins_fusion/core/params.py).
 PARAMETERS = FUSION_PARAMETERS
 
 

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from gnss_ins_common.params import load_yaml
+from ins_fusion.core.params import PARAMETERS
 from ins_fusion.core.units import deg_s
-from ins_fusion.fusion_params import PARAMETERS
 from ins_fusion.noise_id.record import ImuRecord
 from ins_fusion.noise_id.synthetic import static_record, write_imu_bag
 from ins_fusion.sim.imu_model import PROFILES

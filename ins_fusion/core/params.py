@@ -28,7 +28,9 @@ import math
 
 from gnss_ins_common.params import Param
 from ins_fusion.core.calibration import CalibrationError, ImuCalibration
-from ins_fusion.tf_frames import TF_MODES
+
+#: Values of ``tf_mode`` (ins_fusion.tf_frames publishes accordingly).
+TF_MODES = ("map", "odom", "none")
 
 # Per-axis per-sample σ of Aalborg (7.14) [rad/s, m/s²] and the sensor bandwidths of §1.3 [Hz].
 _GYRO_SIGMA_7_14 = (0.0041, 0.0040, 0.0048)
