@@ -11,14 +11,14 @@ import numpy as np
 import pytest
 
 from gnss_ins_common.params import load_yaml
+from ins_fusion.bags.bag_io import BagWriter
+from ins_fusion.bags.messages import fill_temperature, new_message
 from ins_fusion.core.units import deg_s
 from ins_fusion.fusion_params import PARAMETERS
 from ins_fusion.noise_id.record import ImuRecord
 from ins_fusion.noise_id.synthetic import static_record, write_imu_bag
 from ins_fusion.sim.imu_model import PROFILES
-from ins_fusion.sim.messages import fill_temperature, new_message
 from ins_fusion.tools import cli
-from ins_fusion.tools.bag_io import BagWriter
 
 IMU400CC = PROFILES["imu400cc"]
 

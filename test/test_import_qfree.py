@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 
 from gnss_driver.solution import CovarianceType, NavSatStatus
 from ins_fusion import qfree, qfree_checks
-from ins_fusion.tools.bag_io import BagReader
+from ins_fusion.bags.bag_io import BagReader
 from ins_fusion.tools.cli import main
 
 FIXTURES = Path(__file__).parent / "fixtures" / "qfree"

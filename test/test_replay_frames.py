@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from ins_fusion.bags.bag_io import BagReader, BagWriter
 from ins_fusion.core import earth
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.engine import InsSolution, _mat_from_rpy_flu
@@ -27,7 +28,6 @@ from ins_fusion.replay.run import FusionRun, SolutionTrack
 from ins_fusion.replay.topics import TopicMap
 from ins_fusion.sim.topics import SimulationConfig
 from ins_fusion.tools import cli
-from ins_fusion.tools.bag_io import BagReader, BagWriter
 from ins_fusion.tools.simulate import write_bag
 
 DATUM = (57.0, 10.0, 40.0)

@@ -22,11 +22,11 @@ from gnss_ins_common.axes import AxisMap
 from imu400cc_driver import node as imu_node
 from imu400cc_driver.axes import measurement_to_packet, packet_to_measurement
 from imu400cc_driver.protocol import Scaling
+from ins_fusion.bags.bag_io import BagReader, jazzy_typestore
+from ins_fusion.bags.messages import new_message, stamp_ns
 from ins_fusion.sim import topics as T  # noqa: N812
-from ins_fusion.sim.messages import new_message, stamp_ns
 from ins_fusion.sim.topics import Simulation, SimulationConfig, SkyZoneSpec
 from ins_fusion.tools import cli
-from ins_fusion.tools.bag_io import BagReader, jazzy_typestore
 
 #: A moving, turning drive (60 km/h, 90° turn) with a scheduled outage and a bridge.
 CONFIG = SimulationConfig(
@@ -308,7 +308,7 @@ def test_gnss_messages_are_what_gnss_node_publishes():
 def test_message_helpers_fill_rclpy_messages_alike():
     from sensor_msgs.msg import Imu
 
-    from ins_fusion.sim.messages import fill_imu
+    from ins_fusion.bags.messages import fill_imu
 
     args = (
         1_717_236_000_123_456_789,

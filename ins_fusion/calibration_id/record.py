@@ -16,9 +16,9 @@ from rosbags.rosbag2 import ReaderError
 from rosbags.serde import SerdeError
 
 from gnss_ins_common.message_fields import stamp_ns
+from ins_fusion.bags.bag_io import BagError, BagReader, BagWriter
+from ins_fusion.bags.messages import fill_imu, fill_temperature, new_message
 from ins_fusion.messages_in import imu_sample, stamp_s
-from ins_fusion.sim.messages import fill_imu, fill_temperature, new_message
-from ins_fusion.tools.bag_io import BagError, BagReader, BagWriter
 
 FloatArray = NDArray[np.float64]
 

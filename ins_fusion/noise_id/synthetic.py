@@ -5,7 +5,7 @@ The truth is the simulator's survey car standing still at the Aalborg start (ins
 earth rate and normal gravity in imu_link, docs/simulator.md); the errors are an ImuErrorModel of
 any profile, sampled at any rate (its noise is stored as densities, so a record at 10 Hz has the
 same Allan deviation as one at the profile's rate for τ well above the sample period). Bags hold
-imu/data_raw as the driver publishes it (sim.messages.fill_imu), stamped k/rate after start_ns and
+imu/data_raw as the driver publishes it (bags.messages.fill_imu), stamped k/rate after start_ns and
 logged a packet's transmission time later, like ``gnss_ins simulate``.
 """
 
@@ -16,14 +16,14 @@ from pathlib import Path
 import numpy as np
 
 from imu400cc_driver.device_clock import PACKET_TRANSMISSION_S
+from ins_fusion.bags.bag_io import BagWriter
+from ins_fusion.bags.messages import fill_imu, new_message
 from ins_fusion.noise_id.record import ImuRecord
 from ins_fusion.sim.imu_model import ImuErrorModel, ImuProfile
-from ins_fusion.sim.messages import fill_imu, new_message
 from ins_fusion.sim.scenarios import AALBORG_START, SURVEY_CAR
 from ins_fusion.sim.topics import DEFAULT_START_NS, IMU_DATA, IMU_FRAME, TOPICS
 from ins_fusion.sim.trajectory import Route
 from ins_fusion.sim.vehicle import VehicleTruth
-from ins_fusion.tools.bag_io import BagWriter
 
 #: Samples simulated at a time (bounds the error model's temporaries).
 _BLOCK = 200_000

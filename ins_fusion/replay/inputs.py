@@ -2,7 +2,7 @@
 
 The inputs keep the bag's receive (log-time) order, which is what ins_fusion_node sees: every
 GNSS/attitude measurement records how many IMU samples were received before it. Messages are
-read through ins_fusion.tools.bag_io and converted by ins_fusion.messages_in, as the node does
+read through ins_fusion.bags.bag_io and converted by ins_fusion.messages_in, as the node does
 (IMU and reference messages straight from their bytes by ins_fusion.cdr_fields, for
 speed).
 
@@ -29,6 +29,7 @@ from rosbags.rosbag2 import ReaderError
 from rosbags.serde import SerdeError
 
 from ins_fusion import cdr_fields, messages_in
+from ins_fusion.bags.bag_io import BagError, BagReader
 from ins_fusion.cdr_fields import CdrError
 from ins_fusion.core.measurements import (
     AttitudeMeasurement,
@@ -43,7 +44,6 @@ from ins_fusion.replay.topics import (
     SENSOR_TYPES,
     TopicMap,
 )
-from ins_fusion.tools.bag_io import BagError, BagReader
 
 FloatArray = NDArray[np.float64]
 Measurement = GnssFixMeasurement | GnssVelocityMeasurement | AttitudeMeasurement

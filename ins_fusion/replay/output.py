@@ -11,10 +11,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ins_fusion.bags.bag_io import BagSummary, BagWriter
+from ins_fusion.bags.messages import new_message, stamp_ns
 from ins_fusion.core.engine import InsSolution
-from ins_fusion.sim.messages import new_message, stamp_ns
 from ins_fusion.solution_out import fill_fused_fix, fill_odometry, publishable
-from ins_fusion.tools.bag_io import BagSummary, BagWriter
 
 ODOMETRY_TOPIC, FIX_TOPIC = "/ins/odometry", "/ins/fix"
 ODOMETRY_TYPE, FIX_TYPE = "nav_msgs/msg/Odometry", "sensor_msgs/msg/NavSatFix"

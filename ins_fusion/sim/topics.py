@@ -14,7 +14,7 @@ one clock that is also UTC (simulation time 0 = ``start_ns``).
 
 Types as ``TOPICS``; velocities are TwistWithCovarianceStamped in ENU.
 
-Contents are the drivers' (sim.messages): the IMU400CC node's covariances (per-sample variance of
+Contents are the drivers' (bags.messages): the IMU400CC node's covariances (per-sample variance of
 the simulated noise, which for the band-limited imu400cc is its default (7.14) σ²) and its
 temperature counts; the GNSS messages are gnss_node's reading of the receivers' NMEA
 (sim.receivers). The truth is exact: covariances 0, the angular part of the velocity and the rate
@@ -36,11 +36,7 @@ import numpy as np
 from gnss_driver.profiles import Receiver
 from imu400cc_driver.device_clock import PACKET_TRANSMISSION_S
 from imu400cc_driver.protocol import TEMPERATURE_VARIANCE_C2, Scaling
-from ins_fusion.core.rotation import FloatArray
-from ins_fusion.sim import gnss_model, imu_model, vibration
-from ins_fusion.sim.gnss_model import GnssErrorModel, GnssSchedule, SkyMask, SkyZone
-from ins_fusion.sim.imu_model import ImuErrorModel
-from ins_fusion.sim.messages import (
+from ins_fusion.bags.messages import (
     fill_gnss_fix,
     fill_imu,
     fill_navsatfix,
@@ -50,6 +46,10 @@ from ins_fusion.sim.messages import (
     fill_velocity,
     new_message,
 )
+from ins_fusion.core.rotation import FloatArray
+from ins_fusion.sim import gnss_model, imu_model, vibration
+from ins_fusion.sim.gnss_model import GnssErrorModel, GnssSchedule, SkyMask, SkyZone
+from ins_fusion.sim.imu_model import ImuErrorModel
 from ins_fusion.sim.receivers import ReceiverModel
 from ins_fusion.sim.scenarios import SCENARIOS, SURVEY_CAR
 from ins_fusion.sim.vehicle import TruthCache, VehicleTruth

@@ -22,6 +22,7 @@ import numpy as np
 from rosbags.highlevel import AnyReaderError
 
 from gnss_ins_common.params import ParameterValueError
+from ins_fusion.bags.bag_io import BagError, BagReader, utc_text
 from ins_fusion.core.units import deg_s, mg
 from ins_fusion.noise_id.allan import ONE_SIGMA
 from ins_fusion.noise_id.analysis import (
@@ -49,8 +50,7 @@ from ins_fusion.noise_id.record import (
     check_values,
     sample_clock,
 )
-from ins_fusion.tools.bag_io import BagError, BagReader, utc_text
-from ins_fusion.tools.progress import Progress
+from ins_fusion.runtime.progress import Progress
 
 IMU_TYPE = "sensor_msgs/msg/Imu"
 #: Messages read between progress-bar updates.

@@ -29,12 +29,12 @@ import numpy as np
 
 from gnss_driver.profiles import Receiver
 from gnss_ins_common.paths import config_file
+from ins_fusion.bags.bag_io import BagReader, BagWriter
 from ins_fusion.messages_in import stamp_s
+from ins_fusion.runtime.processes import ProcessGroup, gnss_ins_command
+from ins_fusion.runtime.vehicle_nodes import ADU5, FUSION, LEICA, VEHICLE, command
 from ins_fusion.sim.receivers import emulator_config
 from ins_fusion.sim.scenarios import SURVEY_CAR
-from ins_fusion.tools.bag_io import BagReader, BagWriter
-from ins_fusion.tools.processes import ProcessGroup, gnss_ins_command
-from ins_fusion.vehicle_nodes import ADU5, FUSION, LEICA, VEHICLE, command
 
 #: Sensor and output topics recorded during the live run.
 RECORDED = (

@@ -23,8 +23,8 @@ from typing import TYPE_CHECKING
 
 from rosbags.interfaces import Qos, QosDurability
 
-from ins_fusion.tools.bag_io import BagError, BagReader, BagSummary
-from ins_fusion.tools.progress import Progress
+from ins_fusion.bags.bag_io import BagError, BagReader, BagSummary
+from ins_fusion.runtime.progress import Progress
 from ins_fusion.tools.record import message_class
 
 if TYPE_CHECKING:

@@ -36,8 +36,8 @@ from rosbags.interfaces import (
     QosTime,
 )
 
-from ins_fusion.tools.bag_io import STORAGES, BagError, BagWriter
-from ins_fusion.tools.progress import Progress
+from ins_fusion.bags.bag_io import STORAGES, BagError, BagWriter
+from ins_fusion.runtime.progress import Progress
 
 if TYPE_CHECKING:
     from rclpy.node import Node

@@ -31,7 +31,9 @@ from gnss_driver.emulator import EmulatorConfig as GnssEmulatorConfig
 from gnss_driver.emulator import GnssEmulator, Truth
 from gnss_driver.profiles import Receiver
 from imu400cc_driver.emulator import EmulatorConfig, Imu400ccEmulator, SentPacket
+from ins_fusion.bags.bag_io import STORAGES, BagError, BagWriter
 from ins_fusion.core.rotation import FloatArray
+from ins_fusion.runtime.progress import Progress
 from ins_fusion.sim import imu_model, vibration
 from ins_fusion.sim.gnss_model import GnssErrorModel
 from ins_fusion.sim.receivers import emulator_truth, epoch_config
@@ -45,8 +47,6 @@ from ins_fusion.sim.topics import (
 )
 from ins_fusion.sim.vehicle import TruthCache
 from ins_fusion.sim.vibration import Vibration
-from ins_fusion.tools.bag_io import STORAGES, BagError, BagWriter
-from ins_fusion.tools.progress import Progress
 
 #: How often the live mode writes the truth that became due [s].
 _LIVE_TICK_S = 0.1

@@ -25,7 +25,7 @@ from gnss_ins_common.message_fields import (
     set_header,
     stamp_ns,
 )
-from ins_fusion.tools.bag_io import jazzy_typestore
+from ins_fusion.bags.bag_io import jazzy_typestore
 
 __all__ = [
     "fill_gnss_fix",
