@@ -21,7 +21,7 @@ from ins_fusion.bags.messages import (
     fill_velocity,
     new_message,
 )
-from ins_fusion.replay.topics import FIX_TYPE, IMU_TYPE, VELOCITY_TYPE
+from ins_fusion.bags.topics import FIX_TYPE, IMU_TYPE, VELOCITY_TYPE
 
 T_NS = 1_717_236_000_123_456_789
 T_S = 1_717_236_000 + 0.123456789

@@ -26,7 +26,7 @@ from ins_fusion.replay.frames import comparison_frame, mounting_quat, moved_trac
 from ins_fusion.replay.inputs import Reference, ReplayInputs, Series
 from ins_fusion.replay.run import FusionRun, SolutionTrack
 from ins_fusion.replay.topics import TopicMap
-from ins_fusion.sim.topics import SimulationConfig
+from ins_fusion.sim.drive import SimulationConfig
 from ins_fusion.tools import cli
 from ins_fusion.tools.simulate import write_bag
 

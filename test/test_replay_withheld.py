@@ -23,7 +23,7 @@ from ins_fusion.replay.outages import Outage
 from ins_fusion.replay.ranking import RANK_METRICS
 from ins_fusion.replay.run import SolutionTrack
 from ins_fusion.replay.withheld import evaluate_withheld, withheld_stats
-from ins_fusion.sim.topics import SimulationConfig
+from ins_fusion.sim.drive import SimulationConfig
 from ins_fusion.tools import cli
 from ins_fusion.tools.simulate import write_bag
 

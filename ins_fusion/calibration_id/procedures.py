@@ -23,8 +23,8 @@ from scipy.spatial.transform import Rotation
 from gnss_ins_common.axes import AxisMap
 from ins_fusion.calibration_id.model import Site
 from ins_fusion.calibration_id.record import FloatArray, ImuRecord
+from ins_fusion.sim.drive import DEFAULT_START_NS
 from ins_fusion.sim.imu_model import ImuErrorModel, ImuProfile
-from ins_fusion.sim.topics import DEFAULT_START_NS
 
 #: Temperature messages per second (imu400cc_node's temperature_rate).
 TEMPERATURE_RATE_HZ = 1.0

@@ -18,10 +18,11 @@ import numpy as np
 from imu400cc_driver.device_clock import PACKET_TRANSMISSION_S
 from ins_fusion.bags.bag_io import BagWriter
 from ins_fusion.bags.messages import fill_imu, new_message
+from ins_fusion.bags.topics import IMU_DATA, IMU_FRAME, IMU_TYPE
 from ins_fusion.noise_id.record import ImuRecord
+from ins_fusion.sim.drive import DEFAULT_START_NS
 from ins_fusion.sim.imu_model import ImuErrorModel, ImuProfile
 from ins_fusion.sim.scenarios import AALBORG_START, SURVEY_CAR
-from ins_fusion.sim.topics import DEFAULT_START_NS, IMU_DATA, IMU_FRAME, TOPICS
 from ins_fusion.sim.trajectory import Route
 from ins_fusion.sim.vehicle import VehicleTruth
 
@@ -71,7 +72,7 @@ def write_imu_bag(
     """A bag with the record on ``topic`` (sensor_msgs/Imu, frame imu_link, covariances zero =
     unknown)."""
     stamps = (start_ns + np.rint(record.t_s * 1e9)).astype(np.int64).tolist()
-    msgtype = TOPICS[IMU_DATA]
+    msgtype = IMU_TYPE
     with BagWriter(path, storage=storage) as writer:
         writer.add_topic(topic, msgtype)
         for stamp, rate, force in zip(

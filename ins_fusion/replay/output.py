@@ -13,11 +13,9 @@ from pathlib import Path
 
 from ins_fusion.bags.bag_io import BagSummary, BagWriter
 from ins_fusion.bags.messages import new_message, stamp_ns
+from ins_fusion.bags.topics import FIX_TYPE, INS_FIX, INS_ODOMETRY, ODOMETRY_TYPE
 from ins_fusion.core.engine import InsSolution
 from ins_fusion.solution_out import fill_fused_fix, fill_odometry, publishable
-
-ODOMETRY_TOPIC, FIX_TOPIC = "/ins/odometry", "/ins/fix"
-ODOMETRY_TYPE, FIX_TYPE = "nav_msgs/msg/Odometry", "sensor_msgs/msg/NavSatFix"
 
 
 def write_fused_bag(
@@ -30,14 +28,14 @@ def write_fused_bag(
     """Write /ins/odometry and /ins/fix of every publishable solution to a new bag at ``path``
     (MCAP)."""
     with BagWriter(path) as writer:
-        writer.add_topic(ODOMETRY_TOPIC, ODOMETRY_TYPE)
-        writer.add_topic(FIX_TOPIC, FIX_TYPE)
+        writer.add_topic(INS_ODOMETRY, ODOMETRY_TYPE)
+        writer.add_topic(INS_FIX, FIX_TYPE)
         for solution in filter(publishable, solutions):
             time_ns = stamp_ns(solution.t_s)
             odometry = fill_odometry(
                 new_message(ODOMETRY_TYPE), solution, map_frame, base_frame, rate_variance_rad2_s2
             )
             fix = fill_fused_fix(new_message(FIX_TYPE), solution, base_frame)
-            writer.write(ODOMETRY_TOPIC, time_ns, odometry)
-            writer.write(FIX_TOPIC, time_ns, fix)
+            writer.write(INS_ODOMETRY, time_ns, odometry)
+            writer.write(INS_FIX, time_ns, fix)
     return writer.summary

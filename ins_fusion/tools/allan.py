@@ -23,6 +23,7 @@ from rosbags.highlevel import AnyReaderError
 
 from gnss_ins_common.params import ParameterValueError
 from ins_fusion.bags.bag_io import BagError, BagReader, utc_text
+from ins_fusion.bags.topics import IMU_DATA, IMU_TYPE
 from ins_fusion.core.units import deg_s, mg
 from ins_fusion.noise_id.allan import ONE_SIGMA
 from ins_fusion.noise_id.analysis import (
@@ -52,7 +53,6 @@ from ins_fusion.noise_id.record import (
 )
 from ins_fusion.runtime.progress import Progress
 
-IMU_TYPE = "sensor_msgs/msg/Imu"
 #: Messages read between progress-bar updates.
 _PROGRESS_EVERY = 20_000
 
@@ -87,7 +87,7 @@ def _probability(text: str) -> float:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Command-line options of ``gnss_ins allan``."""
     parser.add_argument("bag", type=Path, help="rosbag2 bag of a static IMU record")
-    parser.add_argument("--topic", default="/imu/data_raw", help="sensor_msgs/Imu topic")
+    parser.add_argument("--topic", default=IMU_DATA, help="sensor_msgs/Imu topic")
     parser.add_argument(
         "-o", "--output", type=Path, metavar="YAML", help="write ins_fusion_node's imu_noise.*"
     )

@@ -2,7 +2,7 @@
 
 Layouts, units and the reference receiver are described in ins_fusion/qfree.py and
 shared/reference/gnss-ins-ntnu-notes.md §3–5. The messages are filled like the drivers' and the
-simulator's (ins_fusion/bags/messages.py, topics and frames of ins_fusion/sim/topics.py);
+simulator's (ins_fusion/bags/messages.py, topics and frames of ins_fusion/bags/topics.py);
 header.stamp = bag time = the UTC date/time columns of the line:
 
 - ``/gnss/fix`` (sensor_msgs/NavSatFix, frame ``gnss_link``): status NO_FIX when the good flag
@@ -35,8 +35,7 @@ from gnss_driver.solution import SERVICE_GPS
 from ins_fusion import qfree, qfree_checks
 from ins_fusion.bags.bag_io import STORAGES, BagError, BagWriter
 from ins_fusion.bags.messages import fill_imu, fill_navsatfix, fill_velocity, new_message
-from ins_fusion.runtime.progress import Progress
-from ins_fusion.sim.topics import (
+from ins_fusion.bags.topics import (
     GNSS_FIX,
     GNSS_FRAME,
     GNSS_VEL,
@@ -47,6 +46,7 @@ from ins_fusion.sim.topics import (
     TRUTH_FRAME,
     TRUTH_VEL,
 )
+from ins_fusion.runtime.progress import Progress
 
 #: Bad lines and gyro wraps printed one by one; the rest are counted.
 MAX_LISTED = 20

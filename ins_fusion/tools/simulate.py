@@ -1,7 +1,7 @@
 """`gnss_ins simulate`: a simulated drive to a rosbag2 bag, or live on emulated serial devices.
 
 Bag mode writes what imu400cc_node and gnss_node would publish on the drive, each message at its
-receive time, plus the truth (ins_fusion/sim/topics.py lists topics, frames and stamps), then
+receive time, plus the truth (ins_fusion/sim/drive.py lists topics, frames and stamps), then
 prints the bag summary. The same seed gives the same messages.
 
 ``--live`` runs the drive in real time instead: the IMU400CC emulator and the GNSS emulators (the
@@ -35,16 +35,16 @@ from ins_fusion.bags.bag_io import STORAGES, BagError, BagWriter
 from ins_fusion.core.rotation import FloatArray
 from ins_fusion.runtime.progress import Progress
 from ins_fusion.sim import imu_model, vibration
-from ins_fusion.sim.gnss_model import GnssErrorModel
-from ins_fusion.sim.receivers import emulator_truth, epoch_config
-from ins_fusion.sim.scenarios import SCENARIOS
-from ins_fusion.sim.topics import (
+from ins_fusion.sim.drive import (
     DEFAULT_START_NS,
     POSITION_RECEIVERS,
     Simulation,
     SimulationConfig,
     SkyZoneSpec,
 )
+from ins_fusion.sim.gnss_model import GnssErrorModel
+from ins_fusion.sim.receivers import emulator_truth, epoch_config
+from ins_fusion.sim.scenarios import SCENARIOS
 from ins_fusion.sim.vehicle import TruthCache
 from ins_fusion.sim.vibration import Vibration
 
