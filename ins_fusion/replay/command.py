@@ -86,18 +86,13 @@ def _check_usage(args: argparse.Namespace) -> None:
 def _load(args: argparse.Namespace) -> ReplayInputs:
     prefix = args.reference if args.reference is not None else DEFAULT_REFERENCE
     with Progress("read", unit="msgs") as bar:
-
-        def progress(done: int, total: int) -> None:
-            bar.total = total
-            bar.update(done)
-
         try:
             inputs = load_bag(
                 args.bag,
                 args.topics,
                 prefix,
                 reference_required=args.reference is not None,
-                progress=progress,
+                progress=bar.update_with_total,
             )
         except InputError as exc:
             raise UsageError(str(exc)) from None
