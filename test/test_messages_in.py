@@ -1,4 +1,4 @@
-"""ins_fusion.messages_in: the node's and the replay's one reading of the input messages.
+"""ins_fusion.adapters.messages_in: the node's and the replay's one reading of the input messages.
 
 Messages are built with the drivers' own fill functions (bags.messages, rosbags message objects)
 and as plain attribute objects holding array.array fields the way rclpy messages do.
@@ -13,7 +13,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from ins_fusion import messages_in
+from ins_fusion.adapters import messages_in
 from ins_fusion.bags.messages import (
     fill_imu,
     fill_navsatfix,

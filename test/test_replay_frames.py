@@ -15,12 +15,12 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from ins_fusion.adapters.messages_in import ImuSample
 from ins_fusion.bags.bag_io import BagReader, BagWriter
 from ins_fusion.core import earth
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.engine import InsSolution, _mat_from_rpy_flu
 from ins_fusion.core.rotation import MAT_FLU_FRD
-from ins_fusion.messages_in import ImuSample
 from ins_fusion.replay import metrics, pipeline
 from ins_fusion.replay.frames import comparison_frame, mounting_quat, moved_track
 from ins_fusion.replay.inputs import Reference, ReplayInputs, Series

@@ -1,7 +1,7 @@
 """The fused solution of a replay as the bag ins_fusion_node would have recorded.
 
 ``/ins/odometry`` (nav_msgs/Odometry: pose in the map frame = ENU tangent plane at the datum,
-child base_link, twist in base_link; numbers from ins_fusion.solution_out, as the node) and
+child base_link, twist in base_link; numbers from ins_fusion.adapters.solution_out, as the node) and
 ``/ins/fix`` (NavSatFix of base_link, ENU covariance, COVARIANCE_TYPE_KNOWN, status NO_FIX while
 the engine is aligning), one message of each per recorded solution, stamped and logged at the
 solution's IMU stamp.
@@ -11,11 +11,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ins_fusion.adapters.solution_out import fill_fused_fix, fill_odometry, publishable
 from ins_fusion.bags.bag_io import BagSummary, BagWriter
 from ins_fusion.bags.messages import new_message, stamp_ns
 from ins_fusion.bags.topics import FIX_TYPE, INS_FIX, INS_ODOMETRY, ODOMETRY_TYPE
 from ins_fusion.core.engine import InsSolution
-from ins_fusion.solution_out import fill_fused_fix, fill_odometry, publishable
 
 
 def write_fused_bag(

@@ -29,6 +29,7 @@ import numpy as np
 
 from gnss_driver.profiles import Receiver
 from gnss_ins_common.paths import config_file
+from ins_fusion.adapters.messages_in import stamp_s
 from ins_fusion.bags.bag_io import BagReader, BagWriter
 from ins_fusion.bags.topics import (
     GNSS_ATTITUDE,
@@ -41,7 +42,6 @@ from ins_fusion.bags.topics import (
     INS_ODOMETRY,
     TRUTH_FIX,
 )
-from ins_fusion.messages_in import stamp_s
 from ins_fusion.runtime.processes import ProcessGroup, gnss_ins_command
 from ins_fusion.runtime.vehicle_nodes import ADU5, FUSION, LEICA, VEHICLE, command
 from ins_fusion.sim.receivers import emulator_config

@@ -16,13 +16,11 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from gnss_ins_common.message_fields import fill_navsatfix, set_header, stamp_ns
+from gnss_ins_common.types import FloatArray
 from ins_fusion.core.engine import InsSolution
 from ins_fusion.core.rotation import mat_from_quat
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,7 @@
 """Incoming ROS messages -> fusion engine inputs, for rclpy and rosbags message objects alike.
 
 One definition of how ins_fusion_node and ``gnss_ins replay`` read their topics (the IMU, at
-134 Hz, straight from its bytes with the same fields: ins_fusion.cdr_fields): the functions
+134 Hz, straight from its bytes with the same fields: ins_fusion.adapters.cdr_fields): the functions
 only read fields by attribute (rclpy messages and rosbags-deserialized ones have the same field
 names) and return the engine's plain types. No ROS import.
 
@@ -24,13 +24,12 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from gnss_ins_common.types import Vec3
 from ins_fusion.core.measurements import (
     AttitudeMeasurement,
     GnssFixMeasurement,
     GnssVelocityMeasurement,
 )
-
-Vec3 = tuple[float, float, float]
 
 #: sensor_msgs/NavSatStatus: statuses below STATUS_FIX (NO_FIX -1, UNKNOWN -2) carry no position.
 STATUS_FIX = 0
