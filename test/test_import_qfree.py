@@ -14,7 +14,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from gnss_driver.solution import CovarianceType, NavSatStatus
+from gnss_ins_common.navsat import CovarianceType, NavSatStatus
 from ins_fusion.bags.bag_io import BagReader
 from ins_fusion.qfree import checks, logs
 from ins_fusion.tools.cli import main

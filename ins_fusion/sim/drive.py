@@ -35,6 +35,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from gnss_driver.profiles import Receiver
+from gnss_ins_common.navsat import SERVICE_GPS, CovarianceType, NavSatStatus
 from imu400cc_driver.device_clock import PACKET_TRANSMISSION_S
 from imu400cc_driver.protocol import TEMPERATURE_VARIANCE_C2, Scaling
 from ins_fusion.bags.messages import (
@@ -317,18 +318,17 @@ class Simulation:
         zero = [0.0] * 9
         for i, stamp in enumerate(stamps):
             fix = new_message(FIX_TYPE)
-            status = fix.status
             fill_navsatfix(
                 fix,
                 stamp,
                 TRUTH_FRAME,
-                status.STATUS_FIX,
-                status.SERVICE_GPS,
+                int(NavSatStatus.FIX),
+                SERVICE_GPS,
                 lat_deg[i],
                 lon_deg[i],
                 height[i],
                 zero,
-                fix.COVARIANCE_TYPE_KNOWN,
+                int(CovarianceType.KNOWN),
             )
             vel = fill_velocity(new_message(VELOCITY_TYPE), stamp, TRUTH_FRAME, vel_enu[i], zero)
             attitude = fill_orientation(

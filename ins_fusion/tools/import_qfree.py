@@ -31,7 +31,7 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-from gnss_driver.solution import SERVICE_GPS
+from gnss_ins_common.navsat import SERVICE_GPS
 from ins_fusion.bags.bag_io import STORAGES, BagError, BagWriter
 from ins_fusion.bags.messages import fill_imu, fill_navsatfix, fill_velocity, new_message
 from ins_fusion.bags.topics import (
