@@ -24,6 +24,7 @@ import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -317,7 +318,9 @@ def _wait_recording(simulator: subprocess.Popen[str], duration_s: float) -> None
             continue
 
 
-def _print_summary(live: dict[str, float], report: dict, out: Path, total_s: float) -> None:
+def _print_summary(
+    live: dict[str, float], report: dict[str, Any], out: Path, total_s: float
+) -> None:
     position = report["position_error_m"]
     attitude = report["attitude_error_deg"]
     print()
