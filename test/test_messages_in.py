@@ -13,14 +13,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from gnss_ins_common.message_fields import fill_imu, fill_navsatfix, fill_orientation, fill_velocity
 from ins_fusion.adapters import messages_in
-from ins_fusion.bags.messages import (
-    fill_imu,
-    fill_navsatfix,
-    fill_orientation,
-    fill_velocity,
-    new_message,
-)
+from ins_fusion.bags.messages import new_message
 from ins_fusion.bags.topics import FIX_TYPE, IMU_TYPE, VELOCITY_TYPE
 
 T_NS = 1_717_236_000_123_456_789

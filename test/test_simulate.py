@@ -24,7 +24,7 @@ from imu400cc_driver.axes import measurement_to_packet, packet_to_measurement
 from imu400cc_driver.protocol import Scaling
 from ins_fusion.bags import topics as T  # noqa: N812
 from ins_fusion.bags.bag_io import BagReader, jazzy_typestore
-from ins_fusion.bags.messages import new_message, stamp_ns
+from ins_fusion.bags.messages import new_message
 from ins_fusion.sim.drive import DEFAULT_START_NS, Simulation, SimulationConfig, SkyZoneSpec
 from ins_fusion.tools import cli
 
@@ -308,7 +308,7 @@ def test_gnss_messages_are_what_gnss_node_publishes():
 def test_message_helpers_fill_rclpy_messages_alike():
     from sensor_msgs.msg import Imu
 
-    from ins_fusion.bags.messages import fill_imu
+    from gnss_ins_common.message_fields import fill_imu, stamp_ns
 
     args = (
         1_717_236_000_123_456_789,

@@ -24,10 +24,10 @@ from rosbags.highlevel import AnyReaderError
 from rosbags.rosbag2 import ReaderError
 from rosbags.serde import SerdeError
 
-from gnss_ins_common.message_fields import stamp_ns
+from gnss_ins_common.message_fields import fill_imu, fill_temperature, stamp_ns
 from gnss_ins_common.types import FloatArray, IntArray
 from ins_fusion.bags.bag_io import BagError, BagReader, BagWriter
-from ins_fusion.bags.messages import fill_imu, fill_temperature, new_message
+from ins_fusion.bags.messages import new_message
 from ins_fusion.bags.topics import (
     IMU_DATA,
     IMU_FRAME,

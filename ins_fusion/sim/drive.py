@@ -15,11 +15,11 @@ one clock that is also UTC (simulation time 0 = ``start_ns``).
 Names, frames and types from ins_fusion.bags.topics (``TOPICS``); velocities are
 TwistWithCovarianceStamped in ENU.
 
-Contents are the drivers' (bags.messages): the IMU400CC node's covariances (per-sample variance of
-the simulated noise, which for the band-limited imu400cc is its default (7.14) σ²) and its
-temperature counts; the GNSS messages are gnss_node's reading of the receivers' NMEA
-(sim.receivers). The truth is exact: covariances 0, the angular part of the velocity and the rate
-and acceleration of the attitude marked as absent.
+Contents are the drivers' (their own ``fill_*`` functions): the IMU400CC node's covariances
+(per-sample variance of the simulated noise, which for the band-limited imu400cc is its default
+(7.14) σ²) and its temperature counts; the GNSS messages are gnss_node's reading of the receivers'
+NMEA (sim.receivers). The truth is exact: covariances 0, the angular part of the velocity and the
+rate and acceleration of the attitude marked as absent.
 """
 
 from __future__ import annotations
@@ -35,19 +35,19 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from gnss_driver.profiles import Receiver
-from gnss_ins_common.navsat import SERVICE_GPS, CovarianceType, NavSatStatus
-from imu400cc_driver.device_clock import PACKET_TRANSMISSION_S
-from imu400cc_driver.protocol import TEMPERATURE_VARIANCE_C2, Scaling
-from ins_fusion.bags.messages import (
-    fill_gnss_fix,
+from gnss_driver.solution import fill_gnss_fix
+from gnss_ins_common.message_fields import (
     fill_imu,
     fill_navsatfix,
     fill_orientation,
     fill_temperature,
     fill_time_reference,
     fill_velocity,
-    new_message,
 )
+from gnss_ins_common.navsat import SERVICE_GPS, CovarianceType, NavSatStatus
+from imu400cc_driver.device_clock import PACKET_TRANSMISSION_S
+from imu400cc_driver.protocol import TEMPERATURE_VARIANCE_C2, Scaling
+from ins_fusion.bags.messages import new_message
 from ins_fusion.bags.topics import (
     FIX_TYPE,
     GNSS_ATTITUDE,

@@ -2,7 +2,7 @@
 
 Layouts, units and the reference receiver are described in ins_fusion/qfree/logs.py and
 shared/reference/gnss-ins-ntnu-notes.md §3–5. The messages are filled like the drivers' and the
-simulator's (ins_fusion/bags/messages.py, topics and frames of ins_fusion/bags/topics.py);
+simulator's (gnss_ins_common/message_fields.py, topics and frames of ins_fusion/bags/topics.py);
 header.stamp = bag time = the UTC date/time columns of the line:
 
 - ``/gnss/fix`` (sensor_msgs/NavSatFix, frame ``gnss_link``): status NO_FIX when the good flag
@@ -31,9 +31,10 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
+from gnss_ins_common.message_fields import fill_imu, fill_navsatfix, fill_velocity
 from gnss_ins_common.navsat import SERVICE_GPS
 from ins_fusion.bags.bag_io import STORAGES, BagError, BagWriter
-from ins_fusion.bags.messages import fill_imu, fill_navsatfix, fill_velocity, new_message
+from ins_fusion.bags.messages import new_message
 from ins_fusion.bags.topics import (
     GNSS_FIX,
     GNSS_FRAME,
