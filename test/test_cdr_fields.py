@@ -7,9 +7,9 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from ins_fusion import cdr_fields
-from ins_fusion.cdr_fields import CdrError
-from ins_fusion.tools.bag_io import jazzy_typestore
+from ins_fusion.adapters import cdr_fields
+from ins_fusion.adapters.cdr_fields import CdrError
+from ins_fusion.bags.bag_io import jazzy_typestore
 
 TS = jazzy_typestore()
 T = TS.types

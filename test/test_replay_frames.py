@@ -15,19 +15,19 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from ins_fusion.adapters.messages_in import ImuSample
+from ins_fusion.bags.bag_io import BagReader, BagWriter
 from ins_fusion.core import earth
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.engine import InsSolution
 from ins_fusion.core.rotation import MAT_FLU_FRD, mat_from_rpy_flu
-from ins_fusion.messages_in import ImuSample
 from ins_fusion.replay import metrics, pipeline
 from ins_fusion.replay.frames import comparison_frame, mounting_quat, moved_track
 from ins_fusion.replay.inputs import Reference, ReplayInputs, Series
 from ins_fusion.replay.run import FusionRun, SolutionTrack
 from ins_fusion.replay.topics import TopicMap
-from ins_fusion.sim.topics import SimulationConfig
+from ins_fusion.sim.drive import SimulationConfig
 from ins_fusion.tools import cli
-from ins_fusion.tools.bag_io import BagReader, BagWriter
 from ins_fusion.tools.simulate import write_bag
 
 DATUM = (57.0, 10.0, 40.0)

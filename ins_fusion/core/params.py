@@ -29,7 +29,8 @@ import math
 from gnss_ins_common.params import Param
 from ins_fusion.core.calibration import CalibrationError, ImuCalibration
 
-#: Values of ``tf_mode`` (ins_fusion.tf_frames publishes accordingly).
+#: ``tf_mode`` values: the frame of ins/odometry and of its transform; none = no /tf
+#: (ins_fusion.adapters.tf_frames).
 TF_MODES = ("map", "odom", "none")
 
 # Per-axis per-sample σ of Aalborg (7.14) [rad/s, m/s²] and the sensor bandwidths of §1.3 [Hz].
@@ -415,7 +416,7 @@ PARAMETERS: tuple[Param, ...] = (
     Param("output_rate", 50.0, "publish rate of ins/odometry, ins/fix, ins/imu [Hz]", 0.1, 1000.0),
     Param("map_frame", "map", "frame_id of ins/odometry (ENU tangent plane at the datum)"),
     Param("base_frame", "base_link", "child_frame_id of ins/odometry"),
-    # TF (REP-105; ins_fusion/tf_frames.py).
+    # TF (REP-105; ins_fusion/adapters/tf_frames.py).
     Param(
         "tf_mode",
         "map",

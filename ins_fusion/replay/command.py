@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from gnss_ins_common.params import ParameterValueError, load_yaml, validate_all
+from ins_fusion.bags.bag_io import BagError
 from ins_fusion.core.calibration import CalibrationError
 from ins_fusion.core.config import NODE_NAME, FusionConfig
 from ins_fusion.core.engine import InsEngine
@@ -31,8 +32,7 @@ from ins_fusion.replay.settings import grid
 from ins_fusion.replay.sweep import format_sweep, run_sweep
 from ins_fusion.replay.topics import DEFAULT_REFERENCE
 from ins_fusion.replay.withheld import WithheldEvaluation
-from ins_fusion.tools.bag_io import BagError
-from ins_fusion.tools.progress import Progress
+from ins_fusion.runtime.progress import Progress
 
 
 class UsageError(Exception):
@@ -86,18 +86,13 @@ def _check_usage(args: argparse.Namespace) -> None:
 def _load(args: argparse.Namespace) -> ReplayInputs:
     prefix = args.reference if args.reference is not None else DEFAULT_REFERENCE
     with Progress("read", unit="msgs") as bar:
-
-        def progress(done: int, total: int) -> None:
-            bar.total = total
-            bar.update(done)
-
         try:
             inputs = load_bag(
                 args.bag,
                 args.topics,
                 prefix,
                 reference_required=args.reference is not None,
-                progress=progress,
+                progress=bar.update_with_total,
             )
         except InputError as exc:
             raise UsageError(str(exc)) from None

@@ -2,8 +2,8 @@
 
 The inputs keep the bag's receive (log-time) order, which is what ins_fusion_node sees: every
 GNSS/attitude measurement records how many IMU samples were received before it. Messages are
-read through ins_fusion.tools.bag_io and converted by ins_fusion.messages_in, as the node does
-(IMU and reference messages straight from their bytes by ins_fusion.cdr_fields, for
+read through ins_fusion.bags.bag_io and converted by ins_fusion.adapters.messages_in, as the node
+does (IMU and reference messages straight from their bytes by ins_fusion.adapters.cdr_fields, for
 speed).
 
 Reference topics (``PREFIX/fix``, ``PREFIX/attitude``, optional ``PREFIX/vel``): the true
@@ -15,7 +15,6 @@ frame_id is kept too, to recognise a reference of the IMU.
 
 from __future__ import annotations
 
-import struct
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -23,19 +22,20 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 from rosbags.highlevel import AnyReaderError
 from rosbags.rosbag2 import ReaderError
 from rosbags.serde import SerdeError
 
-from ins_fusion import cdr_fields, messages_in
-from ins_fusion.cdr_fields import CdrError
+from gnss_ins_common.types import FloatArray
+from ins_fusion.adapters import cdr_fields, messages_in
+from ins_fusion.adapters.cdr_fields import CdrError
+from ins_fusion.adapters.messages_in import ImuSample
+from ins_fusion.bags.bag_io import BagError, BagReader
 from ins_fusion.core.measurements import (
     AttitudeMeasurement,
     GnssFixMeasurement,
     GnssVelocityMeasurement,
 )
-from ins_fusion.messages_in import ImuSample
 from ins_fusion.replay.topics import (
     DEFAULT_REFERENCE,
     DEFAULT_TOPICS,
@@ -43,9 +43,7 @@ from ins_fusion.replay.topics import (
     SENSOR_TYPES,
     TopicMap,
 )
-from ins_fusion.tools.bag_io import BagError, BagReader
 
-FloatArray = NDArray[np.float64]
 Measurement = GnssFixMeasurement | GnssVelocityMeasurement | AttitudeMeasurement
 
 
@@ -195,16 +193,6 @@ _REFERENCE_DECODERS: dict[str, Callable[[bytes], tuple[float, tuple[float, ...]]
 _Read = tuple[list[ImuSample], list[tuple[int, str, Measurement]], Reference | None, str]
 
 
-def frame_id(data: bytes) -> str:
-    """header.frame_id of a serialized (CDR) message that starts with a std_msgs/Header: after
-    the 4-byte encapsulation and the stamp, a uint32 length (with the NUL) and the characters
-    (ins_fusion.cdr_fields); "" when the bytes are too short to hold it."""
-    if len(data) < 16:
-        return ""
-    (length,) = struct.unpack_from("<I" if data[1] == 1 else ">I", data, 12)
-    return bytes(data[16 : 16 + max(length - 1, 0)]).decode("utf-8", "replace")
-
-
 def _read(
     reader: BagReader,
     selected: list[str],
@@ -225,7 +213,7 @@ def _read(
         if msg.topic == imu_topic:
             imu.append(cdr_fields.imu_sample(msg.message))
             if len(imu) == 1:
-                frames["imu"] = frame_id(msg.message)
+                frames["imu"] = cdr_fields.frame_id(msg.message)
             continue
         role = roles.get(msg.topic)
         if role is not None:
@@ -234,7 +222,7 @@ def _read(
         if suffix is not None:
             ref[suffix].append(_REFERENCE_DECODERS[suffix](msg.message))
             if suffix == "fix" and len(ref["fix"]) == 1:
-                frames["fix"] = frame_id(msg.message)
+                frames["fix"] = cdr_fields.frame_id(msg.message)
     if progress is not None:
         progress(total, total)
     return imu, measurements, _reference(ref, frames.get("fix", "")), frames.get("imu", "")

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import struct
 
-from ins_fusion.messages_in import ImuSample
+from ins_fusion.adapters.messages_in import ImuSample
 
 _ENCAPSULATION = 4  # 0x00, 0x00 (big-endian) or 0x01 (little-endian), two option bytes
 _LITTLE = (struct.Struct("<iiI"), struct.Struct("<3d"), struct.Struct("<4d"))
@@ -59,6 +59,16 @@ def _header(
 def _check(data: bytes, end: int, msgtype: str) -> None:
     if len(data) < _ENCAPSULATION + end:
         raise CdrError(f"{msgtype}: {len(data)} bytes, {_ENCAPSULATION + end} needed")
+
+
+def frame_id(data: bytes) -> str:
+    """header.frame_id of a serialized (CDR) message that starts with a std_msgs/Header: after
+    the 4-byte encapsulation and the stamp, a uint32 length (with the NUL) and the characters;
+    "" when the bytes are too short to hold it."""
+    if len(data) < 16:
+        return ""
+    (length,) = struct.unpack_from("<I" if data[1] == 1 else ">I", data, 12)
+    return bytes(data[16 : 16 + max(length - 1, 0)]).decode("utf-8", "replace")
 
 
 def imu_sample(data: bytes) -> ImuSample:
