@@ -36,10 +36,10 @@ from ins_fusion.adapters.solution_out import fill_fused_fix, fill_odometry, publ
 from ins_fusion.adapters.status_log import WARN, StatusLog
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.engine import InsEngine, InsSolution
-from ins_fusion.fusion_params import PARAMETERS as FUSION_PARAMETERS
+from ins_fusion.core.params import PARAMETERS as FUSION_PARAMETERS
 from ins_fusion.ros_tf import TfBroadcaster
 
-#: One table for the node and `gnss_ins replay` (ins_fusion/fusion_params.py).
+#: One table for the node and `gnss_ins replay` (ins_fusion/core/params.py).
 PARAMETERS = FUSION_PARAMETERS
 
 

@@ -32,16 +32,11 @@ LAYERS: dict[str, int] = {
     "ins_fusion": 7,  # the package root: node.py and ros_*.py, the ROS layer
     "ins_fusion.tools": 8,
 }
-#: Modules counted in another folder: the engine's parameter table, on its way into core/.
-MOVING = {"ins_fusion.fusion_params": "ins_fusion.core"}
 ROS_MODULE = re.compile(r"(^|\.)(node|ros_[^.]*)$")
 
 
 def folder(module: str) -> str | None:
     """The LAYERS key of a module of ours (None: not ours)."""
-    module = next(
-        (f for m, f in MOVING.items() if module == m or module.startswith(f"{m}.")), module
-    )
     keys = [k for k in LAYERS if module == k or module.startswith(f"{k}.")]
     return max(keys, key=len) if keys else None
 
@@ -144,7 +139,7 @@ def test_an_upward_import_or_a_stray_rclpy_is_found(module, source, problem):
             "from rclpy.node import Node\nfrom ins_fusion.adapters import tf_frames",
         ),
         ("ins_fusion.sim.drive", "from ins_fusion.bags.topics import IMU_DATA"),
-        ("ins_fusion.core.config", "from ins_fusion.fusion_params import PARAMETERS"),
+        ("ins_fusion.core.config", "from ins_fusion.core.params import PARAMETERS"),
         ("ins_fusion.replay.inputs", "from . import topics\nfrom ..adapters import cdr_fields"),
     ],
 )

@@ -38,8 +38,8 @@ from ins_fusion.calibration_id.segments import (
 )
 from ins_fusion.core.calibration import CalibrationError, ImuCalibration
 from ins_fusion.core.config import NODE_NAME as FUSION_NODE
+from ins_fusion.core.params import PARAMETERS as FUSION_PARAMETERS
 from ins_fusion.core.units import STANDARD_GRAVITY_M_S2, deg_h, mg
-from ins_fusion.fusion_params import PARAMETERS as FUSION_PARAMETERS
 
 STATIC_METHODS = ("six-position", "salychev", "known-attitude", "unknown-attitude")
 METHODS = (*STATIC_METHODS, "rate-table", "known-angle", "axes")

@@ -48,9 +48,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.stats import chi2
 
+from gnss_ins_common.types import FloatArray
 from ins_fusion.core import earth
 from ins_fusion.core.config import ImuNoise
-from ins_fusion.core.rotation import FloatArray
 
 #: First index of each always-present block of the error state.
 POS, VEL, ATT, BG, BA = 0, 3, 6, 9, 12
@@ -92,12 +92,6 @@ class StateLayout:
             object.__setattr__(self, name, next_index if present else None)
             next_index += width * present
         object.__setattr__(self, "size", next_index)
-
-
-def skew(v: FloatArray | tuple[float, float, float]) -> FloatArray:
-    """[v×]: the matrix with [v×] a = v × a."""
-    x, y, z = float(v[0]), float(v[1]), float(v[2])
-    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 
 
 def chi2_threshold(probability: float, dof: int) -> float:

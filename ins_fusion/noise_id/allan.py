@@ -24,7 +24,7 @@ import allantools
 import numpy as np
 from numpy.typing import NDArray
 
-from ins_fusion.core.rotation import FloatArray
+from gnss_ins_common.types import FloatArray
 
 IntArray = NDArray[np.int64]
 

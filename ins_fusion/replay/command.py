@@ -18,7 +18,7 @@ from ins_fusion.bags.bag_io import BagError
 from ins_fusion.core.calibration import CalibrationError
 from ins_fusion.core.config import NODE_NAME, FusionConfig
 from ins_fusion.core.engine import InsEngine
-from ins_fusion.fusion_params import PARAMETERS
+from ins_fusion.core.params import PARAMETERS
 from ins_fusion.replay import free_inertial
 from ins_fusion.replay.frames import IMU_FRAME, comparison_frame, is_imu_frame
 from ins_fusion.replay.inputs import InputError, ReplayInputs, load_bag

@@ -56,7 +56,7 @@ def lever_arm_covariance(cov_att_enu_rad2: FloatArray, arm_enu_m: FloatArray) ->
 
 def mounting_quat(rpy_rad: Sequence[float]) -> FloatArray:
     """q_base_s (x, y, z, w) of a frame with REP-103 roll, pitch, yaw [rad] in base_link, as the
-    engine builds its IMU mounting (engine._mat_from_rpy_flu before the FLU/FRD change)."""
+    engine builds its IMU mounting (core.rotation.mat_from_rpy_flu before the FLU/FRD change)."""
     return np.asarray(quat_from_euler(rpy_rad[0], rpy_rad[1], rpy_rad[2]), dtype=np.float64)
 
 

@@ -90,7 +90,7 @@ def run_fusion(
     progress: Callable[[int, int], None] | None = None,
 ) -> FusionRun:
     """Run a fresh engine configured by the flat parameter dict (validated against
-    ins_fusion.fusion_params.PARAMETERS) over ``inputs``; ``progress(done, total)`` counts IMU
+    ins_fusion.core.params.PARAMETERS) over ``inputs``; ``progress(done, total)`` counts IMU
     samples."""
     config = FusionConfig.from_parameters(parameters)
     engine = InsEngine(config)

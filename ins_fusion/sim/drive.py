@@ -45,6 +45,7 @@ from gnss_ins_common.message_fields import (
     fill_velocity,
 )
 from gnss_ins_common.navsat import SERVICE_GPS, CovarianceType, NavSatStatus
+from gnss_ins_common.types import FloatArray
 from imu400cc_driver.device_clock import PACKET_TRANSMISSION_S
 from imu400cc_driver.protocol import TEMPERATURE_VARIANCE_C2, Scaling
 from ins_fusion.bags.messages import new_message
@@ -66,7 +67,6 @@ from ins_fusion.bags.topics import (
     TRUTH_VEL,
     VELOCITY_TYPE,
 )
-from ins_fusion.core.rotation import FloatArray
 from ins_fusion.sim import gnss_model, imu_model, vibration
 from ins_fusion.sim.gnss_model import GnssErrorModel, GnssSchedule, SkyMask, SkyZone
 from ins_fusion.sim.imu_model import ImuErrorModel

@@ -33,9 +33,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from gnss_ins_common.types import FloatArray
 from ins_fusion.core import earth
 from ins_fusion.core.rotation import (
-    FloatArray,
     euler_from_quat,
     ned_to_enu,
     quat_enu_flu_from_nb,

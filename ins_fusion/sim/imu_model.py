@@ -32,9 +32,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from gnss_ins_common.axes import AxisMap
+from gnss_ins_common.types import FloatArray
 from imu400cc_driver.axes import DEFAULT_ACCEL_SIGN, DEFAULT_AXIS_SPEC
 from ins_fusion.core.calibration import mat3, vec3
-from ins_fusion.core.rotation import FloatArray
 from ins_fusion.core.units import (
     DEG,
     STANDARD_GRAVITY_M_S2,

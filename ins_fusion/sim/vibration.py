@@ -53,7 +53,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy import signal
 
-from ins_fusion.core.rotation import FloatArray
+from gnss_ins_common.types import FloatArray
 
 Vec3 = tuple[float, float, float]
 Band = tuple[float, float]

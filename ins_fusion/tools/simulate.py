@@ -30,9 +30,9 @@ import numpy as np
 from gnss_driver.emulator import EmulatorConfig as GnssEmulatorConfig
 from gnss_driver.emulator import GnssEmulator, Truth
 from gnss_driver.profiles import Receiver
+from gnss_ins_common.types import FloatArray
 from imu400cc_driver.emulator import EmulatorConfig, Imu400ccEmulator, SentPacket
 from ins_fusion.bags.bag_io import STORAGES, BagError, BagWriter
-from ins_fusion.core.rotation import FloatArray
 from ins_fusion.runtime.progress import Progress
 from ins_fusion.sim import imu_model, vibration
 from ins_fusion.sim.drive import (

@@ -29,8 +29,7 @@ import math
 from gnss_ins_common.params import Param
 from ins_fusion.core.calibration import CalibrationError, ImuCalibration
 
-#: ``tf_mode`` values: the frame of ins/odometry and of its transform; none = no /tf
-#: (ins_fusion.adapters.tf_frames).
+#: Values of ``tf_mode`` (ins_fusion.adapters.tf_frames publishes accordingly).
 TF_MODES = ("map", "odom", "none")
 
 # Per-axis per-sample σ of Aalborg (7.14) [rad/s, m/s²] and the sensor bandwidths of §1.3 [Hz].
