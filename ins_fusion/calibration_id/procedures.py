@@ -21,8 +21,9 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from gnss_ins_common.axes import AxisMap
+from gnss_ins_common.types import FloatArray
 from ins_fusion.calibration_id.model import Site
-from ins_fusion.calibration_id.record import FloatArray, ImuRecord
+from ins_fusion.calibration_id.record import ImuRecord
 from ins_fusion.sim.imu_model import ImuErrorModel, ImuProfile
 from ins_fusion.sim.topics import DEFAULT_START_NS
 

@@ -10,17 +10,15 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from numpy.typing import NDArray
 from rosbags.highlevel import AnyReaderError
 from rosbags.rosbag2 import ReaderError
 from rosbags.serde import SerdeError
 
 from gnss_ins_common.message_fields import stamp_ns
+from gnss_ins_common.types import FloatArray
 from ins_fusion.messages_in import imu_sample, stamp_s
 from ins_fusion.sim.messages import fill_imu, fill_temperature, new_message
 from ins_fusion.tools.bag_io import BagError, BagReader, BagWriter
-
-FloatArray = NDArray[np.float64]
 
 IMU_TOPIC = "/imu/data_raw"
 TEMPERATURE_TOPIC = "/imu/temperature"

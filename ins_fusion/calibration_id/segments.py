@@ -23,7 +23,8 @@ from enum import StrEnum
 
 import numpy as np
 
-from ins_fusion.calibration_id.record import FloatArray, ImuRecord
+from gnss_ins_common.types import FloatArray
+from ins_fusion.calibration_id.record import ImuRecord
 
 #: Batch-means blocks: at most this many, each at least MIN_BLOCK_S long (far longer than the
 #: correlation of band-limited sensor noise, 6 ms at 25 Hz).

@@ -23,11 +23,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 from rosbags.highlevel import AnyReaderError
 from rosbags.rosbag2 import ReaderError
 from rosbags.serde import SerdeError
 
+from gnss_ins_common.types import FloatArray
 from ins_fusion import cdr_fields, messages_in
 from ins_fusion.cdr_fields import CdrError
 from ins_fusion.core.measurements import (
@@ -45,7 +45,6 @@ from ins_fusion.replay.topics import (
 )
 from ins_fusion.tools.bag_io import BagError, BagReader
 
-FloatArray = NDArray[np.float64]
 Measurement = GnssFixMeasurement | GnssVelocityMeasurement | AttitudeMeasurement
 
 
