@@ -24,6 +24,7 @@ from gnss_ins_common.pty_device import PtyEmulator
 from imu400cc_driver.axes import DEFAULT_AXIS_SPEC, measurement_to_packet
 from imu400cc_driver.device_clock import NOMINAL_RATE_HZ, NOMINAL_TICK_S, PACKET_TRANSMISSION_S
 from imu400cc_driver.protocol import (
+    PACKET_LENGTH,
     Command,
     RawPacket,
     Scaling,
@@ -205,29 +206,42 @@ class Imu400ccEmulator(PtyEmulator):
         return self._host_time_of(sample_device_time) + PACKET_TRANSMISSION_S
 
     def _emit_due(self, now: float) -> None:
+        due: list[float] = []  # device times of the samples whose packets are due [s]
         while self._pending_polls and self._pending_polls[0] <= now:
-            sample_host = self._pending_polls.pop(0) - PACKET_TRANSMISSION_S
-            self._send_sample(self._device_time(sample_host))
+            due.append(self._device_time(self._pending_polls.pop(0) - PACKET_TRANSMISSION_S))
         while self._streaming and self._next_write_time() <= now:
-            self._send_sample(self._next_index / self.config.rate_hz)
+            due.append(self._next_index / self.config.rate_hz)
             self._next_index += 1
+        if due:
+            self._send_samples(due)
 
-    def _send_sample(self, device_time_s: float) -> None:
-        timer = (self.config.initial_timer - round(device_time_s / self.config.tick_s)) % 65536
-        packet = encode_packet(self._sample_packet(device_time_s, timer))
-        with self._lock:
-            if self._drop_next > 0:
-                self._drop_next -= 1
-                return
-            if time.monotonic() < self._silent_until:
-                return
-            if self._corrupt_next > 0:
-                self._corrupt_next -= 1
-                packet = packet[:5] + bytes([packet[5] ^ 0x5A]) + packet[6:]
-        if self.pty.write(packet) == len(packet):
-            written = time.time()
-            self.packets_sent += 1
-            if self._on_packet is not None:
+    def _send_samples(self, device_times: list[float]) -> None:
+        """Write the packets of these samples in one go: an emulator thread that woke late (a
+        loaded machine) hands the host all it owes at once, as a UART's receive buffer would
+        hold it, not one packet per wake-up long after its time."""
+        sent: list[tuple[int, float]] = []  # (timer, device time [s]) of the packets written
+        wire = bytearray()
+        for device_time_s in device_times:
+            timer = (self.config.initial_timer - round(device_time_s / self.config.tick_s)) % 65536
+            packet = encode_packet(self._sample_packet(device_time_s, timer))
+            with self._lock:
+                if self._drop_next > 0:
+                    self._drop_next -= 1
+                    continue
+                if time.monotonic() < self._silent_until:
+                    continue
+                if self._corrupt_next > 0:
+                    self._corrupt_next -= 1
+                    packet = packet[:5] + bytes([packet[5] ^ 0x5A]) + packet[6:]
+            wire += packet
+            sent.append((timer, device_time_s))
+        if not wire:
+            return
+        complete = sent[: self.pty.write(bytes(wire)) // PACKET_LENGTH]
+        written = time.time()
+        self.packets_sent += len(complete)
+        if self._on_packet is not None:
+            for timer, device_time_s in complete:
                 sample = self._host_time_of(device_time_s) + self._wall_minus_monotonic
                 self._on_packet(SentPacket(timer, sample, written))
 
