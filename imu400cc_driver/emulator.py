@@ -189,7 +189,7 @@ class Imu400ccEmulator(PtyEmulator):
                 deadline = min(deadline, self._pending_polls[0])
             for byte in self.pty.read(deadline - now):
                 self._handle_command(chr(byte))
-            self._emit_due(time.monotonic())
+            self._emit_due()
             self._emit_noise(time.monotonic())
 
     def _emit_noise(self, now: float) -> None:
@@ -205,23 +205,24 @@ class Imu400ccEmulator(PtyEmulator):
         sample_device_time = self._next_index / self.config.rate_hz
         return self._host_time_of(sample_device_time) + PACKET_TRANSMISSION_S
 
-    def _emit_due(self, now: float) -> None:
-        due: list[float] = []  # device times of the samples whose packets are due [s]
-        while self._pending_polls and self._pending_polls[0] <= now:
-            due.append(self._device_time(self._pending_polls.pop(0) - PACKET_TRANSMISSION_S))
-        while self._streaming and self._next_write_time() <= now:
-            due.append(self._next_index / self.config.rate_hz)
+    def _next_due(self, now: float) -> float | None:
+        """Device time [s] of the next sample whose packet is due by ``now`` (taken off the
+        schedule), or None."""
+        if self._pending_polls and self._pending_polls[0] <= now:
+            return self._device_time(self._pending_polls.pop(0) - PACKET_TRANSMISSION_S)
+        if self._streaming and self._next_write_time() <= now:
             self._next_index += 1
-        if due:
-            self._send_samples(due)
+            return (self._next_index - 1) / self.config.rate_hz
+        return None
 
-    def _send_samples(self, device_times: list[float]) -> None:
-        """Write the packets of these samples in one go: an emulator thread that woke late (a
-        loaded machine) hands the host all it owes at once, as a UART's receive buffer would
-        hold it, not one packet per wake-up long after its time."""
+    def _emit_due(self) -> None:
+        """Write the due packets in one go, the clock read again after each one: a thread that
+        woke late, or was preempted while it built them (a loaded machine), hands the host all
+        it owes at once, as a UART's receive buffer would hold it, not stale packets first and
+        the rest on later wake-ups."""
         sent: list[tuple[int, float]] = []  # (timer, device time [s]) of the packets written
         wire = bytearray()
-        for device_time_s in device_times:
+        while (device_time_s := self._next_due(time.monotonic())) is not None:
             timer = (self.config.initial_timer - round(device_time_s / self.config.tick_s)) % 65536
             packet = encode_packet(self._sample_packet(device_time_s, timer))
             with self._lock:
