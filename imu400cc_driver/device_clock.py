@@ -40,8 +40,9 @@ _UNWRAP_MARGIN_TICKS = TIMER_MODULUS // 8
 MAX_TICK_ERROR = 0.02
 #: Device time after a gap bridged with whole wraps that only the host clock gave, during which
 #: a later read may still show them to be a late read's [s]: under CPU contention a prompt read
-#: comes within a few packets.
-_CONFIRM_S = 0.25
+#: comes within a few packets, and a sender that fell behind catches up within a second. Holding
+#: the points out of the mapping that long costs nothing (100 ppm of drift is 0.1 ms).
+_CONFIRM_S = 1.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -84,7 +85,7 @@ class DeviceClock:
     freshest packet in the buffer, far below a wrap, so a reader stall is not mistaken for lost
     packets. A read stamped over ~45 ms after that packet arrived (with ``stamp``: after any
     packet), e.g. on a loaded machine, makes the gap a wrap too long. So such host-pinned wraps
-    stay open for 0.25 s of device time, their packets held out of the mapping: a later read
+    stay open for 1 s of device time, their packets held out of the mapping: a later read
     that would seem sampled before it arrived takes them back (drops, wrap count and device
     time), latest first, without restarting the mapping. Only a contradiction after that
     restarts it.
