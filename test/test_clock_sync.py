@@ -237,9 +237,7 @@ def test_line_is_the_lowest_envelope_of_the_window(pairs, skew, window_s, start_
 
 @settings(max_examples=100, deadline=None, derandomize=True)
 @given(steps, st.floats(-0.5, 0.5), st.floats(1e-4, 0.1))
-def test_a_skew_limit_keeps_the_line_under_the_window_at_a_plausible_slope(
-    pairs, trend, max_skew
-):
+def test_a_skew_limit_keeps_the_line_under_the_window_at_a_plausible_slope(pairs, trend, max_skew):
     """Delays that shrink or grow for a while (a backlog read out) tilt the free line; the
     limited one keeps its slope within ``max_skew`` and is the same line when the free one is."""
     limited = EnvelopeClockSync(min_points=2, max_skew=max_skew)
