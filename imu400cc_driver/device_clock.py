@@ -16,17 +16,16 @@ from dataclasses import dataclass
 from itertools import pairwise
 
 from gnss_ins_common.clock_sync import EnvelopeClockSync
+from gnss_ins_common.rates import IMU400CC_RATE_HZ
 from imu400cc_driver.protocol import PACKET_LENGTH
 
 #: The time field is a uint16 (notes §2.3).
 TIMER_MODULUS = 1 << 16
-#: Continuous-mode packet rate [Hz] (notes §2.6, §10).
-NOMINAL_RATE_HZ = 134.0
 #: Mean timer decrement per packet, our derivation from the App. D.5 example rows read as
 #: consecutive packets (the report states no tick period or direction; notes §2.6).
 COUNTS_PER_PACKET = 9411.75
 #: Nominal tick, (1/134 s) / 9411.75 ≈ 0.793 us [s] (notes §2.6); the true one is estimated online.
-NOMINAL_TICK_S = 1.0 / NOMINAL_RATE_HZ / COUNTS_PER_PACKET
+NOMINAL_TICK_S = 1.0 / IMU400CC_RATE_HZ / COUNTS_PER_PACKET
 #: Wire time of one packet at 38400 baud 8N1, 18 bytes x 10 bits = 4.6875 ms [s] (notes §2.1,
 #: §7.1; the report's 3.75 ms forgets the start and stop bits).
 PACKET_TRANSMISSION_S = PACKET_LENGTH * 10 / 38400
@@ -94,7 +93,7 @@ class DeviceClock:
     def __init__(
         self,
         nominal_tick_s: float = NOMINAL_TICK_S,
-        nominal_period_s: float | None = 1.0 / NOMINAL_RATE_HZ,
+        nominal_period_s: float | None = 1.0 / IMU400CC_RATE_HZ,
         transmission_s: float = PACKET_TRANSMISSION_S,
         latency_s: float = 0.0,
         window_s: float = 60.0,

@@ -21,8 +21,9 @@ import numpy as np
 
 from gnss_ins_common.axes import AxisMap
 from gnss_ins_common.pty_device import PtyEmulator
+from gnss_ins_common.rates import IMU400CC_RATE_HZ
 from imu400cc_driver.axes import DEFAULT_AXIS_SPEC, measurement_to_packet
-from imu400cc_driver.device_clock import NOMINAL_RATE_HZ, NOMINAL_TICK_S, PACKET_TRANSMISSION_S
+from imu400cc_driver.device_clock import NOMINAL_TICK_S, PACKET_TRANSMISSION_S
 from imu400cc_driver.protocol import (
     PACKET_LENGTH,
     Command,
@@ -61,7 +62,7 @@ def resting_source(seed: int = 0, noise: bool = True) -> ImuSource:
 class EmulatorConfig:
     """Device properties of the emulated unit."""
 
-    rate_hz: float = NOMINAL_RATE_HZ
+    rate_hz: float = IMU400CC_RATE_HZ
     tick_s: float = NOMINAL_TICK_S
     clock_drift_ppm: float = 0.0
     temperature_c: float = 25.0

@@ -14,12 +14,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from gnss_ins_common.clock_sync import EnvelopeClockSync
-from imu400cc_driver.device_clock import (
-    COUNTS_PER_PACKET,
-    NOMINAL_RATE_HZ,
-    NOMINAL_TICK_S,
-    PACKET_TRANSMISSION_S,
-)
+from gnss_ins_common.rates import IMU400CC_RATE_HZ
+from imu400cc_driver.device_clock import COUNTS_PER_PACKET, NOMINAL_TICK_S, PACKET_TRANSMISSION_S
 
 HOST_START_S = 1.7e9  # an epoch-sized host clock, to exercise float precision
 
@@ -88,7 +84,7 @@ def simulate(
     time, a 20 ms USB stall; the reader often lags, so packets come in reads of 1-3 that share
     the receive time of their last one (never across a pause of over 16 ms)."""
     rng = np.random.default_rng(seed)
-    count = round(seconds * NOMINAL_RATE_HZ)
+    count = round(seconds * IMU400CC_RATE_HZ)
     index = np.arange(count)
     ticks = np.round(index * COUNTS_PER_PACKET).astype(np.int64) + rng.integers(-9, 10, count)
     ticks -= ticks[0]
@@ -99,7 +95,7 @@ def simulate(
     sample_host_s = HOST_START_S + np.concatenate(([0.0], np.cumsum(np.diff(device_s) * rate[1:])))
 
     keep = rng.random(count) >= drop_probability
-    for start in rng.integers(NOMINAL_RATE_HZ, count - 2 * run_length, runs):
+    for start in rng.integers(IMU400CC_RATE_HZ, count - 2 * run_length, runs):
         keep[start : start + run_length] = False
     keep[0] = True
     missing_before = np.diff(np.flatnonzero(keep), prepend=0) - 1
