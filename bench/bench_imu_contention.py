@@ -70,7 +70,8 @@ def main() -> None:
     listener.create_subscription(DiagnosticArray, "/diagnostics", on_diag, 10)
     executor = SingleThreadedExecutor()
     executor.add_node(listener)
-    threading.Thread(target=executor.spin, daemon=True).start()
+    spinner = threading.Thread(target=executor.spin, daemon=True)
+    spinner.start()
 
     stop = multiprocessing.Event()
     hogs = [multiprocessing.Process(target=_busy, args=(stop,)) for _ in range(args.load)]
@@ -102,6 +103,7 @@ def main() -> None:
         node.wait(timeout=10)
         overflow = device.pty.overflow_bytes
     executor.shutdown()
+    spinner.join(timeout=5.0)
     listener.destroy_node()
     rclpy.shutdown()
 
@@ -116,9 +118,10 @@ def main() -> None:
         f" {sent - received} (by the node {sent - framed}, by the listener {framed - received})"
     )
     print(
-        f"  node counts: dropped_packets +{grew('dropped_packets')}, timer_gaps"
-        f" +{grew('timer_gaps')}, bad_checksums +{grew('bad_checksums')}, clock_resets"
-        f" +{grew('clock_resets')}, reconnects +{grew('reconnects')}"
+        f"  node counts: dropped_packets {grew('dropped_packets'):+d}, timer_gaps"
+        f" {grew('timer_gaps'):+d}, wraps_taken_back {grew('wraps_taken_back'):+d},"
+        f" bad_checksums {grew('bad_checksums'):+d}, clock_resets {grew('clock_resets'):+d},"
+        f" reconnects {grew('reconnects'):+d}"
     )
     print(f"  bytes the pty could not take (emulator side): {overflow}")
 
