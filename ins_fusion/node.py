@@ -26,10 +26,10 @@ from sensor_msgs.msg import Imu, NavSatFix, Temperature
 
 from gnss_ins_common import ros_diagnostics as diag
 from gnss_ins_common.message_fields import fill_orientation, stamp_ns
+from gnss_ins_common.rates import IMU400CC_RATE_HZ as NOMINAL_RATE_HZ
 from gnss_ins_common.ros_endpoints import Endpoints
 from gnss_ins_common.ros_node_main import run_node
 from gnss_ins_common.ros_params import declare_parameters
-from imu400cc_driver.device_clock import NOMINAL_RATE_HZ
 from ins_fusion.adapters import cdr_fields, messages_in, tf_frames
 from ins_fusion.adapters.cdr_fields import CdrError
 from ins_fusion.adapters.solution_out import fill_fused_fix, fill_odometry, publishable

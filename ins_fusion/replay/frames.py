@@ -23,13 +23,11 @@ from collections.abc import Sequence
 from dataclasses import replace
 
 import numpy as np
-from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
+from gnss_ins_common.types import FloatArray
 from ins_fusion.core.rotation import quat_from_euler
 from ins_fusion.replay.run import SolutionTrack
-
-FloatArray = NDArray[np.float64]
 
 #: REP-105 vehicle frame and the IMU driver's frame (imu400cc_node publishes in imu_link).
 BASE_FRAME = "base_link"

@@ -17,13 +17,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from gnss_ins_common.types import FloatArray
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.engine import EngineStatus, InsEngine, InsSolution
 from ins_fusion.core.measurements import GnssFixMeasurement
 from ins_fusion.replay.inputs import Measurement, ReplayInputs
 from ins_fusion.replay.outages import Outage, in_any
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True)
