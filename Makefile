@@ -6,6 +6,8 @@
 
 PYTHON ?= python3
 VENV   ?= .venv
+# pytest-xdist workers of `make pytest` (test/conftest.py keeps the real-node tests in one).
+PYTEST_WORKERS ?= 2
 BIN    := $(VENV)/bin
 ROS_SYSTEM := $(shell [ "$$ROS_DISTRO" = "jazzy" ] && $(PYTHON) -c 'import rclpy' 2>/dev/null && echo yes)
 # mypy --strict on every package folder; pyproject.toml excludes the ROS modules (node.py,
@@ -61,7 +63,7 @@ typecheck: venv
 	$(BIN)/mypy $(MYPY_TARGETS)
 
 pytest: venv
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n $(PYTEST_WORKERS) --dist loadgroup
 
 test: lint typecheck pytest
 

@@ -19,6 +19,8 @@ from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.engine import InsEngine
 from ins_fusion.runtime.processes import gnss_ins_command
 
+pytestmark = pytest.mark.ros
+
 
 class _Lines:
     """Every line a process writes to one of its pipes, read on a thread."""

@@ -23,7 +23,7 @@ from ins_fusion.core.engine import InsSolution
 from ins_fusion.core.rotation import MAT_FLU_FRD, mat_from_rpy_flu
 from ins_fusion.replay import metrics, pipeline
 from ins_fusion.replay.frames import comparison_frame, mounting_quat, moved_track
-from ins_fusion.replay.inputs import Reference, ReplayInputs, Series
+from ins_fusion.replay.inputs import ImuSeries, Reference, ReplayInputs, Series
 from ins_fusion.replay.run import FusionRun, SolutionTrack
 from ins_fusion.replay.topics import TopicMap
 from ins_fusion.sim.drive import SimulationConfig
@@ -108,7 +108,9 @@ def _replay(monkeypatch, frame_id, imu_frame="imu_link"):
     truth_frame = "imu_link" if frame_id == "imu_link" else "base_link"
     reference = _truth(np.arange(0.5, 9.5, 0.05), truth_frame)
     reference = Reference(reference.position, reference.attitude, reference.velocity, frame_id)
-    imu = [ImuSample(T0 + t, (0.0, 0.0, 0.0), (0.0, 0.0, 9.8)) for t in (0.0, 10.0)]
+    imu = ImuSeries.from_samples(
+        [ImuSample(T0 + t, (0.0, 0.0, 0.0), (0.0, 0.0, 9.8)) for t in (0.0, 10.0)]
+    )
     inputs = ReplayInputs("bag", TopicMap(), imu, [], reference, 0.0, imu_frame)
     return pipeline.replay(inputs, parameters, [], "/ground_truth"), track, reference
 

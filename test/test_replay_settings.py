@@ -11,7 +11,7 @@ from gnss_ins_common.params import ParameterValueError
 from ins_fusion.adapters.messages_in import ImuSample
 from ins_fusion.core.measurements import GnssFixMeasurement, GnssVelocityMeasurement
 from ins_fusion.replay import run as replay_run
-from ins_fusion.replay.inputs import ReplayInputs, TopicMap
+from ins_fusion.replay.inputs import ImuSeries, ReplayInputs, TopicMap
 from ins_fusion.replay.outages import Outage
 from ins_fusion.replay.settings import grid, parse_setting, parse_sweep
 
@@ -100,7 +100,9 @@ class _RecordingEngine:
 
 def test_engine_is_fed_in_receive_order_without_messages_in_outages(monkeypatch):
     monkeypatch.setattr(replay_run, "InsEngine", _RecordingEngine)
-    imu = [ImuSample(100.0 + 0.5 * k, (0.0, 0.0, 0.0), (0.0, 0.0, 9.8)) for k in range(8)]
+    imu = ImuSeries.from_samples(
+        [ImuSample(100.0 + 0.5 * k, (0.0, 0.0, 0.0), (0.0, 0.0, 9.8)) for k in range(8)]
+    )
 
     def fix(t):
         return GnssFixMeasurement(t, 57.0, 10.0, 40.0, np.eye(3))

@@ -336,3 +336,22 @@ def test_command_line_errors(tmp_path, capsys):
     assert "sky zone at 11 s: outside the 5 s drive" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         cli.main(["simulate", "--outage=5", "--output=x"])
+
+
+def test_imu_and_gnss_rates_replace_the_profiles(tmp_path, capsys):
+    """--imu-rate / --gnss-rate: the IMU and the position receiver at the rates asked for (the
+    ADU5 keeps its own), stamps on the new grid; refused in live mode."""
+    path = tmp_path / "rates"
+    args = ["simulate", "--duration=6", "--imu-rate=200", "--gnss-rate=2", f"--output={path}"]
+    assert cli.main(args) == 0
+    assert "imu at 200 Hz, gnss at 2 Hz" in capsys.readouterr().out
+    with BagReader(path) as reader:
+        stamps: dict[str, list[int]] = {}
+        for msg in reader.messages([T.IMU_DATA, T.GNSS_FIX, T.GNSS_ATTITUDE], deserialize=True):
+            stamps.setdefault(msg.topic, []).append(_stamp(msg.message))
+    for topic, period_ns in ((T.IMU_DATA, 5_000_000), (T.GNSS_FIX, 500_000_000)):
+        assert np.all(np.diff(stamps[topic]) == period_ns), topic
+    assert len(stamps[T.IMU_DATA]) == 6 * 200
+    assert np.all(np.diff(stamps[T.GNSS_ATTITUDE]) == 200_000_000)  # the ADU5's own 5 Hz
+    assert cli.main(["simulate", "--live", "--imu-rate=200"]) == 2
+    assert "for bags" in capsys.readouterr().err

@@ -16,6 +16,7 @@ from ins_fusion.adapters.tf_frames import quat_from_rpy_deg, static_transforms, 
 from ins_fusion.core.params import PARAMETERS
 from ins_fusion.node import InsFusionNode
 
+pytestmark = pytest.mark.ros
 DEFAULTS = {spec.name: spec.default for spec in PARAMETERS}
 
 

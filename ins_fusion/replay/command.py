@@ -23,9 +23,7 @@ from ins_fusion.replay import free_inertial
 from ins_fusion.replay.frames import IMU_FRAME, comparison_frame, is_imu_frame
 from ins_fusion.replay.inputs import InputError, ReplayInputs, load_bag
 from ins_fusion.replay.outages import Outage
-from ins_fusion.replay.output import write_fused_bag
 from ins_fusion.replay.pipeline import Replay, replay
-from ins_fusion.replay.plot import plot_replay
 from ins_fusion.replay.ranking import DEFAULT_RANK_BY
 from ins_fusion.replay.report import Report, format_table, to_json
 from ins_fusion.replay.settings import grid
@@ -199,7 +197,10 @@ def _write_outputs(
     result: Replay,
     outages: list[Outage],
 ) -> None:
+    # Imported when asked for: matplotlib and the message classes cost ~1 s of every start-up.
     if args.plot is not None:
+        from ins_fusion.replay.plot import plot_replay
+
         title = f"gnss_ins replay {inputs.bag}"
         if outages:
             title += "; outages " + ", ".join(f"{o.start_s:g}:{o.duration_s:g}" for o in outages)
@@ -213,6 +214,8 @@ def _write_outputs(
             raise UsageError(f"cannot write the plot {args.plot}: {exc}") from None
         print(f"plot: {args.plot}")
     if args.output is not None:
+        from ins_fusion.replay.output import write_fused_bag
+
         config = FusionConfig.from_parameters(parameters)
         # Rate variance per axis as the node publishes it: mean gyro density² x the IMU rate.
         imu_rate_hz = (len(inputs.imu) - 1) / inputs.duration_s

@@ -25,12 +25,13 @@ rate and acceleration of the attitude marked as absent.
 from __future__ import annotations
 
 import bisect
+import dataclasses
 import itertools
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass
 from datetime import UTC, datetime
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, TypeVar
 
 import numpy as np
 
@@ -113,7 +114,8 @@ class SimulationConfig:
     scheduled outages (start, duration [s]) and sky zones, truth rate [Hz], seed, the UTC time
     of simulation time 0 [ns], and the engine/road vibration the IMU senses (a profile of
     sim.vibration.PROFILES: ``none``, ``car`` (the default: the project's own drives are not
-    kinder than a car on a road), ``rough``)."""
+    kinder than a car on a road), ``rough``). ``imu_rate_hz`` / ``gnss_rate_hz`` replace the
+    nominal output rate [Hz] of the IMU profile / the position receiver (None: the profile's)."""
 
     scenario: str = "test_pattern"
     duration_s: float = 240.0
@@ -128,6 +130,8 @@ class SimulationConfig:
     seed: int = 0
     start_ns: int = DEFAULT_START_NS
     vibration: str = "car"
+    imu_rate_hz: float | None = None
+    gnss_rate_hz: float | None = None
 
 
 def _ns(t_s: FloatArray) -> FloatArray:
@@ -138,6 +142,18 @@ def _grid(rate_hz: float, t_start_s: float, t_end_s: float) -> FloatArray:
     """Times k / rate_hz in [t_start_s, t_end_s) [s]."""
     first, stop = (math.ceil(t * rate_hz - 1e-6) for t in (t_start_s, t_end_s))
     return np.arange(first, stop, dtype=np.float64) / rate_hz
+
+
+_Profile = TypeVar("_Profile", imu_model.ImuProfile, gnss_model.GnssProfile)
+
+
+def _with_rate(profile: _Profile, rate_hz: float | None) -> _Profile:
+    """``profile`` with its output rate replaced by ``rate_hz`` [Hz] (None: unchanged)."""
+    if rate_hz is None:
+        return profile
+    if not rate_hz > 0.0:
+        raise ValueError(f"{profile.name}: rate must be positive, got {rate_hz:g} Hz")
+    return dataclasses.replace(profile, rate_hz=rate_hz)
 
 
 class Simulation:
@@ -158,7 +174,7 @@ class Simulation:
         imu_seed, gnss_seed, adu5_seed, self.vibration_seed = (
             int(s.generate_state(1)[0]) for s in np.random.SeedSequence(config.seed).spawn(4)
         )
-        self.imu_profile = imu_model.PROFILES[config.imu]
+        self.imu_profile = _with_rate(imu_model.PROFILES[config.imu], config.imu_rate_hz)
         self.imu_model = ImuErrorModel(self.imu_profile, imu_seed, config.band_limited)
         self.vibration_profile = vibration.profile(config.vibration)
         self.vibration = Vibration(
@@ -175,9 +191,10 @@ class Simulation:
         self.receivers: list[tuple[ReceiverModel, GnssErrorModel, TruthCache[Any]]] = []
         for profile, receiver, seed in receivers:
             truth = TruthCache(self.vehicle.gnss_truths, self.vehicle.gnss_truth)
+            rate_hz = None if receiver is Receiver.ADU5 else config.gnss_rate_hz
             model = GnssErrorModel(
                 truth,
-                gnss_model.PROFILES[profile],
+                _with_rate(gnss_model.PROFILES[profile], rate_hz),
                 self.schedule,
                 seed,
                 config.start_ns / 1e9,
