@@ -59,6 +59,7 @@ from ins_fusion.core.measurements import (
     GnssVelocityMeasurement,
 )
 from ins_fusion.core.propagation import ImuDensities, Propagator, bridge
+from ins_fusion.core.smoother import SmootherHooks
 from ins_fusion.core.solution import InsSolution, SolutionBuilder, self_calibration
 from ins_fusion.core.startup import Startup
 from ins_fusion.core.state import FilterState, Geometry, LatestInputs
@@ -144,6 +145,7 @@ class InsEngine:
         self._replayed_samples = 0
         self._detector = StopDetector(config.stop_detector, geometry.mat_bi)
         self._integrator = SampleIntegrator()
+        self._recorder: SmootherHooks | None = None
         self._clear()
 
     # ----------------------------------------------------------------------------- inputs
@@ -325,6 +327,23 @@ class InsEngine:
         return values
 
     @property
+    def recorder(self) -> SmootherHooks | None:
+        """The RTS smoother's recorder told of every covariance change, correction, checkpoint
+        and rollback (core.smoothed_solution.attach_recorder sets it); None: no smoothing."""
+        return self._recorder
+
+    @recorder.setter
+    def recorder(self, recorder: SmootherHooks | None) -> None:
+        self._recorder = recorder
+        if self._filter is not None:
+            self._filter.recorder = recorder
+
+    @property
+    def solution_jacobian(self) -> FloatArray:
+        """Jacobian of the last ``solution()`` (core.solution.SolutionBuilder.jacobian)."""
+        return self._output.jacobian
+
+    @property
     def covariance(self) -> FloatArray | None:
         """Error-state covariance (layout ``self.layout``; NED/FRD, see core.eskf) or None."""
         self._catch_up()
@@ -334,6 +353,8 @@ class InsEngine:
 
     def _clear(self) -> None:
         """Forget everything but the counters and the datum (start, reset)."""
+        if self._recorder is not None:  # smoother hook: the filter starts again
+            self._recorder.on_reset(None if self._filter is None else self._filter.P)
         self._filter = None
         self._state = None
         self._timeline.clear()
@@ -376,10 +397,14 @@ class InsEngine:
 
     def _checkpoint(self) -> Checkpoint:
         assert self._state is not None and self._filter is not None
+        if self._recorder is not None:  # smoother hook: what a rollback to here keeps
+            self._recorder.on_checkpoint(self._state.t_s)
         return self._state.copy(), self._filter.P
 
     def _restore(self, checkpoint: Checkpoint) -> None:
         assert self._filter is not None
+        if self._recorder is not None:  # smoother hook: drop what the rollback undoes
+            self._recorder.on_rollback(checkpoint[0].t_s)
         self._state = checkpoint[0].copy()
         self._filter.P = checkpoint[1]
         self._filter.gnss_variance = self._state.gnss_variance
@@ -492,6 +517,7 @@ class InsEngine:
         if started is None:
             return
         self._state, self._filter = started
+        self._filter.recorder = self._recorder
         zero: Vec3 = (0.0, 0.0, 0.0)
         self._timeline.start(
             Entry(t, ImuIncrement(0.0, zero, zero), None, None, self._checkpoint())

@@ -77,6 +77,7 @@ class GnssNoise:
         type, e.g. RTK float after an outage): uncorrelated, at its stationary variance."""
         gp = self._layout.gp
         assert gp is not None
+        P_before = kf.P
         P = kf.P.copy()
         restart_block(P, gp, np.diag(correlated))
         kf.P = P
@@ -84,6 +85,8 @@ class GnssNoise:
         s.gnss_reported = (float(reported[0]), float(reported[1]), float(reported[2]))
         s.gnss_error = (0.0, 0.0, 0.0)
         self.set_correlated_variance(s, kf, correlated)
+        if kf.recorder is not None:  # smoother hook: the GNSS error states restart
+            kf.recorder.on_restart(P_before, kf.P, range(gp, gp + 3))
 
     @staticmethod
     def set_correlated_variance(

@@ -147,8 +147,11 @@ class Propagator:
         s.t_s = t
         if gap is not None:
             mat_ni = s.mat_nb @ self._geometry.mat_bi
+            P_before = kf.P
             kf.add_noise(ATT, (mat_ni * gap.angle_var_rad2) @ mat_ni.T)
             kf.add_noise(VEL, (mat_ni * gap.velocity_var_m2_s2) @ mat_ni.T)
+            if kf.recorder is not None:  # smoother hook: the gap's noise
+                kf.recorder.on_noise(P_before, kf.P)
         cdth, cdv = s.cov_dth, s.cov_dv
         s.cov_dth = (cdth[0] + ti0, cdth[1] + ti1, cdth[2] + ti2)
         s.cov_dv = (cdv[0] + vi0, cdv[1] + vi1, cdv[2] + vi2)
@@ -168,6 +171,7 @@ class Propagator:
         vn, ve, vd = nav.vel_ned_m_s.tolist()
         gyro_psd, accel_psd = s.imu_psd or self._densities.floor
         kf.set_white_noise(gyro_psd * s.q_scale, accel_psd * s.q_scale)
+        P_before = kf.P
         kf.propagate(
             s.cov_dt,
             s.mat_nb @ self._geometry.mat_bi,
@@ -178,6 +182,8 @@ class Propagator:
             nav.height_m,
             (vn, ve, vd),
         )
+        if kf.recorder is not None:  # smoother hook: a covariance step
+            kf.recorder.on_transition(P_before, kf.phi, kf.P)
         if kf.layout.gp is not None:  # the estimate of a Gauss-Markov error decays
             decay = math.exp(-s.cov_dt / self._gnss_correlation_time_s)
             e = s.gnss_error

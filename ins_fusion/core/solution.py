@@ -74,6 +74,9 @@ class SolutionBuilder:
         mt = layout.mt
         self._solution_states = np.r_[0 : BG + 3, [] if mt is None else [mt, mt + 1]].astype(int)
         self._plane: earth.TangentPlane | None = None
+        #: Jacobian of the last ``build`` (rows ENU position, velocity, attitude of base_link,
+        #: columns the error states of core.smoothed_solution.solution_states); reused per call.
+        self.jacobian: FloatArray = self._j_solution
 
     def build(
         self,
@@ -110,11 +113,13 @@ class SolutionBuilder:
         J[3:6, BG : BG + 3] = MAT_ENU_NED @ C @ geometry.arm_bi
         if self._mt is None:
             cov = J @ kf.P[: BG + 3, : BG + 3] @ J.T
+            self.jacobian = J
         else:  # the vehicle's attitude error is ψ + C_nb μ: the mounting states join
             J_mt = self._j_mounting
             J_mt[:, : BG + 3] = J
             J_mt[6:9, BG + 3 :] = (MAT_ENU_NED @ C)[:, 1:3]
             cov = J_mt @ kf.P[np.ix_(self._solution_states, self._solution_states)] @ J_mt.T
+            self.jacobian = J_mt
         vn, ve, vd = nav.vel_ned_m_s.tolist()
         lat0, lon0, h0 = datum_deg
         datum_rad = (math.radians(lat0), math.radians(lon0), h0)

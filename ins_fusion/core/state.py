@@ -239,6 +239,8 @@ def inject(s: FilterState, kf: ErrorStateFilter, dx: FloatArray) -> None:
     """Closed-loop feedback of an error estimate ``dx`` (layout ``kf.layout``) into the nominal
     state."""
     layout = kf.layout
+    if kf.recorder is not None:  # smoother hook: the correction of this step
+        kf.recorder.on_correction(dx)
     d = dx.tolist()
     nav = s.nav
     q_err = quat_from_rotvec(d[ATT], d[ATT + 1], d[ATT + 2])

@@ -115,11 +115,14 @@ class Corrections:
             # factor that makes the innovation typical (NIS = dof), apply it. Only if no factor
             # does (the innovation lies outside what P spans) widen what the sensor measures.
             factor = fading_factor(z, H @ kf.P @ H.T, R, float(len(z)))
+            P_before = kf.P
             if math.isfinite(factor):
                 kf.scale(factor)
                 self.fading = factor
             else:
                 kf.widen(z, H, R, block)
+            if kf.recorder is not None:  # smoother hook: the recovery's noise
+                kf.recorder.on_noise(P_before, kf.P)
             result = kf.update(z, H, R, math.inf)
             gated = False
             if live:

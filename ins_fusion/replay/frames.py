@@ -71,7 +71,7 @@ def moved_track(
     r = np.asarray(lever_arm_flu_m, dtype=np.float64).reshape(3)
     rot = Rotation.from_quat(track.quat_enu_flu_xyzw)
     arm_enu = rot.apply(r)
-    rate = np.array([s.rate_flu_rad_s for s in track.solutions], dtype=np.float64).reshape(-1, 3)
+    rate = track.rate_flu_rad_s
     quat = track.quat_enu_flu_xyzw
     rpy = np.asarray(mounting_rpy_rad, dtype=np.float64)
     if rpy.ndim == 2:

@@ -63,7 +63,7 @@ class Series:
 @dataclass(frozen=True)
 class ImuSeries:
     """IMU samples in receive order: stamps [s] (n,), rate [rad/s] and specific force [m/s²]
-    (n, 3) in imu_link FLU (REP-145), as ins_fusion.messages_in.ImuSample has them."""
+    (n, 3) in imu_link FLU (REP-145), as ins_fusion.adapters.messages_in.ImuSample has them."""
 
     t_s: FloatArray
     rate_flu_rad_s: FloatArray
