@@ -20,7 +20,8 @@ from gnss_driver.profiles import Receiver
 from gnss_driver.utc import DateSource, UtcTime
 from gnss_ins_common.axes import AxisMap
 from imu400cc_driver import node as imu_node
-from imu400cc_driver.axes import measurement_to_packet, packet_to_measurement
+from imu400cc_driver.axes import ImuMeasurement, measurement_to_packet, packet_to_measurement
+from imu400cc_driver.driver import ImuDriver, ImuSample
 from imu400cc_driver.protocol import Scaling
 from ins_fusion.bags import topics as T  # noqa: N812
 from ins_fusion.bags.bag_io import BagReader, jazzy_typestore
@@ -223,8 +224,7 @@ def test_imu_messages_are_what_imu400cc_node_publishes():
     stub, published = _node_stub(
         imu_node.Imu400ccNode,
         _frame_id=defaults["frame_id"],
-        _gyro_cov=[d * d * 134.0 for d in defaults["gyro_noise_density"]],
-        _accel_cov=[d * d * 134.0 for d in defaults["accel_noise_density"]],
+        _driver=ImuDriver(imu_node.driver_config(defaults)),
     )
     config = dataclasses.replace(CONFIG, duration_s=1.0, sky_zones=())
     events = Simulation(config).imu_events(0.0, 1.0)
@@ -234,7 +234,8 @@ def test_imu_messages_are_what_imu400cc_node_publishes():
         m = event.message
         stamp_s = _stamp(m) / 1e9
         if event.topic == T.IMU_TEMPERATURE:
-            stub._publish_temperature(stamp_s, m.temperature)
+            still = ImuMeasurement(np.zeros(3), np.zeros(3), m.temperature, 0)
+            stub._publish(ImuSample(stamp_s, still, with_temperature=True))
             node_msg = _from_rclpy(published["_temp_pub"][-1], "sensor_msgs/msg/Temperature")
         else:
             w, f = m.angular_velocity, m.linear_acceleration
@@ -244,7 +245,7 @@ def test_imu_messages_are_what_imu400cc_node_publishes():
             measured = packet_to_measurement(
                 packet, scaling, axes, defaults["accel_sign"], defaults["gravity"]
             )
-            stub._publish(stamp_s, measured.rate_flu_rad_s, measured.specific_force_flu_m_s2)
+            stub._publish(ImuSample(stamp_s, measured, with_temperature=False))
             node_msg = _from_rclpy(published["_imu_pub"][-1], "sensor_msgs/msg/Imu")
             # Same device counts: equal to rounding; the node's covariances come from densities
             # rounded to 1e-9.
