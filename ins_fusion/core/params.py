@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 
-from gnss_ins_common.params import Param
+from gnss_ins_common.params import Param, needs_values
 from ins_fusion.core.calibration import CalibrationError, ImuCalibration
 
 #: ``tf_mode`` values: the frame of ins/odometry and of its transform; none = no /tf
@@ -56,10 +56,6 @@ def _calibration_file(path: str) -> str | None:
     return None
 
 
-def _three(values: list[float]) -> str | None:
-    return None if len(values) == 3 else "needs three values (x, y, z)"
-
-
 def _datum(values: list[float]) -> str | None:
     if not values:
         return None
@@ -75,7 +71,9 @@ def _vector(
     """A three-value parameter; ``axes``: per sensor axis, one number meaning all three."""
     if axes:
         description += " (one number = the same on every axis)"
-    return Param(name, default, description, low, high, check=_three, broadcast=axes)
+    return Param(
+        name, default, description, low, high, check=needs_values(3, "x, y, z"), broadcast=axes
+    )
 
 
 PARAMETERS: tuple[Param, ...] = (
