@@ -36,7 +36,10 @@ setup(
     ],
     extras_require={
         "test": [
-            "pytest>=8",
+            # pytest 9.2 changed node ids so that pytest-xdist's --dist loadgroup (make pytest)
+            # silently stops grouping (pytest-dev/pytest-xdist#1386).
+            "pytest>=8,<9.2",
+            "pytest-xdist>=3.5",
             "hypothesis>=6.100",
             "ruff>=0.6",
             "mypy>=1.10",

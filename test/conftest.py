@@ -2,6 +2,10 @@
 
 ROS traffic of one pytest process is isolated from any other (parallel sessions, other
 developers' nodes) by a random DDS domain restricted to this host; subprocess nodes inherit it.
+Under pytest-xdist every worker (gw0, gw1, ...) takes the next domains after the controller's,
+so the nodes of tests running at the same time in two workers never see each other, and the
+tests that run real nodes (marker ``ros``) form one xdist group: with ``--dist loadgroup`` (make
+pytest) they run one after another in one worker, never two real-time node tests at once.
 """
 
 from __future__ import annotations
@@ -9,5 +13,19 @@ from __future__ import annotations
 import os
 import random
 
+import pytest
+
 os.environ.setdefault("ROS_DOMAIN_ID", str(random.SystemRandom().randint(1, 100)))
+_WORKER = os.environ.get("PYTEST_XDIST_WORKER", "")
+if _WORKER.startswith("gw"):  # the controller's domain (inherited) + 1 + the worker's number
+    _DOMAIN = int(os.environ["ROS_DOMAIN_ID"]) + 1 + int(_WORKER[2:])
+    os.environ["ROS_DOMAIN_ID"] = str(_DOMAIN % 102)  # Fast DDS: 0..101 on every OS
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+
+
+@pytest.hookimpl(tryfirst=True)  # before pytest-xdist reads the groups
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Every test marked ``ros`` joins the xdist group ``ros``."""
+    for item in items:
+        if item.get_closest_marker("ros") is not None:
+            item.add_marker(pytest.mark.xdist_group("ros"))

@@ -7,9 +7,9 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from ins_fusion import cdr_fields
-from ins_fusion.cdr_fields import CdrError
-from ins_fusion.tools.bag_io import jazzy_typestore
+from ins_fusion.adapters import cdr_fields
+from ins_fusion.adapters.cdr_fields import CdrError
+from ins_fusion.bags.bag_io import jazzy_typestore
 
 TS = jazzy_typestore()
 T = TS.types
@@ -40,8 +40,10 @@ def _stamp(header) -> float:
     return header.stamp.sec + header.stamp.nanosec * 1e-9
 
 
-@given(headers, st.tuples(floats, floats, floats, floats), vec3s, vec3s, endians)
-def test_imu_fields_match_rosbags(header, quat, rate, force, little):
+quats = st.tuples(floats, floats, floats, floats)
+
+
+def _imu_bytes(header, quat, rate, force, little) -> bytes:
     msg = T[IMU](
         header=header,
         orientation=T["geometry_msgs/msg/Quaternion"](x=quat[0], y=quat[1], z=quat[2], w=quat[3]),
@@ -51,16 +53,10 @@ def test_imu_fields_match_rosbags(header, quat, rate, force, little):
         linear_acceleration=_vector(force),
         linear_acceleration_covariance=np.full(9, 3.0),
     )
-    data = bytes(TS.serialize_cdr(msg, IMU, little_endian=little))
-    sample = cdr_fields.imu_sample(data)
-    assert sample.t_s == _stamp(header)
-    assert sample.rate_flu_rad_s == rate
-    assert sample.force_flu_m_s2 == force
-    assert cdr_fields.orientation(data) == (_stamp(header), quat)
+    return bytes(TS.serialize_cdr(msg, IMU, little_endian=little))
 
 
-@given(headers, st.integers(-2, 2), st.integers(0, 15), vec3s, endians)
-def test_fix_position_matches_rosbags(header, status, service, lla, little):
+def _fix_bytes(header, status, service, lla, little) -> bytes:
     msg = T[FIX](
         header=header,
         status=T["sensor_msgs/msg/NavSatStatus"](status=status, service=service),
@@ -70,12 +66,10 @@ def test_fix_position_matches_rosbags(header, status, service, lla, little):
         position_covariance=np.arange(9.0),
         position_covariance_type=2,
     )
-    data = bytes(TS.serialize_cdr(msg, FIX, little_endian=little))
-    assert cdr_fields.position(data) == (_stamp(header), lla)
+    return bytes(TS.serialize_cdr(msg, FIX, little_endian=little))
 
 
-@given(headers, vec3s, vec3s, endians)
-def test_twist_linear_matches_rosbags(header, linear, angular, little):
+def _twist_bytes(header, linear, angular, little) -> bytes:
     msg = T[TWIST](
         header=header,
         twist=T["geometry_msgs/msg/TwistWithCovariance"](
@@ -83,8 +77,69 @@ def test_twist_linear_matches_rosbags(header, linear, angular, little):
             covariance=np.arange(36.0),
         ),
     )
-    data = bytes(TS.serialize_cdr(msg, TWIST, little_endian=little))
+    return bytes(TS.serialize_cdr(msg, TWIST, little_endian=little))
+
+
+@given(headers, quats, vec3s, vec3s, endians)
+def test_imu_fields_match_rosbags(header, quat, rate, force, little):
+    data = _imu_bytes(header, quat, rate, force, little)
+    sample = cdr_fields.imu_sample(data)
+    assert sample.t_s == _stamp(header)
+    assert sample.rate_flu_rad_s == rate
+    assert sample.force_flu_m_s2 == force
+    assert cdr_fields.orientation(data) == (_stamp(header), quat)
+
+
+@given(headers, st.integers(-2, 2), st.integers(0, 15), vec3s, endians)
+def test_fix_position_matches_rosbags(header, status, service, lla, little):
+    data = _fix_bytes(header, status, service, lla, little)
+    assert cdr_fields.position(data) == (_stamp(header), lla)
+
+
+@given(headers, vec3s, vec3s, endians)
+def test_twist_linear_matches_rosbags(header, linear, angular, little):
+    data = _twist_bytes(header, linear, angular, little)
     assert cdr_fields.linear_velocity(data) == (_stamp(header), linear)
+
+
+def _bits(values) -> bytes:
+    return np.asarray(values, dtype=np.float64).tobytes()
+
+
+def _topic(messages, repeat: int) -> list[bytes]:
+    """Mixed layouts (frame_id lengths, byte orders), then a run of the first message's layout
+    (the whole-topic path)."""
+    return [*messages, *messages[:1] * repeat]
+
+
+@given(st.lists(st.tuples(headers, quats, vec3s, vec3s, endians), max_size=5), st.integers(0, 30))
+def test_whole_imu_topics_decode_as_each_message(messages, repeat):
+    payloads = _topic([_imu_bytes(*m) for m in messages], repeat)
+    t_s, rate, force = cdr_fields.imu_columns(payloads)
+    samples = [cdr_fields.imu_sample(d) for d in payloads]
+    assert _bits(t_s) == _bits([s.t_s for s in samples])  # the same values to the bit
+    assert _bits(rate) == _bits([s.rate_flu_rad_s for s in samples])
+    assert _bits(force) == _bits([s.force_flu_m_s2 for s in samples])
+    t_s, quat = cdr_fields.orientations(payloads)
+    assert _bits(quat) == _bits([cdr_fields.orientation(d)[1] for d in payloads])
+    assert rate.shape == force.shape == (len(payloads), 3) and quat.shape == (len(payloads), 4)
+
+
+@given(
+    st.lists(st.tuples(headers, vec3s, vec3s, endians), max_size=5),
+    st.integers(0, 30),
+    st.integers(-2, 2),
+)
+def test_whole_fix_and_twist_topics_decode_as_each_message(messages, repeat, status):
+    fixes = _topic([_fix_bytes(h, status, 1, v, little) for h, v, _, little in messages], repeat)
+    t_s, lla = cdr_fields.positions(fixes)
+    assert _bits(t_s) == _bits([cdr_fields.position(d)[0] for d in fixes])
+    assert _bits(lla) == _bits([cdr_fields.position(d)[1] for d in fixes])
+    twists = _topic([_twist_bytes(*m) for m in messages], repeat)
+    t_s, linear = cdr_fields.linear_velocities(twists)
+    assert _bits(t_s) == _bits([cdr_fields.linear_velocity(d)[0] for d in twists])
+    assert _bits(linear) == _bits([cdr_fields.linear_velocity(d)[1] for d in twists])
+    assert lla.shape == linear.shape == (len(fixes), 3)
 
 
 def test_bad_bytes_are_refused_with_a_message():
@@ -108,3 +163,14 @@ def test_bad_bytes_are_refused_with_a_message():
         cdr_fields.imu_sample(data[:12] + b"\xff\xff\xff\x7f" + data[16:])
     with pytest.raises(CdrError, match="NavSatFix"):
         cdr_fields.position(data[:40])  # an Imu is long enough; a cut one is not
+    good = [data] * 3
+    with pytest.raises(CdrError, match="needed"):
+        cdr_fields.imu_columns([*good, data[:-8]])  # the odd one out in its own group
+    with pytest.raises(CdrError, match="needed"):
+        cdr_fields.imu_columns([data[:-8]] * 3)
+    with pytest.raises(CdrError, match="not a CDR message"):
+        cdr_fields.imu_columns([*good, b"\x07" + data[1:]])
+    with pytest.raises(CdrError, match="frame_id length"):
+        cdr_fields.imu_columns([data[:12] + b"\xff\xff\xff\x7f" + data[16:]] * 2)
+    with pytest.raises(CdrError, match="not a CDR message"):
+        cdr_fields.imu_columns([b"\x00\x01"] * 4)  # too short for a header

@@ -15,9 +15,9 @@ import gpxpy
 import pynmea2
 import pytest
 
-from ins_fusion.sim.topics import SimulationConfig
+from ins_fusion.bags.bag_io import BagReader
+from ins_fusion.sim.drive import SimulationConfig
 from ins_fusion.tools import cli
-from ins_fusion.tools.bag_io import BagReader
 from ins_fusion.tools.simulate import write_bag
 
 OUTAGE = (40.0, 12.0)

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-from ins_fusion.calibration_id.record import FloatArray
+from gnss_ins_common.types import FloatArray
 
 
 class EstimationError(ValueError):

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from ins_fusion.calibration_id.record import FloatArray
+from gnss_ins_common.types import FloatArray
 from ins_fusion.calibration_id.segments import Segment
 from ins_fusion.core.calibration import ImuCalibration
 from ins_fusion.core.units import STANDARD_GRAVITY_M_S2, deg_s, mg

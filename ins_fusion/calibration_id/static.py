@@ -49,9 +49,9 @@ import scipy.optimize
 import scipy.stats
 from scipy.spatial.transform import Rotation
 
+from gnss_ins_common.types import FloatArray
 from ins_fusion.calibration_id.lsq import EstimationError, LinearFit, solve
 from ins_fusion.calibration_id.model import BiasInstability, Site
-from ins_fusion.calibration_id.record import FloatArray
 from ins_fusion.calibration_id.result import (
     CalibrationResult,
     Estimate,

@@ -15,26 +15,24 @@ from typing import Any
 import numpy as np
 
 from gnss_ins_common.params import ParameterValueError, load_yaml, validate_all
+from ins_fusion.bags.bag_io import BagError
 from ins_fusion.core.calibration import CalibrationError
 from ins_fusion.core.config import NODE_NAME, FusionConfig
 from ins_fusion.core.engine import InsEngine
-from ins_fusion.fusion_params import PARAMETERS
+from ins_fusion.core.params import PARAMETERS
 from ins_fusion.replay import free_inertial
 from ins_fusion.replay.export import FORMATS, export
 from ins_fusion.replay.frames import IMU_FRAME, comparison_frame, is_imu_frame
 from ins_fusion.replay.inputs import InputError, ReplayInputs, load_bag
 from ins_fusion.replay.outages import Outage
-from ins_fusion.replay.output import write_fused_bag
 from ins_fusion.replay.pipeline import Replay, replay
-from ins_fusion.replay.plot import plot_replay
 from ins_fusion.replay.ranking import DEFAULT_RANK_BY
 from ins_fusion.replay.report import Report, format_table, to_json
 from ins_fusion.replay.settings import grid
 from ins_fusion.replay.sweep import format_sweep, run_sweep
 from ins_fusion.replay.topics import DEFAULT_REFERENCE
 from ins_fusion.replay.withheld import WithheldEvaluation
-from ins_fusion.tools.bag_io import BagError
-from ins_fusion.tools.progress import Progress
+from ins_fusion.runtime.progress import Progress
 
 
 class UsageError(Exception):
@@ -95,18 +93,13 @@ def _check_usage(args: argparse.Namespace) -> None:
 def _load(args: argparse.Namespace) -> ReplayInputs:
     prefix = args.reference if args.reference is not None else DEFAULT_REFERENCE
     with Progress("read", unit="msgs") as bar:
-
-        def progress(done: int, total: int) -> None:
-            bar.total = total
-            bar.update(done)
-
         try:
             inputs = load_bag(
                 args.bag,
                 args.topics,
                 prefix,
                 reference_required=args.reference is not None,
-                progress=progress,
+                progress=bar.update_with_total,
             )
         except InputError as exc:
             raise UsageError(str(exc)) from None
@@ -217,7 +210,10 @@ def _write_outputs(
     result: Replay,
     outages: list[Outage],
 ) -> None:
+    # Imported when asked for: matplotlib and the message classes cost ~1 s of every start-up.
     if args.plot is not None:
+        from ins_fusion.replay.plot import plot_replay
+
         title = f"gnss_ins replay {inputs.bag}"
         if outages:
             title += "; outages " + ", ".join(f"{o.start_s:g}:{o.duration_s:g}" for o in outages)
@@ -237,6 +233,8 @@ def _write_outputs(
             raise UsageError(f"cannot write the plot {args.plot}: {exc}") from None
         print(f"plot: {args.plot}")
     if args.output is not None:
+        from ins_fusion.replay.output import write_fused_bag
+
         config = FusionConfig.from_parameters(parameters)
         # Rate variance per axis as the node publishes it: mean gyro density² x the IMU rate.
         imu_rate_hz = (len(inputs.imu) - 1) / inputs.duration_s

@@ -2,8 +2,8 @@
 
 The inputs keep the bag's receive (log-time) order, which is what ins_fusion_node sees: every
 GNSS/attitude measurement records how many IMU samples were received before it. Messages are
-read through ins_fusion.tools.bag_io and converted by ins_fusion.messages_in, as the node does
-(IMU and reference messages straight from their bytes by ins_fusion.cdr_fields, for
+read through ins_fusion.bags.bag_io and converted by ins_fusion.adapters.messages_in, as the node
+does (IMU and reference messages straight from their bytes by ins_fusion.adapters.cdr_fields, for
 speed).
 
 Reference topics (``PREFIX/fix``, ``PREFIX/attitude``, optional ``PREFIX/vel``): the true
@@ -15,27 +15,28 @@ frame_id is kept too, to recognise a reference of the IMU.
 
 from __future__ import annotations
 
-import struct
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 from rosbags.highlevel import AnyReaderError
 from rosbags.rosbag2 import ReaderError
 from rosbags.serde import SerdeError
 
-from ins_fusion import cdr_fields, messages_in
-from ins_fusion.cdr_fields import CdrError
+from gnss_ins_common.types import FloatArray
+from ins_fusion.adapters import cdr_fields, messages_in
+from ins_fusion.adapters.cdr_fields import CdrError
+from ins_fusion.adapters.messages_in import ImuSample
+from ins_fusion.bags.bag_io import BagError, BagReader
+from ins_fusion.bags.columns import read_topics
 from ins_fusion.core.measurements import (
     AttitudeMeasurement,
     GnssFixMeasurement,
     GnssVelocityMeasurement,
 )
-from ins_fusion.messages_in import ImuSample
 from ins_fusion.replay.topics import (
     DEFAULT_REFERENCE,
     DEFAULT_TOPICS,
@@ -43,9 +44,7 @@ from ins_fusion.replay.topics import (
     SENSOR_TYPES,
     TopicMap,
 )
-from ins_fusion.tools.bag_io import BagError, BagReader
 
-FloatArray = NDArray[np.float64]
 Measurement = GnssFixMeasurement | GnssVelocityMeasurement | AttitudeMeasurement
 
 
@@ -59,6 +58,37 @@ class Series:
 
     t_s: FloatArray
     values: FloatArray
+
+
+@dataclass(frozen=True)
+class ImuSeries:
+    """IMU samples in receive order: stamps [s] (n,), rate [rad/s] and specific force [m/s²]
+    (n, 3) in imu_link FLU (REP-145), as ins_fusion.adapters.messages_in.ImuSample has them."""
+
+    t_s: FloatArray
+    rate_flu_rad_s: FloatArray
+    force_flu_m_s2: FloatArray
+
+    @classmethod
+    def from_samples(cls, samples: Sequence[ImuSample]) -> ImuSeries:
+        """The series of a sequence of samples."""
+        return cls(
+            np.array([s.t_s for s in samples], dtype=np.float64),
+            np.array([s.rate_flu_rad_s for s in samples], dtype=np.float64).reshape(-1, 3),
+            np.array([s.force_flu_m_s2 for s in samples], dtype=np.float64).reshape(-1, 3),
+        )
+
+    def __len__(self) -> int:
+        return len(self.t_s)
+
+    def samples(self) -> Iterator[tuple[float, list[float], list[float]]]:
+        """(stamp, rate, force) per sample in plain floats, for InsEngine.add_imu."""
+        return zip(
+            self.t_s.tolist(),
+            self.rate_flu_rad_s.tolist(),
+            self.force_flu_m_s2.tolist(),
+            strict=True,
+        )
 
 
 @dataclass(frozen=True)
@@ -84,7 +114,7 @@ class ReplayInputs:
 
     bag: str
     topics: TopicMap
-    imu: list[ImuSample]
+    imu: ImuSeries
     measurements: list[tuple[int, str, Measurement]]
     reference: Reference | None
     read_time_s: float
@@ -93,12 +123,12 @@ class ReplayInputs:
     @property
     def t0_s(self) -> float:
         """First IMU stamp [s]: time 0 of outage windows and of the report's times."""
-        return self.imu[0].t_s
+        return float(self.imu.t_s[0])
 
     @property
     def duration_s(self) -> float:
         """Last minus first IMU stamp [s]."""
-        return self.imu[-1].t_s - self.imu[0].t_s
+        return float(self.imu.t_s[-1] - self.imu.t_s[0])
 
 
 def _check_types(available: dict[str, str], wanted: dict[str, tuple[str, str]], path: Path) -> None:
@@ -183,26 +213,16 @@ _CONVERTERS: dict[str, Callable[[Any], Measurement]] = {
     "attitude": messages_in.attitude_measurement,
 }
 
-#: Reference values from the serialized message: position (lat_deg, lon_deg, height_m),
-#: orientation (x, y, z, w of FLU in ENU), ENU velocity [m/s].
-_REFERENCE_DECODERS: dict[str, Callable[[bytes], tuple[float, tuple[float, ...]]]] = {
-    "fix": cdr_fields.position,
-    "attitude": cdr_fields.orientation,
-    "vel": cdr_fields.linear_velocity,
+#: Reference stamps and values of a whole topic from the serialized messages: position
+#: (lat_deg, lon_deg, height_m), orientation (x, y, z, w of FLU in ENU), ENU velocity [m/s].
+_REFERENCE_DECODERS: dict[str, Callable[[list[bytes]], tuple[FloatArray, FloatArray]]] = {
+    "fix": cdr_fields.positions,
+    "attitude": cdr_fields.orientations,
+    "vel": cdr_fields.linear_velocities,
 }
 
 
-_Read = tuple[list[ImuSample], list[tuple[int, str, Measurement]], Reference | None, str]
-
-
-def frame_id(data: bytes) -> str:
-    """header.frame_id of a serialized (CDR) message that starts with a std_msgs/Header: after
-    the 4-byte encapsulation and the stamp, a uint32 length (with the NUL) and the characters
-    (ins_fusion.cdr_fields); "" when the bytes are too short to hold it."""
-    if len(data) < 16:
-        return ""
-    (length,) = struct.unpack_from("<I" if data[1] == 1 else ">I", data, 12)
-    return bytes(data[16 : 16 + max(length - 1, 0)]).decode("utf-8", "replace")
+_Read = tuple[ImuSeries, list[tuple[int, str, Measurement]], Reference | None, str]
 
 
 def _read(
@@ -214,47 +234,46 @@ def _read(
     total: int,
     progress: Callable[[int, int], None] | None,
 ) -> _Read:
-    imu: list[ImuSample] = []
-    measurements: list[tuple[int, str, Measurement]] = []
-    ref: dict[str, list[tuple[float, tuple[float, ...]]]] = {s: [] for s in REFERENCE_TYPES}
-    frames: dict[str, str] = {}  # first frame_id of the IMU ("imu") and the reference fix
-    raw = {imu_topic, *ref_topics}
-    for done, msg in enumerate(reader.messages(selected, deserialize=True, raw_topics=raw), 1):
-        if progress is not None and done % 4096 == 0:
-            progress(done, total)
-        if msg.topic == imu_topic:
-            imu.append(cdr_fields.imu_sample(msg.message))
-            if len(imu) == 1:
-                frames["imu"] = frame_id(msg.message)
+    columns = read_topics(
+        reader, selected, None if progress is None else lambda done: progress(done, total)
+    )
+    imu_column = columns[imu_topic]
+    imu = ImuSeries(*cdr_fields.imu_columns(imu_column.payloads))
+    arrivals: list[tuple[int, int, str, Measurement]] = []  # receive order, k, role, measurement
+    for topic, role in roles.items():
+        if role == "imu" or topic not in columns:
             continue
-        role = roles.get(msg.topic)
-        if role is not None:
-            measurements.append((len(imu), role, _CONVERTERS[role](msg.message)))
-        suffix = ref_topics.get(msg.topic)
-        if suffix is not None:
-            ref[suffix].append(_REFERENCE_DECODERS[suffix](msg.message))
-            if suffix == "fix" and len(ref["fix"]) == 1:
-                frames["fix"] = frame_id(msg.message)
+        column = columns[topic]
+        # IMU messages received before each: the engine gets them first.
+        before = np.searchsorted(imu_column.order, column.order).tolist()
+        for position, k, data in zip(column.order.tolist(), before, column.payloads, strict=True):
+            message = reader.deserialize(data, column.msgtype)
+            arrivals.append((position, k, role, _CONVERTERS[role](message)))
+    arrivals.sort(key=lambda item: item[0])
+    series = {
+        suffix: _series(*_REFERENCE_DECODERS[suffix](columns[topic].payloads))
+        for topic, suffix in ref_topics.items()
+        if topic in columns
+    }
+    reference = None
+    if (position := series.get("fix")) is not None:
+        fix_topic = next(t for t, suffix in ref_topics.items() if suffix == "fix")
+        fix_frame = cdr_fields.frame_id(columns[fix_topic].payloads[0])
+        reference = Reference(position, series.get("attitude"), series.get("vel"), fix_frame)
     if progress is not None:
         progress(total, total)
-    return imu, measurements, _reference(ref, frames.get("fix", "")), frames.get("imu", "")
-
-
-def _series(samples: list[tuple[float, tuple[float, ...]]]) -> Series | None:
-    """Samples sorted by stamp (a bag is in receive order), None when there are none."""
-    if not samples:
-        return None
-    samples.sort(key=lambda item: item[0])
-    return Series(
-        np.array([t for t, _ in samples], dtype=np.float64),
-        np.array([v for _, v in samples], dtype=np.float64),
+    measurements = [(k, role, m) for _, k, role, m in arrivals]
+    return (
+        imu,
+        measurements,
+        reference,
+        cdr_fields.frame_id(imu_column.payloads[0]) if len(imu) else "",
     )
 
 
-def _reference(
-    ref: dict[str, list[tuple[float, tuple[float, ...]]]], frame: str
-) -> Reference | None:
-    position = _series(ref["fix"])
-    if position is None:
+def _series(t_s: FloatArray, values: FloatArray) -> Series | None:
+    """Samples sorted by stamp (a bag is in receive order), None when there are none."""
+    if not len(t_s):
         return None
-    return Reference(position, _series(ref["attitude"]), _series(ref["vel"]), frame)
+    order = np.argsort(t_s, kind="stable")
+    return Series(t_s[order], values[order])

@@ -1,7 +1,7 @@
 """The fused solution of a replay as the bag ins_fusion_node would have recorded.
 
 ``/ins/odometry`` (nav_msgs/Odometry: pose in the map frame = ENU tangent plane at the datum,
-child base_link, twist in base_link; numbers from ins_fusion.solution_out, as the node) and
+child base_link, twist in base_link; numbers from ins_fusion.adapters.solution_out, as the node) and
 ``/ins/fix`` (NavSatFix of base_link, ENU covariance, COVARIANCE_TYPE_KNOWN, status NO_FIX while
 the engine is aligning), one message of each per recorded solution, stamped and logged at the
 solution's IMU stamp; the RTS-smoothed solution, when given, the same way on
@@ -14,14 +14,14 @@ import heapq
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
+from gnss_ins_common.message_fields import stamp_ns
+from ins_fusion.adapters.solution_out import fill_fused_fix, fill_odometry, publishable
+from ins_fusion.bags.bag_io import BagSummary, BagWriter
+from ins_fusion.bags.messages import new_message
+from ins_fusion.bags.topics import FIX_TYPE, INS_FIX, INS_ODOMETRY, ODOMETRY_TYPE
 from ins_fusion.core.engine import InsSolution
-from ins_fusion.sim.messages import new_message, stamp_ns
-from ins_fusion.solution_out import fill_fused_fix, fill_odometry, publishable
-from ins_fusion.tools.bag_io import BagSummary, BagWriter
 
-ODOMETRY_TOPIC, FIX_TOPIC = "/ins/odometry", "/ins/fix"
 SMOOTHED_ODOMETRY_TOPIC, SMOOTHED_FIX_TOPIC = "/ins/smoothed/odometry", "/ins/smoothed/fix"
-ODOMETRY_TYPE, FIX_TYPE = "nav_msgs/msg/Odometry", "sensor_msgs/msg/NavSatFix"
 
 
 def _stamped(k: int, solutions: Sequence[InsSolution]) -> Iterator[tuple[float, int, InsSolution]]:
@@ -38,7 +38,7 @@ def write_fused_bag(
 ) -> BagSummary:
     """Write /ins/odometry and /ins/fix of every publishable solution (and the smoothed ones
     on their topics) to a new bag at ``path`` (MCAP)."""
-    tracks = [(ODOMETRY_TOPIC, FIX_TOPIC, solutions)]
+    tracks = [(INS_ODOMETRY, INS_FIX, solutions)]
     if smoothed is not None:
         tracks.append((SMOOTHED_ODOMETRY_TOPIC, SMOOTHED_FIX_TOPIC, smoothed))
     # Both tracks in one time order (log time = stamp), as a recording would have them.

@@ -17,15 +17,14 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
-from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
+from gnss_ins_common.types import FloatArray
 from ins_fusion.replay.metrics import Evaluation, rpy_covariance, rpy_deg
 from ins_fusion.replay.outages import Outage, mask
 from ins_fusion.replay.pipeline import Scored
 from ins_fusion.replay.run import SolutionTrack
 
-FloatArray = NDArray[np.float64]
 _OUTAGE_COLOUR = "tab:orange"
 _SMOOTHED_COLOUR = "tab:green"
 

@@ -17,8 +17,8 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
+from gnss_ins_common.types import BoolArray, FloatArray
 from ins_fusion.core import solution_rows
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.engine import EngineStatus, InsEngine, InsSolution
@@ -27,7 +27,9 @@ from ins_fusion.core.smoothed_solution import attach_recorder, smoothed_rows
 from ins_fusion.replay.inputs import Measurement, ReplayInputs
 from ins_fusion.replay.outages import Outage, in_any
 
-FloatArray = NDArray[np.float64]
+#: A stamp this close before an output tick (in output periods) counts as at it: stamps are
+#: float seconds since 1970 (about 0.24 µs apart), so k / rate after the first one is not exact.
+_TICK_TOLERANCE = 1e-3
 
 
 @dataclass(frozen=True)
@@ -48,7 +50,7 @@ class SolutionTrack:
     cov_pos_enu_m2: FloatArray
     cov_vel_enu: FloatArray
     cov_att_enu_rad2: FloatArray
-    aligned: NDArray[np.bool_]
+    aligned: BoolArray
 
     @classmethod
     def from_rows(cls, rows: FloatArray) -> SolutionTrack:
@@ -116,7 +118,7 @@ def run_fusion(
     smooth: bool = False,
 ) -> FusionRun:
     """Run a fresh engine configured by the flat parameter dict (validated against
-    ins_fusion.fusion_params.PARAMETERS) over ``inputs``; ``progress(done, total)`` counts IMU
+    ins_fusion.core.params.PARAMETERS) over ``inputs``; ``progress(done, total)`` counts IMU
     samples; ``smooth``: also the RTS smoother's backward pass."""
     config = FusionConfig.from_parameters(parameters)
     engine = InsEngine(config)
@@ -138,20 +140,21 @@ def run_fusion(
         "vel": engine.add_gnss_velocity,
         "attitude": engine.add_attitude,
     }
-    period = 1.0 / config.output_rate_hz
-    next_record = t0
+    rate_hz = config.output_rate_hz
+    next_tick = 0.0  # output ticks since t0; the next one is recorded
     solutions = solution_rows.RowBuffer()
     j, n_kept, total = 0, len(kept), len(inputs.imu)
-    for k, (t, rate, force) in enumerate(inputs.imu):
+    for k, (t, rate, force) in enumerate(inputs.imu.samples()):
         while j < n_kept and kept[j][0] <= k:
             feed[kept[j][1]](kept[j][2])
             j += 1
         engine.add_imu(t, rate, force)
-        if t >= next_record:
+        ticks = (t - t0) * rate_hz + _TICK_TOLERANCE
+        if ticks >= next_tick:
             solution = engine.solution()
             if solution is not None:
                 solutions.append(solution_rows.pack(solution))
-            next_record = t0 + (math.floor((t - t0) / period) + 1.0) * period
+            next_tick = math.floor(ticks) + 1.0
         if progress is not None and k % 2048 == 0:
             progress(k, total)
     for _, role, measurement in kept[j:]:

@@ -105,8 +105,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=argument_type(TopicMap.parse),
         default=DEFAULT_TOPICS,
         metavar="ROLE=TOPIC,...",
-        help="input topics (defaults imu=/imu/data_raw,fix=/gnss/fix,vel=/gnss/vel,"
-        "attitude=/gnss/attitude)",
+        help="input topics (defaults "
+        + ",".join(f"{role}={topic}" for role, topic in DEFAULT_TOPICS.by_role().items())
+        + ")",
     )
     parser.add_argument(
         "--sweep",

@@ -1,7 +1,7 @@
 """`gnss_ins simulate`: a simulated drive to a rosbag2 bag, or live on emulated serial devices.
 
 Bag mode writes what imu400cc_node and gnss_node would publish on the drive, each message at its
-receive time, plus the truth (ins_fusion/sim/topics.py lists topics, frames and stamps), then
+receive time, plus the truth (ins_fusion/sim/drive.py lists topics, frames and stamps), then
 prints the bag summary. The same seed gives the same messages.
 
 ``--live`` runs the drive in real time instead: the IMU400CC emulator and the GNSS emulators (the
@@ -30,23 +30,23 @@ import numpy as np
 from gnss_driver.emulator import EmulatorConfig as GnssEmulatorConfig
 from gnss_driver.emulator import GnssEmulator, Truth
 from gnss_driver.profiles import Receiver
+from gnss_ins_common.types import FloatArray
 from imu400cc_driver.emulator import EmulatorConfig, Imu400ccEmulator, SentPacket
-from ins_fusion.core.rotation import FloatArray
+from ins_fusion.bags.bag_io import STORAGES, BagError, BagWriter
+from ins_fusion.runtime.progress import Progress
 from ins_fusion.sim import imu_model, vibration
-from ins_fusion.sim.gnss_model import GnssErrorModel
-from ins_fusion.sim.receivers import emulator_truth, epoch_config
-from ins_fusion.sim.scenarios import SCENARIOS
-from ins_fusion.sim.topics import (
+from ins_fusion.sim.drive import (
     DEFAULT_START_NS,
     POSITION_RECEIVERS,
     Simulation,
     SimulationConfig,
     SkyZoneSpec,
 )
+from ins_fusion.sim.gnss_model import GnssErrorModel
+from ins_fusion.sim.receivers import emulator_truth, epoch_config
+from ins_fusion.sim.scenarios import SCENARIOS
 from ins_fusion.sim.vehicle import TruthCache
 from ins_fusion.sim.vibration import Vibration
-from ins_fusion.tools.bag_io import STORAGES, BagError, BagWriter
-from ins_fusion.tools.progress import Progress
 
 #: How often the live mode writes the truth that became due [s].
 _LIVE_TICK_S = 0.1
@@ -95,6 +95,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Command-line options of ``gnss_ins simulate``."""
     parser.add_argument("--scenario", choices=sorted(SCENARIOS), default="test_pattern")
     parser.add_argument("--imu", choices=sorted(imu_model.PROFILES), default="imu400cc")
+    parser.add_argument(
+        "--imu-rate", type=_positive, metavar="HZ", help="IMU output rate (default: the profile's)"
+    )
     parser.add_argument("--duration", type=_positive, default=240.0, help="seconds to simulate")
     parser.add_argument("--seed", type=int, default=0, help="seed of every error model")
     parser.add_argument("-o", "--output", type=Path, help="bag directory to create")
@@ -105,6 +108,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default="leica_rtk",
         help="position receiver on /gnss/fix, /gnss/vel, /gnss/time_reference (printed as the "
         "Leica rover's VTG, GGA, LLQ)",
+    )
+    parser.add_argument(
+        "--gnss-rate",
+        type=_positive,
+        metavar="HZ",
+        help="position receiver's epoch rate (default: the profile's, 1 Hz)",
     )
     parser.add_argument(
         "--adu5",
@@ -165,6 +174,13 @@ def run(args: argparse.Namespace) -> int:
     if args.truth_output is not None and not args.live:
         print("error: --truth-output is for --live (a bag holds the truth anyway)", file=sys.stderr)
         return 2
+    if args.live and (args.imu_rate is not None or args.gnss_rate is not None):
+        print(
+            "error: --imu-rate and --gnss-rate are for bags; the emulators run at their"
+            " devices' rates",
+            file=sys.stderr,
+        )
+        return 2
     config = SimulationConfig(
         scenario=args.scenario,
         duration_s=args.duration,
@@ -178,6 +194,8 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed,
         start_ns=args.start,
         vibration=args.vibration,
+        imu_rate_hz=args.imu_rate,
+        gnss_rate_hz=args.gnss_rate,
     )
     try:
         if args.live:
@@ -209,6 +227,8 @@ def write_bag(config: SimulationConfig, path: Path, storage: str = "mcap") -> No
     )
     if config.vibration != "none":
         title += f", vibration {config.vibration}"
+    rates = (("imu", config.imu_rate_hz), ("gnss", config.gnss_rate_hz))
+    title += "".join(f", {name} at {hz:g} Hz" for name, hz in rates if hz is not None)
     print(writer.summary.format(title))
 
 

@@ -491,6 +491,10 @@ class BagReader:
                 message = bytes(data)
             yield BagMessage(conn.topic, conn.msgtype, log_time_ns, message)
 
+    def deserialize(self, data: bytes, msgtype: str) -> Any:
+        """A rosbags message object of raw CDR bytes of ``msgtype`` (types as ``messages``)."""
+        return self._reader.deserialize(data, msgtype)
+
     def summary(self, topics: Collection[str] | None = None) -> BagSummary:
         """Counts, span and gaps of the bag (reads every message time)."""
         summary = BagSummary()

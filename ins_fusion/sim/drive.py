@@ -12,72 +12,70 @@ one clock that is also UTC (simulation time 0 = ``start_ns``).
 | /gnss/attitude (Imu, orientation only) | gnss_link | ADU5 epoch | + ADU5 latency |
 | /ground_truth/fix, /vel, /attitude | base_link | truth time | at once |
 
-Types as ``TOPICS``; velocities are TwistWithCovarianceStamped in ENU.
+Names, frames and types from ins_fusion.bags.topics (``TOPICS``); velocities are
+TwistWithCovarianceStamped in ENU.
 
-Contents are the drivers' (sim.messages): the IMU400CC node's covariances (per-sample variance of
-the simulated noise, which for the band-limited imu400cc is its default (7.14) σ²) and its
-temperature counts; the GNSS messages are gnss_node's reading of the receivers' NMEA
-(sim.receivers). The truth is exact: covariances 0, the angular part of the velocity and the rate
-and acceleration of the attitude marked as absent.
+Contents are the drivers' (their own ``fill_*`` functions): the IMU400CC node's covariances
+(per-sample variance of the simulated noise, which for the band-limited imu400cc is its default
+(7.14) σ²) and its temperature counts; the GNSS messages are gnss_node's reading of the receivers'
+NMEA (sim.receivers). The truth is exact: covariances 0, the angular part of the velocity and the
+rate and acceleration of the attitude marked as absent.
 """
 
 from __future__ import annotations
 
 import bisect
+import dataclasses
 import itertools
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass
 from datetime import UTC, datetime
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, TypeVar
 
 import numpy as np
 
 from gnss_driver.profiles import Receiver
-from imu400cc_driver.device_clock import PACKET_TRANSMISSION_S
-from imu400cc_driver.protocol import TEMPERATURE_VARIANCE_C2, Scaling
-from ins_fusion.core.rotation import FloatArray
-from ins_fusion.sim import gnss_model, imu_model, vibration
-from ins_fusion.sim.gnss_model import GnssErrorModel, GnssSchedule, SkyMask, SkyZone
-from ins_fusion.sim.imu_model import ImuErrorModel
-from ins_fusion.sim.messages import (
-    fill_gnss_fix,
+from gnss_driver.solution import fill_gnss_fix
+from gnss_ins_common.message_fields import (
     fill_imu,
     fill_navsatfix,
     fill_orientation,
     fill_temperature,
     fill_time_reference,
     fill_velocity,
-    new_message,
 )
+from gnss_ins_common.navsat import SERVICE_GPS, CovarianceType, NavSatStatus
+from gnss_ins_common.types import FloatArray
+from imu400cc_driver.device_clock import PACKET_TRANSMISSION_S
+from imu400cc_driver.protocol import TEMPERATURE_VARIANCE_C2, Scaling
+from ins_fusion.bags.messages import new_message
+from ins_fusion.bags.topics import (
+    FIX_TYPE,
+    GNSS_ATTITUDE,
+    GNSS_FIX,
+    GNSS_FRAME,
+    GNSS_TIME,
+    GNSS_VEL,
+    IMU_DATA,
+    IMU_FRAME,
+    IMU_TEMPERATURE,
+    IMU_TYPE,
+    TOPICS,
+    TRUTH_ATTITUDE,
+    TRUTH_FIX,
+    TRUTH_FRAME,
+    TRUTH_VEL,
+    VELOCITY_TYPE,
+)
+from ins_fusion.sim import gnss_model, imu_model, vibration
+from ins_fusion.sim.gnss_model import GnssErrorModel, GnssSchedule, SkyMask, SkyZone
+from ins_fusion.sim.imu_model import ImuErrorModel
 from ins_fusion.sim.receivers import ReceiverModel
 from ins_fusion.sim.scenarios import SCENARIOS, SURVEY_CAR
 from ins_fusion.sim.vehicle import TruthCache, VehicleTruth
 from ins_fusion.sim.vibration import Vibration
 
-IMU_DATA, IMU_TEMPERATURE = "/imu/data_raw", "/imu/temperature"
-GNSS_FIX, GNSS_VEL, GNSS_ATTITUDE = "/gnss/fix", "/gnss/vel", "/gnss/attitude"
-GNSS_TIME = "/gnss/time_reference"
-TRUTH_FIX, TRUTH_VEL, TRUTH_ATTITUDE = (
-    "/ground_truth/fix",
-    "/ground_truth/vel",
-    "/ground_truth/attitude",
-)
-IMU_FRAME, GNSS_FRAME, TRUTH_FRAME = "imu_link", "gnss_link", "base_link"
-_IMU, _NAVSATFIX = "sensor_msgs/msg/Imu", "sensor_msgs/msg/NavSatFix"
-_TWIST = "geometry_msgs/msg/TwistWithCovarianceStamped"
-#: Every topic a simulation may write and its type, in the order they are declared in a bag.
-TOPICS: dict[str, str] = {
-    IMU_DATA: _IMU,
-    IMU_TEMPERATURE: "sensor_msgs/msg/Temperature",
-    GNSS_FIX: _NAVSATFIX,
-    GNSS_VEL: _TWIST,
-    GNSS_TIME: "sensor_msgs/msg/TimeReference",
-    GNSS_ATTITUDE: _IMU,
-    TRUTH_FIX: _NAVSATFIX,
-    TRUTH_VEL: _TWIST,
-    TRUTH_ATTITUDE: _IMU,
-}
 #: Default start (simulation time 0) of a bag, so that a seed always gives the same bag.
 DEFAULT_START_NS = int(datetime(2024, 6, 1, 10, 0, 0, tzinfo=UTC).timestamp()) * 1_000_000_000
 #: imu400cc_node publishes imu/temperature with every this many samples (temperature_rate 1 Hz).
@@ -116,7 +114,8 @@ class SimulationConfig:
     scheduled outages (start, duration [s]) and sky zones, truth rate [Hz], seed, the UTC time
     of simulation time 0 [ns], and the engine/road vibration the IMU senses (a profile of
     sim.vibration.PROFILES: ``none``, ``car`` (the default: the project's own drives are not
-    kinder than a car on a road), ``rough``)."""
+    kinder than a car on a road), ``rough``). ``imu_rate_hz`` / ``gnss_rate_hz`` replace the
+    nominal output rate [Hz] of the IMU profile / the position receiver (None: the profile's)."""
 
     scenario: str = "test_pattern"
     duration_s: float = 240.0
@@ -131,6 +130,8 @@ class SimulationConfig:
     seed: int = 0
     start_ns: int = DEFAULT_START_NS
     vibration: str = "car"
+    imu_rate_hz: float | None = None
+    gnss_rate_hz: float | None = None
 
 
 def _ns(t_s: FloatArray) -> FloatArray:
@@ -141,6 +142,18 @@ def _grid(rate_hz: float, t_start_s: float, t_end_s: float) -> FloatArray:
     """Times k / rate_hz in [t_start_s, t_end_s) [s]."""
     first, stop = (math.ceil(t * rate_hz - 1e-6) for t in (t_start_s, t_end_s))
     return np.arange(first, stop, dtype=np.float64) / rate_hz
+
+
+_Profile = TypeVar("_Profile", imu_model.ImuProfile, gnss_model.GnssProfile)
+
+
+def _with_rate(profile: _Profile, rate_hz: float | None) -> _Profile:
+    """``profile`` with its output rate replaced by ``rate_hz`` [Hz] (None: unchanged)."""
+    if rate_hz is None:
+        return profile
+    if not rate_hz > 0.0:
+        raise ValueError(f"{profile.name}: rate must be positive, got {rate_hz:g} Hz")
+    return dataclasses.replace(profile, rate_hz=rate_hz)
 
 
 class Simulation:
@@ -161,7 +174,7 @@ class Simulation:
         imu_seed, gnss_seed, adu5_seed, self.vibration_seed = (
             int(s.generate_state(1)[0]) for s in np.random.SeedSequence(config.seed).spawn(4)
         )
-        self.imu_profile = imu_model.PROFILES[config.imu]
+        self.imu_profile = _with_rate(imu_model.PROFILES[config.imu], config.imu_rate_hz)
         self.imu_model = ImuErrorModel(self.imu_profile, imu_seed, config.band_limited)
         self.vibration_profile = vibration.profile(config.vibration)
         self.vibration = Vibration(
@@ -178,9 +191,10 @@ class Simulation:
         self.receivers: list[tuple[ReceiverModel, GnssErrorModel, TruthCache[Any]]] = []
         for profile, receiver, seed in receivers:
             truth = TruthCache(self.vehicle.gnss_truths, self.vehicle.gnss_truth)
+            rate_hz = None if receiver is Receiver.ADU5 else config.gnss_rate_hz
             model = GnssErrorModel(
                 truth,
-                gnss_model.PROFILES[profile],
+                _with_rate(gnss_model.PROFILES[profile], rate_hz),
                 self.schedule,
                 seed,
                 config.start_ns / 1e9,
@@ -248,7 +262,7 @@ class Simulation:
             Event(
                 stamp + _TRANSMISSION_NS,
                 IMU_DATA,
-                fill_imu(new_message(_IMU), stamp, IMU_FRAME, w, f, gyro_var, accel_var),
+                fill_imu(new_message(IMU_TYPE), stamp, IMU_FRAME, w, f, gyro_var, accel_var),
             )
             for stamp, w, f in zip(stamps, rate.tolist(), force.tolist(), strict=True)
         ]
@@ -279,7 +293,7 @@ class Simulation:
                     if solution.attitude is not None:
                         o = solution.attitude.orientation
                         message = fill_orientation(
-                            new_message(_IMU),
+                            new_message(IMU_TYPE),
                             stamp,
                             GNSS_FRAME,
                             o.quat_enu_flu_xyzw,
@@ -288,14 +302,12 @@ class Simulation:
                         events.append(Event(log, GNSS_ATTITUDE, message))
                     continue
                 if solution.fix is not None:
-                    message = fill_gnss_fix(
-                        new_message(_NAVSATFIX), stamp, GNSS_FRAME, solution.fix
-                    )
+                    message = fill_gnss_fix(new_message(FIX_TYPE), stamp, GNSS_FRAME, solution.fix)
                     events.append(Event(log, GNSS_FIX, message))
                 if solution.velocity is not None:
                     v = solution.velocity
                     message = fill_velocity(
-                        new_message(_TWIST), stamp, GNSS_FRAME, v.vel_enu_m_s, v.cov_enu
+                        new_message(VELOCITY_TYPE), stamp, GNSS_FRAME, v.vel_enu_m_s, v.cov_enu
                     )
                     events.append(Event(log, GNSS_VEL, message))
                 message = new_message(TOPICS[GNSS_TIME])
@@ -322,23 +334,22 @@ class Simulation:
         events: list[Event] = []
         zero = [0.0] * 9
         for i, stamp in enumerate(stamps):
-            fix = new_message(_NAVSATFIX)
-            status = fix.status
+            fix = new_message(FIX_TYPE)
             fill_navsatfix(
                 fix,
                 stamp,
                 TRUTH_FRAME,
-                status.STATUS_FIX,
-                status.SERVICE_GPS,
+                int(NavSatStatus.FIX),
+                SERVICE_GPS,
                 lat_deg[i],
                 lon_deg[i],
                 height[i],
                 zero,
-                fix.COVARIANCE_TYPE_KNOWN,
+                int(CovarianceType.KNOWN),
             )
-            vel = fill_velocity(new_message(_TWIST), stamp, TRUTH_FRAME, vel_enu[i], zero)
+            vel = fill_velocity(new_message(VELOCITY_TYPE), stamp, TRUTH_FRAME, vel_enu[i], zero)
             attitude = fill_orientation(
-                new_message(_IMU), stamp, TRUTH_FRAME, quat_enu_flu[i], zero
+                new_message(IMU_TYPE), stamp, TRUTH_FRAME, quat_enu_flu[i], zero
             )
             events += [
                 Event(stamp, TRUTH_FIX, fix),
