@@ -3,9 +3,11 @@
 ROS traffic of one pytest process is isolated from any other (parallel sessions, other
 developers' nodes) by a random DDS domain restricted to this host; subprocess nodes inherit it.
 Under pytest-xdist every worker (gw0, gw1, ...) takes the next domains after the controller's,
-so the nodes of tests running at the same time in two workers never see each other, and the
-tests that run real nodes (marker ``ros``) form one xdist group: with ``--dist loadgroup`` (make
-pytest) they run one after another in one worker, never two real-time node tests at once.
+so the nodes of tests running at the same time in two workers never see each other. With
+``--dist loadgroup`` (make pytest) the tests that run real nodes (marker ``ros``) form one group,
+run one after another in one worker (never two real-time node tests at once), and every other
+test module is a group of its own: its module-scoped fixtures (simulated drives and records)
+are built once, not once per worker.
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 
 @pytest.hookimpl(tryfirst=True)  # before pytest-xdist reads the groups
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """Every test marked ``ros`` joins the xdist group ``ros``."""
+    """xdist groups: ``ros`` for the tests marked so, else the test's module."""
     for item in items:
-        if item.get_closest_marker("ros") is not None:
-            item.add_marker(pytest.mark.xdist_group("ros"))
+        ros = item.get_closest_marker("ros") is not None
+        item.add_marker(pytest.mark.xdist_group("ros" if ros else item.nodeid.split("::")[0]))
