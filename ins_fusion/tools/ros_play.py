@@ -105,7 +105,9 @@ class Player:
             while True:
                 now = time.monotonic()
                 if self.clock_period_s is not None and next_tick <= min(due, now):
-                    self.publish_clock(bag_time(now))
+                    # Never past the message not yet published (a late, loaded machine): /clock
+                    # stays monotonic up to the final tick at the last message's time.
+                    self.publish_clock(min(bag_time(now), msg.log_time_ns))
                     next_tick += self.clock_period_s
                     if next_tick <= now:  # late (a slow machine): one period from now
                         next_tick = now + self.clock_period_s
