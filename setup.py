@@ -32,6 +32,7 @@ setup(
         "allantools>=2019.9",
         "matplotlib>=3.7",
         "PyYAML>=6.0",
+        "gpxpy>=1.6",
     ],
     extras_require={
         "test": [

@@ -30,14 +30,14 @@ from pathlib import Path
 
 import numpy as np
 
+from ins_fusion.bags.imu import read_imu
 from ins_fusion.noise_id.analysis import GYRO, identify, shortcomings
 from ins_fusion.noise_id.record import sample_clock
-from ins_fusion.noise_id.synthetic import static_record, write_imu_bag
+from ins_fusion.noise_id.synthetic import static_record, write_static_bag
 from ins_fusion.noise_id.terms import Term
 from ins_fusion.noise_id.whittle import BIAS, LOG_TIME, SpectralModel, expected_errors
 from ins_fusion.sim.imu_model import PROFILES, TriadErrors
 from ins_fusion.tools import cli
-from ins_fusion.tools.allan import read_imu
 
 HOUR, DAY = 3600.0, 86400.0
 #: (profile, length [s], rate [Hz] or None for the profile's, seeds)
@@ -192,10 +192,12 @@ def _speed() -> None:
     with tempfile.TemporaryDirectory() as directory:
         bag = Path(directory) / "static"
         start = time.perf_counter()
-        write_imu_bag(bag, static_record(PROFILES["imu400cc"], 3600.0, seed=1, band_limited=True))
+        write_static_bag(
+            bag, static_record(PROFILES["imu400cc"], 3600.0, seed=1, band_limited=True)
+        )
         written = time.perf_counter() - start
         start = time.perf_counter()
-        record, _ = read_imu(bag, "/imu/data_raw")
+        record = read_imu(bag, temperature_topic=None, relative=True)
         read = time.perf_counter() - start
         start = time.perf_counter()
         identify(record, sample_clock(record.t_s), "speed")

@@ -27,10 +27,10 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ins_fusion.bags.imu import write_imu_bag
 from ins_fusion.calibration_id import procedures, rotation, static
 from ins_fusion.calibration_id.model import BiasInstability, Site
 from ins_fusion.calibration_id.plot import plot_positions, plot_segments
-from ins_fusion.calibration_id.record import write_bag
 from ins_fusion.calibration_id.result import CalibrationResult, Quantity
 from ins_fusion.calibration_id.segments import DetectorSettings, Kind, detect
 from ins_fusion.sim.imu_model import IMU400CC, STIM300, ImuErrorModel, ImuProfile
@@ -235,7 +235,7 @@ def bench_cli(directory: Path) -> None:
     record, _ = procedures.simulate(steps, IMU400CC, SITE, 1, name="aalborg_six_position")
     bag = directory / "six"
     start = time.perf_counter()
-    write_bag(bag, record)
+    write_imu_bag(bag, record)
     written = time.perf_counter() - start
     args = [
         "calibrate",

@@ -28,7 +28,8 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu
 
-from ins_fusion.sim.topics import SimulationConfig
+from ins_fusion.bags.topics import GNSS_ATTITUDE, GNSS_FIX, GNSS_VEL, IMU_DATA
+from ins_fusion.sim.drive import SimulationConfig
 from ins_fusion.tools.simulate import write_bag
 
 
@@ -89,10 +90,10 @@ def main() -> None:
                 str(bag),
                 "--wait-for-subscribers",
                 "--topics",
-                "/imu/data_raw",
-                "/gnss/fix",
-                "/gnss/vel",
-                "/gnss/attitude",
+                IMU_DATA,
+                GNSS_FIX,
+                GNSS_VEL,
+                GNSS_ATTITUDE,
             ],
             check=True,
             capture_output=True,

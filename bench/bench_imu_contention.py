@@ -3,8 +3,9 @@ dropped-packet count. Prints numbers, asserts nothing.
 
 The node runs as its real executable reading the emulated IMU400CC on a pseudo-terminal, while
 ``--load`` busy Python processes compete for the cores (load 4-6 on a 2-core machine with
-``--load 4``). Lost = packets the emulator wrote minus Imu messages received; the node's
-``dropped_packets`` (from device-timer gaps) must not exceed it.
+``--load 4``). Lost = packets the emulator wrote minus Imu messages received, split into those
+the node never framed (its ``packets`` count) and those the starved listener missed; the node's
+``dropped_packets`` (from device-timer gaps) must not exceed what the node missed.
 
     .venv/bin/python bench/bench_imu_contention.py [--seconds 30] [--load 4]
 """
@@ -48,6 +49,11 @@ def main() -> None:
     counts = {"imu": 0}
     last_diag: dict[str, str] = {}
     lock = threading.Lock()
+    # The window opens at the first diagnostics status after the load starts: the node's
+    # counters, the emulator's and the listener's, taken together.
+    armed = threading.Event()
+    start: list[tuple[dict[str, str], int, int]] = []
+    device = Imu400ccEmulator()
 
     def on_imu(_msg: Imu) -> None:
         with lock:
@@ -56,25 +62,32 @@ def main() -> None:
     def on_diag(msg: DiagnosticArray) -> None:
         with lock:
             last_diag.update({kv.key: kv.value for kv in msg.status[0].values})
+            if armed.is_set() and not start:
+                start.append((dict(last_diag), device.packets_sent, counts["imu"]))
 
     qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
     listener.create_subscription(Imu, "imu/data_raw", on_imu, qos)
     listener.create_subscription(DiagnosticArray, "/diagnostics", on_diag, 10)
     executor = SingleThreadedExecutor()
     executor.add_node(listener)
-    threading.Thread(target=executor.spin, daemon=True).start()
+    spinner = threading.Thread(target=executor.spin, daemon=True)
+    spinner.start()
 
     stop = multiprocessing.Event()
     hogs = [multiprocessing.Process(target=_busy, args=(stop,)) for _ in range(args.load)]
     exe = Path(sys.executable).parent / "imu400cc_node"
-    with Imu400ccEmulator() as device:
-        node = subprocess.Popen([exe, "--ros-args", "-p", f"port:={device.path}"])
+    with device:
+        # stall_timeout: the silence that ends the run is no reason to reconnect.
+        node = subprocess.Popen(
+            [exe, "--ros-args", "-p", f"port:={device.path}", "-p", "stall_timeout:=10.0"]
+        )
         time.sleep(args.warmup)
         for hog in hogs:
             hog.start()
-        with lock:
-            received0, diag0 = counts["imu"], dict(last_diag)
-        sent0 = device.packets_sent
+        armed.set()
+        while not start:
+            time.sleep(0.01)
+        diag0, sent0, received0 = start[0]
         time.sleep(args.seconds)
         load = os.getloadavg()[0]
         stop.set()
@@ -90,6 +103,7 @@ def main() -> None:
         node.wait(timeout=10)
         overflow = device.pty.overflow_bytes
     executor.shutdown()
+    spinner.join(timeout=5.0)
     listener.destroy_node()
     rclpy.shutdown()
 
@@ -98,11 +112,16 @@ def main() -> None:
 
     print(f"imu400cc_node, {args.seconds:.0f} s with {args.load} busy processes")
     print(f"  load average (1 min) {load:.1f} on {os.cpu_count()} cores")
-    print(f"  packets sent {sent}, received {received}, lost {sent - received}")
+    framed = grew("packets")
     print(
-        f"  node counts: dropped_packets +{grew('dropped_packets')}, timer_gaps"
-        f" +{grew('timer_gaps')}, bad_checksums +{grew('bad_checksums')}, clock_resets"
-        f" +{grew('clock_resets')}, reconnects +{grew('reconnects')}"
+        f"  packets sent {sent}, framed by the node {framed}, received {received}, lost"
+        f" {sent - received} (by the node {sent - framed}, by the listener {framed - received})"
+    )
+    print(
+        f"  node counts: dropped_packets {grew('dropped_packets'):+d}, timer_gaps"
+        f" {grew('timer_gaps'):+d}, wraps_taken_back {grew('wraps_taken_back'):+d},"
+        f" bad_checksums {grew('bad_checksums'):+d}, clock_resets {grew('clock_resets'):+d},"
+        f" reconnects {grew('reconnects'):+d}"
     )
     print(f"  bytes the pty could not take (emulator side): {overflow}")
 

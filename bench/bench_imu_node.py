@@ -26,7 +26,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu
 
-from imu400cc_driver.device_clock import NOMINAL_RATE_HZ
+from gnss_ins_common.rates import IMU400CC_RATE_HZ
 from imu400cc_driver.emulator import Imu400ccEmulator, SentPacket
 
 
@@ -70,7 +70,7 @@ def main() -> None:
             received.clear()
         first = len(sent)
         cpu0, wall0 = process_cpu_s(node.pid), time.monotonic()
-        duration = args.packets / NOMINAL_RATE_HZ
+        duration = args.packets / IMU400CC_RATE_HZ
         time.sleep(duration)
         cpu1, wall1 = process_cpu_s(node.pid), time.monotonic()
         written = len(sent) - first
@@ -92,9 +92,9 @@ def main() -> None:
         np.abs(samples[index] - stamps) < np.abs(samples[index - 1] - stamps), index, index - 1
     )
     stamp_error = stamps - samples[nearest]
-    matched = np.abs(stamp_error) < 0.5 / NOMINAL_RATE_HZ
+    matched = np.abs(stamp_error) < 0.5 / IMU400CC_RATE_HZ
     latency_ms = (arrivals[matched] - write_times[nearest[matched]]) * 1e3
-    print(f"imu400cc_node at {NOMINAL_RATE_HZ:.0f} Hz, {wall1 - wall0:.1f} s measured")
+    print(f"imu400cc_node at {IMU400CC_RATE_HZ:.0f} Hz, {wall1 - wall0:.1f} s measured")
     print(
         f"  messages received {len(stamps)}, matched to packets {int(matched.sum())}, "
         f"packets written {written}"

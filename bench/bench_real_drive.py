@@ -20,7 +20,7 @@ from typing import Any
 
 from gnss_ins_common.params import load_yaml, validate_all
 from ins_fusion.core.config import NODE_NAME
-from ins_fusion.fusion_params import PARAMETERS
+from ins_fusion.core.params import PARAMETERS
 from ins_fusion.replay.inputs import load_bag
 from ins_fusion.replay.outages import Outage
 from ins_fusion.replay.pipeline import replay

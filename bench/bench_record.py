@@ -26,7 +26,7 @@ from rclpy.duration import Duration
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, NavSatFix
 
-from ins_fusion.tools.bag_io import BagReader
+from ins_fusion.bags.bag_io import BagReader
 
 REPO = Path(__file__).resolve().parents[1]
 TOPICS = {"/bench/imu": (Imu, 134.0), "/bench/fix": (NavSatFix, 5.0)}

@@ -37,14 +37,14 @@ from scipy.spatial.transform import Rotation
 
 from ins_fusion.core import earth
 from ins_fusion.core.measurements import GnssFixMeasurement
-from ins_fusion.fusion_params import PARAMETERS
+from ins_fusion.core.params import PARAMETERS
 from ins_fusion.replay.inputs import ReplayInputs, load_bag
 from ins_fusion.replay.metrics import horizontal
 from ins_fusion.replay.outages import Outage
 from ins_fusion.replay.pipeline import replay
 from ins_fusion.replay.report import Report
+from ins_fusion.sim.drive import SimulationConfig
 from ins_fusion.sim.scenarios import SURVEY_CAR
-from ins_fusion.sim.topics import SimulationConfig
 from ins_fusion.tools.simulate import write_bag
 
 DRIVE_START_S = 60.0

@@ -26,11 +26,11 @@ import numpy as np
 
 from ins_fusion.core.rotation import flu_to_frd
 from ins_fusion.core.strapdown import SampleIntegrator, propagate
+from ins_fusion.sim.drive import Simulation, SimulationConfig
 from ins_fusion.sim.gnss_model import PROFILES as GNSS_PROFILES
 from ins_fusion.sim.gnss_model import GnssErrorModel
 from ins_fusion.sim.imu_model import IMU400CC, ImuErrorModel
 from ins_fusion.sim.scenarios import SURVEY_CAR, seed_test_pattern
-from ins_fusion.sim.topics import Simulation, SimulationConfig
 from ins_fusion.sim.vehicle import TruthCache, VehicleTruth
 from ins_fusion.tools.simulate import write_bag
 

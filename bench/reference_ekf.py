@@ -33,9 +33,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import pymap3d
-from numpy.typing import NDArray
 
-Array = NDArray[np.float64]
+from gnss_ins_common.types import FloatArray
 
 #: WGS-84: semi-major axis [m], flattening, Earth rate [rad/s], GM [m³/s²].
 _A = 6378137.0
@@ -57,11 +56,11 @@ def normal_gravity(lat_rad: float, height_m: float) -> float:
     return g0 * (1.0 - 2.0 / _A * (1.0 + _F + _M - 2.0 * _F * s2) * h + 3.0 * h * h / _A**2)
 
 
-def _skew(v: Sequence[float]) -> Array:
+def _skew(v: Sequence[float]) -> FloatArray:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
-def _rodrigues(v: Array) -> Array:
+def _rodrigues(v: FloatArray) -> FloatArray:
     """exp([v×]) for a rotation vector v [rad]."""
     angle = math.sqrt(float(v @ v))
     k = _skew(v)
@@ -77,18 +76,18 @@ class ReferenceNoise:
     [rad/s/√s, m/s²/√s] (added to the Gauss-Markov driving noise), and the initial bias
     estimate and its σ (the turn-on distribution)."""
 
-    gyro_density: Array
-    accel_density: Array
-    gyro_bias_sigma: Array
-    gyro_bias_time_s: Array
-    accel_bias_sigma: Array
-    accel_bias_time_s: Array
-    gyro_random_walk: Array
-    accel_random_walk: Array
-    gyro_bias_initial: Array
-    gyro_bias_initial_sigma: Array
-    accel_bias_initial: Array
-    accel_bias_initial_sigma: Array
+    gyro_density: FloatArray
+    accel_density: FloatArray
+    gyro_bias_sigma: FloatArray
+    gyro_bias_time_s: FloatArray
+    accel_bias_sigma: FloatArray
+    accel_bias_time_s: FloatArray
+    gyro_random_walk: FloatArray
+    accel_random_walk: FloatArray
+    gyro_bias_initial: FloatArray
+    gyro_bias_initial_sigma: FloatArray
+    accel_bias_initial: FloatArray
+    accel_bias_initial_sigma: FloatArray
 
 
 @dataclass(frozen=True)
@@ -96,9 +95,9 @@ class ReferenceResult:
     """Estimates at the requested stamps: position of the output point in the plane [m] and
     its covariance [m²]."""
 
-    t_s: Array
-    pos_m: Array
-    cov_m2: Array
+    t_s: FloatArray
+    pos_m: FloatArray
+    cov_m2: FloatArray
 
 
 class ReferenceEkf:
@@ -125,12 +124,14 @@ class ReferenceEkf:
         self.r_north = _A * (1.0 - _E2) / (1.0 - _E2 * s2) ** 1.5 + origin[2]
         self.r_east = _A / math.sqrt(1.0 - _E2 * s2) + origin[2]
 
-    def to_plane(self, lat_rad: Array, lon_rad: Array, height_m: Array) -> Array:
+    def to_plane(
+        self, lat_rad: FloatArray, lon_rad: FloatArray, height_m: FloatArray
+    ) -> FloatArray:
         """WGS-84 positions -> plane coordinates (n, 3) [m]."""
         e, n, u = pymap3d.geodetic2enu(lat_rad, lon_rad, height_m, *self.origin, deg=False)
         return np.column_stack([np.atleast_1d(e), np.atleast_1d(n), np.atleast_1d(u)])
 
-    def gravity(self, p: Array) -> Array:
+    def gravity(self, p: FloatArray) -> FloatArray:
         """Normal gravity at plane position p [m/s²], in the plane."""
         x, y, z = float(p[0]), float(p[1]), float(p[2])
         lat = self.origin[0] + y / self.r_north
@@ -141,12 +142,12 @@ class ReferenceEkf:
 
     def run(
         self,
-        imu_t: Array,
-        rate: Array,
-        force: Array,
-        start: tuple[float, Array, Array, Array],
-        fixes: Sequence[tuple[float, Array, Array]],
-        output_t: Array,
+        imu_t: FloatArray,
+        rate: FloatArray,
+        force: FloatArray,
+        start: tuple[float, FloatArray, FloatArray, FloatArray],
+        fixes: Sequence[tuple[float, FloatArray, FloatArray]],
+        output_t: FloatArray,
         output_arm_m: Sequence[float],
     ) -> ReferenceResult:
         """Filter a record.
@@ -204,8 +205,8 @@ class ReferenceEkf:
         decay = np.concatenate([1.0 / nz.gyro_bias_time_s, 1.0 / nz.accel_bias_time_s])
         omega_skew = _skew(self.omega)
         eye15 = np.eye(15)
-        out_pos: list[Array] = []
-        out_cov: list[Array] = []
+        out_pos: list[FloatArray] = []
+        out_cov: list[FloatArray] = []
         out_t: list[float] = []
         cov_dt, cov_dv = 0.0, np.zeros(3)
 

@@ -47,7 +47,8 @@ from gnss_ins_common.message_fields import (
     fill_velocity,
     stamp_ns,
 )
-from gnss_ins_common.params import Param
+from gnss_ins_common.params import Param, needs_values, serial_link_params
+from gnss_ins_common.rates import RateMeter
 from gnss_ins_common.ros_endpoints import Endpoints
 from gnss_ins_common.ros_node_main import run_node
 from gnss_ins_common.ros_params import declare_parameters
@@ -63,14 +64,11 @@ def _commands_error(commands: list[str]) -> str | None:
     return None
 
 
-def _length(n: int, what: str) -> Any:
-    return lambda values: None if len(values) == n else f"needs {n} values ({what})"
-
-
 _UERE = UereTable()
 PARAMETERS = (
-    Param("port", "/dev/ttyUSB0", "serial device of the receiver"),
-    Param("baud", 9600, "serial baud rate, 8N1 (Leica 9600, notes §7.2)", 1200, 921600),
+    *serial_link_params(
+        "receiver", 9600, "serial baud rate, 8N1 (Leica 9600, notes §7.2)", 3.0, 0.2
+    ),
     Param(
         "receiver",
         "leica",
@@ -111,7 +109,7 @@ PARAMETERS = (
         "1-sigma of roll, pitch, yaw at nominal PAT quality [deg] (notes §7.3)",
         0.001,
         180.0,
-        check=_length(3, "roll, pitch, yaw"),
+        check=needs_values(3, "roll, pitch, yaw"),
     ),
     Param(
         "adu5_angle_convention",
@@ -143,7 +141,7 @@ PARAMETERS = (
         "ADU5 antenna vectors V12, V13, V14 as x right, y forward, z up [m] ($PASHS,3DF,Vxx)",
         -200.0,
         200.0,
-        check=_length(9, "3 vectors x, y, z"),
+        check=needs_values(9, "3 vectors x, y, z"),
     ),
     Param(
         "adu5_offsets",
@@ -151,7 +149,7 @@ PARAMETERS = (
         "ADU5 offset angles heading, pitch, roll of the antenna frame on the vehicle [deg]",
         -180.0,
         360.0,
-        check=_length(3, "heading, pitch, roll"),
+        check=needs_values(3, "heading, pitch, roll"),
     ),
     Param(
         "adu5_offsets_in_receiver",
@@ -184,8 +182,6 @@ PARAMETERS = (
         0.01,
         5.0,
     ),
-    Param("stall_timeout", 3.0, "reconnect when no byte arrives for this long [s]", 0.2, 60.0),
-    Param("diagnostics_period", 1.0, "period of the /diagnostics status [s]", 0.1, 60.0),
 )
 
 #: Latency samples averaged for the diagnostics.
@@ -251,7 +247,7 @@ class GnssNode(Node):
         self._latencies: collections.deque[float] = collections.deque(maxlen=_LATENCY_WINDOW)
         self._last_fix_type = "none"
         self._last_date_source = "none"
-        self._rate_window: tuple[float, int] = (time.monotonic(), 0)
+        self._rate = RateMeter(time.monotonic())
         self._attitude_problems = (0, 0)  # resets, degraded at the last diagnostics
         self._publish_errors = 0
         self._last_publish_error = ""
@@ -418,9 +414,7 @@ class GnssNode(Node):
             problems = (solver.attitude_resets, solver.attitude_degraded)
         resets, degraded = (a - b for a, b in zip(problems, self._attitude_problems, strict=True))
         self._attitude_problems = problems
-        start, start_epochs = self._rate_window
-        rate = (epochs - start_epochs) / max(now - start, 1e-9)
-        self._rate_window = (now, epochs)
+        rate = self._rate.rate_hz(epochs, now)
         link = self._link.stats
         values.update(
             rate_hz=rate,

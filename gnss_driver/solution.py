@@ -51,6 +51,14 @@ from gnss_driver.grid import GridProjection
 from gnss_driver.plausibility import KNOTS_TO_M_S, FieldReader
 from gnss_driver.sentences import ASHRATT, ASHRPAT, LLQ, sentence_id, text
 from gnss_ins_common.message_fields import UNKNOWN_VARIANCE, fill_navsatfix
+from gnss_ins_common.navsat import (
+    SERVICE_COMPASS,
+    SERVICE_GALILEO,
+    SERVICE_GLONASS,
+    SERVICE_GPS,
+    CovarianceType,
+    NavSatStatus,
+)
 
 #: Default fraction of the LLQ coordinate quality that is horizontal: 2 cm of 2 + 3 cm (notes
 #: §7.2); the project's assumption, the report gives only the sum (7.1).
@@ -92,15 +100,6 @@ _MODE_FIX = {
 }
 
 
-class NavSatStatus(IntEnum):
-    """sensor_msgs/NavSatStatus status values."""
-
-    NO_FIX = -1
-    FIX = 0
-    SBAS_FIX = 1
-    GBAS_FIX = 2
-
-
 #: Fix type -> NavSatStatus, as ros-drivers' nmea_navsat_driver maps GGA quality: DGPS counts as
 #: SBAS-augmented, RTK as ground-based augmentation.
 NAV_SAT_STATUS = {
@@ -113,19 +112,15 @@ NAV_SAT_STATUS = {
 
 #: sensor_msgs/NavSatStatus service bits per NMEA talker; GN (combined), proprietary and
 #: unknown talkers name no system, and an epoch naming none is taken as GPS.
-SERVICE_GPS = 1
-_TALKER_SERVICE = {"GP": SERVICE_GPS, "GL": 2, "GB": 4, "BD": 4, "GA": 8}
+_TALKER_SERVICE = {
+    "GP": SERVICE_GPS,
+    "GL": SERVICE_GLONASS,
+    "GB": SERVICE_COMPASS,
+    "BD": SERVICE_COMPASS,
+    "GA": SERVICE_GALILEO,
+}
 #: Service bits of the GNS mode letters by position: GPS, GLONASS, Galileo, BeiDou (NMEA 4.10).
-_GNS_MODE_SERVICE = (SERVICE_GPS, 2, 8, 4)
-
-
-class CovarianceType(IntEnum):
-    """sensor_msgs/NavSatFix position_covariance_type values."""
-
-    UNKNOWN = 0
-    APPROXIMATED = 1
-    DIAGONAL_KNOWN = 2
-    KNOWN = 3
+_GNS_MODE_SERVICE = (SERVICE_GPS, SERVICE_GLONASS, SERVICE_GALILEO, SERVICE_COMPASS)
 
 
 @dataclass(frozen=True)

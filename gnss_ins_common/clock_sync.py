@@ -160,15 +160,24 @@ class EnvelopeClockSync:
     updates; the properties may be read from any thread.
     """
 
-    def __init__(self, window_s: float = 60.0, min_points: int = 10, max_jump_s: float = 10.0):
+    def __init__(
+        self,
+        window_s: float = 60.0,
+        min_points: int = 10,
+        max_jump_s: float = 10.0,
+        max_skew: float = math.inf,
+    ):
         """``window_s``: span of the sliding window [s], long enough to average the jitter, short
         enough to follow oscillator drift. ``min_points``: points needed before ``ready``.
-        ``max_jump_s``: largest accepted forward step of sensor time [s]."""
-        if window_s <= 0.0 or max_jump_s <= 0.0 or min_points < 1:
-            raise ValueError("window_s and max_jump_s must be > 0, min_points >= 1")
+        ``max_jump_s``: largest accepted forward step of sensor time [s]. ``max_skew``: largest
+        plausible ``|skew|``; a steeper hull (delays that shrink or grow for a while, e.g. a
+        backlog draining) gives the supporting line of that slope instead."""
+        if window_s <= 0.0 or max_jump_s <= 0.0 or min_points < 1 or not max_skew > 0.0:
+            raise ValueError("window_s, max_jump_s and max_skew must be > 0, min_points >= 1")
         self.window_s = window_s
         self.min_points = min_points
         self.max_jump_s = max_jump_s
+        self.max_skew = max_skew
         self._resets = 0
         self._clear()
 
@@ -241,7 +250,12 @@ class EnvelopeClockSync:
                 p, q = _mirror(p), _mirror(q)
             elif x_mean > q[0]:
                 p, q = _edge_at(back, x_mean, j)
-        return p, (q[1] - p[1]) / (q[0] - p[0])
+        slope = (q[1] - p[1]) / (q[0] - p[0])
+        if abs(slope) <= self.max_skew:
+            return p, slope
+        slope = math.copysign(self.max_skew, slope)
+        vertices = chain(map(_mirror, front), back)
+        return min(vertices, key=lambda v: v[1] - slope * v[0]), slope
 
     def _compute_fit(self) -> _Fit:
         p, skew = self._support_at_mean()

@@ -8,7 +8,7 @@ replay tool reading the same YAML file as the fusion node) validate them with ``
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence, Sized
 from dataclasses import dataclass
 from itertools import pairwise
 from pathlib import Path
@@ -77,6 +77,34 @@ class Param:
 
 
 _EMPTY_ELEMENT: dict[str, ParamValue] = {"str": "", "float": 0.0}
+
+
+def needs_values(count: int, names: str) -> Callable[[Sized], str | None]:
+    """A ``Param.check`` for a list of ``count`` values; ``names`` says which (e.g. "x, y, z")."""
+
+    def check(values: Sized) -> str | None:
+        return None if len(values) == count else f"needs {count} values ({names})"
+
+    return check
+
+
+def serial_link_params(
+    device: str, baud: int, baud_description: str, stall_timeout_s: float, min_stall_s: float
+) -> tuple[Param, ...]:
+    """The parameters of a driver node's serial link and its status: ``port``, ``baud``,
+    ``stall_timeout`` and ``diagnostics_period``."""
+    return (
+        Param("port", "/dev/ttyUSB0", f"serial device of the {device}"),
+        Param("baud", baud, baud_description, 1200, 921600),
+        Param(
+            "stall_timeout",
+            stall_timeout_s,
+            "reconnect when no byte arrives for this long [s]",
+            min_stall_s,
+            60.0,
+        ),
+        Param("diagnostics_period", 1.0, "period of the /diagnostics status [s]", 0.1, 60.0),
+    )
 
 
 def _is_number(value: Any) -> bool:

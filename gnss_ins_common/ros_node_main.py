@@ -6,7 +6,6 @@ import re
 import sys
 import traceback
 from collections.abc import Callable, Sequence
-from typing import Protocol
 
 import rclpy
 from rclpy._rclpy_pybind11 import RCLError
@@ -15,12 +14,6 @@ from rclpy.node import Node
 
 from gnss_ins_common.params import ParameterValueError, check_parameter_files
 from gnss_ins_common.ros_diagnostics import callback_errors
-
-
-class ClosableNode(Protocol):
-    """A node that stops its own threads in ``close()`` before it is destroyed."""
-
-    def close(self) -> None: ...
 
 
 def spin_guarded(executor: Executor, node: Node, keep_going: Callable[[], bool]) -> None:

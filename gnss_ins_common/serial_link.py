@@ -197,26 +197,27 @@ class SerialLink:
         valid_timeout_s = self.settings.valid_timeout_s
         while not self._stop.is_set():
             ready, _, _ = select.select([fd], [], [], self.settings.read_timeout_s)
-            if ready:
-                chunk = os.read(fd, _READ_SIZE)
-                if not chunk:
-                    raise serial.SerialException(f"{self.settings.port} disconnected")
-                received = self._now()
-                last_data = time.monotonic()
-                self.stats.bytes_read += len(chunk)
-                try:
-                    self._on_data(chunk, received)
-                except Exception as exc:  # a decoding bug must not take the link down
-                    self.stats.callback_errors += 1
-                    self.stats.last_error = f"data callback failed: {exc!r}"
-            elif time.monotonic() - last_data > self.settings.stall_timeout_s:
+            if not ready:
+                if time.monotonic() - last_data <= self.settings.stall_timeout_s:
+                    continue
+                if select.select([fd], [], [], 0.0)[0]:
+                    continue  # the thread woke late (a loaded machine): read what came first
                 raise LinkStallError(
                     f"no data from {self.settings.port} for {self.settings.stall_timeout_s:.1f} s"
                 )
-            if (
-                valid_timeout_s is not None
-                and time.monotonic() - self._last_valid > valid_timeout_s
-            ):
+            chunk = os.read(fd, _READ_SIZE)
+            if not chunk:
+                raise serial.SerialException(f"{self.settings.port} disconnected")
+            received = self._now()
+            last_data = time.monotonic()
+            self.stats.bytes_read += len(chunk)
+            try:
+                self._on_data(chunk, received)
+            except Exception as exc:  # a decoding bug must not take the link down
+                self.stats.callback_errors += 1
+                self.stats.last_error = f"data callback failed: {exc!r}"
+            # Judged on arriving bytes only: a silence is a stall (stall_timeout_s).
+            if valid_timeout_s is not None and last_data - self._last_valid > valid_timeout_s:
                 raise LinkStallError(
                     f"bytes but no valid message from {self.settings.port} for "
                     f"{valid_timeout_s:.1f} s",

@@ -16,17 +16,16 @@ from dataclasses import dataclass
 from itertools import pairwise
 
 from gnss_ins_common.clock_sync import EnvelopeClockSync
+from gnss_ins_common.rates import IMU400CC_RATE_HZ
 from imu400cc_driver.protocol import PACKET_LENGTH
 
 #: The time field is a uint16 (notes §2.3).
 TIMER_MODULUS = 1 << 16
-#: Continuous-mode packet rate [Hz] (notes §2.6, §10).
-NOMINAL_RATE_HZ = 134.0
 #: Mean timer decrement per packet, our derivation from the App. D.5 example rows read as
 #: consecutive packets (the report states no tick period or direction; notes §2.6).
 COUNTS_PER_PACKET = 9411.75
 #: Nominal tick, (1/134 s) / 9411.75 ≈ 0.793 us [s] (notes §2.6); the true one is estimated online.
-NOMINAL_TICK_S = 1.0 / NOMINAL_RATE_HZ / COUNTS_PER_PACKET
+NOMINAL_TICK_S = 1.0 / IMU400CC_RATE_HZ / COUNTS_PER_PACKET
 #: Wire time of one packet at 38400 baud 8N1, 18 bytes x 10 bits = 4.6875 ms [s] (notes §2.1,
 #: §7.1; the report's 3.75 ms forgets the start and stop bits).
 PACKET_TRANSMISSION_S = PACKET_LENGTH * 10 / 38400
@@ -34,8 +33,15 @@ PACKET_TRANSMISSION_S = PACKET_LENGTH * 10 / 38400
 #: arrived" [ticks]: an eighth of a wrap (~6.5 ms) absorbs errors of the mapping and of the tick
 #: over a gap, and leaves delays up to ~45 ms resolvable.
 _UNWRAP_MARGIN_TICKS = TIMER_MODULUS // 8
-#: A tick estimate further than this from nominal is not trusted for unwrapping.
-_MAX_TICK_ERROR = 0.1
+#: Largest plausible relative error of the nominal tick (the 134 Hz of notes §2.6 and the
+#: oscillator's drift): the mapping's skew is held within it, so that receive delays that keep
+#: shrinking for a while (a backlog read out after a stall) do not tilt it.
+MAX_TICK_ERROR = 0.02
+#: Device time after a gap bridged with whole wraps that only the host clock gave, during which
+#: a later read may still show them to be a late read's [s]: under CPU contention a prompt read
+#: comes within a few packets, and a sender that fell behind catches up within a second. Holding
+#: the points out of the mapping that long costs nothing (100 ppm of drift is 0.1 ms).
+_CONFIRM_S = 1.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -54,6 +60,15 @@ class DeviceStamp:
     wrapped_gap: bool
 
 
+@dataclass(slots=True)
+class _PinnedGap:
+    """A gap before a read bridged with whole wraps that only the host clock gave."""
+
+    first: int  # index in DeviceClock._held of the packet after the gap
+    ticks: int  # the gap [ticks]
+    wraps: int  # its whole wraps beyond the fewest the timer allows
+
+
 class DeviceClock:
     """Stamps packets from their timer values and host receive times.
 
@@ -67,14 +82,18 @@ class DeviceClock:
     with more whole wraps the most are taken that keep the read's last packet from seeming
     sampled over a margin after it arrived: its receive delay is >= 0 and, since it is the
     freshest packet in the buffer, far below a wrap, so a reader stall is not mistaken for lost
-    packets. Receive delays over ~45 ms of that packet (of every packet, with ``stamp``) make
-    the gap a wrap too long; the next packet then seems early, and the mapping restarts.
+    packets. A read stamped over ~45 ms after that packet arrived (with ``stamp``: after any
+    packet), e.g. on a loaded machine, makes the gap a wrap too long. So such host-pinned wraps
+    stay open for 1 s of device time, their packets held out of the mapping: a later read
+    that would seem sampled before it arrived takes them back (drops, wrap count and device
+    time), latest first, without restarting the mapping. Only a contradiction after that
+    restarts it.
     """
 
     def __init__(
         self,
         nominal_tick_s: float = NOMINAL_TICK_S,
-        nominal_period_s: float | None = 1.0 / NOMINAL_RATE_HZ,
+        nominal_period_s: float | None = 1.0 / IMU400CC_RATE_HZ,
         transmission_s: float = PACKET_TRANSMISSION_S,
         latency_s: float = 0.0,
         window_s: float = 60.0,
@@ -96,19 +115,24 @@ class DeviceClock:
         self.transmission_s = transmission_s
         self.latency_s = latency_s
         self.max_gap_s = max_gap_s
-        self._sync = EnvelopeClockSync(window_s, min_points, max_jump_s=max_gap_s)
+        self._sync = EnvelopeClockSync(
+            window_s, min_points, max_jump_s=max_gap_s, max_skew=MAX_TICK_ERROR
+        )
+        self._confirm_ticks = round(_CONFIRM_S / nominal_tick_s)
         self._dropped = 0
         self._timer_gaps = 0
+        self._taken_back = 0
         self._clear()
 
     def _clear(self) -> None:
         self._timer: int | None = None
         self._ticks = 0  # unwrapped ticks since the first packet
         self._last_stamp_s = -math.inf
-        # Drops counted for host-pinned whole wraps, still open to be taken back until device
-        # time passes _wrap_drops_until [ticks].
-        self._wrap_drops = 0
-        self._wrap_drops_until = 0
+        # Gaps bridged with whole wraps that only the host clock gave, still open to be taken
+        # back, and the (ticks, host time) points after the first of them, held out of the
+        # mapping until they are confirmed.
+        self._pinned: list[_PinnedGap] = []
+        self._held: list[tuple[int, float]] = []
 
     def reset(self) -> None:
         """Start over (device time and mapping), e.g. after a reconnect; counted in ``resets``."""
@@ -135,20 +159,28 @@ class DeviceClock:
             return []
         last_host_s = host_receive_s - self.transmission_s - self.latency_s
         gaps = [(a - b) % TIMER_MODULUS or TIMER_MODULUS for a, b in pairwise(timers)]
-        if self._timer is None:
-            steps = [0, *gaps]
-        else:
-            steps = [self._first_gap(self._timer, timers[0], sum(gaps), last_host_s), *gaps]
+        first, pinned = 0, 0
+        if self._timer is not None:
+            first, pinned = self._first_gap(self._timer, timers[0], sum(gaps), last_host_s)
+            # A later read that did not take the open wraps back confirms them once it is
+            # _CONFIRM_S past the first: packets read together give no evidence of each other.
+            if self._pinned and self._ticks + first - self._held[0][0] >= self._confirm_ticks:
+                self._release_held()
         self._timer = timers[-1]
+        if pinned and first * self.nominal_tick_s <= self.max_gap_s:
+            self._pinned.append(_PinnedGap(len(self._held), first, pinned))
 
         device_times = []
-        for ticks in steps:
+        for ticks in (first, *gaps):
             self._ticks += ticks
             device_times.append(self._ticks * self.nominal_tick_s)
-            self._sync.update(device_times[-1], last_host_s)
+            if self._pinned:
+                self._held.append((self._ticks, last_host_s))
+            else:
+                self._sync.update(device_times[-1], last_host_s)
 
         stamps = []
-        for index, (ticks, device_time_s) in enumerate(zip(steps, device_times, strict=True)):
+        for ticks, device_time_s in zip((first, *gaps), device_times, strict=True):
             stamp_s = self._sync.to_host(device_time_s)
             if self._last_stamp_s - stamp_s < self.max_gap_s:
                 stamp_s = max(stamp_s, self._last_stamp_s + ticks * self.nominal_tick_s / 2)
@@ -160,10 +192,6 @@ class DeviceClock:
             wrapped = ticks >= TIMER_MODULUS
             self._dropped += dropped
             self._timer_gaps += int(wrapped)
-            if index == 0 and wrapped:  # the gap before the read: whole wraps pinned by the
-                # host clock, taken back if a packet within the next wrap contradicts them
-                self._wrap_drops += dropped - self._drops_of(ticks % TIMER_MODULUS)
-                self._wrap_drops_until = round(device_time_s / self.nominal_tick_s) + TIMER_MODULUS
             stamps.append(DeviceStamp(stamp_s, device_time_s, dropped, wrapped))
         return stamps
 
@@ -173,33 +201,58 @@ class DeviceClock:
             return 0
         return max(round(ticks * self.nominal_tick_s / self.nominal_period_s) - 1, 0)
 
-    def _first_gap(self, previous: int, timer: int, later_ticks: int, last_host_s: float) -> int:
+    def _first_gap(
+        self, previous: int, timer: int, later_ticks: int, last_host_s: float
+    ) -> tuple[int, int]:
         """Ticks from the packet with timer ``previous`` to the one with ``timer``, given the
         ``later_ticks`` from that to the read's last packet, received at ``last_host_s``
-        (corrected) [s]."""
+        (corrected) [s]; and how many of its whole wraps only the host clock gave."""
         delta = (previous - timer) % TIMER_MODULUS
-        if self._ticks > self._wrap_drops_until:
-            self._wrap_drops = 0
         previous_s = self._sync.to_host(self._ticks * self.nominal_tick_s)
-        host_gap_ticks = (last_host_s - previous_s) / self._unwrap_tick_s()
+        host_gap_ticks = (last_host_s - previous_s) / self.tick_period_s  # nominal until ready
         margin = _UNWRAP_MARGIN_TICKS
         wraps = math.floor((host_gap_ticks + margin - delta - later_ticks) / TIMER_MODULUS)
-        if wraps < 0 and self._sync.ready:
-            # Sampled over the margin after it arrived: the previous gap took a wrap too many
-            # (a read over ~45 ms late, e.g. a loaded machine), or the host clock stepped back.
-            # Restart the mapping rather than bend it for a whole window, and take back the
-            # drops that gap's wraps counted: they were a late read, not lost packets.
-            self._sync.reset()
         if wraps < 0:
-            self._dropped -= self._wrap_drops
-            self._wrap_drops = 0
-        return delta + max(wraps, 0 if delta else 1) * TIMER_MODULUS
+            # Sampled over the margin after it arrived: wraps pinned before were a late read's
+            # (stamped over ~45 ms after its last packet arrived, e.g. a loaded machine), not
+            # lost packets. Take them back, latest first.
+            wraps += self._take_back(-wraps)
+        if wraps < 0 and self._sync.ready:
+            # Still early: the host clock stepped back, or a late read's wraps were already
+            # confirmed. Restart the mapping rather than bend it for a whole window.
+            self._sync.reset()
+        minimum = 0 if delta else 1
+        return delta + max(wraps, minimum) * TIMER_MODULUS, max(wraps - minimum, 0)
 
-    def _unwrap_tick_s(self) -> float:
-        """The estimated tick once the mapping is ready and plausible, else the nominal one [s]."""
-        if self._sync.ready and abs(self._sync.skew) < _MAX_TICK_ERROR:
-            return self.tick_period_s
-        return self.nominal_tick_s
+    def _take_back(self, wraps: int) -> int:
+        """Remove up to ``wraps`` host-pinned wraps from the open gaps, latest first: their drops
+        and wrap counts, and a wrap of device time from every packet after each; returns how
+        many were removed. The held points go into the mapping once no gap is open."""
+        taken = 0
+        while self._pinned and taken < wraps:
+            gap = self._pinned[-1]
+            count = min(gap.wraps, wraps - taken)
+            shorter = gap.ticks - count * TIMER_MODULUS
+            self._dropped -= self._drops_of(gap.ticks) - self._drops_of(shorter)
+            self._timer_gaps -= int(shorter < TIMER_MODULUS)
+            gap.ticks, gap.wraps = shorter, gap.wraps - count
+            shift = count * TIMER_MODULUS
+            self._held[gap.first :] = [(t - shift, h) for t, h in self._held[gap.first :]]
+            taken += count
+            if not gap.wraps:
+                self._pinned.pop()
+        self._ticks -= taken * TIMER_MODULUS
+        self._taken_back += taken
+        if not self._pinned:
+            self._release_held()
+        return taken
+
+    def _release_held(self) -> None:
+        """Confirm the open gaps: the held points go into the mapping."""
+        for ticks, host_s in self._held:
+            self._sync.update(ticks * self.nominal_tick_s, host_s)
+        self._held.clear()
+        self._pinned.clear()
 
     @property
     def ready(self) -> bool:
@@ -231,6 +284,12 @@ class DeviceClock:
     def timer_gaps(self) -> int:
         """Gaps of at least one whole timer wrap (~52 ms) so far (every packet in polled mode)."""
         return self._timer_gaps
+
+    @property
+    def wraps_taken_back(self) -> int:
+        """Host-pinned whole wraps a later read took back: reads stamped over ~45 ms after their
+        last packet arrived (a loaded machine), not lost packets."""
+        return self._taken_back
 
     @property
     def resets(self) -> int:

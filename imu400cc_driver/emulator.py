@@ -21,9 +21,11 @@ import numpy as np
 
 from gnss_ins_common.axes import AxisMap
 from gnss_ins_common.pty_device import PtyEmulator
+from gnss_ins_common.rates import IMU400CC_RATE_HZ
 from imu400cc_driver.axes import DEFAULT_AXIS_SPEC, measurement_to_packet
-from imu400cc_driver.device_clock import NOMINAL_RATE_HZ, NOMINAL_TICK_S, PACKET_TRANSMISSION_S
+from imu400cc_driver.device_clock import NOMINAL_TICK_S, PACKET_TRANSMISSION_S
 from imu400cc_driver.protocol import (
+    PACKET_LENGTH,
     Command,
     RawPacket,
     Scaling,
@@ -60,7 +62,7 @@ def resting_source(seed: int = 0, noise: bool = True) -> ImuSource:
 class EmulatorConfig:
     """Device properties of the emulated unit."""
 
-    rate_hz: float = NOMINAL_RATE_HZ
+    rate_hz: float = IMU400CC_RATE_HZ
     tick_s: float = NOMINAL_TICK_S
     clock_drift_ppm: float = 0.0
     temperature_c: float = 25.0
@@ -188,7 +190,7 @@ class Imu400ccEmulator(PtyEmulator):
                 deadline = min(deadline, self._pending_polls[0])
             for byte in self.pty.read(deadline - now):
                 self._handle_command(chr(byte))
-            self._emit_due(time.monotonic())
+            self._emit_due()
             self._emit_noise(time.monotonic())
 
     def _emit_noise(self, now: float) -> None:
@@ -204,30 +206,44 @@ class Imu400ccEmulator(PtyEmulator):
         sample_device_time = self._next_index / self.config.rate_hz
         return self._host_time_of(sample_device_time) + PACKET_TRANSMISSION_S
 
-    def _emit_due(self, now: float) -> None:
-        while self._pending_polls and self._pending_polls[0] <= now:
-            sample_host = self._pending_polls.pop(0) - PACKET_TRANSMISSION_S
-            self._send_sample(self._device_time(sample_host))
-        while self._streaming and self._next_write_time() <= now:
-            self._send_sample(self._next_index / self.config.rate_hz)
+    def _next_due(self, now: float) -> float | None:
+        """Device time [s] of the next sample whose packet is due by ``now`` (taken off the
+        schedule), or None."""
+        if self._pending_polls and self._pending_polls[0] <= now:
+            return self._device_time(self._pending_polls.pop(0) - PACKET_TRANSMISSION_S)
+        if self._streaming and self._next_write_time() <= now:
             self._next_index += 1
+            return (self._next_index - 1) / self.config.rate_hz
+        return None
 
-    def _send_sample(self, device_time_s: float) -> None:
-        timer = (self.config.initial_timer - round(device_time_s / self.config.tick_s)) % 65536
-        packet = encode_packet(self._sample_packet(device_time_s, timer))
-        with self._lock:
-            if self._drop_next > 0:
-                self._drop_next -= 1
-                return
-            if time.monotonic() < self._silent_until:
-                return
-            if self._corrupt_next > 0:
-                self._corrupt_next -= 1
-                packet = packet[:5] + bytes([packet[5] ^ 0x5A]) + packet[6:]
-        if self.pty.write(packet) == len(packet):
-            written = time.time()
-            self.packets_sent += 1
-            if self._on_packet is not None:
+    def _emit_due(self) -> None:
+        """Write the due packets in one go, the clock read again after each one: a thread that
+        woke late, or was preempted while it built them (a loaded machine), hands the host all
+        it owes at once, as a UART's receive buffer would hold it, not stale packets first and
+        the rest on later wake-ups."""
+        sent: list[tuple[int, float]] = []  # (timer, device time [s]) of the packets written
+        wire = bytearray()
+        while (device_time_s := self._next_due(time.monotonic())) is not None:
+            timer = (self.config.initial_timer - round(device_time_s / self.config.tick_s)) % 65536
+            packet = encode_packet(self._sample_packet(device_time_s, timer))
+            with self._lock:
+                if self._drop_next > 0:
+                    self._drop_next -= 1
+                    continue
+                if time.monotonic() < self._silent_until:
+                    continue
+                if self._corrupt_next > 0:
+                    self._corrupt_next -= 1
+                    packet = packet[:5] + bytes([packet[5] ^ 0x5A]) + packet[6:]
+            wire += packet
+            sent.append((timer, device_time_s))
+        if not wire:
+            return
+        complete = sent[: self.pty.write(bytes(wire)) // PACKET_LENGTH]
+        written = time.time()
+        self.packets_sent += len(complete)
+        if self._on_packet is not None:
+            for timer, device_time_s in complete:
                 sample = self._host_time_of(device_time_s) + self._wall_minus_monotonic
                 self._on_packet(SentPacket(timer, sample, written))
 

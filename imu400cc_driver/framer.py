@@ -7,8 +7,10 @@ MSBs; notes §2.3, §11.1 item 3), so the 8-bit checksum alone lets a false cand
 checksum. In continuous mode (``confirm_with_next_packet``) a candidate must also fit the stream:
 in sync, its device-timer step from the last packet must match the last step within
 TIMER_STEP_TOLERANCE (the step is 9412 ± 9 counts at 134 Hz, notes §2.6); otherwise — out of
-sync, or a step that does not fit — it must be followed by a valid packet, whose wait delays
-it by one packet but does not lose it.
+sync, or a step that does not fit — it must be followed by a valid packet one to six packet
+periods later by its timer, whose wait delays it by one packet but does not lose it. A candidate
+one byte off the packet boundary that a lost or inserted 0xFF would also give is taken only if
+its readings continue the last packet's (``_fits_stream``).
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ import dataclasses
 from dataclasses import dataclass
 from enum import Enum
 
+from imu400cc_driver.device_clock import COUNTS_PER_PACKET, MAX_TICK_ERROR
 from imu400cc_driver.protocol import (
     HEADER,
     PACKET_LENGTH,
@@ -30,6 +33,14 @@ _HEADER_BYTE = bytes((HEADER,))
 #: Largest difference between a device-timer step and the mean of the last ones [counts]: the
 #: App. D.5 steps are within 9 of their mean (notes §2.6). A false candidate fits with p ≈ 1/800.
 TIMER_STEP_TOLERANCE = 40
+#: Most packet periods a confirming packet may follow a candidate by (whole packets lost in
+#: between); 7 periods are about one timer wrap, where any step fits.
+MAX_STEP_PACKETS = 6
+#: Largest change of a rate or acceleration [counts] between consecutive packets with which a
+#: candidate that may be a shifted packet is still taken: 9.4 deg/s or 0.19 g with the
+#: IMU400CC-100's scaling (notes §2.4), far above its noise (notes §1.3), far below what a byte
+#: shifted from a neighbouring field gives.
+MAX_FIELD_STEP = 1024
 #: Weight of a new step in the running mean of the steps.
 _STEP_WEIGHT = 0.125
 _TIMER_MODULUS = 65536
@@ -38,6 +49,15 @@ _TIMER_MODULUS = 65536
 def _timer_at(buf: bytearray, pos: int) -> int:
     """The timer field (uint16, big-endian, bytes 15..16) of the candidate at ``pos``."""
     return (buf[pos + 15] << 8) | buf[pos + 16]
+
+
+def _periods(step: int) -> int:
+    """How many packet periods, 1 to MAX_STEP_PACKETS, a timer step [counts] spans at the
+    nominal step within MAX_TICK_ERROR; 0 if none (a pair of false candidates: 88 % of steps)."""
+    for n in range(1, MAX_STEP_PACKETS + 1):
+        if abs(step - n * COUNTS_PER_PACKET) <= n * COUNTS_PER_PACKET * MAX_TICK_ERROR:
+            return n
+    return 0
 
 
 @dataclass(slots=True)
@@ -95,6 +115,7 @@ class PacketFramer:
         self._timer = 0  # timer of the last accepted packet [counts]
         self._step: float | None = None  # running mean of the timer steps [counts]
         self._packet_end = -2  # buffer index just after the last accepted packet (-2: none)
+        self._last: RawPacket | None = None  # the last accepted packet
 
     def _fits(self, timer: int) -> bool:
         """True if ``timer`` follows the last accepted packet's by about the mean step; if so,
@@ -107,6 +128,15 @@ class PacketFramer:
         self._step += _STEP_WEIGHT * (step - self._step)
         self._timer = timer
         return True
+
+    def _continues(self, packet: RawPacket) -> bool:
+        """Every rate and acceleration of ``packet`` within MAX_FIELD_STEP of the last accepted
+        packet's."""
+        last = self._last
+        if last is None:
+            return False
+        fields = zip((*packet.rates, *packet.accels), (*last.rates, *last.accels), strict=True)
+        return all(abs(a - b) <= MAX_FIELD_STEP for a, b in fields)
 
     def _shares_header(self, buf: bytearray, pos: int, sync: _Sync) -> bool:
         """Continuous mode: no packet starts at ``pos``, right after an accepted packet whose
@@ -125,15 +155,16 @@ class PacketFramer:
         timer = _timer_at(buf, pos)
         last = pos + PACKET_LENGTH - 1
         # One byte off the packet boundary after an accepted packet, a candidate followed or
-        # preceded by a 0xFF there is also what a one-byte shift of a packet starting there
-        # gives when one of its 0xFF payload bytes was lost (the candidate shares its header
-        # with the last packet's checksum) or a 0xFF was inserted (the byte before is a
-        # rejected header): the checksum is a plain sum. Only a payload without 0xFF rules
-        # that out.
+        # preceded by a 0xFF there is also what a packet starting there gives when one of its
+        # 0xFF payload bytes was lost (the candidate shares its header with the last packet's
+        # checksum) or a 0xFF was inserted (the byte before is a rejected header): the checksum
+        # is a plain sum, and the fields behind that byte, the timer among them, are the
+        # packet's own. Those before it are shifted into their neighbours: such a candidate is
+        # taken only if its rates and accelerations continue the last packet's.
         shared = pos == self._packet_end - 1
         after_packet = pos == self._packet_end + 1 and buf[pos - 1] == HEADER
         shifted = (shared and buf[pos + 1] == HEADER) or after_packet
-        if shifted and HEADER in buf[pos + 1 + shared : last]:
+        if shifted and not self._continues(unpack_packet(buf, pos)):
             self._stats.ambiguous += 1
             return False
         if locked and self._fits(timer):
@@ -144,10 +175,16 @@ class PacketFramer:
         if end - after < PACKET_LENGTH:
             return None
         nxt_last = after + PACKET_LENGTH - 1
-        if buf[after] != HEADER or checksum(buf[after + 1 : nxt_last]) != buf[nxt_last]:
+        step = (timer - _timer_at(buf, after)) % _TIMER_MODULUS
+        periods = _periods(step)
+        if (
+            buf[after] != HEADER
+            or checksum(buf[after + 1 : nxt_last]) != buf[nxt_last]
+            or not periods
+        ):
             self._stats.unconfirmed += 1
             return False
-        self._step = (timer - _timer_at(buf, after)) % _TIMER_MODULUS
+        self._step = step / periods
         self._timer = timer
         return True
 
@@ -199,7 +236,8 @@ class PacketFramer:
                     break  # wait for the packet that would confirm the candidate
                 good = verdict
             if good:
-                packets.append(unpack_packet(buf, pos))
+                self._last = unpack_packet(buf, pos)
+                packets.append(self._last)
                 pos = last + 1
                 self._packet_end = pos
                 if sync is _Sync.LOST:
@@ -232,3 +270,4 @@ class PacketFramer:
         self._sync = _Sync.HUNTING
         self._step = None
         self._packet_end = -2
+        self._last = None

@@ -1,15 +1,14 @@
 """imu400cc_node: the Crossbow IMU400CC-100 as sensor_msgs/Imu on the host ROS clock.
 
-Serial bytes are read on the link's thread, framed, stamped with the device clock mapped to the
-host clock (the sample time, not the read time) and published straight from that thread, so a
-busy executor adds no latency. Publishes ``imu/data_raw`` (REP-145: FLU ``imu_link``, SI units,
+Serial bytes are read on the link's thread and handed to the ROS-free ``ImuDriver``, which
+frames them and stamps each packet with the device clock mapped to the host clock (the sample
+time, not the read time); the samples are published straight from that thread, so a busy
+executor adds no latency. Publishes ``imu/data_raw`` (REP-145: FLU ``imu_link``, SI units,
 orientation_covariance[0] = -1), ``imu/temperature`` and ``/diagnostics``.
 """
 
 from __future__ import annotations
 
-import math
-import threading
 import time
 from typing import Any
 
@@ -20,17 +19,23 @@ from sensor_msgs.msg import Imu, Temperature
 from gnss_ins_common import ros_diagnostics as diag
 from gnss_ins_common.axes import AxisMap
 from gnss_ins_common.message_fields import fill_imu, fill_temperature, stamp_ns
-from gnss_ins_common.params import Param
+from gnss_ins_common.params import Param, needs_values, serial_link_params
+from gnss_ins_common.rates import RateMeter
 from gnss_ins_common.ros_endpoints import Endpoints
 from gnss_ins_common.ros_node_main import run_node
 from gnss_ins_common.ros_params import declare_parameters
 from gnss_ins_common.ros_serial import start_serial_link
 from gnss_ins_common.serial_link import LinkSettings
-from imu400cc_driver.axes import DEFAULT_AXIS_SPEC, packet_to_measurement
-from imu400cc_driver.device_clock import NOMINAL_RATE_HZ, NOMINAL_TICK_S, DeviceClock
-from imu400cc_driver.framer import PacketFramer
+from imu400cc_driver.axes import DEFAULT_AXIS_SPEC
+from imu400cc_driver.driver import (
+    ACCEL_NOISE_DENSITY,
+    GYRO_NOISE_DENSITY,
+    DriverConfig,
+    ImuDriver,
+    ImuSample,
+)
 from imu400cc_driver.link import configure_device, stop_stream
-from imu400cc_driver.protocol import PACKET_LENGTH, TEMPERATURE_VARIANCE_C2, Command, Scaling
+from imu400cc_driver.protocol import TEMPERATURE_VARIANCE_C2, Command, Scaling
 
 
 def _axis_map_error(spec: list[str]) -> str | None:
@@ -41,18 +46,10 @@ def _axis_map_error(spec: list[str]) -> str | None:
     return None
 
 
-def _three_values(values: list[float]) -> str | None:
-    return None if len(values) == 3 else "needs three values (x, y, z)"
-
-
-#: Per-sample sigma of (7.14) (imu400cc-aalborg-notes.md §1.3) at 134 Hz as densities:
-#: density = sigma / sqrt(134 Hz).
-_GYRO_DENSITY = [round(s / math.sqrt(NOMINAL_RATE_HZ), 9) for s in (0.0041, 0.0040, 0.0048)]
-_ACCEL_DENSITY = [round(s / math.sqrt(NOMINAL_RATE_HZ), 9) for s in (0.0029, 0.0038, 0.0036)]
-
 PARAMETERS = (
-    Param("port", "/dev/ttyUSB0", "serial device of the IMU400CC"),
-    Param("baud", 38400, "serial baud rate (the IMU400CC runs at 38400 8N1)", 1200, 921600),
+    *serial_link_params(
+        "IMU400CC", 38400, "serial baud rate (the IMU400CC runs at 38400 8N1)", 1.0, 0.1
+    ),
     Param(
         "mode",
         "continuous",
@@ -80,22 +77,21 @@ PARAMETERS = (
     Param("gravity", 9.80665, "value of 1 g used for the accelerometer counts [m/s^2]", 9.7, 9.9),
     Param(
         "gyro_noise_density",
-        _GYRO_DENSITY,
+        list(GYRO_NOISE_DENSITY),
         "white rate noise per axis [rad/s/sqrt(Hz)]; covariance = density^2 x 134 Hz",
         0.0,
         1.0,
-        check=_three_values,
+        check=needs_values(3, "x, y, z"),
     ),
     Param(
         "accel_noise_density",
-        _ACCEL_DENSITY,
+        list(ACCEL_NOISE_DENSITY),
         "white acceleration noise per axis [m/s^2/sqrt(Hz)]; covariance = density^2 x 134 Hz",
         0.0,
         1.0,
-        check=_three_values,
+        check=needs_values(3, "x, y, z"),
     ),
     Param("latency", 0.0, "fixed delay from sampling to the packet's first byte [s]", 0.0, 0.1),
-    Param("stall_timeout", 1.0, "reconnect when no byte arrives for this long [s]", 0.1, 60.0),
     Param(
         "packet_timeout",
         2.0,
@@ -105,8 +101,25 @@ PARAMETERS = (
         60.0,
     ),
     Param("temperature_rate", 1.0, "publish rate of imu/temperature [Hz]", 0.1, 134.0),
-    Param("diagnostics_period", 1.0, "period of the /diagnostics status [s]", 0.1, 60.0),
 )
+
+
+def driver_config(p: dict[str, Any]) -> DriverConfig:
+    """The driver core's configuration from the validated parameters."""
+    gyro, accel = p["gyro_noise_density"], p["accel_noise_density"]
+    return DriverConfig(
+        continuous=p["mode"] == "continuous",
+        baud=p["baud"],
+        poll_rate_hz=p["poll_rate"],
+        latency_s=p["latency"],
+        scaling=Scaling(p["gyro_range_dps"], p["accel_range_g"]),
+        axis_map=AxisMap.from_spec(p["axis_map"]),
+        accel_sign=p["accel_sign"],
+        gravity_m_s2=p["gravity"],
+        gyro_noise_density=(gyro[0], gyro[1], gyro[2]),
+        accel_noise_density=(accel[0], accel[1], accel[2]),
+        temperature_rate_hz=p["temperature_rate"],
+    )
 
 
 class Imu400ccNode(Node):
@@ -117,35 +130,14 @@ class Imu400ccNode(Node):
         super().__init__("imu400cc_node", **kwargs)
         p = declare_parameters(self, PARAMETERS)
         self.params = p
-        self._continuous = p["mode"] == "continuous"
-        self._frame_id = p["frame_id"]
-        self._scaling = Scaling(p["gyro_range_dps"], p["accel_range_g"])
-        self._axis_map = AxisMap.from_spec(p["axis_map"])
-        if not self._axis_map.proper:
+        self._driver = ImuDriver(driver_config(p))
+        config = self._driver.config
+        if not config.axis_map.proper:
             self.get_logger().warning(
                 f"axis_map {p['axis_map']} is a mirror image (left-handed): check the mounting"
             )
-        self._accel_sign = p["accel_sign"]
-        self._gravity = p["gravity"]
-        self._gyro_cov = [d * d * NOMINAL_RATE_HZ for d in p["gyro_noise_density"]]
-        self._accel_cov = [d * d * NOMINAL_RATE_HZ for d in p["accel_noise_density"]]
-        self._framer = PacketFramer(confirm_with_next_packet=self._continuous)
-        self._device_clock = DeviceClock(
-            nominal_tick_s=NOMINAL_TICK_S,
-            nominal_period_s=1.0 / NOMINAL_RATE_HZ if self._continuous else None,
-            transmission_s=PACKET_LENGTH * 10 / p["baud"],
-            latency_s=p["latency"],
-            # Polled: fewer samples, so a shorter warm-up and silences longer than a poll period.
-            min_points=134 if self._continuous else 10,
-            max_gap_s=1.0 if self._continuous else max(1.0, 3.0 / p["poll_rate"]),
-        )
-        self._temperature_every = max(1, round(NOMINAL_RATE_HZ / p["temperature_rate"]))
-        if not self._continuous:
-            self._temperature_every = max(1, round(p["poll_rate"] / p["temperature_rate"]))
-        self._lock = threading.Lock()
-        self._published = 0
-        self._rate_window: tuple[float, int] = (time.monotonic(), 0)
-        self._last_temperature = math.nan
+        self._frame_id = p["frame_id"]
+        self._rate = RateMeter(time.monotonic())
         self._serial_number: int | None = None
 
         qos = QoSProfile(depth=200, reliability=ReliabilityPolicy.RELIABLE)
@@ -154,11 +146,11 @@ class Imu400ccNode(Node):
         self._temp_pub = endpoints.publisher(Temperature, "imu/temperature", 10)
         self._diagnostics = diag.DiagnosticsPublisher(self, endpoints)
         self.create_timer(p["diagnostics_period"], self._publish_diagnostics)
-        if not self._continuous:
+        if not config.continuous:
             self.create_timer(1.0 / p["poll_rate"], self._poll)
 
         # Polled: one packet per poll period, so wait at least three of them.
-        min_timeout_s = 0.0 if self._continuous else 3.0 / p["poll_rate"]
+        min_timeout_s = 0.0 if config.continuous else 3.0 / p["poll_rate"]
         self._link = start_serial_link(
             self,
             LinkSettings(
@@ -176,57 +168,51 @@ class Imu400ccNode(Node):
 
     # ---- serial side (link thread) ----------------------------------------------------------
     def _on_open(self, port: Any) -> None:
-        info = configure_device(port, self._continuous, log=self.get_logger().warning)
+        info = configure_device(port, self._driver.config.continuous, log=self.get_logger().warning)
         self._serial_number = info.serial_number
         if self._link.stats.opens > 1:  # a reconnect: the stream and its timer start anew
-            self._framer.reset()
-            self._device_clock.reset()
+            self._driver.reset()
 
     def _on_data(self, chunk: bytes, received_s: float) -> None:
-        packets = self._framer.feed(chunk)
-        if packets:
+        samples = self._driver.feed(chunk, received_s)
+        if samples:
             self._link.note_valid()
-        # All packets of one read share its receive time: stamping them together keeps a stalled
-        # read from looking like lost packets (docs/timing.md).
-        stamps = self._device_clock.stamp_chunk([raw.timer for raw in packets], received_s)
-        for raw, stamp in zip(packets, stamps, strict=True):
-            meas = packet_to_measurement(
-                raw, self._scaling, self._axis_map, self._accel_sign, self._gravity
-            )
-            self._publish(stamp.host_stamp_s, meas.rate_flu_rad_s, meas.specific_force_flu_m_s2)
-            with self._lock:
-                self._published += 1
-                count = self._published
-                self._last_temperature = meas.temperature_c
-            if count % self._temperature_every == 0:
-                self._publish_temperature(stamp.host_stamp_s, meas.temperature_c)
+        for sample in samples:
+            self._publish(sample)
 
-    def _publish(self, stamp_s: float, rate: Any, force: Any) -> None:
+    def _publish(self, sample: ImuSample) -> None:
+        stamp = stamp_ns(sample.stamp_s)
+        meas = sample.measurement
+        driver = self._driver
         msg = fill_imu(
-            Imu(), stamp_ns(stamp_s), self._frame_id, rate, force, self._gyro_cov, self._accel_cov
+            Imu(),
+            stamp,
+            self._frame_id,
+            meas.rate_flu_rad_s,
+            meas.specific_force_flu_m_s2,
+            driver.gyro_variance,
+            driver.accel_variance,
         )
         self._imu_pub.publish(msg)
-
-    def _publish_temperature(self, stamp_s: float, celsius: float) -> None:
-        msg = fill_temperature(
-            Temperature(), stamp_ns(stamp_s), self._frame_id, celsius, TEMPERATURE_VARIANCE_C2
-        )
-        self._temp_pub.publish(msg)
+        if sample.with_temperature:
+            self._temp_pub.publish(
+                fill_temperature(
+                    Temperature(),
+                    stamp,
+                    self._frame_id,
+                    meas.temperature_c,
+                    TEMPERATURE_VARIANCE_C2,
+                )
+            )
 
     # ---- executor side ----------------------------------------------------------------------
     def _poll(self) -> None:
         self._link.write(Command.GET_PACKET.wire)
 
     def _publish_diagnostics(self) -> None:
-        now = time.monotonic()
-        with self._lock:
-            published = self._published
-            temperature = self._last_temperature
-        start, start_count = self._rate_window
-        rate = (published - start_count) / max(now - start, 1e-9)
-        self._rate_window = (now, published)
-        framer, clock, link = self._framer.stats, self._device_clock, self._link.stats
-        expected = NOMINAL_RATE_HZ if self._continuous else self.params["poll_rate"]
+        driver, link = self._driver, self._link.stats
+        rate = self._rate.rate_hz(driver.stats.samples, time.monotonic())
+        expected = driver.config.sample_rate_hz
         if not self._link.is_open:
             level, message = diag.ERROR, f"port closed: {link.last_error or 'opening'}"
         elif rate < 0.9 * expected:
@@ -237,21 +223,11 @@ class Imu400ccNode(Node):
             "port": self.params["port"],
             "mode": self.params["mode"],
             "rate_hz": rate,
-            "packets": framer.packets,
-            "bad_checksums": framer.bad_checksums,
-            "unconfirmed": framer.unconfirmed,
-            "skipped_bytes": framer.skipped_bytes,
-            "resyncs": framer.resyncs,
-            "dropped_packets": clock.dropped_packets,
-            "timer_gaps": clock.timer_gaps,
-            "clock_resets": clock.resets,
-            "tick_period_us": clock.tick_period_s * 1e6,
-            "clock_drift_ppm": clock.drift_ppm,
-            "clock_jitter_ms": clock.jitter_s * 1e3,
+            **driver.counters(),
             "reconnects": link.reconnects,
             "stalls": link.stalls,
             "invalid_stalls": link.invalid_stalls,
-            "temperature_c": temperature,
+            "temperature_c": driver.stats.last_temperature_c,
             "serial_number": self._serial_number if self._serial_number is not None else "unknown",
             "last_error": link.last_error,
         }

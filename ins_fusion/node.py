@@ -4,9 +4,9 @@ Subscribes ``imu/data_raw`` (sensor_msgs/Imu), ``gnss/fix`` (NavSatFix), ``gnss/
 (TwistWithCovarianceStamped, ENU) and ``gnss/attitude`` (Imu orientation); publishes
 ``ins/odometry`` (nav_msgs/Odometry in ``map`` = ENU tangent plane at the datum, child
 ``base_link``), ``ins/fix`` (NavSatFix of base_link), ``ins/imu`` (orientation of base_link with
-bias-corrected rates), ``/diagnostics`` and TF (ins_fusion.tf_frames: the odometry's transform on
-``/tf`` per ``tf_mode``, the sensor frames on ``/tf_static``). Outputs are published from the
-IMU callback as soon as the sample is processed, at most at ``output_rate`` (by stamp). All
+bias-corrected rates), ``/diagnostics`` and TF (ins_fusion.adapters.tf_frames: the odometry's
+transform on ``/tf`` per ``tf_mode``, the sensor frames on ``/tf_static``). Outputs are published
+from the IMU callback as soon as the sample is processed, at most at ``output_rate`` (by stamp). All
 callbacks run on one executor thread, so the engine needs no locking; measurements are applied at
 their own stamps by the engine (late GNSS data are rolled back and re-propagated there).
 """
@@ -26,20 +26,20 @@ from sensor_msgs.msg import Imu, NavSatFix, Temperature
 
 from gnss_ins_common import ros_diagnostics as diag
 from gnss_ins_common.message_fields import fill_orientation, stamp_ns
+from gnss_ins_common.rates import IMU400CC_RATE_HZ as NOMINAL_RATE_HZ
 from gnss_ins_common.ros_endpoints import Endpoints
 from gnss_ins_common.ros_node_main import run_node
 from gnss_ins_common.ros_params import declare_parameters
-from imu400cc_driver.device_clock import NOMINAL_RATE_HZ
-from ins_fusion import cdr_fields, messages_in, tf_frames
-from ins_fusion.cdr_fields import CdrError
+from ins_fusion.adapters import cdr_fields, messages_in, tf_frames
+from ins_fusion.adapters.cdr_fields import CdrError
+from ins_fusion.adapters.solution_out import fill_fused_fix, fill_odometry, publishable
+from ins_fusion.adapters.status_log import WARN, StatusLog
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.engine import InsEngine, InsSolution
-from ins_fusion.fusion_params import PARAMETERS as FUSION_PARAMETERS
+from ins_fusion.core.params import PARAMETERS as FUSION_PARAMETERS
 from ins_fusion.ros_tf import TfBroadcaster
-from ins_fusion.solution_out import fill_fused_fix, fill_odometry, publishable
-from ins_fusion.status_log import WARN, StatusLog
 
-#: One table for the node and `gnss_ins replay` (ins_fusion/fusion_params.py).
+#: One table for the node and `gnss_ins replay` (ins_fusion/core/params.py).
 PARAMETERS = FUSION_PARAMETERS
 
 
@@ -73,7 +73,7 @@ class InsFusionNode(Node):
 
         sensor_qos = QoSProfile(depth=200, reliability=ReliabilityPolicy.BEST_EFFORT)
         endpoints = Endpoints(self)
-        # Serialized: the node needs three numbers of each message (see ins_fusion.cdr_fields).
+        # Serialized: the node needs three numbers of each message (ins_fusion.adapters.cdr_fields).
         # Best effort, REP-2003's QoS for a sensor-data consumer (about a point of CPU less than
         # reliable, docs/benchmarks.md); qos_overrides./imu/data_raw.subscription.reliability:
         # reliable restores retransmission. A lost sample is bridged and counted (imu_gaps).

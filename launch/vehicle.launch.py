@@ -3,7 +3,7 @@
     ros2 launch gnss_ins vehicle.launch.py imu_port:=/dev/ttyUSB0 \
         leica_port:=/dev/ttyUSB1 adu5_port:=/dev/ttyUSB2
 
-The nodes, namespaces and remappings come from ins_fusion.vehicle_nodes (the same table as
+The nodes, namespaces and remappings come from ins_fusion.runtime.vehicle_nodes (the same table as
 `gnss_ins launch` and the demo); parameters from the installed config/*.yaml, the port arguments
 override them. Each GNSS receiver runs in its own namespace (``leica/gnss/fix``,
 ``adu5/gnss/attitude``); ins_fusion_node reads those.
@@ -15,7 +15,7 @@ from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
 from gnss_ins_common.paths import config_file
-from ins_fusion.vehicle_nodes import DEFAULT_PORTS, VEHICLE
+from ins_fusion.runtime.vehicle_nodes import DEFAULT_PORTS, VEHICLE
 
 
 def generate_launch_description() -> LaunchDescription:

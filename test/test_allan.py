@@ -21,6 +21,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from gnss_ins_common.params import ParameterValueError, load_yaml
+from ins_fusion.bags.imu import ImuRecord
+from ins_fusion.core.params import PARAMETERS
 from ins_fusion.core.units import (
     deg_h,
     deg_s,
@@ -29,7 +31,6 @@ from ins_fusion.core.units import (
     mg,
     to_deg_sqrt_h,
 )
-from ins_fusion.fusion_params import PARAMETERS
 from ins_fusion.noise_id.allan import allan_curve, overlapping_adev, tau_grid
 from ins_fusion.noise_id.analysis import (
     ACCEL,
@@ -48,7 +49,6 @@ from ins_fusion.noise_id.output import (
     yaml_number,
 )
 from ins_fusion.noise_id.record import (
-    ImuRecord,
     RecordError,
     SampleClock,
     StaticLimits,
@@ -310,7 +310,7 @@ def resting():
 
 def _moved(record, channel, what, value, start_s, duration_s):
     rates = record.rate_flu_rad_s.copy()
-    forces = record.specific_force_flu_m_s2.copy()
+    forces = record.force_flu_m_s2.copy()
     during = (record.t_s >= start_s) & (record.t_s < start_s + duration_s)
     (rates if what == "rate" else forces)[during, channel] += value
     return ImuRecord(record.t_s, rates, forces)
@@ -364,8 +364,8 @@ def test_non_finite_or_constant_axes_are_refused(resting):
     rates = resting.rate_flu_rad_s.copy()
     rates[10, 1] = np.nan
     with pytest.raises(RecordError, match="gyro y: non-finite"):
-        check_values(ImuRecord(resting.t_s, rates, resting.specific_force_flu_m_s2))
-    forces = resting.specific_force_flu_m_s2.copy()
+        check_values(ImuRecord(resting.t_s, rates, resting.force_flu_m_s2))
+    forces = resting.force_flu_m_s2.copy()
     forces[:, 0] = 0.0
     with pytest.raises(RecordError, match="accel x: every sample is 0"):
         check_values(ImuRecord(resting.t_s, resting.rate_flu_rad_s, forces))

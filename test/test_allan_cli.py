@@ -7,18 +7,20 @@ for bias instability (hours). The other bags are 50 Hz and short to stay fast.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
+from gnss_ins_common.message_fields import fill_temperature
 from gnss_ins_common.params import load_yaml
+from ins_fusion.bags.bag_io import BagWriter
+from ins_fusion.bags.messages import new_message
+from ins_fusion.core.params import PARAMETERS
 from ins_fusion.core.units import deg_s
-from ins_fusion.fusion_params import PARAMETERS
-from ins_fusion.noise_id.record import ImuRecord
-from ins_fusion.noise_id.synthetic import static_record, write_imu_bag
+from ins_fusion.noise_id.synthetic import static_record, write_static_bag
 from ins_fusion.sim.imu_model import PROFILES
-from ins_fusion.sim.messages import fill_temperature, new_message
 from ins_fusion.tools import cli
-from ins_fusion.tools.bag_io import BagWriter
 
 IMU400CC = PROFILES["imu400cc"]
 
@@ -36,7 +38,7 @@ def _allan(capsys, *argv):
 @pytest.fixture(scope="module")
 def bag(tmp_path_factory):
     path = tmp_path_factory.mktemp("allan") / "static"
-    write_imu_bag(path, static_record(IMU400CC, 300.0, seed=4, band_limited=True))
+    write_static_bag(path, static_record(IMU400CC, 300.0, seed=4, band_limited=True))
     return path
 
 
@@ -68,7 +70,7 @@ def test_strict_terms_refuse_a_bias_the_record_does_not_pin(bag, tmp_path, capsy
 @pytest.fixture(scope="module")
 def bag_40_min(tmp_path_factory):
     path = tmp_path_factory.mktemp("allan") / "static40"
-    write_imu_bag(path, static_record(IMU400CC, 2400.0, seed=10, band_limited=True))
+    write_static_bag(path, static_record(IMU400CC, 2400.0, seed=10, band_limited=True))
     return path
 
 
@@ -114,7 +116,7 @@ def test_missing_topic_wrong_type_and_bad_bag_are_refused(bag, tmp_path, capsys)
 
 def test_short_and_moving_records_are_refused(tmp_path, capsys):
     short = tmp_path / "short"
-    write_imu_bag(short, static_record(IMU400CC, 60.0, rate_hz=50.0, seed=5))
+    write_static_bag(short, static_record(IMU400CC, 60.0, rate_hz=50.0, seed=5))
     code, _, err = _allan(capsys, short, "--terms", "white")
     assert code == 2 and "too short: the record is 60.0 s" in err and "≥ 133 s" in err
 
@@ -122,7 +124,7 @@ def test_short_and_moving_records_are_refused(tmp_path, capsys):
     rates = resting.rate_flu_rad_s.copy()
     rates[(resting.t_s >= 100.0) & (resting.t_s < 103.0), 0] += deg_s(10.0)
     moved = tmp_path / "moved"
-    write_imu_bag(moved, ImuRecord(resting.t_s, rates, resting.specific_force_flu_m_s2))
+    write_static_bag(moved, replace(resting, rate_flu_rad_s=rates))
     code, _, err = _allan(capsys, moved, "--terms", "white")
     assert code == 2 and "not static: gyro x moves 3" in err
     code, _, err = _allan(capsys, moved, "--terms", "white", "--max-rate-change", "5")
@@ -140,10 +142,13 @@ def test_record_with_dropped_samples_is_joined(tmp_path, capsys):
     keep = np.ones(len(resting.t_s), dtype=bool)
     keep[1000::500] = False
     gappy = tmp_path / "gappy"
-    write_imu_bag(
+    write_static_bag(
         gappy,
-        ImuRecord(
-            resting.t_s[keep], resting.rate_flu_rad_s[keep], resting.specific_force_flu_m_s2[keep]
+        replace(
+            resting,
+            t_s=resting.t_s[keep],
+            rate_flu_rad_s=resting.rate_flu_rad_s[keep],
+            force_flu_m_s2=resting.force_flu_m_s2[keep],
         ),
     )
     code, out, err = _allan(capsys, gappy, "--terms", "white")

@@ -1,4 +1,4 @@
-"""ins_fusion.tools.bag_columns: the columns of a bag's topics hold exactly the messages, log
+"""ins_fusion.bags.columns: the columns of a bag's topics hold exactly the messages, log
 times and receive order that bag_io's message-by-message reader gives, for MCAP (read from its
 message indexes: several chunks, split files, equal log times across topics) and sqlite3."""
 
@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ins_fusion.tools import bag_columns
-from ins_fusion.tools.bag_columns import read_topics
-from ins_fusion.tools.bag_io import BagReader, BagWriter, jazzy_typestore
+from ins_fusion.bags import columns as bag_columns
+from ins_fusion.bags.bag_io import BagReader, BagWriter, jazzy_typestore
+from ins_fusion.bags.columns import read_topics
 
 TS = jazzy_typestore()
 T = TS.types

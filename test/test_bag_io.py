@@ -1,4 +1,4 @@
-"""ins_fusion.tools.bag_io: bags written and read back field for field, splits, summaries."""
+"""ins_fusion.bags.bag_io: bags written and read back field for field, splits, summaries."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from ins_fusion.tools.bag_io import (
+from ins_fusion.bags.bag_io import (
     BagError,
     BagReader,
     BagSummary,
@@ -265,7 +265,7 @@ def unfinished_bag(path: Path, storage: str, flushed: int, total: int) -> Path:
 
 @pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
 def test_unfinished_bag_is_refused_with_advice_and_recovered(tmp_path: Path, storage: str):
-    from ins_fusion.tools.bag_recover import recover_bag
+    from ins_fusion.bags.recover import recover_bag
 
     unfinished_bag(tmp_path / "bag", storage, flushed=5, total=18)
     with pytest.raises(BagError, match="gnss_ins recover"):
@@ -285,7 +285,7 @@ def test_unfinished_bag_is_refused_with_advice_and_recovered(tmp_path: Path, sto
 )
 @given(cut=st.floats(0.0, 1.0))
 def test_mcap_cut_anywhere_recovers_a_prefix(tmp_path_factory, cut: float):
-    from ins_fusion.tools.bag_recover import recover_bag
+    from ins_fusion.bags.recover import recover_bag
 
     tmp = tmp_path_factory.mktemp("cut")
     last = unfinished_bag(tmp / "bag", "mcap", flushed=4, total=14)

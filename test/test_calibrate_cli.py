@@ -14,9 +14,9 @@ import pytest
 import yaml
 
 from gnss_ins_common.axes import AxisMap
+from ins_fusion.bags.imu import write_imu_bag
 from ins_fusion.calibration_id import procedures
 from ins_fusion.calibration_id.model import Site
-from ins_fusion.calibration_id.record import write_bag
 from ins_fusion.core.calibration import ImuCalibration
 from ins_fusion.core.units import STANDARD_GRAVITY_M_S2, deg_s, mg
 from ins_fusion.sim.imu_model import IMU400CC
@@ -36,7 +36,7 @@ def six_bag(tmp_path_factory):
     steps = procedures.six_position(HOLD_S, TURN_S, level_sigma_rad=math.radians(LEVEL_DEG))
     record, model = procedures.simulate(steps, IMU400CC, SITE, 44, name="six")
     path = tmp_path_factory.mktemp("bags") / "six"
-    write_bag(path, record)
+    write_imu_bag(path, record)
     return path, record, model
 
 
@@ -48,7 +48,7 @@ def rotated_unit_bag(tmp_path_factory):
     steps = procedures.six_position(HOLD_S, TURN_S)
     record, _ = procedures.simulate(steps, IMU400CC, SITE, 42, device_map=device, driver_map=driver)
     path = tmp_path_factory.mktemp("bags") / "rotated"
-    write_bag(path, record)
+    write_imu_bag(path, record)
     return path
 
 
@@ -188,7 +188,7 @@ POSITIONS = [(19 * k + 2, 19 * k + 13) for k in range(6)]
 @pytest.mark.parametrize(
     ("extra", "message"),
     [
-        (["--imu-topic", "/imu/nothing"], "no topic /imu/nothing (topics: /imu/data_raw"),
+        (["--imu-topic", "/imu/nothing"], "no topic /imu/nothing (Imu topics: /imu/data_raw)"),
         (["--segments", _windows((2, 13), (10, 30))], "is not static or steady"),
         (["--segments", _windows((2, 13), (21, 25))], "shorter than the minimum 10 s"),
         (["--segments", _windows(*POSITIONS[:5])], "missing -y up"),
@@ -235,7 +235,7 @@ def test_moving_record_has_no_positions(tmp_path, capsys):
         procedures.Spin(np.array([1.0, 0.0, 0.0]), 6.0 * math.pi, math.radians(20.0)),
     ]
     record, _ = procedures.simulate(steps, IMU400CC, SITE, 43)
-    write_bag(tmp_path / "moving", record)
+    write_imu_bag(tmp_path / "moving", record)
     assert _calibrate("six-position", tmp_path / "moving", *STATIC) == 2
     assert "no static or steady segment found" in capsys.readouterr().err
 

@@ -17,10 +17,10 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from gnss_ins_common.axes import AxisMap
+from ins_fusion.bags.imu import ImuRecord
 from ins_fusion.calibration_id import axes, rotation, static
 from ins_fusion.calibration_id.lsq import EstimationError
 from ins_fusion.calibration_id.model import BiasInstability, Site
-from ins_fusion.calibration_id.record import ImuRecord
 from ins_fusion.calibration_id.result import Quantity
 from ins_fusion.calibration_id.segments import Kind, Means, Segment
 from ins_fusion.core.earth import EARTH_RATE_RAD_S
@@ -237,7 +237,7 @@ def test_aalborg_section_4_4_predicted_accuracies():
     t = np.arange(0.0, 336.0, 1.0 / hz)
     w = np.zeros((len(t), 3))
     w[(t >= 120.0) & (t < 216.0), 2] = rate
-    record = ImuRecord("d2", t, w, np.tile([0.0, 0.0, -1.0], (len(t), 1)), t[:0], t[:0])
+    record = ImuRecord(t, w, np.tile([0.0, 0.0, -1.0], (len(t), 1)), name="d2")
     a, b = int(120.0 * hz), int(216.0 * hz)
     statics = [
         Segment(

@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from ins_fusion.bags.imu import ImuRecord
 from ins_fusion.calibration_id import procedures, rotation, static
 from ins_fusion.calibration_id.model import BiasInstability, Site
-from ins_fusion.calibration_id.record import ImuRecord
 from ins_fusion.calibration_id.result import Quantity
 from ins_fusion.calibration_id.segments import DetectorSettings, Kind, detect
 from ins_fusion.sim.imu_model import IMU400CC, STIM300, ImuProfile
@@ -262,7 +262,7 @@ def test_known_angle_d2_recovers_asymmetric_gyro_scale(turn_table):
 
 def _exact_segments(t, rate, force):
     """Segments of noise-free data (tiny σ so that the weights are defined)."""
-    record = ImuRecord("exact", t, rate, force, t[:0], t[:0])
+    record = ImuRecord(t, rate, force, name="exact")
     segments = detect(record, 0, DetectorSettings(min_duration_s=5.0))
     return [
         dataclasses.replace(

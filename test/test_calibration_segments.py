@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
+from ins_fusion.bags.imu import ImuRecord
 from ins_fusion.calibration_id import procedures
 from ins_fusion.calibration_id.model import Site
-from ins_fusion.calibration_id.record import ImuRecord
 from ins_fusion.calibration_id.segments import (
     DetectorSettings,
     Kind,
@@ -93,7 +93,7 @@ def test_sigma_of_the_mean_matches_white_and_coloured_noise():
     kernel = np.ones(10) / math.sqrt(10.0)
     coloured = np.stack([np.convolve(white[:, i], kernel, "same") for i in range(6)], axis=1)
     for noise, expected in ((white, 1.0 / math.sqrt(n)), (coloured, math.sqrt(10.0 / n))):
-        record = ImuRecord("noise", t, noise[:, 3:], noise[:, :3], t[:0], t[:0])
+        record = ImuRecord(t, noise[:, 3:], noise[:, :3], name="noise")
         m = means(record, 0, n)
         sigma = np.concatenate((m.force_sigma_m_s2, m.rate_sigma_rad_s))
         assert np.mean(sigma) == pytest.approx(expected, rel=0.2)

@@ -14,12 +14,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from gnss_ins_common.clock_sync import EnvelopeClockSync
-from imu400cc_driver.device_clock import (
-    COUNTS_PER_PACKET,
-    NOMINAL_RATE_HZ,
-    NOMINAL_TICK_S,
-    PACKET_TRANSMISSION_S,
-)
+from gnss_ins_common.rates import IMU400CC_RATE_HZ
+from imu400cc_driver.device_clock import COUNTS_PER_PACKET, NOMINAL_TICK_S, PACKET_TRANSMISSION_S
 
 HOST_START_S = 1.7e9  # an epoch-sized host clock, to exercise float precision
 
@@ -53,6 +49,23 @@ class Stream:
         receive[asleep] = receive[wake]
         return Stream(self.ticks, self.sample_host_s, receive, self.dropped)
 
+    def stamped_late(self, every_s: float, late_s: float) -> Stream:
+        """The same run with one read every ``every_s`` [s] stamped ``late_s`` [s] after it
+        returned (its thread descheduled between the read and the clock): what arrives
+        meanwhile is read, and stamped, 0.1 ms after that."""
+        receive = self.receive_s.copy()
+        due = receive[0] + every_s
+        k = 0
+        while k < receive.size:
+            read = receive == receive[k]
+            if receive[k] >= due:
+                late = receive[k] + late_s
+                receive[(receive > receive[k]) & (receive <= late)] = late + 1e-4
+                receive[read] = late
+                due = receive[k] + every_s
+            k = int(np.flatnonzero(read)[-1]) + 1
+        return Stream(self.ticks, self.sample_host_s, receive, self.dropped)
+
 
 def simulate(
     seconds: float,
@@ -71,7 +84,7 @@ def simulate(
     time, a 20 ms USB stall; the reader often lags, so packets come in reads of 1-3 that share
     the receive time of their last one (never across a pause of over 16 ms)."""
     rng = np.random.default_rng(seed)
-    count = round(seconds * NOMINAL_RATE_HZ)
+    count = round(seconds * IMU400CC_RATE_HZ)
     index = np.arange(count)
     ticks = np.round(index * COUNTS_PER_PACKET).astype(np.int64) + rng.integers(-9, 10, count)
     ticks -= ticks[0]
@@ -82,7 +95,7 @@ def simulate(
     sample_host_s = HOST_START_S + np.concatenate(([0.0], np.cumsum(np.diff(device_s) * rate[1:])))
 
     keep = rng.random(count) >= drop_probability
-    for start in rng.integers(NOMINAL_RATE_HZ, count - 2 * run_length, runs):
+    for start in rng.integers(IMU400CC_RATE_HZ, count - 2 * run_length, runs):
         keep[start : start + run_length] = False
     keep[0] = True
     missing_before = np.diff(np.flatnonzero(keep), prepend=0) - 1
@@ -216,6 +229,40 @@ def test_line_is_the_lowest_envelope_of_the_window(pairs, skew, window_s, start_
         assert sync.to_host(x_mean) - x_mean == pytest.approx(best, abs=1e-9)
         assert sync.mean_delay_s == pytest.approx(float(np.mean(d - line)), abs=1e-9)
         assert sync.jitter_s**2 == pytest.approx(float(np.mean((d - line) ** 2)), abs=1e-14)
+
+
+@settings(max_examples=100, deadline=None, derandomize=True)
+@given(steps, st.floats(-0.5, 0.5), st.floats(1e-4, 0.1))
+def test_a_skew_limit_keeps_the_line_under_the_window_at_a_plausible_slope(pairs, trend, max_skew):
+    """Delays that shrink or grow for a while (a backlog read out) tilt the free line; the
+    limited one keeps its slope within ``max_skew`` and is the same line when the free one is."""
+    limited = EnvelopeClockSync(min_points=2, max_skew=max_skew)
+    free = EnvelopeClockSync(min_points=2)
+    sensor = np.cumsum([dx for dx, _ in pairs])
+    host = 30.0 + (1.0 + trend) * sensor + np.array([delay for _, delay in pairs])
+    for k in range(sensor.size):
+        limited.update(float(sensor[k]), float(host[k]))
+        free.update(float(sensor[k]), float(host[k]))
+        mapped = np.array([limited.to_host(float(x)) for x in sensor[: k + 1]])
+        assert np.all(mapped <= host[: k + 1] + 1e-9)
+        assert abs(limited.skew) <= max_skew
+        if abs(free.skew) <= max_skew:
+            assert limited.to_host(float(sensor[k])) == free.to_host(float(sensor[k]))
+
+
+def test_a_backlog_read_out_does_not_tilt_a_limited_line():
+    # 1 s of 134 Hz packets arriving 200 ms late at first, on time at the end: a sender that
+    # fell behind and catches up. The free line takes it for a clock 20 % slow.
+    sensor = np.arange(134) / 134
+    host = 50.0 + sensor + np.linspace(0.2, 0.0, sensor.size)
+    limited = EnvelopeClockSync(min_points=10, max_skew=0.02)
+    free = EnvelopeClockSync(min_points=10)
+    for x, h in zip(sensor.tolist(), host.tolist(), strict=True):
+        limited.update(x, h)
+        free.update(x, h)
+    assert free.skew == pytest.approx(-0.2, rel=0.01)
+    assert limited.skew == -0.02
+    assert limited.to_host(1.0) == pytest.approx(host[-1] + (1 - 0.02) / 134)  # the newest
 
 
 @settings(max_examples=100, deadline=None, derandomize=True)

@@ -10,9 +10,9 @@ from pathlib import Path
 
 import pytest
 
+from ins_fusion.runtime.processes import gnss_ins_command
 from ins_fusion.tools import cli
 from ins_fusion.tools.demo import _prepare_output
-from ins_fusion.tools.processes import gnss_ins_command
 
 
 def test_a_new_directory_is_created_and_marked(tmp_path: Path) -> None:

@@ -38,13 +38,12 @@ from ins_fusion.core.measurements import (
     Prediction,
     attitude,
     euler_jacobian,
-    euler_rad,
     gnss_position,
     gnss_velocity,
     nhc,
     zupt,
 )
-from ins_fusion.core.rotation import MAT_ENU_NED, quat_from_euler
+from ins_fusion.core.rotation import MAT_ENU_NED, euler_rad, quat_from_euler
 from ins_fusion.core.strapdown import ImuIncrement, NavState, propagate
 
 NOISE = FusionConfig.default().imu_noise

@@ -28,9 +28,9 @@ from sensor_msgs.msg import Imu, NavSatFix, Temperature
 from tf2_msgs.msg import TFMessage
 
 from gnss_ins_common.params import ParameterValueError
+from ins_fusion.bags.bag_io import BagReader
 from ins_fusion.node import InsFusionNode
-from ins_fusion.sim.topics import SimulationConfig
-from ins_fusion.tools.bag_io import BagReader
+from ins_fusion.sim.drive import SimulationConfig
 from ins_fusion.tools.simulate import write_bag
 
 pytestmark = pytest.mark.ros

@@ -21,14 +21,8 @@ from gnss_driver.attitude import (
 from gnss_driver.epoch import Epoch
 from gnss_driver.reader import NmeaReader
 from gnss_driver.reader import frame_sentence as nmea
-from gnss_driver.solution import (
-    CovarianceType,
-    EpochSolver,
-    FixType,
-    NavSatStatus,
-    SolutionConfig,
-    UereTable,
-)
+from gnss_driver.solution import EpochSolver, FixType, SolutionConfig, UereTable
+from gnss_ins_common.navsat import CovarianceType, NavSatStatus
 
 GGA_SPS = "GPGGA,184353.07,1929.045,S,02410.506,E,1,04,2.6,100.00,M,-33.9,M,,0000"
 GGA_FLOAT = "GPGGA,123519.00,4807.038,N,01131.000,W,5,10,0.9,545.4,M,46.9,M,1.2,0001"

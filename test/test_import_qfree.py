@@ -14,9 +14,9 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from gnss_driver.solution import CovarianceType, NavSatStatus
-from ins_fusion import qfree, qfree_checks
-from ins_fusion.tools.bag_io import BagReader
+from gnss_ins_common.navsat import CovarianceType, NavSatStatus
+from ins_fusion.bags.bag_io import BagReader
+from ins_fusion.qfree import checks, logs
 from ins_fusion.tools.cli import main
 
 FIXTURES = Path(__file__).parent / "fixtures" / "qfree"
@@ -29,10 +29,10 @@ G0 = 9.80665
 
 def gnss_line(**overrides: str) -> str:
     """A valid 35-column line; overrides by column name."""
-    values = {c.name: "1" for c in qfree.GNSS_COLUMNS}
+    values = {c.name: "1" for c in logs.GNSS_COLUMNS}
     values.update(date="2013-08-26", time="10:00:00.000", latitude="63.4", longitude="10.4")
     values.update(overrides)
-    return " ".join(values[c.name] for c in qfree.GNSS_COLUMNS)
+    return " ".join(values[c.name] for c in logs.GNSS_COLUMNS)
 
 
 def import_fixtures(tmp_path: Path, *extra: str) -> tuple[int, Path]:
@@ -53,45 +53,45 @@ def read(bag: Path) -> dict[str, list]:
 
 
 def test_layouts_have_the_documented_columns():
-    assert len(qfree.GNSS_COLUMNS) == 35 and len(qfree.MEMS_COLUMNS) == 14
-    names = [c.name for c in qfree.GNSS_COLUMNS]
+    assert len(logs.GNSS_COLUMNS) == 35 and len(logs.MEMS_COLUMNS) == 14
+    names = [c.name for c in logs.GNSS_COLUMNS]
     # 1-based column numbers of appendix 6.1 / 6.2
     assert names.index("latitude") + 1 == 11
     assert names.index("height_ellipsoid") + 1 == 13
     assert names.index("std_north") + 1 == 22
     assert names.index("vel_north") + 1 == 27
     assert names.index("sbas_active") + 1 == 32
-    assert [c.name for c in qfree.MEMS_COLUMNS][8:] == [
+    assert [c.name for c in logs.MEMS_COLUMNS][8:] == [
         "accel_x", "accel_y", "accel_z", "gyro_x", "gyro_y", "gyro_z"
     ]  # fmt: skip
 
 
 def test_unit_conversions_d2():
-    assert 1000 * qfree.ACCEL_UNITS["mg"] == pytest.approx(9.80665)
-    assert 1000 * qfree.GYRO_UNITS["mdps"] == pytest.approx(0.0174533, abs=1e-7)
-    half_period = qfree.GYRO_WRAP_PERIOD_RAD_S / 2
+    assert 1000 * logs.ACCEL_UNITS["mg"] == pytest.approx(9.80665)
+    assert 1000 * logs.GYRO_UNITS["mdps"] == pytest.approx(0.0174533, abs=1e-7)
+    half_period = logs.GYRO_WRAP_PERIOD_RAD_S / 2
     assert half_period == pytest.approx(0.5719, abs=1e-4)
 
 
 def test_utc_time_is_exact_to_the_nanosecond():
-    assert qfree.utc_ns("2013-08-26", "10:00:00.000") == T0
-    assert qfree.utc_ns("2013-08-26", "10:00:01.25") == T0 + 1_250_000_000
-    assert qfree.utc_ns("2013-08-26", "23:59:59.999999999") == T0 + (14 * 3600 - 1) * 10**9 + (
+    assert logs.utc_ns("2013-08-26", "10:00:00.000") == T0
+    assert logs.utc_ns("2013-08-26", "10:00:01.25") == T0 + 1_250_000_000
+    assert logs.utc_ns("2013-08-26", "23:59:59.999999999") == T0 + (14 * 3600 - 1) * 10**9 + (
         10**9 - 1
     )
     for date, clock in [("2013-13-01", "10:00:00"), ("2013-08-26", "24:00:00"), ("x", "1:2:3")]:
-        with pytest.raises(qfree.LineError):
-            qfree.utc_ns(date, clock)
+        with pytest.raises(logs.LineError):
+            logs.utc_ns(date, clock)
 
 
 def test_fields_split_on_commas_semicolons_or_whitespace():
-    assert qfree.split_fields(" 1  2\t3 ") == ["1", "2", "3"]
-    assert qfree.split_fields("1, 2,,3") == ["1", "2", "", "3"]
-    assert qfree.split_fields("1;2; 3") == ["1", "2", "3"]
+    assert logs.split_fields(" 1  2\t3 ") == ["1", "2", "3"]
+    assert logs.split_fields("1, 2,,3") == ["1", "2", "", "3"]
+    assert logs.split_fields("1;2; 3") == ["1", "2", "3"]
 
 
 def test_gnss_line_fields_units_and_quality():
-    epoch = qfree.parse_gnss_line(GNSS.read_text().splitlines()[1], "pos", 2)
+    epoch = logs.parse_gnss_line(GNSS.read_text().splitlines()[1], "pos", 2)
     assert (epoch.stamp.equipment_id, epoch.stamp.utc_ns, epoch.stamp.line) == (2, T0, 2)
     assert epoch.stamp.obu_time_s == 5000.0 and epoch.stamp.gps_week == 1759
     assert (epoch.latitude_deg, epoch.longitude_deg, epoch.height_m) == (63.4195, 10.402, 50.0)
@@ -103,14 +103,14 @@ def test_gnss_line_fields_units_and_quality():
 
 
 def test_missing_optional_values_mean_no_velocity_and_default_covariance():
-    epoch = qfree.parse_gnss_line(
+    epoch = logs.parse_gnss_line(
         gnss_line(vel_north="nan", vel_east="nan", vel_down="nan", std_north="-")
     )
     assert epoch.vel_enu_m_s is None  # E6 data: "no velocity", not zeros (D1)
     covariance, kind = epoch.position_covariance_enu_m2
     assert kind == CovarianceType.APPROXIMATED
     assert covariance[0] == covariance[4] == covariance[8] == 36.0
-    comma = qfree.parse_gnss_line(",".join(gnss_line(vel_east="").split(" ")))
+    comma = logs.parse_gnss_line(",".join(gnss_line(vel_east="").split(" ")))
     assert comma.vel_enu_m_s is None
 
 
@@ -127,19 +127,19 @@ def test_missing_optional_values_mean_no_velocity_and_default_covariance():
     ],
 )
 def test_bad_gnss_lines_say_why(line: str, reason: str):
-    with pytest.raises(qfree.LineError, match=reason.replace("(", r"\(").replace(")", r"\)")):
-        qfree.parse_gnss_line(line)
+    with pytest.raises(logs.LineError, match=reason.replace("(", r"\(").replace(")", r"\)")):
+        logs.parse_gnss_line(line)
 
 
 def test_logs_collect_bad_lines_with_numbers_and_skip_comments():
-    log = qfree.parse_gnss(GNSS.read_text().splitlines(), "pos-2")
+    log = logs.parse_gnss(GNSS.read_text().splitlines(), "pos-2")
     assert len(log.records) == 10 and log.skipped == 2  # header comment, blank line
     assert [(b.source, b.line) for b in log.bad_lines] == [
         ("pos-2", 5),
         ("pos-2", 8),
         ("pos-2", 12),
     ]
-    mems = qfree.parse_mems(MEMS.read_text().splitlines(), "mems-2")
+    mems = logs.parse_mems(MEMS.read_text().splitlines(), "mems-2")
     assert len(mems.records) == 150
     assert [str(b) for b in mems.bad_lines] == [
         "mems-2:41: expected 14 columns, got 13",
@@ -153,11 +153,11 @@ column_value = st.floats(-1e6, 1e6, allow_nan=False).map(repr)
 
 @given(st.lists(column_value, min_size=27, max_size=27), st.integers(0, 86399))
 def test_any_well_formed_gnss_line_parses_back_exactly(values: list[str], second: int):
-    names = [c.name for c in qfree.GNSS_COLUMNS[8:]]
+    names = [c.name for c in logs.GNSS_COLUMNS[8:]]
     fields = dict(zip(names, values, strict=True))
     fields.update(good="1", latitude=repr(float(values[2]) % 90), longitude="-0.5")
     clock = f"{second // 3600:02d}:{second // 60 % 60:02d}:{second % 60:02d}.125"
-    epoch = qfree.parse_gnss_line(gnss_line(time=clock, **fields))
+    epoch = logs.parse_gnss_line(gnss_line(time=clock, **fields))
     assert epoch.stamp.utc_ns == T0 - 10 * 3600 * 10**9 + second * 10**9 + 125_000_000
     assert epoch.latitude_deg == float(fields["latitude"])
     assert epoch.height_m == float(values[4])
@@ -167,7 +167,7 @@ def test_any_well_formed_gnss_line_parses_back_exactly(values: list[str], second
 @given(st.text(max_size=300))
 def test_garbage_never_raises_anything_but_a_reported_bad_line(text: str):
     lines = text.splitlines()
-    for log in (qfree.parse_gnss(lines, "g"), qfree.parse_mems(lines, "m")):
+    for log in (logs.parse_gnss(lines, "g"), logs.parse_mems(lines, "m")):
         assert len(log.records) + len(log.bad_lines) + log.skipped == len(lines)
 
 
@@ -179,18 +179,18 @@ def test_ramp_through_the_16_bit_wrap_is_detected_at_0_572_rad_s_and_undone():
     mdps = np.degrees(true_rad_s) * 1000
     logged = (np.round(mdps).astype(np.int64) + 32768) % 65536 - 32768  # int16 wrap
     samples = [
-        qfree.MemsSample(
-            qfree.Stamp("ramp", k + 1, 2, 1, 1, T0 + k * 20_000_000, 0, 0, 0),
+        logs.MemsSample(
+            logs.Stamp("ramp", k + 1, 2, 1, 1, T0 + k * 20_000_000, 0, 0, 0),
             (0.0, 0.0, 1000.0),
             (0.0, 0.0, float(v)),
         )
         for k, v in enumerate(logged)
     ]
-    series = qfree.imu_series(samples)
+    series = logs.imu_series(samples)
     assert [(w.line, w.axis) for w in series.wraps] == [(int(np.argmax(mdps > 32767.5)) + 1, "z")]
     assert true_rad_s[series.wraps[0].line - 1] == pytest.approx(0.572, abs=0.002)
     np.testing.assert_allclose(series.rate_rad_s[:, 2], true_rad_s, atol=1e-5)
-    kept = qfree.imu_series(samples, unwrap=False)
+    kept = logs.imu_series(samples, unwrap=False)
     assert len(kept.wraps) == 1 and kept.rate_rad_s[-1, 2] < 0  # wrong sign, as logged
 
 
@@ -198,26 +198,24 @@ def test_unwrapping_restarts_after_a_time_gap():
     stamps = [0, 20, 40, 2040, 2060]  # ms: a 2 s gap (power cycle) before the 4th sample
     rates = [32000.0, 32500.0, 32700.0, -30000.0, -30100.0]
     samples = [
-        qfree.MemsSample(
-            qfree.Stamp("g", k, 2, 1, 1, T0 + ms * 10**6, 0, 0, 0), (0, 0, 0), (r, 0, 0)
-        )
+        logs.MemsSample(logs.Stamp("g", k, 2, 1, 1, T0 + ms * 10**6, 0, 0, 0), (0, 0, 0), (r, 0, 0))
         for k, (ms, r) in enumerate(zip(stamps, rates, strict=True))
     ]
-    series = qfree.imu_series(samples, gyro=qfree.SensorTransform("mdps", np.eye(3)))
+    series = logs.imu_series(samples, gyro=logs.SensorTransform("mdps", np.eye(3)))
     assert series.wraps == []
     np.testing.assert_allclose(series.rate_rad_s[:, 0], np.radians(np.array(rates) / 1000))
 
 
 def test_mounting_rotation_is_proper_and_rotates_vectors_and_covariances():
-    rot = qfree.mounting_rotation(-1.04, 25.10, 180.0)
+    rot = logs.mounting_rotation(-1.04, 25.10, 180.0)
     assert np.linalg.det(rot) == pytest.approx(1.0)
-    np.testing.assert_allclose(qfree.mounting_rotation(0, 0, 90) @ [1, 0, 0], [0, 1, 0], atol=1e-12)
-    np.testing.assert_allclose(qfree.mounting_rotation(90, 0, 0) @ [0, 1, 0], [0, 0, 1], atol=1e-12)
-    sample = qfree.MemsSample(qfree.Stamp("m", 1, 2, 1, 1, T0, 0, 0, 0), (1000, 0, 0), (0, 0, 500))
-    series = qfree.imu_series(
+    np.testing.assert_allclose(logs.mounting_rotation(0, 0, 90) @ [1, 0, 0], [0, 1, 0], atol=1e-12)
+    np.testing.assert_allclose(logs.mounting_rotation(90, 0, 0) @ [0, 1, 0], [0, 0, 1], atol=1e-12)
+    sample = logs.MemsSample(logs.Stamp("m", 1, 2, 1, 1, T0, 0, 0, 0), (1000, 0, 0), (0, 0, 500))
+    series = logs.imu_series(
         [sample],
-        accel=qfree.SensorTransform.mounted("mg", (0, 0, 90)),
-        gyro=qfree.SensorTransform.mounted("dps", (0, 0, 90)),
+        accel=logs.SensorTransform.mounted("mg", (0, 0, 90)),
+        gyro=logs.SensorTransform.mounted("dps", (0, 0, 90)),
     )
     np.testing.assert_allclose(series.accel_m_s2[0], [0, G0, 0], atol=1e-12)
     np.testing.assert_allclose(series.rate_rad_s[0], [0, 0, math.radians(500)])
@@ -245,17 +243,17 @@ def test_thesis_preset_reproduces_its_program_lines():
     acc, gyro = np.array([-123.0, 45.0, 987.0]), np.array([1500.0, -700.0, 2500.0])
     fis_b = rz(math.pi) @ ry(o2) @ rx(o3) @ (0.97396 * 9.82171 * acc / 1000)
     ois_b = np.radians(rz(0) @ ry(o2) @ rx(-o3) @ (-gyro / 1000))
-    sample = qfree.MemsSample(qfree.Stamp("t", 1, 2, 1, 1, T0, 0, 0, 0), tuple(acc), tuple(gyro))
-    accel_t, gyro_t = qfree.thesis_transforms()
-    series = qfree.imu_series(
-        [sample], accel=accel_t, gyro=gyro_t, time_shift_s=qfree.THESIS_LATENCY_S
+    sample = logs.MemsSample(logs.Stamp("t", 1, 2, 1, 1, T0, 0, 0, 0), tuple(acc), tuple(gyro))
+    accel_t, gyro_t = logs.thesis_transforms()
+    series = logs.imu_series(
+        [sample], accel=accel_t, gyro=gyro_t, time_shift_s=logs.THESIS_LATENCY_S
     )
     frd = np.array([1.0, -1.0, -1.0])
     np.testing.assert_allclose(series.accel_m_s2[0] * frd, fis_b, rtol=1e-14, atol=1e-14)
     np.testing.assert_allclose(series.rate_rad_s[0] * frd, ois_b, rtol=1e-14, atol=1e-14)
     assert series.utc_ns[0] - T0 == 1_240_000_000
     # 1000 mg reads 0.97396 * 9.82171 = 9.5659... m/s²; the gyro's matrix is a reflection
-    z = qfree.imu_series([qfree.MemsSample(sample.stamp, (0, 0, 1000), (0, 0, 0))], accel=accel_t)
+    z = logs.imu_series([logs.MemsSample(sample.stamp, (0, 0, 1000), (0, 0, 0))], accel=accel_t)
     assert np.linalg.norm(z.accel_m_s2[0]) == pytest.approx(0.97396 * 9.82171, rel=1e-14)
     assert np.linalg.det(accel_t.matrix) == pytest.approx(1.0)
     assert np.linalg.det(gyro_t.matrix) == pytest.approx(-1.0)
@@ -313,7 +311,7 @@ def test_import_writes_the_documented_topics(tmp_path: Path, capsys: pytest.Capt
     rate = imu.angular_velocity
     np.testing.assert_allclose([rate.x, rate.y], np.radians([0.010, -0.020]))
     np.testing.assert_allclose(
-        np.diag(imu.angular_velocity_covariance.reshape(3, 3)), qfree.GYRO_VARIANCE_RAD2_S2
+        np.diag(imu.angular_velocity_covariance.reshape(3, 3)), logs.GYRO_VARIANCE_RAD2_S2
     )
     rate_z = np.array([m.angular_velocity.z for _, m in msgs["/imu/data_raw"]])
     assert rate_z.max() == pytest.approx(math.radians(40.0), rel=1e-4)  # above the 16-bit limit
@@ -444,6 +442,6 @@ def test_implausible_values_and_time_faults_are_refused_listed_and_counted(
     ],
 )
 def test_implausible_gnss_values_say_why(overrides: dict[str, str], reason: str):
-    epoch = qfree.parse_gnss_line(gnss_line(**overrides))
-    assert reason in (qfree_checks.gnss_problem(epoch) or "")
-    assert qfree_checks.gnss_problem(qfree.parse_gnss_line(gnss_line())) is None
+    epoch = logs.parse_gnss_line(gnss_line(**overrides))
+    assert reason in (checks.gnss_problem(epoch) or "")
+    assert checks.gnss_problem(logs.parse_gnss_line(gnss_line())) is None

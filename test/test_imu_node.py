@@ -222,7 +222,7 @@ def test_power_cycle_on_a_noisy_line_reconnects_on_no_valid_packet():
         ("mode", "fast", "not one of"),
         ("poll_rate", 500.0, "poll_rate"),
         ("axis_map", ["x", "x", "z"], "axis_map"),
-        ("gyro_noise_density", [0.1, 0.1], "three values"),
+        ("gyro_noise_density", [0.1, 0.1], "needs 3 values"),
         ("accel_sign", 0.5, "accel_sign"),
     ],
 )

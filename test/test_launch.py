@@ -16,8 +16,8 @@ from sensor_msgs.msg import Imu, NavSatFix
 from gnss_driver.emulator import EmulatorConfig, GnssEmulator, constant_velocity
 from gnss_driver.profiles import Receiver
 from imu400cc_driver.emulator import Imu400ccEmulator
-from ins_fusion.tools.processes import gnss_ins_command
-from ins_fusion.vehicle_nodes import FUSION, VEHICLE, ros_arguments
+from ins_fusion.runtime.processes import gnss_ins_command
+from ins_fusion.runtime.vehicle_nodes import FUSION, VEHICLE, ros_arguments
 
 pytestmark = pytest.mark.ros
 REPO = Path(__file__).resolve().parents[1]
@@ -51,7 +51,7 @@ def test_ros_launch_file_uses_the_shared_table():
     imported = {
         alias.name
         for node in ast.walk(tree)
-        if isinstance(node, ast.ImportFrom) and node.module == "ins_fusion.vehicle_nodes"
+        if isinstance(node, ast.ImportFrom) and node.module == "ins_fusion.runtime.vehicle_nodes"
         for alias in node.names
     }
     assert {"VEHICLE", "DEFAULT_PORTS"} <= imported

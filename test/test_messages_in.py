@@ -1,6 +1,6 @@
-"""ins_fusion.messages_in: the node's and the replay's one reading of the input messages.
+"""ins_fusion.adapters.messages_in: the node's and the replay's one reading of the input messages.
 
-Messages are built with the drivers' own fill functions (sim.messages, rosbags message objects)
+Messages are built with the drivers' own fill functions (bags.messages, rosbags message objects)
 and as plain attribute objects holding array.array fields the way rclpy messages do.
 """
 
@@ -13,15 +13,10 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from ins_fusion import messages_in
-from ins_fusion.replay.topics import FIX_TYPE, IMU_TYPE, VELOCITY_TYPE
-from ins_fusion.sim.messages import (
-    fill_imu,
-    fill_navsatfix,
-    fill_orientation,
-    fill_velocity,
-    new_message,
-)
+from gnss_ins_common.message_fields import fill_imu, fill_navsatfix, fill_orientation, fill_velocity
+from ins_fusion.adapters import messages_in
+from ins_fusion.bags.messages import new_message
+from ins_fusion.bags.topics import FIX_TYPE, IMU_TYPE, VELOCITY_TYPE
 
 T_NS = 1_717_236_000_123_456_789
 T_S = 1_717_236_000 + 0.123456789

@@ -25,7 +25,7 @@ from rosbags.interfaces import QosReliability
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, NavSatFix
 
-from ins_fusion.tools.bag_io import BagReader, BagWriter
+from ins_fusion.bags.bag_io import BagReader, BagWriter
 from ins_fusion.tools.cli import main
 
 pytestmark = pytest.mark.ros

@@ -12,9 +12,9 @@ import json
 import numpy as np
 import pytest
 
-from ins_fusion.sim.topics import SimulationConfig
+from ins_fusion.bags.bag_io import BagReader, BagWriter
+from ins_fusion.sim.drive import SimulationConfig
 from ins_fusion.tools import cli
-from ins_fusion.tools.bag_io import BagReader, BagWriter
 from ins_fusion.tools.simulate import write_bag
 
 DURATION_S = 90.0

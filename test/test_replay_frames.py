@@ -15,19 +15,19 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from ins_fusion.adapters.messages_in import ImuSample
+from ins_fusion.bags.bag_io import BagReader, BagWriter
 from ins_fusion.core import earth
 from ins_fusion.core.config import FusionConfig
-from ins_fusion.core.engine import InsSolution, _mat_from_rpy_flu
-from ins_fusion.core.rotation import MAT_FLU_FRD
-from ins_fusion.messages_in import ImuSample
+from ins_fusion.core.engine import InsSolution
+from ins_fusion.core.rotation import MAT_FLU_FRD, mat_from_rpy_flu
 from ins_fusion.replay import metrics, pipeline
 from ins_fusion.replay.frames import comparison_frame, mounting_quat, moved_track
 from ins_fusion.replay.inputs import ImuSeries, Reference, ReplayInputs, Series
 from ins_fusion.replay.run import FusionRun, SolutionTrack
 from ins_fusion.replay.topics import TopicMap
-from ins_fusion.sim.topics import SimulationConfig
+from ins_fusion.sim.drive import SimulationConfig
 from ins_fusion.tools import cli
-from ins_fusion.tools.bag_io import BagReader, BagWriter
 from ins_fusion.tools.simulate import write_bag
 
 DATUM = (57.0, 10.0, 40.0)
@@ -117,7 +117,7 @@ def _replay(monkeypatch, frame_id, imu_frame="imu_link"):
 
 def test_mounting_follows_the_engine_convention():
     rpy = np.radians([2.0, 3.0, -5.0])
-    expected = MAT_FLU_FRD @ _mat_from_rpy_flu(rpy) @ MAT_FLU_FRD  # imu FLU -> base FLU
+    expected = MAT_FLU_FRD @ mat_from_rpy_flu(rpy) @ MAT_FLU_FRD  # imu FLU -> base FLU
     assert Rotation.from_quat(mounting_quat(rpy)).as_matrix() == pytest.approx(expected, abs=1e-15)
 
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ins_fusion.adapters.messages_in import ImuSample
 from ins_fusion.core.measurements import GnssFixMeasurement
-from ins_fusion.messages_in import ImuSample
 from ins_fusion.replay.inputs import ImuSeries, ReplayInputs
 from ins_fusion.replay.run import run_fusion
 from ins_fusion.replay.topics import TopicMap

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from gnss_ins_common.params import ParameterValueError
+from ins_fusion.adapters.messages_in import ImuSample
 from ins_fusion.core.measurements import GnssFixMeasurement, GnssVelocityMeasurement
-from ins_fusion.messages_in import ImuSample
 from ins_fusion.replay import run as replay_run
 from ins_fusion.replay.inputs import ImuSeries, ReplayInputs, TopicMap
 from ins_fusion.replay.outages import Outage
@@ -32,7 +32,7 @@ def test_settings_are_read_as_yaml_and_validated_like_the_node():
         ("zupt_sigma", "not name=value"),
         ("zupt_sigma=-1", r"parameter 'zupt_sigma': -1 is outside \[0.0001, 10.0\]"),
         ("use_nhc=maybe", "parameter 'use_nhc': expected bool"),
-        ("gnss_lever_arm=[1, 2]", "needs three values"),
+        ("gnss_lever_arm=[1, 2]", "needs 3 values"),
         ("zupt_sigma=[1", "cannot read"),
     ],
 )

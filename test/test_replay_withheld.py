@@ -15,6 +15,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 from test_replay_metrics import _solution as metrics_solution
 
+from ins_fusion.bags.bag_io import BagReader, BagWriter
 from ins_fusion.core import earth
 from ins_fusion.core.measurements import GnssFixMeasurement
 from ins_fusion.replay.frames import lever_arm_covariance, moved_track
@@ -22,9 +23,8 @@ from ins_fusion.replay.outages import Outage
 from ins_fusion.replay.ranking import RANK_METRICS
 from ins_fusion.replay.run import SolutionTrack
 from ins_fusion.replay.withheld import evaluate_withheld, withheld_stats
-from ins_fusion.sim.topics import SimulationConfig
+from ins_fusion.sim.drive import SimulationConfig
 from ins_fusion.tools import cli
-from ins_fusion.tools.bag_io import BagReader, BagWriter
 from ins_fusion.tools.simulate import write_bag
 
 DATUM = (57.0, 10.0, 40.0)

@@ -8,8 +8,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from ins_fusion.bags.topics import GNSS_FIX
 from ins_fusion.core import earth
 from ins_fusion.core.rotation import euler_from_quat, quat_nb_from_enu_flu
+from ins_fusion.sim.drive import Simulation, SimulationConfig
 from ins_fusion.sim.gnss_model import (
     FIX_NOISE,
     PROFILES,
@@ -19,7 +21,6 @@ from ins_fusion.sim.gnss_model import (
     GnssSchedule,
 )
 from ins_fusion.sim.scenarios import SURVEY_CAR, seed_test_pattern
-from ins_fusion.sim.topics import GNSS_FIX, Simulation, SimulationConfig
 from ins_fusion.sim.vehicle import TruthCache, VehicleTruth
 
 TRUTH = VehicleTruth(seed_test_pattern(), SURVEY_CAR)

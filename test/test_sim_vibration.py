@@ -12,9 +12,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import signal
 
-from ins_fusion.sim import topics as T  # noqa: N812
+from ins_fusion.bags import topics as T  # noqa: N812
+from ins_fusion.bags.bag_io import BagReader
 from ins_fusion.sim import vibration
-from ins_fusion.sim.topics import Simulation, SimulationConfig
+from ins_fusion.sim.drive import Simulation, SimulationConfig
 from ins_fusion.sim.vibration import (
     CAR,
     NONE,
@@ -25,7 +26,6 @@ from ins_fusion.sim.vibration import (
     vibration_sigma,
 )
 from ins_fusion.tools import cli
-from ins_fusion.tools.bag_io import BagReader
 from ins_fusion.tools.simulate import LiveImu
 
 RATE_HZ = 134.0

@@ -20,13 +20,14 @@ from gnss_driver.profiles import Receiver
 from gnss_driver.utc import DateSource, UtcTime
 from gnss_ins_common.axes import AxisMap
 from imu400cc_driver import node as imu_node
-from imu400cc_driver.axes import measurement_to_packet, packet_to_measurement
+from imu400cc_driver.axes import ImuMeasurement, measurement_to_packet, packet_to_measurement
+from imu400cc_driver.driver import ImuDriver, ImuSample
 from imu400cc_driver.protocol import Scaling
-from ins_fusion.sim import topics as T  # noqa: N812
-from ins_fusion.sim.messages import new_message, stamp_ns
-from ins_fusion.sim.topics import Simulation, SimulationConfig, SkyZoneSpec
+from ins_fusion.bags import topics as T  # noqa: N812
+from ins_fusion.bags.bag_io import BagReader, jazzy_typestore
+from ins_fusion.bags.messages import new_message
+from ins_fusion.sim.drive import DEFAULT_START_NS, Simulation, SimulationConfig, SkyZoneSpec
 from ins_fusion.tools import cli
-from ins_fusion.tools.bag_io import BagReader, jazzy_typestore
 
 #: A moving, turning drive (60 km/h, 90° turn) with a scheduled outage and a bridge.
 CONFIG = SimulationConfig(
@@ -121,7 +122,7 @@ def test_same_seed_same_messages_other_seed_other_noise():
 def test_imu_topics_follow_rep145_and_the_driver_stamps(bag):
     imu = bag[T.IMU_DATA]
     stamps = np.array([_stamp(m) for _, m in imu])
-    assert stamps[0] == T.DEFAULT_START_NS
+    assert stamps[0] == DEFAULT_START_NS
     assert np.diff(stamps) == pytest.approx(1e9 / 134, abs=1)
     assert all(log - _stamp(m) == 4_687_500 for log, m in imu)  # 18 bytes at 38400 baud
     gyro_var = np.array([0.0041, 0.0040, 0.0048]) ** 2  # (7.14), the node's defaults
@@ -145,11 +146,11 @@ def test_imu_topics_follow_rep145_and_the_driver_stamps(bag):
 
 def test_gnss_topics_follow_gnss_node(bag):
     fixes = bag[T.GNSS_FIX]
-    assert [_stamp(m) for _, m in fixes] == [T.DEFAULT_START_NS + k * 10**9 for k in range(16)]
+    assert [_stamp(m) for _, m in fixes] == [DEFAULT_START_NS + k * 10**9 for k in range(16)]
     assert all(log - _stamp(m) == 53_000_000 for log, m in fixes)  # leica_rtk latency
     for _, m in fixes:
         assert m.header.frame_id == "gnss_link"
-        t = m.header.stamp.sec - T.DEFAULT_START_NS // 10**9
+        t = m.header.stamp.sec - DEFAULT_START_NS // 10**9
         if 4 <= t < 7:
             assert m.status.status == -1 and math.isnan(m.latitude)
             assert m.position_covariance_type == 0
@@ -187,7 +188,7 @@ def test_truth_topics_are_base_link_exactly(bag):
     fix, vel, att = (bag[topic][::97] for topic in (T.TRUTH_FIX, T.TRUTH_VEL, T.TRUTH_ATTITUDE))
     for i in range(len(t)):
         (log, f), (_, v), (_, a) = fix[i], vel[i], att[i]
-        assert log == _stamp(f) == _stamp(v) == _stamp(a) == T.DEFAULT_START_NS + round(t[i] * 1e9)
+        assert log == _stamp(f) == _stamp(v) == _stamp(a) == DEFAULT_START_NS + round(t[i] * 1e9)
         assert {f.header.frame_id, v.header.frame_id, a.header.frame_id} == {"base_link"}
         assert (f.latitude, f.longitude) == pytest.approx(
             (math.degrees(truth.lat_rad[i]), math.degrees(truth.lon_rad[i])), abs=1e-12
@@ -223,8 +224,7 @@ def test_imu_messages_are_what_imu400cc_node_publishes():
     stub, published = _node_stub(
         imu_node.Imu400ccNode,
         _frame_id=defaults["frame_id"],
-        _gyro_cov=[d * d * 134.0 for d in defaults["gyro_noise_density"]],
-        _accel_cov=[d * d * 134.0 for d in defaults["accel_noise_density"]],
+        _driver=ImuDriver(imu_node.driver_config(defaults)),
     )
     config = dataclasses.replace(CONFIG, duration_s=1.0, sky_zones=())
     events = Simulation(config).imu_events(0.0, 1.0)
@@ -234,7 +234,8 @@ def test_imu_messages_are_what_imu400cc_node_publishes():
         m = event.message
         stamp_s = _stamp(m) / 1e9
         if event.topic == T.IMU_TEMPERATURE:
-            stub._publish_temperature(stamp_s, m.temperature)
+            still = ImuMeasurement(np.zeros(3), np.zeros(3), m.temperature, 0)
+            stub._publish(ImuSample(stamp_s, still, with_temperature=True))
             node_msg = _from_rclpy(published["_temp_pub"][-1], "sensor_msgs/msg/Temperature")
         else:
             w, f = m.angular_velocity, m.linear_acceleration
@@ -244,7 +245,7 @@ def test_imu_messages_are_what_imu400cc_node_publishes():
             measured = packet_to_measurement(
                 packet, scaling, axes, defaults["accel_sign"], defaults["gravity"]
             )
-            stub._publish(stamp_s, measured.rate_flu_rad_s, measured.specific_force_flu_m_s2)
+            stub._publish(ImuSample(stamp_s, measured, with_temperature=False))
             node_msg = _from_rclpy(published["_imu_pub"][-1], "sensor_msgs/msg/Imu")
             # Same device counts: equal to rounding; the node's covariances come from densities
             # rounded to 1e-9.
@@ -308,7 +309,7 @@ def test_gnss_messages_are_what_gnss_node_publishes():
 def test_message_helpers_fill_rclpy_messages_alike():
     from sensor_msgs.msg import Imu
 
-    from ins_fusion.sim.messages import fill_imu
+    from gnss_ins_common.message_fields import fill_imu, stamp_ns
 
     args = (
         1_717_236_000_123_456_789,

@@ -21,7 +21,7 @@ from gnss_ins_common.axes import AxisMap
 from imu400cc_driver.axes import DEFAULT_AXIS_SPEC, packet_to_measurement
 from imu400cc_driver.framer import PacketFramer
 from imu400cc_driver.protocol import Scaling
-from ins_fusion.tools.bag_io import BagReader
+from ins_fusion.bags.bag_io import BagReader
 
 DURATION_S = 6.0
 

@@ -1,4 +1,4 @@
-"""ins_fusion.solution_out: the fused solution as Odometry numbers (frames and covariances)."""
+"""adapters.solution_out: the fused solution as Odometry numbers (frames and covariances)."""
 
 from __future__ import annotations
 
@@ -11,8 +11,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
+from ins_fusion.adapters.solution_out import odometry_arrays, publishable
 from ins_fusion.core.engine import InsSolution
-from ins_fusion.solution_out import odometry_arrays, publishable
 
 
 def _solution(yaw_deg: float, vel_enu, cov_vel) -> InsSolution:

@@ -12,9 +12,9 @@ from ros_harness import overrides, spinning, wait_for
 from scipy.spatial.transform import Rotation
 from tf2_msgs.msg import TFMessage
 
-from ins_fusion.fusion_params import PARAMETERS
+from ins_fusion.adapters.tf_frames import quat_from_rpy_deg, static_transforms, world_frame
+from ins_fusion.core.params import PARAMETERS
 from ins_fusion.node import InsFusionNode
-from ins_fusion.tf_frames import quat_from_rpy_deg, static_transforms, world_frame
 
 pytestmark = pytest.mark.ros
 DEFAULTS = {spec.name: spec.default for spec in PARAMETERS}

@@ -1,13 +1,12 @@
 """Laboratory calibration of an IMU from recorded bags (no ROS): ``gnss_ins calibrate``.
 
 The methods of the Aalborg report (shared/reference/imu400cc-aalborg-notes.md §4, "notes" below)
-estimate the deterministic errors of the observation model (2.1)/(2.2) that
-ins_fusion.core.calibration corrects, each with its own observation equations and an uncertainty
-propagated from the noise of the data (§4.4):
+estimate, from the IMU records of bags (ins_fusion.bags.imu), the deterministic errors of the
+observation model (2.1)/(2.2) that ins_fusion.core.calibration corrects, each with its own
+observation equations and an uncertainty propagated from the noise of the data (§4.4):
 
 | module | what |
 |---|---|
-| ``record`` | a bag's imu/data_raw and imu/temperature as arrays; writing such bags |
 | ``segments`` | static and steady-rotation segments: automatic detection or given windows |
 | ``model`` | site (gravity, earth rate) and bias instability of the observations |
 | ``lsq`` | weighted least squares with correlated observations |

@@ -31,8 +31,8 @@ from scipy.spatial.transform import Rotation
 
 from gnss_ins_common.axes import AxisMap
 from gnss_ins_common.types import FloatArray
+from ins_fusion.bags.imu import ImuRecord
 from ins_fusion.calibration_id.lsq import EstimationError
-from ins_fusion.calibration_id.record import ImuRecord
 from ins_fusion.calibration_id.segments import Segment
 from ins_fusion.calibration_id.static import AXES, axis_label, up_axis
 

@@ -20,10 +20,11 @@ import yaml
 from gnss_ins_common.axes import AxisMap
 from gnss_ins_common.params import ParameterValueError, load_yaml
 from imu400cc_driver.axes import DEFAULT_ACCEL_SIGN, DEFAULT_AXIS_SPEC
+from ins_fusion.bags.bag_io import BagError
+from ins_fusion.bags.imu import ImuRecord, read_imu
 from ins_fusion.calibration_id import axes, rotation, static
 from ins_fusion.calibration_id.lsq import EstimationError
 from ins_fusion.calibration_id.model import BiasInstability, Site
-from ins_fusion.calibration_id.record import ImuRecord, RecordError, read_bag
 from ins_fusion.calibration_id.report import METHOD_TITLES, decimals, write_report
 from ins_fusion.calibration_id.result import CalibrationResult, calibration_mapping
 from ins_fusion.calibration_id.segments import (
@@ -37,8 +38,8 @@ from ins_fusion.calibration_id.segments import (
 )
 from ins_fusion.core.calibration import CalibrationError, ImuCalibration
 from ins_fusion.core.config import NODE_NAME as FUSION_NODE
+from ins_fusion.core.params import PARAMETERS as FUSION_PARAMETERS
 from ins_fusion.core.units import STANDARD_GRAVITY_M_S2, deg_h, mg
-from ins_fusion.fusion_params import PARAMETERS as FUSION_PARAMETERS
 
 STATIC_METHODS = ("six-position", "salychev", "known-attitude", "unknown-attitude")
 METHODS = (*STATIC_METHODS, "rate-table", "known-angle", "axes")
@@ -51,7 +52,7 @@ class UsageError(ValueError):
 
 
 #: Bad input (and files that cannot be written): a message and exit status 2.
-INPUT_ERRORS = (UsageError, RecordError, SegmentError, EstimationError, CalibrationError, OSError)
+INPUT_ERRORS = (UsageError, BagError, SegmentError, EstimationError, CalibrationError, OSError)
 
 
 def execute(args: argparse.Namespace) -> int:
@@ -368,7 +369,7 @@ def _summary(result: CalibrationResult, check: axes.AxisCheck | None) -> str:
 def _run(args: argparse.Namespace) -> int:
     _check_usage(args)
     settings = _detector(args)
-    records = [read_bag(path, args.imu_topic, args.temperature_topic) for path in args.bags]
+    records = [read_imu(path, args.imu_topic, args.temperature_topic) for path in args.bags]
     segments = find_segments(records, args.segments, settings)
     if not segments:
         raise SegmentError(

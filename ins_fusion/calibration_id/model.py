@@ -20,11 +20,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gnss_ins_common.types import FloatArray
+from gnss_ins_common.types import FloatArray, Vec3
 from ins_fusion.calibration_id.segments import Segment
 from ins_fusion.core.earth import EARTH_RATE_RAD_S, normal_gravity_m_s2
-
-Vec3 = tuple[float, float, float]
 
 
 @dataclass(frozen=True)

@@ -13,9 +13,9 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
+from ins_fusion.bags.imu import ImuRecord
 from ins_fusion.calibration_id.axes import DEFAULT_POSITIONS
 from ins_fusion.calibration_id.procedures import up_attitude
-from ins_fusion.calibration_id.record import ImuRecord
 from ins_fusion.calibration_id.segments import Kind, Segment
 
 #: Samples drawn per record at most (decimated evenly).

@@ -22,10 +22,10 @@ from scipy.spatial.transform import Rotation
 
 from gnss_ins_common.axes import AxisMap
 from gnss_ins_common.types import FloatArray
+from ins_fusion.bags.imu import ImuRecord
 from ins_fusion.calibration_id.model import Site
-from ins_fusion.calibration_id.record import ImuRecord
+from ins_fusion.sim.drive import DEFAULT_START_NS
 from ins_fusion.sim.imu_model import ImuErrorModel, ImuProfile
-from ins_fusion.sim.topics import DEFAULT_START_NS
 
 #: Temperature messages per second (imu400cc_node's temperature_rate).
 TEMPERATURE_RATE_HZ = 1.0
@@ -250,6 +250,6 @@ def simulate(
     t_temp = np.arange(0.0, t[-1], 1.0 / TEMPERATURE_RATE_HZ)
     start_s = start_ns / 1e9
     record = ImuRecord(
-        name, start_s + t, rate_m, force_m, start_s + t_temp, model.temperature_c(t_temp)
+        start_s + t, rate_m, force_m, start_s + t_temp, model.temperature_c(t_temp), name=name
     )
     return record, model

@@ -10,8 +10,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from ins_fusion.bags.imu import ImuRecord
 from ins_fusion.calibration_id.axes import AxisCheck
-from ins_fusion.calibration_id.record import ImuRecord
 from ins_fusion.calibration_id.result import CalibrationResult, Estimate, Quantity
 from ins_fusion.calibration_id.static import AXES
 

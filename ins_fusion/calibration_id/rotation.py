@@ -29,9 +29,9 @@ import numpy as np
 from scipy.integrate import trapezoid
 
 from gnss_ins_common.types import FloatArray
+from ins_fusion.bags.imu import ImuRecord
 from ins_fusion.calibration_id.lsq import EstimationError
 from ins_fusion.calibration_id.model import BiasInstability
-from ins_fusion.calibration_id.record import ImuRecord
 from ins_fusion.calibration_id.result import (
     CalibrationResult,
     Estimate,

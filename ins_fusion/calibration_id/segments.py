@@ -24,7 +24,7 @@ from enum import StrEnum
 import numpy as np
 
 from gnss_ins_common.types import FloatArray
-from ins_fusion.calibration_id.record import ImuRecord
+from ins_fusion.bags.imu import ImuRecord
 
 #: Batch-means blocks: at most this many, each at least MIN_BLOCK_S long (far longer than the
 #: correlation of band-limited sensor noise, 6 ms at 25 Hz).
@@ -193,12 +193,10 @@ def from_window(
     if duration < shortest:
         raise SegmentError(f"{where}: {duration:.1f} s is shorter than the minimum {shortest:g} s")
     part = ImuRecord(
-        record.name,
         record.t_s[start:stop],
         record.rate_flu_rad_s[start:stop],
         record.force_flu_m_s2[start:stop],
-        record.temperature_t_s[:0],
-        record.temperature_c[:0],
+        name=record.name,
     )
     worst, _ = _window_ok(part, settings)
     if len(worst) and float(worst.max()) > 1.0:

@@ -36,7 +36,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ins_fusion.core.rotation import FloatArray
+from gnss_ins_common.types import FloatArray
 
 #: A squared difference above this many times the running mean is clipped to it.
 _CLIP = 9.0

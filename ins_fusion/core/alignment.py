@@ -16,10 +16,8 @@ import math
 
 import numpy as np
 
+from gnss_ins_common.types import FloatArray, Vec3
 from ins_fusion.core import earth
-from ins_fusion.core.rotation import FloatArray
-
-Vec3 = tuple[float, float, float]
 
 
 def level(mean_force_frd_m_s2: FloatArray) -> tuple[float, float]:

@@ -65,10 +65,9 @@ import numpy as np
 import yaml
 
 from gnss_ins_common.axes import AxisMap
+from gnss_ins_common.types import Mat3, Vec3
 from ins_fusion.core.units import STANDARD_GRAVITY_M_S2, deg_s, mg, percent
 
-Vec3 = tuple[float, float, float]
-Mat3 = tuple[Vec3, Vec3, Vec3]
 _ZERO3: Vec3 = (0.0, 0.0, 0.0)
 _ZERO33: Mat3 = (_ZERO3, _ZERO3, _ZERO3)
 

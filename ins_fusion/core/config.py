@@ -1,6 +1,6 @@
 """Typed configuration of the fusion engine, built from the flat parameter dict (SI inside).
 
-The one parameter table is ins_fusion.fusion_params.PARAMETERS (user units: deg/sqrt(h), deg/h,
+The one parameter table is ins_fusion.core.params.PARAMETERS (user units: deg/sqrt(h), deg/h,
 mg, ppm, degrees); ``FusionConfig.from_parameters`` validates a flat dict against it (unknown
 names and bad values raise gnss_ins_common.params.ParameterValueError) and converts to SI.
 """
@@ -14,10 +14,9 @@ from pathlib import Path
 from typing import Any
 
 from gnss_ins_common.params import load_yaml, validate_all
+from gnss_ins_common.types import Vec3
+from ins_fusion.core.params import PARAMETERS
 from ins_fusion.core.units import deg_h, deg_s, deg_sqrt_h, m_s_sqrt_h, mg, ppm
-from ins_fusion.fusion_params import PARAMETERS
-
-Vec3 = tuple[float, float, float]
 
 #: Node name of the parameter section in config/ins_fusion.yaml.
 NODE_NAME = "ins_fusion_node"
@@ -67,7 +66,7 @@ class StopDetectorConfig:
 
 @dataclass(frozen=True)
 class FusionConfig:
-    """Everything the engine needs, SI units and radians; see fusion_params for meanings."""
+    """Everything the engine needs, SI units and radians; see core.params for meanings."""
 
     imu_noise: ImuNoise
     imu_mounting_rpy_rad: Vec3

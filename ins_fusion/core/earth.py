@@ -13,9 +13,9 @@ from typing import TypeVar
 
 import numpy as np
 import pymap3d
-from numpy.typing import NDArray
 
-FloatArray = NDArray[np.float64]
+from gnss_ins_common.types import FloatArray
+
 F = TypeVar("F", float, FloatArray)
 
 #: WGS-84 semi-major axis [m] (Aalborg notes §5.1 and §10, App. B.2).
@@ -43,6 +43,19 @@ def radii_m(lat_rad: F) -> tuple[F, F]:
     and (C-1.19), where they are called R_N and R_E.
     """
     return radii_from_sin(_sin_cos(lat_rad)[0])
+
+
+def displace(
+    lat_rad: float, lon_rad: float, height_m: float, north_m: float, east_m: float, down_m: float
+) -> tuple[float, float, float]:
+    """The geodetic position (lat, lon [rad], ellipsoidal height [m]) a small NED offset [m]
+    away, with the curvature radii at ``lat_rad`` (first order: offsets far below the radii)."""
+    r_m, r_n = radii_m(lat_rad)
+    return (
+        lat_rad + north_m / (r_m + height_m),
+        lon_rad + east_m / ((r_n + height_m) * math.cos(lat_rad)),
+        height_m - down_m,
+    )
 
 
 def radii_from_sin(sin_lat: F) -> tuple[F, F]:

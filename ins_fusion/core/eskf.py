@@ -48,9 +48,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.stats import chi2
 
+from gnss_ins_common.types import FloatArray
 from ins_fusion.core import earth
 from ins_fusion.core.config import ImuNoise
-from ins_fusion.core.rotation import FloatArray
+from ins_fusion.core.smoother import SmootherHooks
 
 #: First index of each always-present block of the error state.
 POS, VEL, ATT, BG, BA = 0, 3, 6, 9, 12
@@ -94,12 +95,6 @@ class StateLayout:
         object.__setattr__(self, "size", next_index)
 
 
-def skew(v: FloatArray | tuple[float, float, float]) -> FloatArray:
-    """[v×]: the matrix with [v×] a = v × a."""
-    x, y, z = float(v[0]), float(v[1]), float(v[2])
-    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
-
-
 def chi2_threshold(probability: float, dof: int) -> float:
     """Gate: normalised innovation squared accepted below this (chi-square quantile)."""
     return float(chi2.ppf(probability, dof))
@@ -128,6 +123,10 @@ class ErrorStateFilter:
         self.layout = layout
         self.P: FloatArray = np.zeros((n, n))
         self._eye = np.eye(n)
+        #: Transition matrix Φ of the last ``propagate`` (a new array per call).
+        self.phi: FloatArray = self._eye
+        #: Observer of the covariance's changes (the RTS smoother's recorder), set by the engine.
+        self.recorder: SmootherHooks | None = None
         # F and Q are rebuilt block by block through views; constant blocks are set once.
         F = self._F = np.zeros((n, n))
         F[POS : POS + 3, VEL : VEL + 3] = np.eye(3)
@@ -251,6 +250,7 @@ class ErrorStateFilter:
         P = phi @ (self.P + q) @ phi.T
         P += q
         self.P = P
+        self.phi = phi  # RTS smoother hook (core.smoother): the transition of this interval
 
     def set_white_noise(self, gyro_psd: FloatArray, accel_psd: FloatArray) -> None:
         """White-noise power densities per imu axis from now on: gyro [rad²/s] (ARW²),

@@ -15,9 +15,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from gnss_ins_common.types import FloatArray
 from ins_fusion.core import earth
-from ins_fusion.core.eskf import ATT, BG, POS, VEL, StateLayout, skew
-from ins_fusion.core.rotation import MAT_ENU_NED, FloatArray
+from ins_fusion.core.eskf import ATT, BG, POS, VEL, StateLayout
+from ins_fusion.core.rotation import MAT_ENU_NED, euler_rad, skew, wrap_angle
 
 #: A variance at or above this marks a component as not measured: GNSS vertical velocity [m²/s²]
 #: (the contract of gnss/vel) and attitude angles [rad²].
@@ -178,17 +179,6 @@ def gnss_velocity(
     return z[:rows], H[:rows], cov[:rows, :rows]
 
 
-def euler_rad(mat_nb: FloatArray) -> FloatArray:
-    """(roll, pitch, yaw) [rad] of an FRD -> NED rotation matrix (Aalborg notes (7.16)-(7.18))."""
-    return np.array(
-        [
-            math.atan2(mat_nb[2, 1], mat_nb[2, 2]),
-            -math.asin(max(-1.0, min(1.0, mat_nb[2, 0]))),
-            math.atan2(mat_nb[1, 0], mat_nb[0, 0]),
-        ]
-    )
-
-
 def euler_jacobian(mat_nb: FloatArray) -> FloatArray:
     """d(roll, pitch, yaw)/dψ for C_true = (I + [ψ×]) C (rows roll, pitch, yaw)."""
     c = mat_nb
@@ -206,11 +196,6 @@ def euler_jacobian(mat_nb: FloatArray) -> FloatArray:
             [-c[0, 0] * c[2, 0] / d_yaw, -c[1, 0] * c[2, 0] / d_yaw, 1.0],
         ]
     )
-
-
-def wrap_angle(angle_rad: FloatArray) -> FloatArray:
-    """Angles wrapped to [-π, π)."""
-    return np.asarray((angle_rad + math.pi) % (2.0 * math.pi) - math.pi, dtype=np.float64)
 
 
 def attitude(

@@ -13,14 +13,12 @@ arithmetic. Batch conversions use scipy.spatial.transform.Rotation.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
-from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-FloatArray = NDArray[np.float64]
-Quat = tuple[float, float, float, float]
-Vec3 = tuple[float, float, float]
+from gnss_ins_common.types import FloatArray, Quat, Vec3
 
 #: NED -> ENU (and ENU -> NED): swap the first two axes and negate the third (REP-103).
 MAT_ENU_NED: FloatArray = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
@@ -28,6 +26,9 @@ MAT_ENU_NED: FloatArray = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0,
 MAT_FLU_FRD: FloatArray = np.diag([1.0, -1.0, -1.0])
 _ROT_FLU_FRD = Rotation.from_matrix(MAT_FLU_FRD)  # 180° about x
 _ROT_ENU_NED = Rotation.from_matrix(MAT_ENU_NED)  # 180° about (N+E)/sqrt(2)
+#: ENU <-> NED quaternion (180° about (N+E)/√2) and FRD <-> FLU (180° about x), scalar last.
+_Q_ENU_NED: Quat = (math.sqrt(0.5), math.sqrt(0.5), 0.0, 0.0)
+_Q_FRD_FLU: Quat = (1.0, 0.0, 0.0, 0.0)
 
 
 def quat_multiply(q: Quat, p: Quat) -> Quat:
@@ -132,3 +133,54 @@ def quat_nb_from_enu_flu(quat_enu_flu: FloatArray) -> FloatArray:
     """Body (FLU) -> ENU quaternion(s) -> body (FRD) -> NED quaternion(s)."""
     rot = _ROT_ENU_NED * Rotation.from_quat(quat_enu_flu) * _ROT_FLU_FRD
     return np.asarray(rot.as_quat(canonical=True), dtype=np.float64)
+
+
+def skew(v: FloatArray | Vec3) -> FloatArray:
+    """[v×]: the matrix with [v×] a = v × a."""
+    x, y, z = float(v[0]), float(v[1]), float(v[2])
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+
+
+def euler_rad(mat_nb: FloatArray) -> FloatArray:
+    """(roll, pitch, yaw) [rad] of an FRD -> NED rotation matrix (Aalborg notes (7.16)-(7.18))."""
+    return np.array(
+        [
+            math.atan2(mat_nb[2, 1], mat_nb[2, 2]),
+            -math.asin(max(-1.0, min(1.0, mat_nb[2, 0]))),
+            math.atan2(mat_nb[1, 0], mat_nb[0, 0]),
+        ]
+    )
+
+
+def wrap_angle(angle_rad: FloatArray) -> FloatArray:
+    """Angles wrapped to [-π, π)."""
+    return np.asarray((angle_rad + math.pi) % (2.0 * math.pi) - math.pi, dtype=np.float64)
+
+
+def as_quat(values: FloatArray) -> Quat:
+    """A quaternion array (x, y, z, w) as a float tuple (the hot-path form)."""
+    x, y, z, w = values.tolist()
+    return (x, y, z, w)
+
+
+def quat_enu_flu(quat_nb: Quat) -> Quat:
+    """REP-103 orientation (FLU in ENU) of a body (FRD) -> NED quaternion, w >= 0; also the
+    inverse map, as both frame changes are half turns (``quat_nb_from_enu_flu``)."""
+    return quat_normalize(quat_multiply(quat_multiply(_Q_ENU_NED, quat_nb), _Q_FRD_FLU))
+
+
+def flu_to_frd_array(v_flu: Sequence[float]) -> FloatArray:
+    """A FLU vector (any sequence) as an FRD array (y and z negated)."""
+    return np.array([v_flu[0], -v_flu[1], -v_flu[2]], dtype=np.float64)
+
+
+def mat_from_rpy_flu(rpy_rad: Sequence[float]) -> FloatArray:
+    """FRD -> FRD rotation of a sensor whose FLU frame has REP-103 roll, pitch, yaw in base_link."""
+    q = quat_from_euler(rpy_rad[0], rpy_rad[1], rpy_rad[2])
+    mat = mat_from_quat(*q.tolist())
+    return np.asarray(MAT_FLU_FRD @ mat @ MAT_FLU_FRD, dtype=np.float64)
+
+
+def enu_skew(x: float, y: float, z: float) -> tuple[Vec3, Vec3, Vec3]:
+    """MAT_ENU_NED @ [v×] for a NED vector v = (x, y, z): the rows of [v×] for E, N and -D."""
+    return ((z, 0.0, -x), (0.0, -z, y), (y, -x, 0.0))

@@ -28,10 +28,8 @@ import collections
 
 import numpy as np
 
+from gnss_ins_common.types import FloatArray, Vec3
 from ins_fusion.core.config import StopDetectorConfig
-from ins_fusion.core.rotation import FloatArray
-
-Vec3 = tuple[float, float, float]
 
 #: A GNSS speed older than this no longer vetoes or confirms a stop [s].
 GNSS_SPEED_MAX_AGE_S = 2.0

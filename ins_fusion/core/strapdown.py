@@ -22,10 +22,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gnss_ins_common.types import FloatArray, Vec3
 from ins_fusion.core import earth
 from ins_fusion.core.rotation import (
-    FloatArray,
-    Vec3,
     euler_from_quat,
     mat_from_quat,
     ned_to_enu,

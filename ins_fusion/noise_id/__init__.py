@@ -5,8 +5,9 @@
 - ``terms``: the IEEE 952 noise terms fitted to a curve (quantisation, white noise, Gauss-Markov
   or flicker bias instability, random walk) with their confidence intervals, and the classic
   flat-minimum read-off.
-- ``record``: a static IMU record (sample times, rates, specific forces), its sample clock and
-  the checks that refuse irregular, non-finite, constant or moving records.
+- ``record``: the sample clock of a static IMU record (ins_fusion.bags.imu.ImuRecord: sample
+  times, rates, specific forces) and the checks that refuse irregular, non-finite, constant or
+  moving records.
 - ``whittle``: white noise, Gauss-Markov bias and random walk fitted to the samples by the
   debiased Whittle likelihood of their block means, with Fisher-information errors.
 - ``likelihood``: the Allan fit's terms with the bias and random walk of the Whittle fit.

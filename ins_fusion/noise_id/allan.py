@@ -22,11 +22,8 @@ from dataclasses import dataclass, replace
 
 import allantools
 import numpy as np
-from numpy.typing import NDArray
 
-from ins_fusion.core.rotation import FloatArray
-
-IntArray = NDArray[np.int64]
+from gnss_ins_common.types import FloatArray, IntArray
 
 #: Probability of a ±1σ interval of a normal variable (allantools' default, 0.6827).
 ONE_SIGMA = math.erf(1.0 / math.sqrt(2.0))

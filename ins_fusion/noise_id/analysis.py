@@ -27,10 +27,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ins_fusion.bags.imu import ImuRecord
 from ins_fusion.core.units import DEG, mg, to_deg_h, to_deg_sqrt_h, to_m_s_sqrt_h
 from ins_fusion.noise_id.allan import ONE_SIGMA, AllanCurve, equivalent_dof, overlapping_adev
 from ins_fusion.noise_id.likelihood import refine
-from ins_fusion.noise_id.record import ImuRecord, RecordError, SampleClock
+from ins_fusion.noise_id.record import RecordError, SampleClock
 from ins_fusion.noise_id.terms import GAUSS_MARKOV, BiasInstability, NoiseTerms, fit_noise_terms
 from ins_fusion.noise_id.whittle import BIAS, LOG_TIME, SpectralModel, expected_errors
 
@@ -143,7 +144,7 @@ def identify(
     axes = []
     for sensor, values in (
         (GYRO, record.rate_flu_rad_s),
-        (ACCEL, record.specific_force_flu_m_s2),
+        (ACCEL, record.force_flu_m_s2),
     ):
         for i, axis in enumerate(AXES):
             curve = overlapping_adev(values[:, i], clock.rate_hz)

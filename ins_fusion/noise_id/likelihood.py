@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from dataclasses import replace
 
-from ins_fusion.core.rotation import FloatArray
+from gnss_ins_common.types import FloatArray
 from ins_fusion.noise_id.terms import (
     FLICKER,
     NoiseTerms,

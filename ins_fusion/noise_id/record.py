@@ -1,5 +1,6 @@
-"""A static IMU record, its sample clock, and the checks that refuse records the Allan analysis
-cannot use (irregular stamps, non-finite or constant data, motion).
+"""The sample clock of a static IMU record (ins_fusion.bags.imu.ImuRecord) and the checks that
+refuse records the Allan analysis cannot use (irregular stamps, non-finite or constant data,
+motion).
 
 Axes and units are those of imu/data_raw (REP-145, imu_link FLU): rates [rad/s], specific force
 [m/s²]; a level resting unit reads about (0, 0, +9.81) m/s² and the earth rate.
@@ -11,7 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ins_fusion.core.rotation import FloatArray
+from gnss_ins_common.types import FloatArray
+from ins_fusion.bags.imu import ImuRecord
 from ins_fusion.core.units import DEG, deg_s, mg
 
 #: Largest share of samples that may be missing (dropped packets); the series is joined at the
@@ -28,21 +30,6 @@ CHANNELS = ("gyro x", "gyro y", "gyro z", "accel x", "accel y", "accel z", "spec
 
 class RecordError(Exception):
     """The record cannot be analysed as asked (the message says why)."""
-
-
-@dataclass(frozen=True)
-class ImuRecord:
-    """Samples of one IMU: times t_s [s] (n,), rate_flu_rad_s and specific_force_flu_m_s2
-    (n, 3) in imu_link FLU."""
-
-    t_s: FloatArray
-    rate_flu_rad_s: FloatArray
-    specific_force_flu_m_s2: FloatArray
-
-    @property
-    def duration_s(self) -> float:
-        """Time from the first to the last sample [s]."""
-        return float(self.t_s[-1] - self.t_s[0]) if len(self.t_s) else 0.0
 
 
 @dataclass(frozen=True)
@@ -95,7 +82,7 @@ def check_values(record: ImuRecord) -> None:
 
 def _axes(record: ImuRecord) -> list[tuple[str, FloatArray]]:
     return [(CHANNELS[i], record.rate_flu_rad_s[:, i]) for i in range(3)] + [
-        (CHANNELS[3 + i], record.specific_force_flu_m_s2[:, i]) for i in range(3)
+        (CHANNELS[3 + i], record.force_flu_m_s2[:, i]) for i in range(3)
     ]
 
 
@@ -119,7 +106,7 @@ def check_static(record: ImuRecord, rate_hz: float, limits: StaticLimits) -> Non
     windows = len(record.t_s) // per_window
     if windows < 2:
         return
-    force = record.specific_force_flu_m_s2
+    force = record.force_flu_m_s2
     channels = np.column_stack([record.rate_flu_rad_s, force, np.linalg.norm(force, axis=1)])[
         : windows * per_window
     ]

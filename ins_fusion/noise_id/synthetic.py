@@ -5,7 +5,7 @@ The truth is the simulator's survey car standing still at the Aalborg start (ins
 earth rate and normal gravity in imu_link, docs/simulator.md); the errors are an ImuErrorModel of
 any profile, sampled at any rate (its noise is stored as densities, so a record at 10 Hz has the
 same Allan deviation as one at the profile's rate for τ well above the sample period). Bags hold
-imu/data_raw as the driver publishes it (sim.messages.fill_imu), stamped k/rate after start_ns and
+imu/data_raw as the driver publishes it (ins_fusion.bags.imu), stamped k/rate after start_ns and
 logged a packet's transmission time later, like ``gnss_ins simulate``.
 """
 
@@ -16,19 +16,17 @@ from pathlib import Path
 import numpy as np
 
 from imu400cc_driver.device_clock import PACKET_TRANSMISSION_S
-from ins_fusion.noise_id.record import ImuRecord
+from ins_fusion.bags.imu import ImuRecord, write_imu_bag
+from ins_fusion.bags.topics import IMU_DATA
+from ins_fusion.sim.drive import DEFAULT_START_NS
 from ins_fusion.sim.imu_model import ImuErrorModel, ImuProfile
-from ins_fusion.sim.messages import fill_imu, new_message
 from ins_fusion.sim.scenarios import AALBORG_START, SURVEY_CAR
-from ins_fusion.sim.topics import DEFAULT_START_NS, IMU_DATA, IMU_FRAME, TOPICS
 from ins_fusion.sim.trajectory import Route
 from ins_fusion.sim.vehicle import VehicleTruth
-from ins_fusion.tools.bag_io import BagWriter
 
 #: Samples simulated at a time (bounds the error model's temporaries).
 _BLOCK = 200_000
 _TRANSMISSION_NS = round(PACKET_TRANSMISSION_S * 1e9)
-_ZERO3 = (0.0, 0.0, 0.0)
 
 
 def static_record(
@@ -37,9 +35,10 @@ def static_record(
     rate_hz: float | None = None,
     seed: int = 0,
     band_limited: bool = False,
+    start_ns: int = DEFAULT_START_NS,
 ) -> ImuRecord:
     """duration_s [s] of a resting unit of ``profile`` sampled at rate_hz (default: the
-    profile's rate), samples at k / rate_hz."""
+    profile's rate), samples k / rate_hz after ``start_ns``."""
     rate = profile.rate_hz if rate_hz is None else rate_hz
     n = round(duration_s * rate)
     # Standing still, the truth is the same at every time: one second of route gives it.
@@ -58,27 +57,19 @@ def static_record(
         gyro[start : start + len(block)], accel[start : start + len(block)] = model.apply(
             block, ones * rate_truth, ones * force_truth
         )
-    return ImuRecord(t, gyro, accel)
+    return ImuRecord(t, gyro, accel, start_ns=start_ns)
 
 
-def write_imu_bag(
-    path: Path,
-    record: ImuRecord,
-    topic: str = IMU_DATA,
-    start_ns: int = DEFAULT_START_NS,
-    storage: str = "mcap",
+def write_static_bag(
+    path: Path, record: ImuRecord, topic: str = IMU_DATA, storage: str = "mcap"
 ) -> None:
-    """A bag with the record on ``topic`` (sensor_msgs/Imu, frame imu_link, covariances zero =
-    unknown)."""
-    stamps = (start_ns + np.rint(record.t_s * 1e9)).astype(np.int64).tolist()
-    msgtype = TOPICS[IMU_DATA]
-    with BagWriter(path, storage=storage) as writer:
-        writer.add_topic(topic, msgtype)
-        for stamp, rate, force in zip(
-            stamps,
-            record.rate_flu_rad_s.tolist(),
-            record.specific_force_flu_m_s2.tolist(),
-            strict=True,
-        ):
-            message = fill_imu(new_message(msgtype), stamp, IMU_FRAME, rate, force, _ZERO3, _ZERO3)
-            writer.write(topic, stamp + _TRANSMISSION_NS, message)
+    """A bag with the record on ``topic`` as ``gnss_ins simulate`` times the driver's messages:
+    stamped at the record's times, logged a packet's transmission time later.
+
+    The stamps are ``start_ns + round(t·1e9)`` summed in float64, i.e. rounded to the 256-ns
+    steps of float64 at today's epoch times: the bags of the tests, the benchmark and
+    docs/allan.md were made so, and the Allan fit of a short record can flip with 100 ns."""
+    stamps = (record.start_ns + np.rint(record.t_s * 1e9)).astype(np.int64)
+    write_imu_bag(
+        path, record, topic=topic, delay_ns=_TRANSMISSION_NS, storage=storage, stamps_ns=stamps
+    )

@@ -61,7 +61,7 @@ from numpy.typing import NDArray
 from scipy.optimize import minimize_scalar, nnls
 from scipy.stats import norm
 
-from ins_fusion.core.rotation import FloatArray
+from gnss_ins_common.types import FloatArray
 from ins_fusion.noise_id.allan import ONE_SIGMA, AllanCurve, log_slope
 from ins_fusion.noise_id.whittle import BIAS, LOG_TIME, SpectralModel, expected_errors
 from ins_fusion.sim.noise import allan_variance

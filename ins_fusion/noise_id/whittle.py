@@ -43,7 +43,7 @@ from scipy.optimize import minimize_scalar, nnls
 from scipy.signal import windows
 from scipy.stats import chi2
 
-from ins_fusion.core.rotation import FloatArray
+from gnss_ins_common.types import FloatArray
 
 #: Most blocks of the first pass (the FFT length).
 MAX_BLOCKS = 2**16

@@ -1,5 +1,6 @@
 """The steps of ``gnss_ins replay`` (ins_fusion/tools/replay.py parses the arguments): check the
-parameters, read the bag, replay or sweep, print, write the report, plot and fused bag.
+parameters, read the bag, replay (and smooth) or sweep, print, write the report, plot, fused bag
+and exports.
 
 Bad input raises UsageError, printed by ``execute`` with exit status 2.
 """
@@ -14,11 +15,13 @@ from typing import Any
 import numpy as np
 
 from gnss_ins_common.params import ParameterValueError, load_yaml, validate_all
+from ins_fusion.bags.bag_io import BagError
 from ins_fusion.core.calibration import CalibrationError
 from ins_fusion.core.config import NODE_NAME, FusionConfig
 from ins_fusion.core.engine import InsEngine
-from ins_fusion.fusion_params import PARAMETERS
+from ins_fusion.core.params import PARAMETERS
 from ins_fusion.replay import free_inertial
+from ins_fusion.replay.export import FORMATS, export
 from ins_fusion.replay.frames import IMU_FRAME, comparison_frame, is_imu_frame
 from ins_fusion.replay.inputs import InputError, ReplayInputs, load_bag
 from ins_fusion.replay.outages import Outage
@@ -29,8 +32,7 @@ from ins_fusion.replay.settings import grid
 from ins_fusion.replay.sweep import format_sweep, run_sweep
 from ins_fusion.replay.topics import DEFAULT_REFERENCE
 from ins_fusion.replay.withheld import WithheldEvaluation
-from ins_fusion.tools.bag_io import BagError
-from ins_fusion.tools.progress import Progress
+from ins_fusion.runtime.progress import Progress
 
 
 class UsageError(Exception):
@@ -79,23 +81,25 @@ def _check_usage(args: argparse.Namespace) -> None:
         raise UsageError("--free-inertial withholds GNSS itself: not with --outage or --sweep")
     if args.output is not None and args.output.exists():
         raise UsageError(f"{args.output} exists already, not overwriting")
+    if args.sweep and (args.smooth or args.export):
+        raise UsageError("--smooth and --export are for a single replay, not with --sweep")
+    if args.export_solution == "smoothed" and not args.smooth:
+        raise UsageError("--export-solution smoothed needs --smooth")
+    for path in args.export:
+        if path.suffix.lower() not in FORMATS:
+            raise UsageError(f"--export {path}: the suffix must be one of {', '.join(FORMATS)}")
 
 
 def _load(args: argparse.Namespace) -> ReplayInputs:
     prefix = args.reference if args.reference is not None else DEFAULT_REFERENCE
     with Progress("read", unit="msgs") as bar:
-
-        def progress(done: int, total: int) -> None:
-            bar.total = total
-            bar.update(done)
-
         try:
             inputs = load_bag(
                 args.bag,
                 args.topics,
                 prefix,
                 reference_required=args.reference is not None,
-                progress=progress,
+                progress=bar.update_with_total,
             )
         except InputError as exc:
             raise UsageError(str(exc)) from None
@@ -154,7 +158,9 @@ def _run(args: argparse.Namespace) -> int:
     if settings:
         return _sweep(args, inputs, parameters, settings, outages, reference)
     with Progress("fuse", total=len(inputs.imu), unit="samples") as bar:
-        result = replay(inputs, parameters, outages, reference, lambda done, _: bar.update(done))
+        result = replay(
+            inputs, parameters, outages, reference, lambda done, _: bar.update(done), args.smooth
+        )
     print(format_table(result.report))
     if args.free_inertial is not None:
         _free_inertial(args.free_inertial, result)
@@ -181,8 +187,10 @@ def _free_inertial(start_s: float, result: Replay) -> None:
 
 
 def _not_written(args: argparse.Namespace, reason: str) -> None:
-    """Name the requested plot and fused bag that are not written, and why (stderr)."""
-    for label, path in (("plot", args.plot), ("fused bag", args.output)):
+    """Name the requested plot, fused bag and exports that are not written, and why (stderr)."""
+    requested = [("plot", args.plot), ("fused bag", args.output)]
+    requested += [("export", path) for path in args.export]
+    for label, path in requested:
         if path is not None:
             print(f"gnss_ins replay: {label} {path} not written: {reason}", file=sys.stderr)
 
@@ -211,7 +219,13 @@ def _write_outputs(
             title += "; outages " + ", ".join(f"{o.start_s:g}:{o.duration_s:g}" for o in outages)
         try:
             plot_replay(
-                args.plot, result.compared_track, inputs.t0_s, result.evaluation, outages, title
+                args.plot,
+                result.compared_track,
+                inputs.t0_s,
+                result.evaluation,
+                outages,
+                title,
+                result.smoothed,
             )
         except (OSError, ValueError) as exc:
             if args.output is not None:
@@ -225,6 +239,7 @@ def _write_outputs(
         # Rate variance per axis as the node publishes it: mean gyro density² x the IMU rate.
         imu_rate_hz = (len(inputs.imu) - 1) / inputs.duration_s
         rate_variance = float(np.mean(np.square(config.imu_noise.gyro_arw))) * imu_rate_hz
+        smoothed = result.run.smoothed
         try:
             summary = write_fused_bag(
                 args.output,
@@ -232,10 +247,25 @@ def _write_outputs(
                 config.map_frame,
                 config.base_frame,
                 rate_variance,
+                None if smoothed is None else smoothed.solutions,
             )
         except BagError as exc:
             raise UsageError(str(exc)) from None
         print(summary.format(f"fused bag {args.output}"))
+    _export(args, result)
+
+
+def _export(args: argparse.Namespace, result: Replay) -> None:
+    """Write the --export files of the chosen solution."""
+    which = args.export_solution or ("smoothed" if args.smooth else "forward")
+    track = result.run.smoothed if which == "smoothed" else result.run.track
+    assert track is not None
+    for path in args.export:
+        try:
+            count = export(path, track, f"{Path(result.report['bag']).name} {which}")
+        except OSError as exc:
+            raise UsageError(f"cannot write {path}: {exc}") from None
+        print(f"export: {path} ({which}, {count} epochs)")
 
 
 def _sweep(

@@ -23,13 +23,11 @@ from collections.abc import Sequence
 from dataclasses import replace
 
 import numpy as np
-from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
+from gnss_ins_common.types import FloatArray
 from ins_fusion.core.rotation import quat_from_euler
 from ins_fusion.replay.run import SolutionTrack
-
-FloatArray = NDArray[np.float64]
 
 #: REP-105 vehicle frame and the IMU driver's frame (imu400cc_node publishes in imu_link).
 BASE_FRAME = "base_link"
@@ -56,7 +54,7 @@ def lever_arm_covariance(cov_att_enu_rad2: FloatArray, arm_enu_m: FloatArray) ->
 
 def mounting_quat(rpy_rad: Sequence[float]) -> FloatArray:
     """q_base_s (x, y, z, w) of a frame with REP-103 roll, pitch, yaw [rad] in base_link, as the
-    engine builds its IMU mounting (engine._mat_from_rpy_flu before the FLU/FRD change)."""
+    engine builds its IMU mounting (core.rotation.mat_from_rpy_flu before the FLU/FRD change)."""
     return np.asarray(quat_from_euler(rpy_rad[0], rpy_rad[1], rpy_rad[2]), dtype=np.float64)
 
 
@@ -73,7 +71,7 @@ def moved_track(
     r = np.asarray(lever_arm_flu_m, dtype=np.float64).reshape(3)
     rot = Rotation.from_quat(track.quat_enu_flu_xyzw)
     arm_enu = rot.apply(r)
-    rate = np.array([s.rate_flu_rad_s for s in track.solutions], dtype=np.float64).reshape(-1, 3)
+    rate = track.rate_flu_rad_s
     quat = track.quat_enu_flu_xyzw
     rpy = np.asarray(mounting_rpy_rad, dtype=np.float64)
     if rpy.ndim == 2:

@@ -28,12 +28,10 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
+from gnss_ins_common.types import FloatArray
 from ins_fusion.replay.outages import Outage
 from ins_fusion.replay.withheld import WithheldEvaluation
-
-FloatArray = NDArray[np.float64]
 
 #: Elapsed times of the report's tables [s after the drive began] (Aalborg notes §8.3).
 ELAPSED_S = (5.0, 10.0, 15.0, 20.0, 30.0, 40.0, 50.0, 60.0, 120.0, 180.0)

@@ -2,8 +2,8 @@
 
 The inputs keep the bag's receive (log-time) order, which is what ins_fusion_node sees: every
 GNSS/attitude measurement records how many IMU samples were received before it. Messages are
-read through ins_fusion.tools.bag_io and converted by ins_fusion.messages_in, as the node does
-(IMU and reference messages straight from their bytes by ins_fusion.cdr_fields, for
+read through ins_fusion.bags.bag_io and converted by ins_fusion.adapters.messages_in, as the node
+does (IMU and reference messages straight from their bytes by ins_fusion.adapters.cdr_fields, for
 speed).
 
 Reference topics (``PREFIX/fix``, ``PREFIX/attitude``, optional ``PREFIX/vel``): the true
@@ -15,7 +15,6 @@ frame_id is kept too, to recognise a reference of the IMU.
 
 from __future__ import annotations
 
-import struct
 import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
@@ -28,14 +27,16 @@ from rosbags.rosbag2 import ReaderError
 from rosbags.serde import SerdeError
 
 from gnss_ins_common.types import FloatArray
-from ins_fusion import cdr_fields, messages_in
-from ins_fusion.cdr_fields import CdrError
+from ins_fusion.adapters import cdr_fields, messages_in
+from ins_fusion.adapters.cdr_fields import CdrError
+from ins_fusion.adapters.messages_in import ImuSample
+from ins_fusion.bags.bag_io import BagError, BagReader
+from ins_fusion.bags.columns import read_topics
 from ins_fusion.core.measurements import (
     AttitudeMeasurement,
     GnssFixMeasurement,
     GnssVelocityMeasurement,
 )
-from ins_fusion.messages_in import ImuSample
 from ins_fusion.replay.topics import (
     DEFAULT_REFERENCE,
     DEFAULT_TOPICS,
@@ -43,8 +44,6 @@ from ins_fusion.replay.topics import (
     SENSOR_TYPES,
     TopicMap,
 )
-from ins_fusion.tools.bag_columns import read_topics
-from ins_fusion.tools.bag_io import BagError, BagReader
 
 Measurement = GnssFixMeasurement | GnssVelocityMeasurement | AttitudeMeasurement
 
@@ -64,7 +63,7 @@ class Series:
 @dataclass(frozen=True)
 class ImuSeries:
     """IMU samples in receive order: stamps [s] (n,), rate [rad/s] and specific force [m/s²]
-    (n, 3) in imu_link FLU (REP-145), as ins_fusion.messages_in.ImuSample has them."""
+    (n, 3) in imu_link FLU (REP-145), as ins_fusion.adapters.messages_in.ImuSample has them."""
 
     t_s: FloatArray
     rate_flu_rad_s: FloatArray
@@ -226,16 +225,6 @@ _REFERENCE_DECODERS: dict[str, Callable[[list[bytes]], tuple[FloatArray, FloatAr
 _Read = tuple[ImuSeries, list[tuple[int, str, Measurement]], Reference | None, str]
 
 
-def frame_id(data: bytes) -> str:
-    """header.frame_id of a serialized (CDR) message that starts with a std_msgs/Header: after
-    the 4-byte encapsulation and the stamp, a uint32 length (with the NUL) and the characters
-    (ins_fusion.cdr_fields); "" when the bytes are too short to hold it."""
-    if len(data) < 16:
-        return ""
-    (length,) = struct.unpack_from("<I" if data[1] == 1 else ">I", data, 12)
-    return bytes(data[16 : 16 + max(length - 1, 0)]).decode("utf-8", "replace")
-
-
 def _read(
     reader: BagReader,
     selected: list[str],
@@ -249,8 +238,7 @@ def _read(
         reader, selected, None if progress is None else lambda done: progress(done, total)
     )
     imu_column = columns[imu_topic]
-    decoded = cdr_fields.imu_columns(imu_column.payloads)
-    imu = ImuSeries(decoded.t_s, decoded.rate, decoded.force)
+    imu = ImuSeries(*cdr_fields.imu_columns(imu_column.payloads))
     arrivals: list[tuple[int, int, str, Measurement]] = []  # receive order, k, role, measurement
     for topic, role in roles.items():
         if role == "imu" or topic not in columns:
@@ -270,12 +258,17 @@ def _read(
     reference = None
     if (position := series.get("fix")) is not None:
         fix_topic = next(t for t, suffix in ref_topics.items() if suffix == "fix")
-        fix_frame = frame_id(columns[fix_topic].payloads[0])
+        fix_frame = cdr_fields.frame_id(columns[fix_topic].payloads[0])
         reference = Reference(position, series.get("attitude"), series.get("vel"), fix_frame)
     if progress is not None:
         progress(total, total)
     measurements = [(k, role, m) for _, k, role, m in arrivals]
-    return imu, measurements, reference, frame_id(imu_column.payloads[0]) if len(imu) else ""
+    return (
+        imu,
+        measurements,
+        reference,
+        cdr_fields.frame_id(imu_column.payloads[0]) if len(imu) else "",
+    )
 
 
 def _series(t_s: FloatArray, values: FloatArray) -> Series | None:

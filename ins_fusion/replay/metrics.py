@@ -21,13 +21,11 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
+from gnss_ins_common.types import BoolArray, FloatArray
 from ins_fusion.core import earth
 from ins_fusion.replay.inputs import Reference, Series
 from ins_fusion.replay.outages import Outage, mask
 from ins_fusion.replay.run import SolutionTrack
-
-FloatArray = NDArray[np.float64]
-BoolArray = NDArray[np.bool_]
 
 #: Degrees of freedom of the position NEES.
 POSITION_DOF = 3

@@ -14,7 +14,7 @@ from ins_fusion.replay.frames import comparison_frame, is_imu_frame, moved_track
 from ins_fusion.replay.inputs import ReplayInputs
 from ins_fusion.replay.metrics import Evaluation, evaluate
 from ins_fusion.replay.outages import Outage
-from ins_fusion.replay.report import Report, build_report
+from ins_fusion.replay.report import Report, build_report, smoothed_report
 from ins_fusion.replay.run import FusionRun, SolutionTrack, run_fusion
 from ins_fusion.replay.settings import changed_parameters
 from ins_fusion.replay.withheld import WithheldEvaluation, evaluate_withheld
@@ -25,15 +25,28 @@ _MAX_GAP_PERIODS = 2.5
 
 
 @dataclass(frozen=True)
+class Scored:
+    """One track scored: ``compared`` is it in the frame of the reference (the track itself,
+    of base_link, unless the reference is of the IMU), ``evaluation`` against the reference
+    and ``withheld`` against the fixes the outages withheld (None where there is none)."""
+
+    compared: SolutionTrack
+    evaluation: Evaluation | None
+    withheld: WithheldEvaluation | None
+
+
+@dataclass(frozen=True)
 class Replay:
     """Everything one replay produced; ``compared_track`` is the fused solution in the frame of
-    the reference (``run.track`` of base_link unless the reference is of the IMU)."""
+    the reference (``run.track`` of base_link unless the reference is of the IMU); ``smoothed``:
+    the RTS-smoothed track scored the same way (None without smoothing)."""
 
     run: FusionRun
     compared_track: SolutionTrack
     evaluation: Evaluation | None
     withheld: WithheldEvaluation | None
     report: Report
+    smoothed: Scored | None = None
 
 
 def reference_frame(inputs: ReplayInputs, config: FusionConfig) -> str | None:
@@ -45,56 +58,75 @@ def reference_frame(inputs: ReplayInputs, config: FusionConfig) -> str | None:
     return comparison_frame(inputs.reference.frame_id, config.base_frame, inputs.imu_frame)
 
 
-def replay(
+def _score(
     inputs: ReplayInputs,
-    parameters: Mapping[str, Any],
+    run: FusionRun,
+    track: SolutionTrack,
     outages: Sequence[Outage],
-    reference: str | None,
-    progress: Callable[[int, int], None] | None = None,
-) -> Replay:
-    """Run the engine with the flat ``parameters`` over ``inputs``, evaluate it when the inputs
-    hold a reference (``reference``: its prefix, for the report), and compare it with the GNSS
-    fixes the outages withheld. A reference of the IMU (its frame_id is the IMU's) is compared
-    with the solution moved to the IMU by ``imu_lever_arm`` and the mounting (the engine's estimate,
-    else ``imu_mounting_rpy_deg``)
-    (ins_fusion.replay.frames)."""
-    run = run_fusion(inputs, parameters, outages, progress)
+    max_gap_s: float,
+) -> Scored:
+    """Evaluate a track of the run against the reference (moved to the reference's frame
+    first) and against the withheld fixes."""
     evaluation = withheld = None
-    max_gap_s = max(0.5, _MAX_GAP_PERIODS / run.output_rate_hz)
     frame = reference_frame(inputs, run.config)
-    compared = run.track
+    compared = track
     if is_imu_frame(frame, inputs.imu_frame):
         config = run.config
         configured = np.asarray(config.imu_mounting_rpy_rad, dtype=np.float64)
-        mounting = np.array(  # the engine's estimate where it has one
-            [
-                configured if s.imu_mounting_rpy_rad is None else s.imu_mounting_rpy_rad
-                for s in run.track.solutions
-            ]
-        ).reshape(-1, 3)
-        compared = moved_track(run.track, config.imu_lever_arm_flu_m, mounting)
+        estimated = track.imu_mounting_rpy_rad  # the engine's estimate where it has one
+        mounting = np.where(np.isnan(estimated), configured, estimated)
+        compared = moved_track(track, config.imu_lever_arm_flu_m, mounting)
     if inputs.reference is not None and run.datum is not None:
         evaluation = evaluate(
             compared, inputs.reference, run.datum, inputs.t0_s, outages, max_gap_s
         )
     if outages and run.datum is not None:
         withheld = evaluate_withheld(
-            run.track,
+            track,
             run.withheld_fixes,
             run.datum,
             inputs.t0_s,
             run.config.gnss_lever_arm_flu_m,
             max_gap_s,
         )
+    return Scored(compared, evaluation, withheld)
+
+
+def replay(
+    inputs: ReplayInputs,
+    parameters: Mapping[str, Any],
+    outages: Sequence[Outage],
+    reference: str | None,
+    progress: Callable[[int, int], None] | None = None,
+    smooth: bool = False,
+) -> Replay:
+    """Run the engine with the flat ``parameters`` over ``inputs``, evaluate it when the inputs
+    hold a reference (``reference``: its prefix, for the report), and compare it with the GNSS
+    fixes the outages withheld. A reference of the IMU (its frame_id is the IMU's) is compared
+    with the solution moved to the IMU by ``imu_lever_arm`` and the mounting (the engine's estimate,
+    else ``imu_mounting_rpy_deg``)
+    (ins_fusion.replay.frames). ``smooth``: the RTS-smoothed track too, scored the same way,
+    under ``smoothed`` in the report."""
+    run = run_fusion(inputs, parameters, outages, progress, smooth)
+    max_gap_s = max(0.5, _MAX_GAP_PERIODS / run.output_rate_hz)
+    forward = _score(inputs, run, run.track, outages, max_gap_s)
     changed = changed_parameters(parameters)
     report = build_report(
         inputs,
         run,
-        evaluation,
+        forward.evaluation,
         outages,
         changed,
         reference,
-        withheld,
-        frame or run.config.base_frame,
+        forward.withheld,
+        reference_frame(inputs, run.config) or run.config.base_frame,
     )
-    return Replay(run, compared, evaluation, withheld, report)
+    smoothed = None
+    if run.smoothed is not None:
+        # The smoothed track is at the covariance steps: bridge the interval between them.
+        gap_s = max(max_gap_s, _MAX_GAP_PERIODS * run.config.covariance_interval_s)
+        smoothed = _score(inputs, run, run.smoothed, outages, gap_s)
+        report["smoothed"] = smoothed_report(
+            run.smoothed, run.smoothing_time_s, smoothed.evaluation, outages, smoothed.withheld
+        )
+    return Replay(run, forward.compared, forward.evaluation, forward.withheld, report, smoothed)

@@ -4,6 +4,8 @@ Uses the object-oriented ``Figure`` API with the Agg canvas: no pyplot state and
 Layout: the track (map frame E/N, fused and reference, outage stretches highlighted) on the
 left; position errors E, N, U and attitude errors roll, pitch, yaw against time on the right,
 each with the filter's ±3σ bound. Without a reference the error panels show the ±3σ bounds only.
+With the RTS-smoothed solution its track, errors and ±3σ bounds are drawn over the forward ones
+(green, the bound dashed).
 """
 
 from __future__ import annotations
@@ -15,15 +17,16 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
-from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
+from gnss_ins_common.types import FloatArray
 from ins_fusion.replay.metrics import Evaluation, rpy_covariance, rpy_deg
 from ins_fusion.replay.outages import Outage, mask
+from ins_fusion.replay.pipeline import Scored
 from ins_fusion.replay.run import SolutionTrack
 
-FloatArray = NDArray[np.float64]
 _OUTAGE_COLOUR = "tab:orange"
+_SMOOTHED_COLOUR = "tab:green"
 
 
 def _shade(ax: Axes, outages: Sequence[Outage]) -> None:
@@ -31,21 +34,22 @@ def _shade(ax: Axes, outages: Sequence[Outage]) -> None:
         ax.axvspan(outage.start_s, outage.end_s, color=_OUTAGE_COLOUR, alpha=0.2, lw=0)
 
 
-def _error_panel(
+def _error_curves(
     ax: Axes,
     t_s: FloatArray,
     error: FloatArray | None,
     sigma: FloatArray,
-    label: str,
-    outages: Sequence[Outage],
+    smoothed: bool,
 ) -> None:
+    colour, bound, style, name = (
+        (_SMOOTHED_COLOUR, _SMOOTHED_COLOUR, "--", "smoothed ")
+        if smoothed
+        else ("tab:blue", "tab:red", "-", "")
+    )
     if error is not None:
-        ax.plot(t_s, error, lw=0.8, color="tab:blue", label="error")
-    ax.plot(t_s, 3.0 * sigma, lw=0.8, color="tab:red", label="±3σ")
-    ax.plot(t_s, -3.0 * sigma, lw=0.8, color="tab:red")
-    _shade(ax, outages)
-    ax.set_ylabel(label)
-    ax.grid(True, lw=0.3)
+        ax.plot(t_s, error, lw=0.8, color=colour, label=f"{name}error")
+    ax.plot(t_s, 3.0 * sigma, lw=0.8, ls=style, color=bound, label=f"{name}±3σ")
+    ax.plot(t_s, -3.0 * sigma, lw=0.8, ls=style, color=bound)
 
 
 def plot_replay(
@@ -55,8 +59,10 @@ def plot_replay(
     evaluation: Evaluation | None,
     outages: Sequence[Outage],
     title: str,
+    smoothed: Scored | None = None,
 ) -> None:
-    """Save the replay figure to ``path`` (format from its suffix, e.g. .png, .pdf)."""
+    """Save the replay figure to ``path`` (format from its suffix, e.g. .png, .pdf); with
+    ``smoothed``, the smoothed solution over the forward one."""
     fig = Figure(figsize=(15, 10), layout="constrained")
     FigureCanvasAgg(fig)
     grid = fig.add_gridspec(6, 2, width_ratios=(1.0, 1.3))
@@ -65,13 +71,24 @@ def plot_replay(
     for ax in axes[1:]:
         ax.sharex(axes[0])
     _track_panel(ax_track, track, t0_s, evaluation, outages)
+    if smoothed is not None:
+        pos = smoothed.compared.pos_enu_m
+        ax_track.plot(pos[:, 0], pos[:, 1], lw=1.0, color=_SMOOTHED_COLOUR, label="smoothed")
+        ax_track.legend(loc="best", fontsize="small")
     labels = ("E [m]", "N [m]", "U [m]", "roll [°]", "pitch [°]", "yaw [°]")
+    runs = [(track, evaluation, False)]
+    if smoothed is not None:
+        runs.append((smoothed.compared, smoothed.evaluation, True))
     for i, attitude in enumerate((False, True)):
-        t, err, sigma = _errors_and_sigma(track, t0_s, evaluation, attitude)
+        for run_track, run_evaluation, is_smoothed in runs:
+            t, err, sigma = _errors_and_sigma(run_track, t0_s, run_evaluation, attitude)
+            for axis in range(3):
+                column = None if err is None else err[:, axis]
+                _error_curves(axes[3 * i + axis], t, column, sigma[:, axis], is_smoothed)
         for axis in range(3):
-            column = None if err is None else err[:, axis]
-            panel = axes[3 * i + axis]
-            _error_panel(panel, t, column, sigma[:, axis], labels[3 * i + axis], outages)
+            _shade(axes[3 * i + axis], outages)
+            axes[3 * i + axis].set_ylabel(labels[3 * i + axis])
+            axes[3 * i + axis].grid(True, lw=0.3)
     axes[0].legend(loc="upper right", fontsize="small")
     axes[-1].set_xlabel("time after the first IMU sample [s]")
     fig.suptitle(title)

@@ -9,7 +9,8 @@ reference_frame (the frame compared in: base_link, or the IMU's for a reference 
 reference_frame_id (the reference's own), dropped_messages, measurements, evaluated_samples,
 position_error_m, velocity_error_m_s, attitude_error_deg, outages, nees, withheld_fixes (per
 outage: the fused antenna against the GNSS fixes the outage withheld,
-ins_fusion.replay.withheld; with or without a reference).
+ins_fusion.replay.withheld; with or without a reference), and with smoothing ``smoothed``: the
+same accuracy keys for the RTS-smoothed track, with its epochs and the backward pass's time.
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from ins_fusion.replay import metrics
 from ins_fusion.replay.inputs import ReplayInputs
 from ins_fusion.replay.metrics import Evaluation
 from ins_fusion.replay.outages import Outage
-from ins_fusion.replay.run import FusionRun
+from ins_fusion.replay.run import FusionRun, SolutionTrack
 from ins_fusion.replay.withheld import WithheldEvaluation, withheld_stats
 
 Report = dict[str, Any]
@@ -80,6 +81,24 @@ def build_report(
     scored = withheld if withheld is not None else WithheldEvaluation.empty()
     report["withheld_fixes"] = [withheld_stats(scored, o) for o in outages]
     return report
+
+
+def smoothed_report(
+    track: SolutionTrack,
+    smoothing_time_s: float,
+    evaluation: Evaluation | None,
+    outages: Sequence[Outage],
+    withheld: WithheldEvaluation | None,
+) -> Report:
+    """The ``smoothed`` section: epochs of the smoothed track, the backward pass's wall time
+    [s], and the accuracy keys of the forward report (None values without a reference)."""
+    scored = withheld if withheld is not None else WithheldEvaluation.empty()
+    return {
+        "epochs": len(track.t_s),
+        "smoothing_time_s": smoothing_time_s,
+        **_accuracy(evaluation, outages),
+        "withheld_fixes": [withheld_stats(scored, o) for o in outages],
+    }
 
 
 def _accuracy(evaluation: Evaluation | None, outages: Sequence[Outage]) -> Report:
@@ -146,13 +165,10 @@ def _percent(value: Any) -> str:
 
 
 def _accuracy_lines(report: Report) -> list[str]:
-    """Errors, consistency and outage rows of a report with a reference."""
+    """Errors, consistency and outage rows of a report (or its smoothed section) with a
+    reference."""
     pos, att, nees = report["position_error_m"], report["attitude_error_deg"], report["nees"]
-    lines = []
-    frame, frame_id = report.get("reference_frame"), report.get("reference_frame_id")
-    if frame != "base_link" or frame_id != frame:
-        lines.append(f"reference {report['reference']}: frame_id {frame_id!r}, compared in {frame}")
-    lines += [
+    lines = [
         f"position error [m]    horizontal rms {_num(pos['horizontal_rms'])}"
         f"  p95 {_num(pos['horizontal_p95'])}  max {_num(pos['horizontal_max'])}"
         f"  vertical rms {_num(pos['vertical_rms'])}"
@@ -217,8 +233,22 @@ def format_table(report: Report) -> str:
         note = " (withheld fixes below)" if withheld else ""
         lines.append(f"no reference: accuracy not evaluated{note}")
     else:
+        frame, frame_id = report.get("reference_frame"), report.get("reference_frame_id")
+        if frame != "base_link" or frame_id != frame:
+            lines.append(
+                f"reference {report['reference']}: frame_id {frame_id!r}, compared in {frame}"
+            )
         lines += _accuracy_lines(report)
     lines += withheld
+    smoothed = report.get("smoothed")
+    if smoothed is not None:
+        lines.append(
+            f"smoothed (RTS, backward pass over {smoothed['epochs']} epochs in"
+            f" {smoothed['smoothing_time_s']:.2f} s):"
+        )
+        if report["reference"] is not None:
+            lines += ["  " + line for line in _accuracy_lines(smoothed)]
+        lines += ["  " + line for line in _withheld_lines(smoothed)]
     lines += _adapted_lines(report)
     lines += _calibration_lines(report)
     counters = report["measurements"]

@@ -3,7 +3,9 @@
 The engine is fed exactly what ins_fusion_node would receive, in the bag's receive order, minus
 the GNSS messages (fix, velocity, attitude) stamped inside an injected outage. The fused base_link
 solution is recorded at ``output_rate`` (the node's publish rate): at the first IMU sample at or
-after each tick k / output_rate after the first IMU stamp.
+after each tick k / output_rate after the first IMU stamp. With ``smooth`` the run is also
+recorded for the RTS smoother (ins_fusion.core.smoothed_solution), whose backward pass gives the
+smoothed solution at every covariance step once the forward run is done.
 """
 
 from __future__ import annotations
@@ -17,9 +19,11 @@ from typing import Any
 import numpy as np
 
 from gnss_ins_common.types import BoolArray, FloatArray
+from ins_fusion.core import solution_rows
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.engine import EngineStatus, InsEngine, InsSolution
 from ins_fusion.core.measurements import GnssFixMeasurement
+from ins_fusion.core.smoothed_solution import attach_recorder, smoothed_rows
 from ins_fusion.replay.inputs import Measurement, ReplayInputs
 from ins_fusion.replay.outages import Outage, in_any
 
@@ -30,12 +34,15 @@ _TICK_TOLERANCE = 1e-3
 
 @dataclass(frozen=True)
 class SolutionTrack:
-    """Fused base_link solutions in time order (see InsSolution for frames and units), with
-    the fields stacked over time: t_s (n,), pos_enu_m (n, 3), quat_enu_flu_xyzw (n, 4),
-    vel_enu_m_s (n, 3), cov_pos_enu_m2 / cov_vel_enu / cov_att_enu_rad2 (n, 3, 3);
-    ``aligned`` (n,) is False while the engine is still 'aligning' (heading unknown)."""
+    """Fused base_link solutions in time order, held as rows of core.solution_rows (``rows``;
+    ``solutions``: each InsSolution built when asked for; see InsSolution for frames and units),
+    with the fields the evaluation uses stacked over time: t_s (n,), pos_enu_m (n, 3),
+    quat_enu_flu_xyzw (n, 4), vel_enu_m_s (n, 3), cov_pos_enu_m2 / cov_vel_enu /
+    cov_att_enu_rad2 (n, 3, 3); ``aligned`` (n,) is False while the engine is still
+    'aligning' (heading unknown). A track moved to another frame (replay.frames) replaces the
+    stacked fields; ``rows`` stay those of base_link."""
 
-    solutions: tuple[InsSolution, ...]
+    rows: FloatArray
     t_s: FloatArray
     pos_enu_m: FloatArray
     quat_enu_flu_xyzw: FloatArray
@@ -46,25 +53,40 @@ class SolutionTrack:
     aligned: BoolArray
 
     @classmethod
+    def from_rows(cls, rows: FloatArray) -> SolutionTrack:
+        """The track of an (n, solution_rows.WIDTH) array of rows (the fields are views)."""
+        rows = rows.reshape(-1, solution_rows.WIDTH)
+        return cls(
+            rows,
+            rows[:, solution_rows.T],
+            rows[:, solution_rows.POS],
+            rows[:, solution_rows.QUAT],
+            rows[:, solution_rows.VEL],
+            rows[:, solution_rows.COV_POS].reshape(-1, 3, 3),
+            rows[:, solution_rows.COV_VEL].reshape(-1, 3, 3),
+            rows[:, solution_rows.COV_ATT].reshape(-1, 3, 3),
+            rows[:, solution_rows.STATE] != solution_rows.STATES.index("aligning"),
+        )
+
+    @classmethod
     def from_solutions(cls, solutions: Sequence[InsSolution]) -> SolutionTrack:
         """Stack a sequence of solutions (may be empty)."""
+        return cls.from_rows(np.array([solution_rows.pack(s) for s in solutions]))
 
-        def stack(name: str, shape: tuple[int, ...]) -> FloatArray:
-            if not solutions:
-                return np.zeros((0, *shape))
-            return np.array([getattr(s, name) for s in solutions], dtype=np.float64)
+    @property
+    def solutions(self) -> Sequence[InsSolution]:
+        """The recorded base_link solutions."""
+        return solution_rows.Solutions(self.rows)
 
-        return cls(
-            tuple(solutions),
-            stack("t_s", ()),
-            stack("pos_enu_m", (3,)),
-            stack("quat_enu_flu_xyzw", (4,)),
-            stack("vel_enu_m_s", (3,)),
-            stack("cov_pos_enu_m2", (3, 3)),
-            stack("cov_vel_enu", (3, 3)),
-            stack("cov_att_enu_rad2", (3, 3)),
-            np.array([s.state != "aligning" for s in solutions], dtype=np.bool_),
-        )
+    @property
+    def rate_flu_rad_s(self) -> FloatArray:
+        """Bias-corrected base_link rates (n, 3) [rad/s]."""
+        return self.rows[:, solution_rows.RATE]
+
+    @property
+    def imu_mounting_rpy_rad(self) -> FloatArray:
+        """The engine's estimated IMU mounting (n, 3) [rad]; NaN rows where not estimated."""
+        return self.rows[:, solution_rows.MOUNTING]
 
 
 @dataclass(frozen=True)
@@ -73,7 +95,8 @@ class FusionRun:
     (lat_deg, lon_deg, height_m of the map frame; None without any fix), the GNSS messages
     dropped by outages per topic role, the output rate [Hz], the wall time of the run [s], the
     engine's configuration and the fixes the outages withheld (``fix`` role, valid or not, in
-    receive order)."""
+    receive order); with smoothing, the smoothed track (one solution per covariance step) and
+    the wall time of the backward pass [s]."""
 
     track: SolutionTrack
     status: EngineStatus
@@ -83,6 +106,8 @@ class FusionRun:
     fusion_time_s: float
     config: FusionConfig
     withheld_fixes: tuple[GnssFixMeasurement, ...] = ()
+    smoothed: SolutionTrack | None = None
+    smoothing_time_s: float = 0.0
 
 
 def run_fusion(
@@ -90,12 +115,14 @@ def run_fusion(
     parameters: Mapping[str, Any],
     outages: Sequence[Outage] = (),
     progress: Callable[[int, int], None] | None = None,
+    smooth: bool = False,
 ) -> FusionRun:
     """Run a fresh engine configured by the flat parameter dict (validated against
-    ins_fusion.fusion_params.PARAMETERS) over ``inputs``; ``progress(done, total)`` counts IMU
-    samples."""
+    ins_fusion.core.params.PARAMETERS) over ``inputs``; ``progress(done, total)`` counts IMU
+    samples; ``smooth``: also the RTS smoother's backward pass."""
     config = FusionConfig.from_parameters(parameters)
     engine = InsEngine(config)
+    recorder = attach_recorder(engine) if smooth else None
     start = time.perf_counter()
     t0 = inputs.t0_s
     kept: list[tuple[int, str, Measurement]] = []
@@ -115,7 +142,7 @@ def run_fusion(
     }
     rate_hz = config.output_rate_hz
     next_tick = 0.0  # output ticks since t0; the next one is recorded
-    solutions: list[InsSolution] = []
+    solutions = solution_rows.RowBuffer()
     j, n_kept, total = 0, len(kept), len(inputs.imu)
     for k, (t, rate, force) in enumerate(inputs.imu.samples()):
         while j < n_kept and kept[j][0] <= k:
@@ -126,7 +153,7 @@ def run_fusion(
         if ticks >= next_tick:
             solution = engine.solution()
             if solution is not None:
-                solutions.append(solution)
+                solutions.append(solution_rows.pack(solution))
             next_tick = math.floor(ticks) + 1.0
         if progress is not None and k % 2048 == 0:
             progress(k, total)
@@ -134,13 +161,23 @@ def run_fusion(
         feed[role](measurement)
     if progress is not None:
         progress(total, total)
+    status = engine.status()
+    fusion_time = time.perf_counter() - start
+    smoothed, smoothing_time = None, 0.0
+    if recorder is not None:
+        recorder.finish(engine.covariance)
+        smoothed = SolutionTrack.from_rows(smoothed_rows(recorder))
+        recorder.close()
+        smoothing_time = time.perf_counter() - start - fusion_time
     return FusionRun(
-        SolutionTrack.from_solutions(solutions),
-        engine.status(),
+        SolutionTrack.from_rows(solutions.rows()),
+        status,
         engine.datum,
         dropped,
         config.output_rate_hz,
-        time.perf_counter() - start,
+        fusion_time,
         config,
         tuple(withheld),
+        smoothed,
+        smoothing_time,
     )

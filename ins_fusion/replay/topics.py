@@ -8,14 +8,20 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-#: ROS message types of the inputs and references, as rosbags names them.
-IMU_TYPE = "sensor_msgs/msg/Imu"
-FIX_TYPE = "sensor_msgs/msg/NavSatFix"
-VELOCITY_TYPE = "geometry_msgs/msg/TwistWithCovarianceStamped"
-ATTITUDE_TYPE = "sensor_msgs/msg/Imu"
+from ins_fusion.bags.topics import (
+    ATTITUDE_TYPE,
+    FIX_TYPE,
+    GNSS_ATTITUDE,
+    GNSS_FIX,
+    GNSS_VEL,
+    IMU_DATA,
+    IMU_TYPE,
+    TRUTH_PREFIX,
+    VELOCITY_TYPE,
+)
 
 #: Default reference prefix (the simulator's truth topics).
-DEFAULT_REFERENCE = "/ground_truth"
+DEFAULT_REFERENCE = TRUTH_PREFIX
 #: Topic roles of the fusion node -> expected message type.
 SENSOR_TYPES: dict[str, str] = {
     "imu": IMU_TYPE,
@@ -39,10 +45,10 @@ def _absolute(topic: str) -> str:
 class TopicMap:
     """Bag topics of the node's inputs (the node's names, absolute)."""
 
-    imu: str = "/imu/data_raw"
-    fix: str = "/gnss/fix"
-    vel: str = "/gnss/vel"
-    attitude: str = "/gnss/attitude"
+    imu: str = IMU_DATA
+    fix: str = GNSS_FIX
+    vel: str = GNSS_VEL
+    attitude: str = GNSS_ATTITUDE
     #: Roles the user named (``parse``): their topics must be in the bag.
     named: tuple[str, ...] = field(default=(), compare=False)
 

@@ -27,16 +27,14 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
+from gnss_ins_common.types import FloatArray
 from ins_fusion.core.measurements import GnssFixMeasurement
 from ins_fusion.replay import metrics
 from ins_fusion.replay.frames import moved_track
 from ins_fusion.replay.metrics import Errors
 from ins_fusion.replay.outages import Outage
 from ins_fusion.replay.run import SolutionTrack
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True)

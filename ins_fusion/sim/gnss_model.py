@@ -33,9 +33,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from gnss_ins_common.types import FloatArray, Vec3
 from ins_fusion.core import earth
 from ins_fusion.core.rotation import (
-    FloatArray,
     euler_from_quat,
     ned_to_enu,
     quat_enu_flu_from_nb,
@@ -45,7 +45,6 @@ from ins_fusion.core.rotation import (
 from ins_fusion.sim.noise import GaussMarkov
 from ins_fusion.sim.vehicle import GnssTruth
 
-Vec3 = tuple[float, float, float]
 #: Tolerance of epoch times against whole multiples of the period [s].
 _TIME_TOLERANCE_S = 1e-6
 #: Reorders per-axis standard deviations from NED to ENU (no sign change, unlike vectors).

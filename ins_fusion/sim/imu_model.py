@@ -32,9 +32,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from gnss_ins_common.axes import AxisMap
+from gnss_ins_common.types import FloatArray, Mat3, Vec3
 from imu400cc_driver.axes import DEFAULT_ACCEL_SIGN, DEFAULT_AXIS_SPEC
 from ins_fusion.core.calibration import mat3, vec3
-from ins_fusion.core.rotation import FloatArray
 from ins_fusion.core.units import (
     DEG,
     STANDARD_GRAVITY_M_S2,
@@ -48,8 +48,6 @@ from ins_fusion.core.units import (
 )
 from ins_fusion.sim.noise import BandLimitedNoise, GaussMarkov, RandomWalk, WhiteNoise
 
-Vec3 = tuple[float, float, float]
-Mat3 = tuple[Vec3, Vec3, Vec3]
 _ZERO3: Vec3 = (0.0, 0.0, 0.0)
 _ZERO33: Mat3 = (_ZERO3, _ZERO3, _ZERO3)
 

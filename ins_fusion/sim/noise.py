@@ -24,9 +24,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numpy.typing import NDArray
 
-FloatArray = NDArray[np.float64]
+from gnss_ins_common.types import FloatArray
 
 #: Longest span, in correlation times, handled in one vectorised Gauss-Markov chunk (bounds the
 #: growth of exp(t/T) in the closed-form sum).

@@ -27,10 +27,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from gnss_ins_common.types import FloatArray
 from ins_fusion.core import earth
 from ins_fusion.core.rotation import (
     MAT_FLU_FRD,
-    FloatArray,
     frd_to_flu,
     ned_to_enu,
     quat_enu_flu_from_nb,

@@ -15,7 +15,7 @@ from typing import Generic, TypeVar
 
 import numpy as np
 
-from ins_fusion.core.rotation import FloatArray
+from gnss_ins_common.types import FloatArray
 from ins_fusion.sim.trajectory import FrameTruth, Mounting, Trajectory
 
 T = TypeVar("T")

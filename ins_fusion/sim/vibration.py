@@ -53,9 +53,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy import signal
 
-from ins_fusion.core.rotation import FloatArray
+from gnss_ins_common.types import FloatArray, Vec3
 
-Vec3 = tuple[float, float, float]
 Band = tuple[float, float]
 _ZERO3: Vec3 = (0.0, 0.0, 0.0)
 #: Butterworth order of each band-pass (2 x order poles).

@@ -18,11 +18,10 @@ import argparse
 import sys
 from pathlib import Path
 
-import numpy as np
-from rosbags.highlevel import AnyReaderError
-
 from gnss_ins_common.params import ParameterValueError
-from ins_fusion.cdr_fields import CdrError, imu_columns
+from ins_fusion.bags.bag_io import BagError, utc_text
+from ins_fusion.bags.imu import read_imu
+from ins_fusion.bags.topics import IMU_DATA
 from ins_fusion.core.units import deg_s, mg
 from ins_fusion.noise_id.allan import ONE_SIGMA
 from ins_fusion.noise_id.analysis import (
@@ -43,18 +42,13 @@ from ins_fusion.noise_id.output import (
 from ins_fusion.noise_id.plot import plot_allan
 from ins_fusion.noise_id.provisional import provisional_biases
 from ins_fusion.noise_id.record import (
-    ImuRecord,
     RecordError,
     StaticLimits,
     check_static,
     check_values,
     sample_clock,
 )
-from ins_fusion.tools.bag_columns import read_topics
-from ins_fusion.tools.bag_io import BagError, BagReader, utc_text
-from ins_fusion.tools.progress import Progress
-
-IMU_TYPE = "sensor_msgs/msg/Imu"
+from ins_fusion.runtime.progress import Progress
 
 
 def _terms(text: str) -> tuple[str, ...]:
@@ -87,7 +81,7 @@ def _probability(text: str) -> float:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Command-line options of ``gnss_ins allan``."""
     parser.add_argument("bag", type=Path, help="rosbag2 bag of a static IMU record")
-    parser.add_argument("--topic", default="/imu/data_raw", help="sensor_msgs/Imu topic")
+    parser.add_argument("--topic", default=IMU_DATA, help="sensor_msgs/Imu topic")
     parser.add_argument(
         "-o", "--output", type=Path, metavar="YAML", help="write ins_fusion_node's imu_noise.*"
     )
@@ -122,32 +116,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def read_imu(path: Path, topic: str) -> tuple[ImuRecord, int]:
-    """The Imu samples of ``topic`` in stamp order (times from the header stamps, relative to
-    the first) and the first stamp [ns]; BagError for a missing topic or one of another type.
-    The topic is read as columns (ins_fusion.tools.bag_columns, ins_fusion.cdr_fields)."""
-    with BagReader(path) as reader:
-        info = reader.topics.get(topic)
-        if info is None:
-            imu_topics = sorted(t for t, i in reader.topics.items() if i.msgtype == IMU_TYPE)
-            raise BagError(
-                f"{path}: no topic {topic} (Imu topics: {', '.join(imu_topics) or 'none'})"
-            )
-        if info.msgtype != IMU_TYPE:
-            raise BagError(f"{path}: {topic} is {info.msgtype}, not {IMU_TYPE}")
-        with Progress("read", total=info.count, unit="messages") as progress:
-            payloads = read_topics(reader, [topic], progress.update)[topic].payloads
-            progress.update(len(payloads))
-    if not payloads:
-        raise BagError(f"{path}: {topic} has no messages")
-    imu = imu_columns(payloads)
-    # Sample order, whatever order the recorder logged them in.
-    order = np.argsort(imu.stamp_ns, kind="stable")
-    stamps = imu.stamp_ns[order]
-    t_s = (stamps - stamps[0]) / 1e9
-    return ImuRecord(t_s, imu.rate[order], imu.force[order]), int(stamps[0])
-
-
 def _error(message: str) -> int:
     print(f"gnss_ins allan: error: {message}", file=sys.stderr)
     return 2
@@ -156,15 +124,16 @@ def _error(message: str) -> int:
 def run(args: argparse.Namespace) -> int:
     """Analyse, print, write; 0 done, 2 bad input or a record that does not give the terms."""
     try:
-        record, first_ns = read_imu(args.bag, args.topic)
+        with Progress("read", unit="messages") as progress:
+            record = read_imu(args.bag, args.topic, None, progress.update_with_total, relative=True)
         clock = sample_clock(record.t_s)
         check_values(record)
         check_length(record.duration_s, args.terms or DEFAULT_TERMS)
         limits = StaticLimits(deg_s(args.max_rate_change), mg(args.max_accel_change))
         check_static(record, clock.rate_hz, limits)
-    except (BagError, AnyReaderError, CdrError, OSError, RecordError) as exc:
+    except (BagError, RecordError) as exc:
         return _error(str(exc))
-    source = f"bag {args.bag}, topic {args.topic}, from {utc_text(first_ns)}"
+    source = f"bag {args.bag}, topic {args.topic}, from {utc_text(record.start_ns)}"
     axes = len(SENSORS) * len(AXES)
     with Progress("allan", total=axes, unit="axes") as progress:
         report = identify(record, clock, source, args.confidence, progress.update)

@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from ins_fusion.bags.topics import IMU_DATA, IMU_TEMPERATURE
 from ins_fusion.tools.cli import argument_type
 
 
@@ -63,8 +64,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     seg.add_argument("--min-duration", type=float, default=10.0, help="shortest segment [s] (10)")
     seg.add_argument("--trim", type=float, default=1.0, help="cut from each end [s] (1)")
-    seg.add_argument("--imu-topic", default="/imu/data_raw")
-    seg.add_argument("--temperature-topic", default="/imu/temperature")
+    seg.add_argument("--imu-topic", default=IMU_DATA)
+    seg.add_argument("--temperature-topic", default=IMU_TEMPERATURE)
     site = parser.add_argument_group("static methods")
     site.add_argument("--latitude", type=float, metavar="DEG", help="laboratory latitude [deg]")
     site.add_argument("--height", type=float, default=0.0, help="ellipsoidal height [m] (0)")

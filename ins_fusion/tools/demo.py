@@ -24,34 +24,44 @@ import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from gnss_driver.profiles import Receiver
 from gnss_ins_common.paths import config_file
-from ins_fusion.messages_in import stamp_s
+from ins_fusion.adapters.messages_in import stamp_s
+from ins_fusion.bags.bag_io import BagReader, BagWriter
+from ins_fusion.bags.topics import (
+    GNSS_ATTITUDE,
+    GNSS_FIX,
+    GNSS_TIME,
+    GNSS_VEL,
+    IMU_DATA,
+    IMU_TEMPERATURE,
+    INS_FIX,
+    INS_ODOMETRY,
+    TRUTH_FIX,
+)
+from ins_fusion.runtime.processes import ProcessGroup, gnss_ins_command
+from ins_fusion.runtime.vehicle_nodes import ADU5, FUSION, LEICA, VEHICLE, command
 from ins_fusion.sim.receivers import emulator_config
 from ins_fusion.sim.scenarios import SURVEY_CAR
-from ins_fusion.tools.bag_io import BagReader, BagWriter
-from ins_fusion.tools.processes import ProcessGroup, gnss_ins_command
-from ins_fusion.vehicle_nodes import ADU5, FUSION, LEICA, VEHICLE, command
 
 #: Sensor and output topics recorded during the live run.
 RECORDED = (
-    "/imu/data_raw",
-    "/imu/temperature",
-    "/leica/gnss/fix",
-    "/leica/gnss/vel",
-    "/leica/gnss/time_reference",
-    "/adu5/gnss/attitude",
-    "/ins/odometry",
-    "/ins/fix",
+    IMU_DATA,
+    IMU_TEMPERATURE,
+    f"/{LEICA.namespace}{GNSS_FIX}",
+    f"/{LEICA.namespace}{GNSS_VEL}",
+    f"/{LEICA.namespace}{GNSS_TIME}",
+    f"/{ADU5.namespace}{GNSS_ATTITUDE}",
+    INS_ODOMETRY,
+    INS_FIX,
     "/diagnostics",
 )
 #: Roles of the replay inputs in the recorded bag.
-REPLAY_TOPICS = (
-    "imu=/imu/data_raw,fix=/leica/gnss/fix,vel=/leica/gnss/vel,attitude=/adu5/gnss/attitude"
-)
+REPLAY_TOPICS = f"imu={IMU_DATA},fix={RECORDED[2]},vel={RECORDED[3]},attitude={RECORDED[5]}"
 
 
 #: The test pattern's standstill before the drive [s] (ins_fusion.sim.scenarios).
@@ -136,7 +146,7 @@ def _live_errors(bag: Path, truth: Path) -> dict[str, float]:
             ]
         return np.array(rows) if rows else np.zeros((0, 4))
 
-    fused, reference = fixes(bag, "/ins/fix"), fixes(truth, "/ground_truth/fix")
+    fused, reference = fixes(bag, INS_FIX), fixes(truth, TRUTH_FIX)
     fused = fused[fused[:, 3] >= 0] if len(fused) else fused
     if len(fused) == 0 or len(reference) == 0:
         return {}
@@ -308,7 +318,9 @@ def _wait_recording(simulator: subprocess.Popen[str], duration_s: float) -> None
             continue
 
 
-def _print_summary(live: dict[str, float], report: dict, out: Path, total_s: float) -> None:
+def _print_summary(
+    live: dict[str, float], report: dict[str, Any], out: Path, total_s: float
+) -> None:
     position = report["position_error_m"]
     attitude = report["attitude_error_deg"]
     print()

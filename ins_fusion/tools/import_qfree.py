@@ -1,8 +1,8 @@
 """``gnss_ins import-qfree``: Q-Free OBU GNSS and MEMS text logs to a rosbag2 bag.
 
-Layouts, units and the reference receiver are described in ins_fusion/qfree.py and
+Layouts, units and the reference receiver are described in ins_fusion/qfree/logs.py and
 shared/reference/gnss-ins-ntnu-notes.md §3–5. The messages are filled like the drivers' and the
-simulator's (ins_fusion/sim/messages.py, topics and frames of ins_fusion/sim/topics.py);
+simulator's (gnss_ins_common/message_fields.py, topics and frames of ins_fusion/bags/topics.py);
 header.stamp = bag time = the UTC date/time columns of the line:
 
 - ``/gnss/fix`` (sensor_msgs/NavSatFix, frame ``gnss_link``): status NO_FIX when the good flag
@@ -31,10 +31,11 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-from gnss_driver.solution import SERVICE_GPS
-from ins_fusion import qfree, qfree_checks
-from ins_fusion.sim.messages import fill_imu, fill_navsatfix, fill_velocity, new_message
-from ins_fusion.sim.topics import (
+from gnss_ins_common.message_fields import fill_imu, fill_navsatfix, fill_velocity
+from gnss_ins_common.navsat import SERVICE_GPS
+from ins_fusion.bags.bag_io import STORAGES, BagError, BagWriter
+from ins_fusion.bags.messages import new_message
+from ins_fusion.bags.topics import (
     GNSS_FIX,
     GNSS_FRAME,
     GNSS_VEL,
@@ -45,8 +46,8 @@ from ins_fusion.sim.topics import (
     TRUTH_FRAME,
     TRUTH_VEL,
 )
-from ins_fusion.tools.bag_io import STORAGES, BagError, BagWriter
-from ins_fusion.tools.progress import Progress
+from ins_fusion.qfree import checks, logs
+from ins_fusion.runtime.progress import Progress
 
 #: Bad lines and gyro wraps printed one by one; the rest are counted.
 MAX_LISTED = 20
@@ -59,8 +60,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--reference", type=Path, help="GNSS log of the reference (equipment id 6)")
     parser.add_argument("-o", "--output", type=Path, required=True, help="bag directory to create")
     parser.add_argument("--storage", choices=sorted(STORAGES), default="mcap")
-    parser.add_argument("--accel-unit", choices=sorted(qfree.ACCEL_UNITS))
-    parser.add_argument("--gyro-unit", choices=sorted(qfree.GYRO_UNITS))
+    parser.add_argument("--accel-unit", choices=sorted(logs.ACCEL_UNITS))
+    parser.add_argument("--gyro-unit", choices=sorted(logs.GYRO_UNITS))
     parser.add_argument(
         "--mounting",
         type=_mounting,
@@ -112,7 +113,7 @@ def _mounting(text: str) -> tuple[float, float, float]:
     return roll, pitch, yaw
 
 
-def _transforms(args: argparse.Namespace) -> tuple[qfree.SensorTransform, qfree.SensorTransform]:
+def _transforms(args: argparse.Namespace) -> tuple[logs.SensorTransform, logs.SensorTransform]:
     """(accelerometer, gyro) transforms of the options; ValueError for a preset combined with
     unit or mounting options."""
     options = ("accel_unit", "gyro_unit", "mounting", "accel_mounting", "gyro_mounting")
@@ -120,11 +121,11 @@ def _transforms(args: argparse.Namespace) -> tuple[qfree.SensorTransform, qfree.
         given = [f"--{o.replace('_', '-')}" for o in options if getattr(args, o) is not None]
         if given:
             raise ValueError(f"--preset thesis sets the transforms itself, not with {given[0]}")
-        return qfree.thesis_transforms()
+        return logs.thesis_transforms()
     both = args.mounting or (0.0, 0.0, 0.0)
     return (
-        qfree.SensorTransform.mounted(args.accel_unit or "mg", args.accel_mounting or both),
-        qfree.SensorTransform.mounted(args.gyro_unit or "mdps", args.gyro_mounting or both),
+        logs.SensorTransform.mounted(args.accel_unit or "mg", args.accel_mounting or both),
+        logs.SensorTransform.mounted(args.gyro_unit or "mdps", args.gyro_mounting or both),
     )
 
 
@@ -136,7 +137,7 @@ def _listed(items: Sequence[object], what: str) -> None:
         print(f"{what}: ... and {len(items) - MAX_LISTED} more", file=sys.stderr)
 
 
-def navsatfix(epoch: qfree.GnssEpoch, frame: str) -> Any:
+def navsatfix(epoch: logs.GnssEpoch, frame: str) -> Any:
     """sensor_msgs/NavSatFix of a GNSS epoch (status and covariance as in the module doc)."""
     covariance, kind = epoch.position_covariance_enu_m2
     return fill_navsatfix(
@@ -153,18 +154,18 @@ def navsatfix(epoch: qfree.GnssEpoch, frame: str) -> Any:
     )
 
 
-def twist_enu(epoch: qfree.GnssEpoch, vel_enu_m_s: Sequence[float], frame: str) -> Any:
+def twist_enu(epoch: logs.GnssEpoch, vel_enu_m_s: Sequence[float], frame: str) -> Any:
     """geometry_msgs/TwistWithCovarianceStamped: ENU velocity, Table 4.9 covariance."""
     return fill_velocity(
         new_message(TOPICS[GNSS_VEL]),
         epoch.stamp.utc_ns,
         frame,
         vel_enu_m_s,
-        qfree.VELOCITY_COVARIANCE_ENU_M2_S2,
+        logs.VELOCITY_COVARIANCE_ENU_M2_S2,
     )
 
 
-def imu_message(series: qfree.ImuSeries, k: int) -> Any:
+def imu_message(series: logs.ImuSeries, k: int) -> Any:
     """sensor_msgs/Imu (REP-145, no orientation) of sample ``k`` of the series."""
     return fill_imu(
         new_message(TOPICS[IMU_DATA]),
@@ -178,19 +179,19 @@ def imu_message(series: qfree.ImuSeries, k: int) -> Any:
 
 
 def _validated(
-    log: qfree.ParsedLog[Any], problem: Callable[[Any], str | None], refused: Counter[str]
+    log: logs.ParsedLog[Any], problem: Callable[[Any], str | None], refused: Counter[str]
 ) -> list[Any]:
     """The records of ``log`` with plausible values (``problem``) in time order; the others
     listed on stderr and counted in ``refused`` (keys "implausible" and "time")."""
-    kept, implausible = qfree_checks.refuse(log.records, problem)
-    kept, time_faults = qfree_checks.refuse_time_faults(kept)
+    kept, implausible = checks.refuse(log.records, problem)
+    kept, time_faults = checks.refuse_time_faults(kept)
     _listed(implausible, "implausible value")
     _listed(time_faults, "time order")
     refused.update(implausible=len(implausible), time=len(time_faults))
     return kept
 
 
-def _read(path: Path, parse: Callable[..., qfree.ParsedLog[Any]]) -> qfree.ParsedLog[Any]:
+def _read(path: Path, parse: Callable[..., logs.ParsedLog[Any]]) -> logs.ParsedLog[Any]:
     with path.open(encoding="utf-8", errors="replace") as lines:
         log = parse(lines, str(path))
     _listed(log.bad_lines, "bad line")
@@ -202,8 +203,8 @@ Event = tuple[int, int, str, Callable[[], Any]]
 
 
 def _events(
-    epochs: list[qfree.GnssEpoch],
-    series: qfree.ImuSeries,
+    epochs: list[logs.GnssEpoch],
+    series: logs.ImuSeries,
     selected: Callable[[int], bool],
 ) -> tuple[list[Event], int]:
     """Every message to write in time order, and the count of GNSS epochs without a usable
@@ -211,7 +212,7 @@ def _events(
     events: list[Event] = []
     no_velocity = 0
     for epoch in epochs:
-        ref = epoch.stamp.equipment_id == qfree.REFERENCE_EQUIPMENT_ID
+        ref = epoch.stamp.equipment_id == logs.REFERENCE_EQUIPMENT_ID
         if not ref and not selected(epoch.stamp.equipment_id):
             continue
         fix_topic, vel_topic = (TRUTH_FIX, TRUTH_VEL) if ref else (GNSS_FIX, GNSS_VEL)
@@ -233,42 +234,42 @@ def run(args: argparse.Namespace) -> int:
     """Parse the logs, write the bag, print the summary. 2 if a file cannot be read or the bag
     exists, 1 if nothing could be imported."""
     try:
-        logs = [_read(args.gnss, qfree.parse_gnss), _read(args.mems, qfree.parse_mems)]
+        parsed = [_read(args.gnss, logs.parse_gnss), _read(args.mems, logs.parse_mems)]
         if args.reference:
-            logs.append(_read(args.reference, qfree.parse_gnss))
+            parsed.append(_read(args.reference, logs.parse_gnss))
     except OSError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    gnss, mems, *reference = logs
+    gnss, mems, *reference = parsed
     refused: Counter[str] = Counter()
-    epochs: list[qfree.GnssEpoch] = [
-        e for log in (gnss, *reference) for e in _validated(log, qfree_checks.gnss_problem, refused)
+    epochs: list[logs.GnssEpoch] = [
+        e for log in (gnss, *reference) for e in _validated(log, checks.gnss_problem, refused)
     ]
     try:
         accel, gyro = _transforms(args)
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    mems_units = {"accel_unit": accel.unit, "gyro_unit": gyro.unit}
-    mems_records = _validated(mems, partial(qfree_checks.mems_problem, **mems_units), refused)
+    mems_problem = partial(checks.mems_problem, accel_unit=accel.unit, gyro_unit=gyro.unit)
+    mems_records = _validated(mems, mems_problem, refused)
 
     def selected(equipment_id: int) -> bool:
         if args.equipment is not None:
             return bool(equipment_id == args.equipment)
-        return equipment_id != qfree.REFERENCE_EQUIPMENT_ID
+        return equipment_id != logs.REFERENCE_EQUIPMENT_ID
 
     receivers = {e.stamp.equipment_id for e in epochs} | {
         s.stamp.equipment_id for s in mems_records
     }
-    if args.equipment is None and len(receivers - {qfree.REFERENCE_EQUIPMENT_ID}) > 1:
+    if args.equipment is None and len(receivers - {logs.REFERENCE_EQUIPMENT_ID}) > 1:
         print(
             f"warning: receivers {sorted(receivers)} share the topics; choose with --equipment",
             file=sys.stderr,
         )
     samples = [s for s in mems_records if selected(s.stamp.equipment_id)]
-    default_shift = qfree.THESIS_LATENCY_S if args.preset == "thesis" else 0.0
+    default_shift = logs.THESIS_LATENCY_S if args.preset == "thesis" else 0.0
     shift_s = default_shift if args.time_shift is None else args.time_shift
-    series = qfree.imu_series(
+    series = logs.imu_series(
         samples, accel=accel, gyro=gyro, unwrap=not args.keep_gyro_wrap, time_shift_s=shift_s
     )
     _listed(series.wraps, "gyro wrap")
@@ -290,7 +291,7 @@ def run(args: argparse.Namespace) -> int:
 
     print(writer.summary.format(f"bag {args.output} ({args.storage}, files: {len(writer.files)})"))
     print(
-        f"  bad lines: {sum(len(log.bad_lines) for log in logs)};"
+        f"  bad lines: {sum(len(log.bad_lines) for log in parsed)};"
         f" GNSS epochs without usable velocity: {no_velocity};"
         f" MEMS samples of other equipment: {len(mems_records) - len(samples)}"
     )

@@ -1,10 +1,10 @@
 """`gnss_ins launch`: start the vehicle's nodes for real hardware on a machine without `ros2`.
 
-The same nodes, namespaces and remappings as launch/vehicle.launch.py (ins_fusion.vehicle_nodes),
-each in its own process, until Ctrl-C/SIGTERM; a port that does not exist, every WARN/ERROR line
-of a node's log (rate-limited by the nodes) and a node that dies are reported on the console, and
-when one dies the others are stopped, so a broken cable or port never leaves half a system running
-silently.
+The same nodes, namespaces and remappings as launch/vehicle.launch.py
+(ins_fusion.runtime.vehicle_nodes), each in its own process, until Ctrl-C/SIGTERM; a port that
+does not exist, every WARN/ERROR line of a node's log (rate-limited by the nodes) and a node that
+dies are reported on the console, and when one dies the others are stopped, so a broken cable or
+port never leaves half a system running silently.
 """
 
 from __future__ import annotations
@@ -14,8 +14,8 @@ import signal
 import time
 from pathlib import Path
 
-from ins_fusion.tools.processes import ProcessGroup
-from ins_fusion.vehicle_nodes import ADU5, DEFAULT_PORTS, VEHICLE, command
+from ins_fusion.runtime.processes import ProcessGroup
+from ins_fusion.runtime.vehicle_nodes import ADU5, DEFAULT_PORTS, VEHICLE, command
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -1,7 +1,7 @@
 """``gnss_ins recover``: a readable bag from a recording that did not finish (killed, power cut).
 
 The unfinished bag is only read; its messages go to a new bag (``BAG_recovered`` by default).
-See ins_fusion/tools/bag_recover.py for what is recovered and docs/bags.md.
+See ins_fusion/bags/recover.py for what is recovered and docs/bags.md.
 """
 
 from __future__ import annotations
@@ -10,8 +10,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from ins_fusion.tools.bag_io import BagError
-from ins_fusion.tools.bag_recover import recover_bag
+from ins_fusion.bags.bag_io import BagError
+from ins_fusion.bags.recover import recover_bag
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -11,7 +11,10 @@ without them, each outage is scored against the GNSS fixes it withheld (the fuse
 each fix stamp). Prints a short table; ``--report`` writes the JSON report, ``--plot`` the
 figure, ``--output`` the fused /ins/odometry and /ins/fix as a bag. ``--free-inertial START``
 withholds every GNSS message from START on and turns the pseudo-measurements off, the Aalborg
-report's unaided evaluation (ins_fusion.replay.free_inertial). ``--sweep NAME=V1,V2,...``
+report's unaided evaluation (ins_fusion.replay.free_inertial). ``--smooth`` runs the RTS smoother
+after the forward pass (report section ``smoothed``, both in the plot, its own topics in the
+fused bag); ``--export FILE`` writes the forward or smoothed solution as CSV, GPX or NMEA
+(ins_fusion.replay.export). ``--sweep NAME=V1,V2,...``
 (repeatable: the grid of all combinations) replays every setting and ranks them by
 ``--rank-by``. docs/replay.md describes the report. Exit status 2 on bad input.
 """
@@ -79,12 +82,32 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--output", type=Path, metavar="FUSED", help="write /ins/odometry and /ins/fix to this bag"
     )
     parser.add_argument(
+        "--smooth",
+        action="store_true",
+        help="also run the Rauch-Tung-Striebel smoother over the forward pass (post-processing: "
+        "report, plot and fused bag get the smoothed solution too)",
+    )
+    parser.add_argument(
+        "--export",
+        type=Path,
+        action="append",
+        default=[],
+        metavar="FILE",
+        help="write the solution past alignment as .csv, .gpx or .nmea (by suffix; repeatable)",
+    )
+    parser.add_argument(
+        "--export-solution",
+        choices=("forward", "smoothed"),
+        help="which solution --export writes (default: smoothed with --smooth, else forward)",
+    )
+    parser.add_argument(
         "--topics",
         type=argument_type(TopicMap.parse),
         default=DEFAULT_TOPICS,
         metavar="ROLE=TOPIC,...",
-        help="input topics (defaults imu=/imu/data_raw,fix=/gnss/fix,vel=/gnss/vel,"
-        "attitude=/gnss/attitude)",
+        help="input topics (defaults "
+        + ",".join(f"{role}={topic}" for role, topic in DEFAULT_TOPICS.by_role().items())
+        + ")",
     )
     parser.add_argument(
         "--sweep",

@@ -1,7 +1,7 @@
 """`gnss_ins simulate`: a simulated drive to a rosbag2 bag, or live on emulated serial devices.
 
 Bag mode writes what imu400cc_node and gnss_node would publish on the drive, each message at its
-receive time, plus the truth (ins_fusion/sim/topics.py lists topics, frames and stamps), then
+receive time, plus the truth (ins_fusion/sim/drive.py lists topics, frames and stamps), then
 prints the bag summary. The same seed gives the same messages.
 
 ``--live`` runs the drive in real time instead: the IMU400CC emulator and the GNSS emulators (the
@@ -30,23 +30,23 @@ import numpy as np
 from gnss_driver.emulator import EmulatorConfig as GnssEmulatorConfig
 from gnss_driver.emulator import GnssEmulator, Truth
 from gnss_driver.profiles import Receiver
+from gnss_ins_common.types import FloatArray
 from imu400cc_driver.emulator import EmulatorConfig, Imu400ccEmulator, SentPacket
-from ins_fusion.core.rotation import FloatArray
+from ins_fusion.bags.bag_io import STORAGES, BagError, BagWriter
+from ins_fusion.runtime.progress import Progress
 from ins_fusion.sim import imu_model, vibration
-from ins_fusion.sim.gnss_model import GnssErrorModel
-from ins_fusion.sim.receivers import emulator_truth, epoch_config
-from ins_fusion.sim.scenarios import SCENARIOS
-from ins_fusion.sim.topics import (
+from ins_fusion.sim.drive import (
     DEFAULT_START_NS,
     POSITION_RECEIVERS,
     Simulation,
     SimulationConfig,
     SkyZoneSpec,
 )
+from ins_fusion.sim.gnss_model import GnssErrorModel
+from ins_fusion.sim.receivers import emulator_truth, epoch_config
+from ins_fusion.sim.scenarios import SCENARIOS
 from ins_fusion.sim.vehicle import TruthCache
 from ins_fusion.sim.vibration import Vibration
-from ins_fusion.tools.bag_io import STORAGES, BagError, BagWriter
-from ins_fusion.tools.progress import Progress
 
 #: How often the live mode writes the truth that became due [s].
 _LIVE_TICK_S = 0.1

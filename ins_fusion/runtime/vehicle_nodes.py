@@ -10,7 +10,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from gnss_ins_common.paths import config_file
-from ins_fusion.tools.processes import python_main
+from ins_fusion.runtime.processes import python_main
 
 
 @dataclass(frozen=True)

@@ -27,7 +27,7 @@ from typing import Generic, NamedTuple, TypeVar
 import numpy as np
 from numpy.typing import NDArray
 
-from gnss_driver.solution import CovarianceType, NavSatStatus
+from gnss_ins_common.navsat import CovarianceType, NavSatStatus
 
 #: Equipment id of the NovAtel SPAN reference receiver (§3, §4).
 REFERENCE_EQUIPMENT_ID = 6

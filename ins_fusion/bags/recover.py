@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
 
-from ins_fusion.tools.bag_io import BagError, BagReader, BagSummary, BagWriter
+from ins_fusion.bags.bag_io import BagError, BagReader, BagSummary, BagWriter
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 #: Record opcodes of the MCAP spec (Header 0x01 .. Data End 0x0F, Footer 0x02 included).

@@ -16,13 +16,12 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from gnss_ins_common.message_fields import fill_navsatfix, set_header, stamp_ns
+from gnss_ins_common.navsat import SERVICE_GPS, CovarianceType, NavSatStatus
+from gnss_ins_common.types import FloatArray
 from ins_fusion.core.engine import InsSolution
 from ins_fusion.core.rotation import mat_from_quat
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True)
@@ -84,10 +83,6 @@ def odometry_arrays(solution: InsSolution, rate_variance_rad2_s2: float) -> Odom
     )
 
 
-#: sensor_msgs/NavSatStatus STATUS_NO_FIX, STATUS_FIX, SERVICE_GPS; COVARIANCE_TYPE_KNOWN.
-_STATUS_NO_FIX, _STATUS_FIX, _SERVICE_GPS, _COVARIANCE_KNOWN = -1, 0, 1, 3
-
-
 def fill_odometry(
     msg: Any, solution: InsSolution, map_frame: str, base_frame: str, rate_variance_rad2_s2: float
 ) -> Any:
@@ -113,11 +108,11 @@ def fill_fused_fix(msg: Any, solution: InsSolution, base_frame: str) -> Any:
         msg,
         stamp_ns(solution.t_s),
         base_frame,
-        _STATUS_NO_FIX if solution.state == "aligning" else _STATUS_FIX,
-        _SERVICE_GPS,
+        int(NavSatStatus.NO_FIX if solution.state == "aligning" else NavSatStatus.FIX),
+        SERVICE_GPS,
         solution.lat_deg,
         solution.lon_deg,
         solution.height_m,
         solution.cov_pos_enu_m2.ravel(),
-        _COVARIANCE_KNOWN,
+        int(CovarianceType.KNOWN),
     )

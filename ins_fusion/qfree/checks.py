@@ -14,10 +14,10 @@ import math
 from collections.abc import Callable, Iterable, Sequence
 from typing import TypeVar
 
-from ins_fusion import qfree
+from ins_fusion.qfree import logs
 
 #: Largest plausible specific force per axis [m/s²]: the LIS331DLH's widest range, ±8 g.
-MAX_ACCEL_M_S2 = 8.0 * qfree.STANDARD_GRAVITY_M_S2
+MAX_ACCEL_M_S2 = 8.0 * logs.STANDARD_GRAVITY_M_S2
 #: Largest plausible rate per axis [rad/s]: the L3G4200D's widest range, ±2000 °/s.
 MAX_RATE_RAD_S = math.radians(2000.0)
 #: Plausible ellipsoidal height [m] (below the Dead Sea shore to airliner altitude).
@@ -27,11 +27,11 @@ MAX_SPEED_M_S = 515.0
 #: Largest plausible position sigma [m]; a larger one is no measurement.
 MAX_STD_M = 10000.0
 
-StampedT = TypeVar("StampedT", qfree.GnssEpoch, qfree.MemsSample)
+StampedT = TypeVar("StampedT", logs.GnssEpoch, logs.MemsSample)
 
 
-def _bad(stamp: qfree.Stamp, reason: str) -> qfree.BadLine:
-    return qfree.BadLine(stamp.source, stamp.line, reason)
+def _bad(stamp: logs.Stamp, reason: str) -> logs.BadLine:
+    return logs.BadLine(stamp.source, stamp.line, reason)
 
 
 def _beyond(values: Iterable[float], limit: float) -> float | None:
@@ -39,18 +39,18 @@ def _beyond(values: Iterable[float], limit: float) -> float | None:
     return next((v for v in values if not abs(v) <= limit), None)
 
 
-def mems_problem(sample: qfree.MemsSample, accel_unit: str, gyro_unit: str) -> str | None:
+def mems_problem(sample: logs.MemsSample, accel_unit: str, gyro_unit: str) -> str | None:
     """Why ``sample`` (in the log's ``accel_unit`` / ``gyro_unit``) is implausible, or None."""
-    accel = _beyond(sample.accel, MAX_ACCEL_M_S2 / qfree.ACCEL_UNITS[accel_unit])
+    accel = _beyond(sample.accel, MAX_ACCEL_M_S2 / logs.ACCEL_UNITS[accel_unit])
     if accel is not None:
         return f"accelerometer value {accel:g} {accel_unit} beyond ±8 g"
-    rate = _beyond(sample.gyro, MAX_RATE_RAD_S / qfree.GYRO_UNITS[gyro_unit])
+    rate = _beyond(sample.gyro, MAX_RATE_RAD_S / logs.GYRO_UNITS[gyro_unit])
     if rate is not None:
         return f"gyro value {rate:g} {gyro_unit} beyond ±2000 deg/s"
     return None
 
 
-def gnss_problem(epoch: qfree.GnssEpoch) -> str | None:
+def gnss_problem(epoch: logs.GnssEpoch) -> str | None:
     """Why ``epoch`` holds an implausible height, velocity or sigma, or None (NaN = missing)."""
     low, high = HEIGHT_RANGE_M
     if not low <= epoch.height_m <= high:
@@ -66,11 +66,11 @@ def gnss_problem(epoch: qfree.GnssEpoch) -> str | None:
 
 def refuse(
     records: Sequence[StampedT], problem: Callable[[StampedT], str | None]
-) -> tuple[list[StampedT], list[qfree.BadLine]]:
+) -> tuple[list[StampedT], list[logs.BadLine]]:
     """(the records ``problem`` finds nothing wrong with, a BadLine with the reason for each
     other one), e.g. ``problem`` = ``gnss_problem``."""
     kept: list[StampedT] = []
-    refused: list[qfree.BadLine] = []
+    refused: list[logs.BadLine] = []
     for record in records:
         reason = problem(record)
         if reason is None:
@@ -80,12 +80,12 @@ def refuse(
     return kept, refused
 
 
-def refuse_time_faults(records: Sequence[StampedT]) -> tuple[list[StampedT], list[qfree.BadLine]]:
+def refuse_time_faults(records: Sequence[StampedT]) -> tuple[list[StampedT], list[logs.BadLine]]:
     """(the records whose stamp is after the last kept one of their stream — same file,
     equipment, drive and leg — and a BadLine per record that repeats it or goes back)."""
-    last: dict[tuple[str, int, int, int], qfree.Stamp] = {}
+    last: dict[tuple[str, int, int, int], logs.Stamp] = {}
     kept: list[StampedT] = []
-    refused: list[qfree.BadLine] = []
+    refused: list[logs.BadLine] = []
     for record in records:
         s = record.stamp
         key = (s.source, s.equipment_id, s.drive_id, s.leg_id)

@@ -54,6 +54,11 @@ class Progress:
             self._last_draw = now
             self._draw(now)
 
+    def update_with_total(self, done: float, total: float) -> None:
+        """``update`` with the total too: a ``progress(done, total)`` callback of the readers."""
+        self.total = total
+        self.update(done)
+
     def close(self) -> None:
         """Draw the final state and end the line."""
         if self.enabled:

@@ -15,9 +15,6 @@ from typing import Any
 
 from scipy.spatial.transform import Rotation
 
-#: ``tf_mode`` values: the frame of ins/odometry and of its transform; none = no /tf.
-TF_MODES = ("map", "odom", "none")
-
 
 @dataclass(frozen=True)
 class FrameTransform:

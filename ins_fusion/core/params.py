@@ -26,9 +26,12 @@ from __future__ import annotations
 
 import math
 
-from gnss_ins_common.params import Param
+from gnss_ins_common.params import Param, needs_values
 from ins_fusion.core.calibration import CalibrationError, ImuCalibration
-from ins_fusion.tf_frames import TF_MODES
+
+#: ``tf_mode`` values: the frame of ins/odometry and of its transform; none = no /tf
+#: (ins_fusion.adapters.tf_frames).
+TF_MODES = ("map", "odom", "none")
 
 # Per-axis per-sample σ of Aalborg (7.14) [rad/s, m/s²] and the sensor bandwidths of §1.3 [Hz].
 _GYRO_SIGMA_7_14 = (0.0041, 0.0040, 0.0048)
@@ -53,10 +56,6 @@ def _calibration_file(path: str) -> str | None:
     return None
 
 
-def _three(values: list[float]) -> str | None:
-    return None if len(values) == 3 else "needs three values (x, y, z)"
-
-
 def _datum(values: list[float]) -> str | None:
     if not values:
         return None
@@ -72,7 +71,9 @@ def _vector(
     """A three-value parameter; ``axes``: per sensor axis, one number meaning all three."""
     if axes:
         description += " (one number = the same on every axis)"
-    return Param(name, default, description, low, high, check=_three, broadcast=axes)
+    return Param(
+        name, default, description, low, high, check=needs_values(3, "x, y, z"), broadcast=axes
+    )
 
 
 PARAMETERS: tuple[Param, ...] = (
@@ -413,7 +414,7 @@ PARAMETERS: tuple[Param, ...] = (
     Param("output_rate", 50.0, "publish rate of ins/odometry, ins/fix, ins/imu [Hz]", 0.1, 1000.0),
     Param("map_frame", "map", "frame_id of ins/odometry (ENU tangent plane at the datum)"),
     Param("base_frame", "base_link", "child_frame_id of ins/odometry"),
-    # TF (REP-105; ins_fusion/tf_frames.py).
+    # TF (REP-105; ins_fusion/adapters/tf_frames.py).
     Param(
         "tf_mode",
         "map",

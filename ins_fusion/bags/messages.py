@@ -1,8 +1,8 @@
 """Empty rosbags messages to fill with the nodes' own ``fill_*`` functions (no ROS).
 
 ``new_message("sensor_msgs/msg/Imu")`` gives a Jazzy message with every field zero; the
-``fill_*`` functions (defined once in ``gnss_ins_common.message_fields``, used by the nodes too, and
-re-exported here for the simulator's convenience) set its fields exactly as the nodes do.
+``fill_*`` functions (``gnss_ins_common.message_fields``, ``gnss_driver.solution.fill_gnss_fix``,
+used by the nodes too) set its fields exactly as the nodes do.
 """
 
 from __future__ import annotations
@@ -14,31 +14,7 @@ from typing import Any
 import numpy as np
 from rosbags.interfaces import Nodetype
 
-from gnss_driver.solution import fill_gnss_fix
-from gnss_ins_common.message_fields import (
-    fill_imu,
-    fill_navsatfix,
-    fill_orientation,
-    fill_temperature,
-    fill_time_reference,
-    fill_velocity,
-    set_header,
-    stamp_ns,
-)
-from ins_fusion.tools.bag_io import jazzy_typestore
-
-__all__ = [
-    "fill_gnss_fix",
-    "fill_imu",
-    "fill_navsatfix",
-    "fill_orientation",
-    "fill_temperature",
-    "fill_time_reference",
-    "fill_velocity",
-    "new_message",
-    "set_header",
-    "stamp_ns",
-]
+from ins_fusion.bags.bag_io import jazzy_typestore
 
 _STRINGS = ("string", "wstring")
 #: ROS base types numpy does not name the same way.

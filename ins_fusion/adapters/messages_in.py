@@ -1,7 +1,7 @@
 """Incoming ROS messages -> fusion engine inputs, for rclpy and rosbags message objects alike.
 
 One definition of how ins_fusion_node and ``gnss_ins replay`` read their topics (the IMU, at
-134 Hz, straight from its bytes with the same fields: ins_fusion.cdr_fields): the functions
+134 Hz, straight from its bytes with the same fields: ins_fusion.adapters.cdr_fields): the functions
 only read fields by attribute (rclpy messages and rosbags-deserialized ones have the same field
 names) and return the engine's plain types. No ROS import.
 
@@ -24,18 +24,13 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from gnss_ins_common.navsat import CovarianceType, NavSatStatus
+from gnss_ins_common.types import Vec3
 from ins_fusion.core.measurements import (
     AttitudeMeasurement,
     GnssFixMeasurement,
     GnssVelocityMeasurement,
 )
-
-Vec3 = tuple[float, float, float]
-
-#: sensor_msgs/NavSatStatus: statuses below STATUS_FIX (NO_FIX -1, UNKNOWN -2) carry no position.
-STATUS_FIX = 0
-#: sensor_msgs/NavSatFix position_covariance_type with no usable covariance.
-COVARIANCE_TYPE_UNKNOWN = 0
 
 
 class ImuSample(NamedTuple):
@@ -72,17 +67,17 @@ def imu_sample(msg: Any) -> ImuSample:
 def fix_measurement(msg: Any) -> GnssFixMeasurement:
     """sensor_msgs/NavSatFix -> antenna position with its ENU covariance [m²].
 
-    Valid only with a fix (status >= STATUS_FIX), finite latitude, longitude and altitude
-    (altitude above the WGS-84 ellipsoid, ARCHITECTURE.md), and a known, finite, positive
-    definite covariance (type not UNKNOWN; a zero or negative variance is no accuracy either): a
-    position without an accuracy cannot be weighted. Invalid fixes are still handed to the
-    engine, which ignores and counts them.
+    Valid only with a fix (status >= FIX; NO_FIX and UNKNOWN carry no position), finite
+    latitude, longitude and altitude (altitude above the WGS-84 ellipsoid, ARCHITECTURE.md),
+    and a known, finite, positive definite covariance (type not UNKNOWN; a zero or negative
+    variance is no accuracy either): a position without an accuracy cannot be weighted. Invalid
+    fixes are still handed to the engine, which ignores and counts them.
     """
     cov = np.asarray(msg.position_covariance, dtype=np.float64).reshape(3, 3)
     position = (float(msg.latitude), float(msg.longitude), float(msg.altitude))
     valid = (
-        int(msg.status.status) >= STATUS_FIX
-        and int(msg.position_covariance_type) != COVARIANCE_TYPE_UNKNOWN
+        int(msg.status.status) >= NavSatStatus.FIX
+        and int(msg.position_covariance_type) != CovarianceType.UNKNOWN
         and all(map(math.isfinite, position))
         and _positive_definite(cov)
     )

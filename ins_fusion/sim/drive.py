@@ -12,13 +12,14 @@ one clock that is also UTC (simulation time 0 = ``start_ns``).
 | /gnss/attitude (Imu, orientation only) | gnss_link | ADU5 epoch | + ADU5 latency |
 | /ground_truth/fix, /vel, /attitude | base_link | truth time | at once |
 
-Types as ``TOPICS``; velocities are TwistWithCovarianceStamped in ENU.
+Names, frames and types from ins_fusion.bags.topics (``TOPICS``); velocities are
+TwistWithCovarianceStamped in ENU.
 
-Contents are the drivers' (sim.messages): the IMU400CC node's covariances (per-sample variance of
-the simulated noise, which for the band-limited imu400cc is its default (7.14) σ²) and its
-temperature counts; the GNSS messages are gnss_node's reading of the receivers' NMEA
-(sim.receivers). The truth is exact: covariances 0, the angular part of the velocity and the rate
-and acceleration of the attitude marked as absent.
+Contents are the drivers' (their own ``fill_*`` functions): the IMU400CC node's covariances
+(per-sample variance of the simulated noise, which for the band-limited imu400cc is its default
+(7.14) σ²) and its temperature counts; the GNSS messages are gnss_node's reading of the receivers'
+NMEA (sim.receivers). The truth is exact: covariances 0, the angular part of the velocity and the
+rate and acceleration of the attitude marked as absent.
 """
 
 from __future__ import annotations
@@ -35,50 +36,46 @@ from typing import Any, NamedTuple, TypeVar
 import numpy as np
 
 from gnss_driver.profiles import Receiver
-from imu400cc_driver.device_clock import PACKET_TRANSMISSION_S
-from imu400cc_driver.protocol import TEMPERATURE_VARIANCE_C2, Scaling
-from ins_fusion.core.rotation import FloatArray
-from ins_fusion.sim import gnss_model, imu_model, vibration
-from ins_fusion.sim.gnss_model import GnssErrorModel, GnssSchedule, SkyMask, SkyZone
-from ins_fusion.sim.imu_model import ImuErrorModel
-from ins_fusion.sim.messages import (
-    fill_gnss_fix,
+from gnss_driver.solution import fill_gnss_fix
+from gnss_ins_common.message_fields import (
     fill_imu,
     fill_navsatfix,
     fill_orientation,
     fill_temperature,
     fill_time_reference,
     fill_velocity,
-    new_message,
 )
+from gnss_ins_common.navsat import SERVICE_GPS, CovarianceType, NavSatStatus
+from gnss_ins_common.types import FloatArray
+from imu400cc_driver.device_clock import PACKET_TRANSMISSION_S
+from imu400cc_driver.protocol import TEMPERATURE_VARIANCE_C2, Scaling
+from ins_fusion.bags.messages import new_message
+from ins_fusion.bags.topics import (
+    FIX_TYPE,
+    GNSS_ATTITUDE,
+    GNSS_FIX,
+    GNSS_FRAME,
+    GNSS_TIME,
+    GNSS_VEL,
+    IMU_DATA,
+    IMU_FRAME,
+    IMU_TEMPERATURE,
+    IMU_TYPE,
+    TOPICS,
+    TRUTH_ATTITUDE,
+    TRUTH_FIX,
+    TRUTH_FRAME,
+    TRUTH_VEL,
+    VELOCITY_TYPE,
+)
+from ins_fusion.sim import gnss_model, imu_model, vibration
+from ins_fusion.sim.gnss_model import GnssErrorModel, GnssSchedule, SkyMask, SkyZone
+from ins_fusion.sim.imu_model import ImuErrorModel
 from ins_fusion.sim.receivers import ReceiverModel
 from ins_fusion.sim.scenarios import SCENARIOS, SURVEY_CAR
 from ins_fusion.sim.vehicle import TruthCache, VehicleTruth
 from ins_fusion.sim.vibration import Vibration
 
-IMU_DATA, IMU_TEMPERATURE = "/imu/data_raw", "/imu/temperature"
-GNSS_FIX, GNSS_VEL, GNSS_ATTITUDE = "/gnss/fix", "/gnss/vel", "/gnss/attitude"
-GNSS_TIME = "/gnss/time_reference"
-TRUTH_FIX, TRUTH_VEL, TRUTH_ATTITUDE = (
-    "/ground_truth/fix",
-    "/ground_truth/vel",
-    "/ground_truth/attitude",
-)
-IMU_FRAME, GNSS_FRAME, TRUTH_FRAME = "imu_link", "gnss_link", "base_link"
-_IMU, _NAVSATFIX = "sensor_msgs/msg/Imu", "sensor_msgs/msg/NavSatFix"
-_TWIST = "geometry_msgs/msg/TwistWithCovarianceStamped"
-#: Every topic a simulation may write and its type, in the order they are declared in a bag.
-TOPICS: dict[str, str] = {
-    IMU_DATA: _IMU,
-    IMU_TEMPERATURE: "sensor_msgs/msg/Temperature",
-    GNSS_FIX: _NAVSATFIX,
-    GNSS_VEL: _TWIST,
-    GNSS_TIME: "sensor_msgs/msg/TimeReference",
-    GNSS_ATTITUDE: _IMU,
-    TRUTH_FIX: _NAVSATFIX,
-    TRUTH_VEL: _TWIST,
-    TRUTH_ATTITUDE: _IMU,
-}
 #: Default start (simulation time 0) of a bag, so that a seed always gives the same bag.
 DEFAULT_START_NS = int(datetime(2024, 6, 1, 10, 0, 0, tzinfo=UTC).timestamp()) * 1_000_000_000
 #: imu400cc_node publishes imu/temperature with every this many samples (temperature_rate 1 Hz).
@@ -265,7 +262,7 @@ class Simulation:
             Event(
                 stamp + _TRANSMISSION_NS,
                 IMU_DATA,
-                fill_imu(new_message(_IMU), stamp, IMU_FRAME, w, f, gyro_var, accel_var),
+                fill_imu(new_message(IMU_TYPE), stamp, IMU_FRAME, w, f, gyro_var, accel_var),
             )
             for stamp, w, f in zip(stamps, rate.tolist(), force.tolist(), strict=True)
         ]
@@ -296,7 +293,7 @@ class Simulation:
                     if solution.attitude is not None:
                         o = solution.attitude.orientation
                         message = fill_orientation(
-                            new_message(_IMU),
+                            new_message(IMU_TYPE),
                             stamp,
                             GNSS_FRAME,
                             o.quat_enu_flu_xyzw,
@@ -305,14 +302,12 @@ class Simulation:
                         events.append(Event(log, GNSS_ATTITUDE, message))
                     continue
                 if solution.fix is not None:
-                    message = fill_gnss_fix(
-                        new_message(_NAVSATFIX), stamp, GNSS_FRAME, solution.fix
-                    )
+                    message = fill_gnss_fix(new_message(FIX_TYPE), stamp, GNSS_FRAME, solution.fix)
                     events.append(Event(log, GNSS_FIX, message))
                 if solution.velocity is not None:
                     v = solution.velocity
                     message = fill_velocity(
-                        new_message(_TWIST), stamp, GNSS_FRAME, v.vel_enu_m_s, v.cov_enu
+                        new_message(VELOCITY_TYPE), stamp, GNSS_FRAME, v.vel_enu_m_s, v.cov_enu
                     )
                     events.append(Event(log, GNSS_VEL, message))
                 message = new_message(TOPICS[GNSS_TIME])
@@ -339,23 +334,22 @@ class Simulation:
         events: list[Event] = []
         zero = [0.0] * 9
         for i, stamp in enumerate(stamps):
-            fix = new_message(_NAVSATFIX)
-            status = fix.status
+            fix = new_message(FIX_TYPE)
             fill_navsatfix(
                 fix,
                 stamp,
                 TRUTH_FRAME,
-                status.STATUS_FIX,
-                status.SERVICE_GPS,
+                int(NavSatStatus.FIX),
+                SERVICE_GPS,
                 lat_deg[i],
                 lon_deg[i],
                 height[i],
                 zero,
-                fix.COVARIANCE_TYPE_KNOWN,
+                int(CovarianceType.KNOWN),
             )
-            vel = fill_velocity(new_message(_TWIST), stamp, TRUTH_FRAME, vel_enu[i], zero)
+            vel = fill_velocity(new_message(VELOCITY_TYPE), stamp, TRUTH_FRAME, vel_enu[i], zero)
             attitude = fill_orientation(
-                new_message(_IMU), stamp, TRUTH_FRAME, quat_enu_flu[i], zero
+                new_message(IMU_TYPE), stamp, TRUTH_FRAME, quat_enu_flu[i], zero
             )
             events += [
                 Event(stamp, TRUTH_FIX, fix),

@@ -1,0 +1,225 @@
+"""The IMU samples of one recording as arrays: the record type, its reader and its writer (no ROS).
+
+``ImuRecord`` is what ``gnss_ins allan`` (ins_fusion.noise_id) and ``gnss_ins calibrate``
+(ins_fusion.calibration_id) analyse; ``read_imu`` makes it from a bag, ``write_imu_bag`` writes
+one as imu400cc_node publishes it (simulated records for the tests, benchmarks and procedures).
+
+Time base: sample times are the messages' ``header.stamp`` (shared/ARCHITECTURE.md "The shared
+clock"), not the bag's receive (log) times. ``t_s`` and ``temperature_t_s`` count seconds from
+the record's ``start_ns`` [ns since the Unix epoch]: with ``start_ns`` 0 they are seconds since
+the epoch (``sec + nanosec·1e-9``, as ins_fusion_node reads stamps); ``read_imu(relative=True)``
+puts ``start_ns`` at the first sample and takes exact integer-ns differences. Axes and units are
+those of imu/data_raw (REP-145, imu_link FLU): rates [rad/s], specific force [m/s²] (a level
+resting unit reads about (0, 0, +9.81)); temperatures [°C].
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from rosbags.highlevel import AnyReaderError
+from rosbags.rosbag2 import ReaderError
+from rosbags.serde import SerdeError
+
+from gnss_ins_common.message_fields import fill_imu, fill_temperature, stamp_ns
+from gnss_ins_common.types import FloatArray, IntArray
+from ins_fusion.bags.bag_io import BagError, BagReader, BagWriter
+from ins_fusion.bags.messages import new_message
+from ins_fusion.bags.topics import (
+    IMU_DATA,
+    IMU_FRAME,
+    IMU_TEMPERATURE,
+    IMU_TYPE,
+    TEMPERATURE_TYPE,
+)
+
+#: Messages read between two calls of ``read_imu``'s progress callback.
+PROGRESS_EVERY = 20_000
+
+
+def _no_samples() -> FloatArray:
+    return np.zeros(0)
+
+
+@dataclass(frozen=True)
+class ImuRecord:
+    """Samples of one IMU recording (time base, axes and units: see the module docstring).
+
+    - ``t_s`` (n,): sample times [s after ``start_ns``], strictly increasing;
+    - ``rate_flu_rad_s``, ``force_flu_m_s2`` (n, 3): angular rate [rad/s] and specific force
+      [m/s²] in imu_link FLU;
+    - ``temperature_t_s``, ``temperature_c`` (m,): imu/temperature stamps [s after
+      ``start_ns``] and values [°C], possibly empty;
+    - ``start_ns``: origin of the times [ns since the Unix epoch] (0: times since the epoch);
+    - ``name``: where it came from (a bag's directory name).
+    """
+
+    t_s: FloatArray
+    rate_flu_rad_s: FloatArray
+    force_flu_m_s2: FloatArray
+    temperature_t_s: FloatArray = field(default_factory=_no_samples)
+    temperature_c: FloatArray = field(default_factory=_no_samples)
+    start_ns: int = 0
+    name: str = ""
+
+    def __post_init__(self) -> None:
+        n = len(self.t_s)
+        if self.rate_flu_rad_s.shape != (n, 3) or self.force_flu_m_s2.shape != (n, 3):
+            raise ValueError("rate and force need shape (n, 3) for n stamps")
+        if n and np.any(np.diff(self.t_s) <= 0.0):
+            raise ValueError("IMU stamps must increase")
+        if self.temperature_t_s.shape != self.temperature_c.shape:
+            raise ValueError("temperature stamps and values differ in length")
+
+    @property
+    def rate_hz(self) -> float:
+        """Median sample rate [Hz]."""
+        return float(1.0 / np.median(np.diff(self.t_s)))
+
+    @property
+    def duration_s(self) -> float:
+        """Time from the first to the last sample [s]."""
+        return float(self.t_s[-1] - self.t_s[0]) if len(self.t_s) else 0.0
+
+    def temperature_range(self, t_start_s: float, t_end_s: float) -> tuple[float, float] | None:
+        """Lowest and highest temperature [°C] stamped in [t_start_s, t_end_s] (None: none)."""
+        inside = (self.temperature_t_s >= t_start_s) & (self.temperature_t_s <= t_end_s)
+        if not np.any(inside):
+            return None
+        values = self.temperature_c[inside]
+        return float(values.min()), float(values.max())
+
+
+def _check_topic(reader: BagReader, topic: str, msgtype: str) -> None:
+    info = reader.topics.get(topic)
+    if info is None:
+        same_type = sorted(t for t, i in reader.topics.items() if i.msgtype == msgtype)
+        kind = msgtype.rsplit("/", 1)[-1]
+        raise BagError(
+            f"{reader.path}: no topic {topic} ({kind} topics: {', '.join(same_type) or 'none'})"
+        )
+    if info.msgtype != msgtype:
+        raise BagError(f"{reader.path}: {topic} is {info.msgtype}, not {msgtype}")
+
+
+def read_imu(
+    path: Path | str,
+    topic: str = IMU_DATA,
+    temperature_topic: str | None = IMU_TEMPERATURE,
+    progress: Callable[[int, int], None] | None = None,
+    *,
+    relative: bool = False,
+) -> ImuRecord:
+    """The record of the sensor_msgs/Imu ``topic`` of a bag, in stamp order (whatever order the
+    recorder logged the messages in; of samples with the same time the first is kept), with the
+    sensor_msgs/Temperature ``temperature_topic`` when the bag has it (None: not read). Times
+    since the epoch, or with ``relative`` since the first IMU stamp (see the module docstring).
+
+    ``progress(done, total)`` is called every PROGRESS_EVERY messages and at the end. BagError
+    for an unreadable bag, a missing IMU topic, a topic of another type or fewer than two
+    distinct stamps.
+    """
+    try:
+        with BagReader(path) as reader:
+            _check_topic(reader, topic, IMU_TYPE)
+            topics = [topic]
+            if temperature_topic is not None and temperature_topic in reader.topics:
+                _check_topic(reader, temperature_topic, TEMPERATURE_TYPE)
+                topics.append(temperature_topic)
+            total = sum(reader.topics[t].count for t in topics)
+            stamps: list[tuple[int, int]] = []
+            values: list[tuple[float, ...]] = []
+            temperatures: list[tuple[int, int, float]] = []
+            for done, msg in enumerate(reader.messages(topics, deserialize=True), 1):
+                m, stamp = msg.message, msg.message.header.stamp
+                if msg.topic == topic:
+                    w, f = m.angular_velocity, m.linear_acceleration
+                    stamps.append((stamp.sec, stamp.nanosec))
+                    values.append((w.x, w.y, w.z, f.x, f.y, f.z))
+                else:
+                    temperatures.append((stamp.sec, stamp.nanosec, m.temperature))
+                if progress is not None and done % PROGRESS_EVERY == 0:
+                    progress(done, total)
+            if progress is not None:
+                progress(total, total)
+    except (AnyReaderError, ReaderError, SerdeError, OSError) as exc:
+        raise BagError(f"{path}: {exc}") from None
+    sec_ns = np.array(stamps, dtype=np.int64).reshape(-1, 2)
+    start_ns = (
+        int((sec_ns[:, 0] * 1_000_000_000 + sec_ns[:, 1]).min()) if relative and stamps else 0
+    )
+    t_s = _seconds(sec_ns, start_ns)
+    order = np.argsort(t_s, kind="stable")
+    order = order[np.concatenate(([True], np.diff(t_s[order]) > 0.0))[: len(order)]]
+    if len(order) < 2:
+        distinct = (
+            f" ({len(order)} distinct stamp(s): are the header stamps set?)" if stamps else ""
+        )
+        raise BagError(f"{path}: {topic} has {len(stamps)} message(s){distinct}")
+    data = np.array(values, dtype=np.float64)[order]
+    temp_sec_ns = np.array([(s, n) for s, n, _ in temperatures], dtype=np.int64).reshape(-1, 2)
+    temp_t_s = _seconds(temp_sec_ns, start_ns)
+    temp_order = np.argsort(temp_t_s, kind="stable")
+    temp_c = np.array([c for _, _, c in temperatures], dtype=np.float64)
+    return ImuRecord(
+        t_s[order],
+        data[:, :3],
+        data[:, 3:],
+        temp_t_s[temp_order],
+        temp_c[temp_order],
+        start_ns,
+        Path(path).name,
+    )
+
+
+def _seconds(sec_ns: IntArray, start_ns: int) -> FloatArray:
+    """Stamps (sec, nanosec) (n, 2) as seconds after ``start_ns``: ``sec + nanosec·1e-9`` for
+    0 (as messages_in.stamp_s), else the integer-ns difference divided by 1e9."""
+    if start_ns == 0:
+        return sec_ns[:, 0].astype(np.float64) + sec_ns[:, 1].astype(np.float64) * 1e-9
+    return (sec_ns[:, 0] * 1_000_000_000 + sec_ns[:, 1] - start_ns) / 1e9
+
+
+def write_imu_bag(
+    path: Path | str,
+    record: ImuRecord,
+    *,
+    topic: str = IMU_DATA,
+    delay_ns: int = 0,
+    storage: str = "mcap",
+    stamps_ns: IntArray | None = None,
+) -> None:
+    """A new bag with the record as imu400cc_node publishes it: sensor_msgs/Imu on ``topic``
+    (frame imu_link, covariances zero = unknown) and, when the record has temperatures,
+    sensor_msgs/Temperature on /imu/temperature. Stamps are the record's ``start_ns`` + its times
+    [ns] (IMU stamps: ``stamps_ns`` when given); each message is logged ``delay_ns`` after its
+    stamp."""
+    zero = (0.0, 0.0, 0.0)
+    if stamps_ns is None:
+        imu_stamps = [record.start_ns + stamp_ns(t) for t in record.t_s.tolist()]
+    else:
+        imu_stamps = [int(stamp) for stamp in stamps_ns]
+    events = [
+        (stamp, topic, fill_imu(new_message(IMU_TYPE), stamp, IMU_FRAME, w, f, zero, zero))
+        for stamp, w, f in zip(
+            imu_stamps, record.rate_flu_rad_s.tolist(), record.force_flu_m_s2.tolist(), strict=True
+        )
+    ]
+    temperature_stamps = [record.start_ns + stamp_ns(t) for t in record.temperature_t_s.tolist()]
+    events += [
+        (
+            stamp,
+            IMU_TEMPERATURE,
+            fill_temperature(new_message(TEMPERATURE_TYPE), stamp, IMU_FRAME, c, 0.0),
+        )
+        for stamp, c in zip(temperature_stamps, record.temperature_c.tolist(), strict=True)
+    ]
+    with BagWriter(path, storage=storage) as writer:
+        writer.add_topic(topic, IMU_TYPE)
+        if len(record.temperature_t_s):
+            writer.add_topic(IMU_TEMPERATURE, TEMPERATURE_TYPE)
+        for stamp, name, message in sorted(events, key=lambda e: e[0]):
+            writer.write(name, stamp + delay_ns, message)

@@ -1,0 +1,97 @@
+"""The GNSS position noise model of the engine: the receiver's reported covariance split into a
+white part (the measurement noise R) and a time-correlated part (Gauss-Markov error states,
+when ``gnss_correlation_time`` > 0), and the restarts of those states. Covariances NED [m²]."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from gnss_ins_common.types import FloatArray
+from ins_fusion.core.config import FusionConfig
+from ins_fusion.core.eskf import POS, ErrorStateFilter, StateLayout
+from ins_fusion.core.measurements import GnssFixMeasurement, ned_cov
+from ins_fusion.core.rotation import MAT_ENU_NED
+from ins_fusion.core.state import FilterState, restart_block
+
+#: Largest factor by which a fix's covariance grows when its epochs scatter more than reported.
+_MAX_GNSS_INFLATION = 100.0
+
+
+class GnssNoise:
+    """White/correlated split of a fix's covariance (see the module docstring)."""
+
+    def __init__(self, config: FusionConfig, layout: StateLayout) -> None:
+        self._layout = layout
+        self._scale_sq = config.gnss_position_noise_scale**2
+        self._white_fraction = config.gnss_white_fraction
+        self._white_var_ned = np.square(MAT_ENU_NED @ config.gnss_white_sigma_enu_m)
+
+    def reported_variance(self, fix: GnssFixMeasurement) -> FloatArray:
+        """The receiver's position variance per NED axis, times gnss_position_noise_scale²."""
+        return np.diagonal(ned_cov(fix.cov_enu_m2)) * self._scale_sq
+
+    def split(self, s: FilterState, fix: GnssFixMeasurement) -> tuple[FloatArray, FloatArray]:
+        """(white covariance NED [m²], correlated variance per NED axis [m²]) of a fix.
+
+        The white part is what the data say (core.adaptation.WhiteNoiseMonitor: consecutive
+        innovations), at least ``gnss_noise.white_sigma``² or ``gnss_noise.white_fraction`` of
+        the receiver's variance, at most that variance; before the data say anything, the
+        floor. The rest is the time-correlated error. A receiver whose epochs scatter more than
+        it reports gets its whole covariance scaled up to the measured white part (at most
+        ``_MAX_GNSS_INFLATION`` times). Correlations between axes are kept.
+        """
+        total = ned_cov(fix.cov_enu_m2) * self._scale_sq
+        variance = np.diagonal(total)
+        share = s.gnss_white.share
+        measured = None if share is None else share * variance
+        if self._layout.gp is None:  # all white: no correlated error states
+            white = variance
+        else:
+            floor = np.maximum(self._white_var_ned, self._white_fraction * variance)
+            white = np.minimum(variance, floor)
+        if measured is not None:
+            white = np.minimum(np.maximum(white, measured), _MAX_GNSS_INFLATION * variance)
+        scale = np.sqrt(white / np.maximum(variance, 1e-30))
+        return total * np.outer(scale, scale), np.maximum(variance - white, 0.0)
+
+    def restart_position(
+        self, s: FilterState, kf: ErrorStateFilter, fix: GnssFixMeasurement
+    ) -> None:
+        """Position error (and correlated GNSS error) as after taking the position from a fix:
+        δp = -(white + correlated error of the fix)."""
+        white, correlated = self.split(s, fix)
+        P = kf.P.copy()
+        restart_block(P, POS, white + np.diag(correlated))
+        kf.P = P
+        gp = self._layout.gp
+        if gp is not None:
+            self.restart_error(s, kf, fix, correlated)
+            P = kf.P.copy()
+            P[POS : POS + 3, gp : gp + 3] = P[gp : gp + 3, POS : POS + 3] = -np.diag(correlated)
+            kf.P = P
+
+    def restart_error(
+        self, s: FilterState, kf: ErrorStateFilter, fix: GnssFixMeasurement, correlated: FloatArray
+    ) -> None:
+        """A new correlated GNSS error process (start, or the receiver's σ jumped: another fix
+        type, e.g. RTK float after an outage): uncorrelated, at its stationary variance."""
+        gp = self._layout.gp
+        assert gp is not None
+        P_before = kf.P
+        P = kf.P.copy()
+        restart_block(P, gp, np.diag(correlated))
+        kf.P = P
+        reported = self.reported_variance(fix)
+        s.gnss_reported = (float(reported[0]), float(reported[1]), float(reported[2]))
+        s.gnss_error = (0.0, 0.0, 0.0)
+        self.set_correlated_variance(s, kf, correlated)
+        if kf.recorder is not None:  # smoother hook: the GNSS error states restart
+            kf.recorder.on_restart(P_before, kf.P, range(gp, gp + 3))
+
+    @staticmethod
+    def set_correlated_variance(
+        s: FilterState, kf: ErrorStateFilter, correlated: FloatArray
+    ) -> None:
+        """Stationary variance of the correlated GNSS error process per NED axis [m²]."""
+        s.gnss_variance = (float(correlated[0]), float(correlated[1]), float(correlated[2]))
+        kf.gnss_variance = s.gnss_variance

@@ -1,0 +1,287 @@
+"""The engine's nominal state and what acts on it directly: the per-sample state
+(``FilterState``), the fixed sensor geometry (``Geometry``), the latest raw inputs the start-up
+reads (``LatestInputs``), and the closed-loop feedback of an error estimate (``inject``).
+
+Frames: the engine's body frame is base_link FRD (the IMU point with vehicle axes), the
+navigation frame NED; error states as in core.eskf.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from gnss_ins_common.types import FloatArray, Quat, Vec3
+from ins_fusion.core import earth
+from ins_fusion.core.adaptation import WhiteNoiseMonitor
+from ins_fusion.core.config import FusionConfig
+from ins_fusion.core.eskf import ATT, BA, BG, POS, VEL, ErrorStateFilter, StateLayout
+from ins_fusion.core.measurements import (
+    AttitudeMeasurement,
+    GnssFixMeasurement,
+    GnssVelocityMeasurement,
+    mounting_skew,
+)
+from ins_fusion.core.rotation import (
+    MAT_FLU_FRD,
+    as_quat,
+    euler_rad,
+    flu_to_frd_array,
+    mat_from_quat,
+    mat_from_rpy_flu,
+    quat_enu_flu,
+    quat_from_euler,
+    quat_from_rotvec,
+    quat_multiply,
+    quat_normalize,
+    skew,
+)
+from ins_fusion.core.strapdown import ImuIncrement, NavState
+
+#: Yaw variance standing for 'heading unknown' [rad²].
+UNKNOWN_YAW_VARIANCE = (math.pi / 2.0) ** 2
+
+
+class FilterState:
+    """Nominal state and filter bookkeeping at one IMU stamp. Copies are history checkpoints:
+    every field is immutable or never modified in place, so a shallow copy suffices.
+
+    cov_dt, cov_dth, cov_dv, cov_vel0: IMU interval not yet in the covariance (duration [s],
+    corrected angle and velocity increments in imu FRD, NED velocity at its start).
+    """
+
+    __slots__ = (
+        "_mat_nb",
+        "accel_bias",
+        "accel_lp",
+        "accel_n",
+        "accel_scale",
+        "cov_dt",
+        "cov_dth",
+        "cov_dv",
+        "cov_vel0",
+        "gated_runs",
+        "gnss_error",
+        "gnss_reported",
+        "gnss_variance",
+        "gnss_white",
+        "gyro_bias",
+        "gyro_scale",
+        "heading_known",
+        "imu_psd",
+        "last_position_t_s",
+        "mounting",
+        "nav",
+        "nis_mean",
+        "prev_inc",
+        "q_scale",
+        "rate_b",
+        "rate_i",
+        "rate_lp",
+        "t_s",
+        "time_offset",
+    )
+
+    def __init__(self, t_s: float, nav: NavState, gyro_bias: Vec3, heading_known: bool) -> None:
+        zero: Vec3 = (0.0, 0.0, 0.0)
+        self.t_s = t_s
+        self.nav = nav
+        self._mat_nb: FloatArray | None = None
+        self.gyro_bias = gyro_bias
+        self.accel_bias = self.gyro_scale = self.accel_scale = zero
+        self.prev_inc: ImuIncrement | None = None
+        self.rate_b = self.rate_i = self.accel_n = zero
+        self.heading_known = heading_known
+        self.last_position_t_s = t_s
+        self.gnss_error = self.gnss_variance = self.gnss_reported = zero
+        self.gnss_white = WhiteNoiseMonitor()
+        self.imu_psd: tuple[FloatArray, FloatArray] | None = None
+        self.accel_lp = self.rate_lp = zero
+        self.nis_mean = self.q_scale = 1.0
+        self.mounting = (0.0, 0.0)
+        self.time_offset = 0.0
+        self.cov_dt = 0.0
+        self.cov_dth = self.cov_dv = zero
+        self.cov_vel0 = nav.vel_ned_m_s
+        self.gated_runs: dict[str, int] = {}  # replaced, never changed in place (copy shares it)
+
+    def copy(self) -> FilterState:
+        other = FilterState.__new__(FilterState)
+        other._mat_nb = self._mat_nb
+        other.accel_bias = self.accel_bias
+        other.accel_n = self.accel_n
+        other.accel_scale = self.accel_scale
+        other.cov_dt = self.cov_dt
+        other.cov_dth = self.cov_dth
+        other.cov_dv = self.cov_dv
+        other.cov_vel0 = self.cov_vel0
+        other.gnss_error = self.gnss_error
+        other.gnss_variance = self.gnss_variance
+        other.gnss_reported = self.gnss_reported
+        other.gnss_white = self.gnss_white
+        other.imu_psd = self.imu_psd
+        other.accel_lp = self.accel_lp
+        other.nis_mean = self.nis_mean
+        other.q_scale = self.q_scale
+        other.rate_lp = self.rate_lp
+        other.mounting = self.mounting
+        other.time_offset = self.time_offset
+        other.gated_runs = self.gated_runs
+        other.gyro_bias = self.gyro_bias
+        other.gyro_scale = self.gyro_scale
+        other.heading_known = self.heading_known
+        other.last_position_t_s = self.last_position_t_s
+        other.nav = self.nav
+        other.prev_inc = self.prev_inc
+        other.rate_b = self.rate_b
+        other.rate_i = self.rate_i
+        other.t_s = self.t_s
+        return other
+
+    @property
+    def mat_nb(self) -> FloatArray:
+        """Body (base_link FRD) -> NED rotation of ``nav`` (computed once per state)."""
+        if self._mat_nb is None:
+            self._mat_nb = self.nav.mat_nb
+        return self._mat_nb
+
+    def set_nav(self, nav: NavState) -> None:
+        self.nav = nav
+        self._mat_nb = None
+
+    def move(self, offset_ned_m: FloatArray) -> None:
+        """Shift the nominal position by a NED offset [m]."""
+        nav = self.nav
+        lat, lon, height = earth.displace(
+            nav.lat_rad,
+            nav.lon_rad,
+            nav.height_m,
+            float(offset_ned_m[0]),
+            float(offset_ned_m[1]),
+            float(offset_ned_m[2]),
+        )
+        self.set_nav(NavState(lat, lon, height, nav.vel_ned_m_s, nav.quat_nb))
+
+
+@dataclass
+class LatestInputs:
+    """The newest usable GNSS inputs as they arrived (the start-up and the course heading read
+    them directly); ``gnss_speed``: (stamp [s], horizontal speed [m/s]) of the newest velocity."""
+
+    fix: GnssFixMeasurement | None = None
+    velocity: GnssVelocityMeasurement | None = None
+    attitude: AttitudeMeasurement | None = None
+    gnss_speed: tuple[float, float] | None = None
+
+
+class Geometry:
+    """The configured sensor geometry in the engine's body frame (base_link FRD): the IMU
+    mounting rotation imu FRD -> body (``mat_bi``, also row-major ``r_bi`` for the hot path),
+    the lever arms from the IMU to the antenna and to the base_link origin [m], and the
+    attitude receiver's mounting."""
+
+    def __init__(self, config: FusionConfig, layout: StateLayout) -> None:
+        self.estimates_mounting = layout.mt is not None
+        self.mat_bi = mat_from_rpy_flu(config.imu_mounting_rpy_rad)
+        self.r_bi = tuple(float(v) for v in self.mat_bi.ravel())
+        imu_arm_b = flu_to_frd_array(config.imu_lever_arm_flu_m)
+        self.antenna_arm_b = flu_to_frd_array(config.gnss_lever_arm_flu_m) - imu_arm_b
+        self.base_arm_b = -imu_arm_b
+        self.arm_bi = skew(self.base_arm_b) @ self.mat_bi
+        # Orientation of base_link from that of the attitude receiver's frame a: q_ea ⊗ q_ab.
+        q_ba = quat_from_euler(*config.attitude_mounting_rpy_rad)
+        self.q_a_base: Quat = (-q_ba[0], -q_ba[1], -q_ba[2], q_ba[3])
+        self._mounting_cache: tuple[tuple[float, float], FloatArray] | None = None
+
+    def arms(self, s: FilterState) -> tuple[FloatArray, FloatArray]:
+        """(antenna, base_link origin) lever arms from the IMU [m] in the engine's body frame:
+        the configured arms (vehicle axes) turned by the residual mounting, (I + [μ×]) l."""
+        if not self.estimates_mounting or s.mounting == (0.0, 0.0):
+            return self.antenna_arm_b, self.base_arm_b
+        turn = mounting_skew(s.mounting)  # np.cross costs 10x more
+        return (
+            self.antenna_arm_b + turn @ self.antenna_arm_b,
+            self.base_arm_b + turn @ self.base_arm_b,
+        )
+
+    def measured_mat_nb(self, att: AttitudeMeasurement) -> FloatArray:
+        """Base_link FRD -> NED rotation from an attitude measurement and its mounting."""
+        q_enu_base = quat_multiply(as_quat(att.quat_enu_flu_xyzw), self.q_a_base)
+        quat_nb = quat_enu_flu(q_enu_base)  # the map is its own inverse
+        return mat_from_quat(*quat_nb)
+
+    def mounting_rpy(self, mounting: tuple[float, float]) -> FloatArray:
+        """REP-103 roll, pitch, yaw [rad] of imu_link in the base_link of a residual mounting
+        (pitch, yaw about base_link FRD y, z [rad]): imu -> vehicle (FRD) = (I - [μ×]) R_bi."""
+        cached = self._mounting_cache
+        if cached is not None and cached[0] == mounting:
+            return cached[1]
+        mat_vi = (np.eye(3) - mounting_skew(mounting)) @ self.mat_bi
+        rpy = euler_rad(MAT_FLU_FRD @ mat_vi @ MAT_FLU_FRD)  # z-y'-x'' of the FLU rotation
+        self._mounting_cache = (mounting, rpy)
+        return rpy
+
+    def corrected_rate_b(self, s: FilterState, rate_i: Vec3) -> Vec3:
+        """An imu FRD rate [rad/s] corrected for the estimated gyro errors, base_link FRD."""
+        (w0, w1, w2), (b0, b1, b2), (k0, k1, k2) = rate_i, s.gyro_bias, s.gyro_scale
+        c0, c1, c2 = (w0 - b0) / (1.0 + k0), (w1 - b1) / (1.0 + k1), (w2 - b2) / (1.0 + k2)
+        r = self.r_bi
+        return (
+            r[0] * c0 + r[1] * c1 + r[2] * c2,
+            r[3] * c0 + r[4] * c1 + r[5] * c2,
+            r[6] * c0 + r[7] * c1 + r[8] * c2,
+        )
+
+
+def inject(s: FilterState, kf: ErrorStateFilter, dx: FloatArray) -> None:
+    """Closed-loop feedback of an error estimate ``dx`` (layout ``kf.layout``) into the nominal
+    state."""
+    layout = kf.layout
+    if kf.recorder is not None:  # smoother hook: the correction of this step
+        kf.recorder.on_correction(dx)
+    d = dx.tolist()
+    nav = s.nav
+    q_err = quat_from_rotvec(d[ATT], d[ATT + 1], d[ATT + 2])
+    quat = quat_normalize(quat_multiply(q_err, as_quat(nav.quat_nb)))
+    lat, lon, height = earth.displace(
+        nav.lat_rad, nav.lon_rad, nav.height_m, d[POS], d[POS + 1], d[POS + 2]
+    )
+    s.set_nav(NavState(lat, lon, height, nav.vel_ned_m_s + dx[VEL : VEL + 3], np.array(quat)))
+    s.gyro_bias = _add3(s.gyro_bias, d, BG)
+    s.accel_bias = _add3(s.accel_bias, d, BA)
+    if layout.sg is not None:
+        s.gyro_scale = _add3(s.gyro_scale, d, layout.sg)
+    if layout.sa is not None:
+        s.accel_scale = _add3(s.accel_scale, d, layout.sa)
+    if layout.gp is not None:
+        s.gnss_error = _add3(s.gnss_error, d, layout.gp)
+    if layout.mt is not None:
+        mt = layout.mt
+        s.mounting = (s.mounting[0] + d[mt], s.mounting[1] + d[mt + 1])
+    if layout.td is not None:
+        s.time_offset += d[layout.td]
+    if not s.heading_known:
+        decouple_yaw(kf)
+
+
+def decouple_yaw(kf: ErrorStateFilter, yaw_variance: float = UNKNOWN_YAW_VARIANCE) -> None:
+    """Make the yaw error uncorrelated with variance ``yaw_variance`` [rad²] (default: heading
+    unknown)."""
+    P = kf.P.copy()
+    P[ATT + 2, :] = 0.0
+    P[:, ATT + 2] = 0.0
+    P[ATT + 2, ATT + 2] = yaw_variance
+    kf.P = P
+
+
+def restart_block(P: FloatArray, start: int, block: FloatArray) -> None:
+    """Set a 3x3 diagonal block of P and clear its correlations (in place on a copy)."""
+    P[start : start + 3, :] = 0.0
+    P[:, start : start + 3] = 0.0
+    P[start : start + 3, start : start + 3] = block
+
+
+def _add3(values: Vec3, dx: list[float], start: int) -> Vec3:
+    return (values[0] + dx[start], values[1] + dx[start + 1], values[2] + dx[start + 2])

@@ -1,0 +1,113 @@
+"""`gnss_ins replay BAG --smooth` end to end on a short simulated bag: the report's smoothed
+section, the plot, the fused bag's smoothed topics, the exports, and the refusals.
+
+The bag: 90 s of the figure-eight scenario (10 s standstill, circles at 10 m/s), imu400cc IMU,
+Leica RTK at 1 Hz, ADU5 at 5 Hz, truth at 50 Hz; one 12 s outage cut out of it. Bounds are
+generous (bench/bench_smoother.py measures precisely).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import gpxpy
+import pynmea2
+import pytest
+
+from ins_fusion.bags.bag_io import BagReader
+from ins_fusion.sim.drive import SimulationConfig
+from ins_fusion.tools import cli
+from ins_fusion.tools.simulate import write_bag
+
+OUTAGE = (40.0, 12.0)
+ACCURACY_KEYS = {"position_error_m", "attitude_error_deg", "outages", "nees"}
+
+
+@pytest.fixture(scope="module")
+def bag(tmp_path_factory):
+    path = tmp_path_factory.mktemp("smooth") / "figure_eight"
+    write_bag(SimulationConfig(scenario="figure_eight", duration_s=90.0, seed=4), path)
+    return path
+
+
+@pytest.fixture(scope="module")
+def smoothed(bag, tmp_path_factory):
+    out = tmp_path_factory.mktemp("smooth_out")
+    paths = {"report": out / "r.json", "plot": out / "p.png", "output": out / "fused"}
+    exports = [out / "s.csv", out / "s.gpx", out / "s.nmea"]
+    argv = ["replay", str(bag), "--smooth", "--outage", f"{OUTAGE[0]:g}:{OUTAGE[1]:g}"]
+    argv += [item for key, path in paths.items() for item in (f"--{key}", str(path))]
+    argv += [item for path in exports for item in ("--export", str(path))]
+    code = cli.main(argv)
+    return code, paths, exports, json.loads(paths["report"].read_text())
+
+
+def test_the_report_has_a_smoothed_section_with_the_forward_keys(smoothed):
+    code, _, _, report = smoothed
+    assert code == 0
+    section = report["smoothed"]
+    assert set(section) >= ACCURACY_KEYS
+    assert set(section["position_error_m"]) == set(report["position_error_m"])
+    assert set(section["nees"]) == set(report["nees"])
+    assert section["epochs"] > 10 * 70  # at least every covariance step (0.1 s) past alignment
+    assert section["smoothing_time_s"] > 0.0
+    (forward,), (smooth,) = report["outages"], section["outages"]
+    assert (smooth["start_s"], smooth["duration_s"]) == OUTAGE
+    assert smooth["horizontal_error_max_m"] < 0.5 * forward["horizontal_error_max_m"]
+    assert (
+        section["position_error_m"]["horizontal_rms"] < report["position_error_m"]["horizontal_rms"]
+    )
+    assert 0.5 < section["nees"]["position_mean"] < 10.0
+    assert section["nees"]["position_within_3sigma_fraction"] > 0.8
+    assert section["withheld_fixes"][0]["evaluated_fixes"] == OUTAGE[1]
+
+
+def test_the_fused_bag_has_the_smoothed_solution_on_its_own_topics(smoothed):
+    _, paths, _, report = smoothed
+    with BagReader(paths["output"]) as reader:
+        topics = {t: i.msgtype for t, i in reader.topics.items()}
+        assert topics == {
+            "/ins/odometry": "nav_msgs/msg/Odometry",
+            "/ins/fix": "sensor_msgs/msg/NavSatFix",
+            "/ins/smoothed/odometry": "nav_msgs/msg/Odometry",
+            "/ins/smoothed/fix": "sensor_msgs/msg/NavSatFix",
+        }
+        stamps = [m.log_time_ns for m in reader.messages(["/ins/smoothed/fix"])]
+        log_times = [m.log_time_ns for m in reader.messages()]
+    assert len(stamps) == report["smoothed"]["epochs"]
+    assert log_times == sorted(log_times)  # one time order for both solutions
+    assert paths["plot"].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_the_exports_hold_the_smoothed_solution(smoothed):
+    _, _, (csv_path, gpx_path, nmea_path), report = smoothed
+    epochs = report["smoothed"]["epochs"]
+    with csv_path.open(newline="") as file:
+        assert len(list(csv.DictReader(file))) == epochs
+    assert len(gpxpy.parse(gpx_path.read_text()).tracks[0].segments[0].points) == epochs
+    lines = nmea_path.read_text().splitlines()
+    assert len(lines) == 3 * epochs
+    assert pynmea2.parse(lines[0]).sentence_type == "GGA"
+
+
+def _replay(capsys, *argv):
+    try:
+        code = cli.main(["replay", *map(str, argv)])
+    except SystemExit as exc:
+        code = exc.code
+    return code, capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--export-solution", "smoothed", "--export", "{tmp}/x.csv"], "needs --smooth"),
+        (["--export", "{tmp}/x.kml"], "suffix must be one of .csv, .gpx, .nmea"),
+        (["--smooth", "--sweep", "nhc_sigma=0.02,0.05"], "not with --sweep"),
+    ],
+)
+def test_bad_smoothing_and_export_options_are_refused(bag, capsys, tmp_path, argv, message):
+    code, err = _replay(capsys, bag, *(a.format(tmp=tmp_path) for a in argv))
+    assert code == 2
+    assert message in err
