@@ -65,7 +65,7 @@ typecheck: venv
 # The real-time node tests (marker ros) run after the others, alone: on 2 cores a test suite in the
 # other worker starves their nodes (IMU samples late, shutdown races).
 pytest: venv
-	$(BIN)/python -m pytest -q -n $(PYTEST_WORKERS) --dist loadgroup -m "not ros"
+	$(BIN)/python -m pytest -q -n $(PYTEST_WORKERS) --dist loadgroup --no-loadscope-reorder -m "not ros"
 	$(BIN)/python -m pytest -q -m ros
 
 test: lint typecheck pytest

@@ -4,11 +4,11 @@
    (resource.getrusage), and the read and fusion times its report gives (wall, one core).
 2. cProfile of the same command in this process (``ins_fusion.tools.cli.main``): the cumulative
    time of each phase (read: load_bag; filter: run_fusion, with the engine's IMU step, its
-   measurement updates, the solution output and the stacking of the track; metrics: evaluate
-   and evaluate_withheld; report: build_report, the printed table and the JSON) and the rest
-   (imports of the replay modules, parameter checks), then the functions with the most own
-   time. The profiler's overhead per call inflates the filter, which makes many small calls,
-   more than the vectorised phases: compare fractions with section 1.
+   measurement updates, the solution output and packing it into the track's rows; metrics:
+   evaluate and evaluate_withheld; report: build_report, the printed table and the JSON) and
+   the rest (imports of the replay modules, parameter checks), then the functions with the most
+   own time. The profiler's overhead per call inflates the filter, which makes many small
+   calls, more than the vectorised phases: compare fractions with section 1.
 
 Bag: bench/speed_bag.py (437 s test pattern, imu400cc 200 Hz, GNSS fix + velocity 5 Hz, truth
 50 Hz) or ``--bag``. ``--profile FILE`` keeps the pstats file (e.g. for snakeviz).
@@ -53,7 +53,7 @@ FILTER_PARTS: dict[str, list[tuple[str, str]]] = {
         ("ins_fusion/core/", "add_gnss_velocity"),
     ],
     "engine.solution": [("ins_fusion/core/", "solution")],
-    "SolutionTrack.from_solutions": [("replay/run.py", "from_solutions")],
+    "track rows (solution_rows.pack)": [("core/solution_rows.py", "pack")],
 }
 
 

@@ -4,14 +4,18 @@ ROS traffic of one pytest process is isolated from any other (parallel sessions,
 developers' nodes) by a random DDS domain restricted to this host; subprocess nodes inherit it.
 Under pytest-xdist every worker (gw0, gw1, ...) takes the next domains after the controller's,
 so the nodes of tests running at the same time in two workers never see each other. With
-``--dist loadgroup`` (make pytest) the tests that run real nodes (marker ``ros``) form one group,
-run one after another in one worker (never two real-time node tests at once), and every other
-test module is a group of its own: its module-scoped fixtures (simulated drives and records)
-are built once, not once per worker.
+``--dist loadgroup`` the tests that run real nodes (marker ``ros``) form one group, run one
+after another in one worker (never two real-time node tests at once; make pytest runs them on
+their own after the others), and every other test module is a group of its own: its
+module-scoped fixtures (simulated drives and records) are built once, not once per worker. The
+groups are handed out longest first, by the seconds they took in the previous run (pytest's
+cache; unknown ones first), so that the workers finish together (make pytest passes
+--no-loadscope-reorder to keep that order).
 """
 
 from __future__ import annotations
 
+import math
 import os
 import random
 
@@ -25,9 +29,40 @@ if _WORKER.startswith("gw"):  # the controller's domain (inherited) + 1 + the wo
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 
 
+#: pytest cache key of the seconds each xdist group took in the last run.
+_DURATIONS_KEY = "gnss_ins/group_seconds"
+_SECONDS: dict[str, float] = {}
+
+
+def _group(ros: bool, nodeid: str) -> str:
+    """The xdist group of a test: ``ros`` for the real-node tests, else its module."""
+    return "ros" if ros else nodeid.split("::")[0]
+
+
 @pytest.hookimpl(tryfirst=True)  # before pytest-xdist reads the groups
-def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """xdist groups: ``ros`` for the tests marked so, else the test's module."""
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Mark each test with its xdist group; the longest groups of the last run first."""
+    seconds = config.cache.get(_DURATIONS_KEY, {}) if config.cache is not None else {}
+    groups = {}
     for item in items:
-        ros = item.get_closest_marker("ros") is not None
-        item.add_marker(pytest.mark.xdist_group("ros" if ros else item.nodeid.split("::")[0]))
+        group = _group(item.get_closest_marker("ros") is not None, item.nodeid)
+        item.add_marker(pytest.mark.xdist_group(group))
+        groups[item.nodeid] = group
+    if _WORKER:  # a serial run keeps the collection order
+        items.sort(key=lambda item: -seconds.get(groups[item.nodeid], math.inf))
+
+
+def pytest_runtest_logreport(report: pytest.TestReport) -> None:
+    """Add up the seconds of each group (setup, call and teardown; in the xdist controller)."""
+    nodeid, at = report.nodeid, report.nodeid.rfind("@")  # xdist appends @group
+    if at > nodeid.rfind("]"):
+        nodeid = nodeid[:at]
+    group = _group("ros" in report.keywords, nodeid)
+    _SECONDS[group] = _SECONDS.get(group, 0.0) + report.duration
+
+
+def pytest_sessionfinish(session: pytest.Session) -> None:
+    """Keep the groups' seconds for the next run's order (not from the xdist workers)."""
+    cache = session.config.cache
+    if cache is not None and _SECONDS and not hasattr(session.config, "workerinput"):
+        cache.set(_DURATIONS_KEY, {**cache.get(_DURATIONS_KEY, {}), **_SECONDS})

@@ -115,9 +115,11 @@ def _topic(messages, repeat: int) -> list[bytes]:
 @given(st.lists(st.tuples(headers, quats, vec3s, vec3s, endians), max_size=5), st.integers(0, 30))
 def test_whole_imu_topics_decode_as_each_message(messages, repeat):
     payloads = _topic([_imu_bytes(*m) for m in messages], repeat)
-    t_s, rate, force = cdr_fields.imu_columns(payloads)
+    t_s, stamp_ns, rate, force = cdr_fields.imu_columns(payloads)
     samples = [cdr_fields.imu_sample(d) for d in payloads]
     assert _bits(t_s) == _bits([s.t_s for s in samples])  # the same values to the bit
+    headers = [m[0].stamp for m in messages] + [messages[0][0].stamp] * repeat if messages else []
+    assert stamp_ns.tolist() == [h.sec * 1_000_000_000 + h.nanosec for h in headers]
     assert _bits(rate) == _bits([s.rate_flu_rad_s for s in samples])
     assert _bits(force) == _bits([s.force_flu_m_s2 for s in samples])
     t_s, quat = cdr_fields.orientations(payloads)

@@ -33,7 +33,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from gnss_ins_common.types import FloatArray
+from gnss_ins_common.types import FloatArray, IntArray
 from ins_fusion.adapters.messages_in import ImuSample
 
 _ENCAPSULATION = 4  # 0x00, 0x00 (big-endian) or 0x01 (little-endian), two option bytes
@@ -136,13 +136,23 @@ def linear_velocity(data: bytes) -> tuple[float, tuple[float, ...]]:
 # --------------------------------------------------------------------------------------------
 
 
+class _Stamped(NamedTuple):
+    """Stamps of many messages: seconds as the single-message decoders give them (n,) and
+    integer nanoseconds (n,), and per field asked for its float64 values (n, count)."""
+
+    t_s: FloatArray
+    stamp_ns: IntArray
+    values: list[FloatArray]
+
+
 def _columns(
     payloads: Sequence[bytes], layout: _Layout, fields: Sequence[tuple[int, int]]
-) -> tuple[FloatArray, list[FloatArray]]:
-    """Stamps [s] (n,) and, per (offset from the body, count) of ``fields``, the float64 values
-    (n, count) of many messages of one type; CdrError as for one message."""
+) -> _Stamped:
+    """The stamps and, per (offset from the body, count) of ``fields``, the values of many
+    messages of one type; CdrError as for one message."""
     n = len(payloads)
     t_s = np.empty(n)
+    stamp_ns = np.empty(n, dtype=np.int64)
     values = [np.empty((n, count)) for _, count in fields]
     for rows, raw in _groups(payloads):
         first = payloads[rows[0]]
@@ -151,9 +161,10 @@ def _columns(
         sec = _read(raw, _ENCAPSULATION, np.dtype(order + "i4"), 1)[:, 0]
         nanosec = _read(raw, _ENCAPSULATION + 4, np.dtype(order + "u4"), 1)[:, 0]
         t_s[rows] = sec.astype(np.float64) + nanosec.astype(np.float64) * 1e-9
+        stamp_ns[rows] = sec.astype(np.int64) * 1_000_000_000 + nanosec.astype(np.int64)
         for out, (offset, count) in zip(values, fields, strict=True):
             out[rows] = _read(raw, at + offset, np.dtype(order + "f8"), count)
-    return t_s, values
+    return _Stamped(t_s, stamp_ns, values)
 
 
 #: Bytes that fix a message's layout: the encapsulation and the frame_id length.
@@ -184,27 +195,36 @@ def _read(raw: NDArray[np.uint8], start: int, dtype: np.dtype[Any], count: int) 
     return np.ascontiguousarray(raw[:, start : start + dtype.itemsize * count]).view(dtype)
 
 
-def imu_columns(payloads: Sequence[bytes]) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Stamps [s] (n,), angular_velocity and linear_acceleration (n, 3) of many sensor_msgs/Imu
-    (``imu_sample`` of each)."""
-    t_s, (rate, force) = _columns(payloads, _IMU, ((_IMU_RATE, 3), (_IMU_FORCE, 3)))
-    return t_s, rate, force
+class ImuColumns(NamedTuple):
+    """Many sensor_msgs/Imu: stamps [s] (n,) (as ``imu_sample``) and [ns since the epoch]
+    (n,), angular_velocity [rad/s] and linear_acceleration [m/s²] (n, 3)."""
+
+    t_s: FloatArray
+    stamp_ns: IntArray
+    rate: FloatArray
+    force: FloatArray
+
+
+def imu_columns(payloads: Sequence[bytes]) -> ImuColumns:
+    """``imu_sample`` of many sensor_msgs/Imu, with the stamps in integer nanoseconds too."""
+    t_s, stamp_ns, (rate, force) = _columns(payloads, _IMU, ((_IMU_RATE, 3), (_IMU_FORCE, 3)))
+    return ImuColumns(t_s, stamp_ns, rate, force)
 
 
 def orientations(payloads: Sequence[bytes]) -> tuple[FloatArray, FloatArray]:
     """Stamps [s] (n,) and orientations (n, 4) (x, y, z, w) of many sensor_msgs/Imu."""
-    t_s, (quat,) = _columns(payloads, _IMU, ((0, 4),))
+    t_s, _, (quat,) = _columns(payloads, _IMU, ((0, 4),))
     return t_s, quat
 
 
 def positions(payloads: Sequence[bytes]) -> tuple[FloatArray, FloatArray]:
     """Stamps [s] (n,) and (latitude [deg], longitude [deg], altitude [m]) (n, 3) of many
     sensor_msgs/NavSatFix."""
-    t_s, (lla,) = _columns(payloads, _FIX, ((0, 3),))
+    t_s, _, (lla,) = _columns(payloads, _FIX, ((0, 3),))
     return t_s, lla
 
 
 def linear_velocities(payloads: Sequence[bytes]) -> tuple[FloatArray, FloatArray]:
     """Stamps [s] (n,) and twist.twist.linear (n, 3) of many TwistWithCovarianceStamped."""
-    t_s, (linear,) = _columns(payloads, _TWIST, ((0, 3),))
+    t_s, _, (linear,) = _columns(payloads, _TWIST, ((0, 3),))
     return t_s, linear

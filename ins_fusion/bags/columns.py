@@ -1,13 +1,14 @@
 """The messages of some topics of a bag as columns: log times, receive order and raw payloads.
 
-``gnss_ins replay`` reads every message of its topics (a 437 s bag at 200 Hz: 160 000), and
-rosbags' reader spends ~8 µs on each (a record parsed through BytesIO, a generator merge per
-chunk and per file, a message tuple). Indexed MCAP files (what rosbags, hence ``gnss_ins
-record`` / ``simulate``, and ``ros2 bag record`` write) are read here a chunk at a time instead:
-the chunk's records in one read, the log time and offset of each message of a topic from its
-message index (one numpy array per chunk and channel), the payload lengths gathered by numpy,
-and the payloads sliced out (~0.5 µs a message). Other bags (sqlite3, file-compressed,
-unindexed MCAP) are read message by message through ins_fusion.bags.bag_io.
+``gnss_ins replay``, ``allan`` and ``calibrate`` read every message of their topics (a 437 s
+bag at 200 Hz: 160 000; an hour's static record: 480 000), and rosbags' reader spends ~8 µs on
+each (a record parsed through BytesIO, a generator merge per chunk and per file, a message
+tuple). Indexed MCAP files (what rosbags, hence ``gnss_ins record`` / ``simulate``, and ``ros2
+bag record`` write) are read here a chunk at a time instead: the chunk's records in one read,
+the log time and offset of each message of a topic from its message index (one numpy array per
+chunk and channel), the payload lengths gathered by numpy, and the payloads sliced out (~0.5 µs
+a message). Other bags (sqlite3, file-compressed, unindexed MCAP) are read message by message
+through ins_fusion.bags.bag_io.
 
 Receive order: by log time, ties in file order (file, then chunk, then position in the chunk),
 as rosbags' reader yields a bag. MCAP layout: https://mcap.dev/spec (Chunk, Message Index and
@@ -24,6 +25,7 @@ from typing import BinaryIO
 
 import numpy as np
 from numpy.typing import NDArray
+from rosbags.rosbag2 import ReaderError
 from rosbags.rosbag2.storage_mcap import ChunkInfo, McapReader, decompress
 
 from gnss_ins_common.types import IntArray
@@ -142,7 +144,10 @@ def _indexed_mcap(
     done = 0
     for number, path in enumerate(files):
         storage = McapReader(path)
-        storage.open()
+        try:
+            storage.open()
+        except ReaderError as exc:
+            raise BagError(f"{path}: unreadable MCAP ({exc})") from exc
         try:
             channels = {cid: c.topic for cid, c in storage.channels.items() if c.topic in topics}
             chunks = [c for c in storage.chunks if any(c.channel_count.get(i) for i in channels)]

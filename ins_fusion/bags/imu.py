@@ -26,7 +26,9 @@ from rosbags.serde import SerdeError
 
 from gnss_ins_common.message_fields import fill_imu, fill_temperature, stamp_ns
 from gnss_ins_common.types import FloatArray, IntArray
+from ins_fusion.adapters.cdr_fields import CdrError, imu_columns
 from ins_fusion.bags.bag_io import BagError, BagReader, BagWriter
+from ins_fusion.bags.columns import read_topics
 from ins_fusion.bags.messages import new_message
 from ins_fusion.bags.topics import (
     IMU_DATA,
@@ -35,9 +37,6 @@ from ins_fusion.bags.topics import (
     IMU_TYPE,
     TEMPERATURE_TYPE,
 )
-
-#: Messages read between two calls of ``read_imu``'s progress callback.
-PROGRESS_EVERY = 20_000
 
 
 def _no_samples() -> FloatArray:
@@ -118,7 +117,7 @@ def read_imu(
     sensor_msgs/Temperature ``temperature_topic`` when the bag has it (None: not read). Times
     since the epoch, or with ``relative`` since the first IMU stamp (see the module docstring).
 
-    ``progress(done, total)`` is called every PROGRESS_EVERY messages and at the end. BagError
+    ``progress(done, total)`` is called after every chunk read and at the end. BagError
     for an unreadable bag, a missing IMU topic, a topic of another type or fewer than two
     distinct stamps.
     """
@@ -130,36 +129,33 @@ def read_imu(
                 _check_topic(reader, temperature_topic, TEMPERATURE_TYPE)
                 topics.append(temperature_topic)
             total = sum(reader.topics[t].count for t in topics)
-            stamps: list[tuple[int, int]] = []
-            values: list[tuple[float, ...]] = []
-            temperatures: list[tuple[int, int, float]] = []
-            for done, msg in enumerate(reader.messages(topics, deserialize=True), 1):
-                m, stamp = msg.message, msg.message.header.stamp
-                if msg.topic == topic:
-                    w, f = m.angular_velocity, m.linear_acceleration
-                    stamps.append((stamp.sec, stamp.nanosec))
-                    values.append((w.x, w.y, w.z, f.x, f.y, f.z))
-                else:
-                    temperatures.append((stamp.sec, stamp.nanosec, m.temperature))
-                if progress is not None and done % PROGRESS_EVERY == 0:
-                    progress(done, total)
+            columns = read_topics(
+                reader, topics, None if progress is None else lambda done: progress(done, total)
+            )
+            imu = imu_columns(columns[topic].payloads)
+            messages = [  # a few: through rosbags
+                reader.deserialize(data, TEMPERATURE_TYPE)
+                for t in topics[1:]
+                for data in columns[t].payloads
+            ]
+            temperatures = [
+                (m.header.stamp.sec, m.header.stamp.nanosec, m.temperature) for m in messages
+            ]
             if progress is not None:
                 progress(total, total)
-    except (AnyReaderError, ReaderError, SerdeError, OSError) as exc:
+    except (AnyReaderError, ReaderError, SerdeError, CdrError, OSError) as exc:
         raise BagError(f"{path}: {exc}") from None
-    sec_ns = np.array(stamps, dtype=np.int64).reshape(-1, 2)
-    start_ns = (
-        int((sec_ns[:, 0] * 1_000_000_000 + sec_ns[:, 1]).min()) if relative and stamps else 0
-    )
+    sec_ns = np.column_stack(np.divmod(imu.stamp_ns, 1_000_000_000)).reshape(-1, 2)
+    start_ns = int(imu.stamp_ns.min()) if relative and len(sec_ns) else 0
     t_s = _seconds(sec_ns, start_ns)
     order = np.argsort(t_s, kind="stable")
     order = order[np.concatenate(([True], np.diff(t_s[order]) > 0.0))[: len(order)]]
     if len(order) < 2:
         distinct = (
-            f" ({len(order)} distinct stamp(s): are the header stamps set?)" if stamps else ""
+            f" ({len(order)} distinct stamp(s): are the header stamps set?)" if len(sec_ns) else ""
         )
-        raise BagError(f"{path}: {topic} has {len(stamps)} message(s){distinct}")
-    data = np.array(values, dtype=np.float64)[order]
+        raise BagError(f"{path}: {topic} has {len(sec_ns)} message(s){distinct}")
+    data = np.column_stack([imu.rate, imu.force])[order]
     temp_sec_ns = np.array([(s, n) for s, n, _ in temperatures], dtype=np.int64).reshape(-1, 2)
     temp_t_s = _seconds(temp_sec_ns, start_ns)
     temp_order = np.argsort(temp_t_s, kind="stable")

@@ -238,7 +238,8 @@ def _read(
         reader, selected, None if progress is None else lambda done: progress(done, total)
     )
     imu_column = columns[imu_topic]
-    imu = ImuSeries(*cdr_fields.imu_columns(imu_column.payloads))
+    decoded = cdr_fields.imu_columns(imu_column.payloads)
+    imu = ImuSeries(decoded.t_s, decoded.rate, decoded.force)
     arrivals: list[tuple[int, int, str, Measurement]] = []  # receive order, k, role, measurement
     for topic, role in roles.items():
         if role == "imu" or topic not in columns:
