@@ -389,7 +389,7 @@ def _joseph_update(
         s_inv = np.linalg.inv(S)  # 1-3 rows: one inverse is cheaper than two solves
     except Exception:  # singular (numba cannot name LinAlgError)
         return False, math.inf, z, P
-    nis = z @ s_inv @ z
+    nis = float(z @ s_inv @ z)
     if not nis <= threshold:  # also rejects NaN
         return False, nis, z, P
     K = PHt @ s_inv
