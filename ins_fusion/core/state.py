@@ -238,18 +238,26 @@ class Geometry:
         # Orientation of base_link from that of the attitude receiver's frame a: q_ea ⊗ q_ab.
         q_ba = quat_from_euler(*config.attitude_mounting_rpy_rad)
         self.q_a_base: Quat = (-q_ba[0], -q_ba[1], -q_ba[2], q_ba[3])
+        # The last mounting's arms and angles (the mounting changes only at updates).
         self._mounting_cache: tuple[tuple[float, float], FloatArray] | None = None
+        self._arms_cache: tuple[tuple[float, float], tuple[FloatArray, FloatArray]] | None = None
 
     def arms(self, s: FilterState) -> tuple[FloatArray, FloatArray]:
         """(antenna, base_link origin) lever arms from the IMU [m] in the engine's body frame:
         the configured arms (vehicle axes) turned by the residual mounting, (I + [μ×]) l."""
-        if not self.estimates_mounting or s.mounting == (0.0, 0.0):
+        mounting = s.mounting
+        if not self.estimates_mounting or mounting == (0.0, 0.0):
             return self.antenna_arm_b, self.base_arm_b
-        turn = mounting_skew(s.mounting)  # np.cross costs 10x more
-        return (
+        cached = self._arms_cache
+        if cached is not None and cached[0] == mounting:
+            return cached[1]
+        turn = mounting_skew(mounting)  # np.cross costs 10x more
+        arms = (
             self.antenna_arm_b + turn @ self.antenna_arm_b,
             self.base_arm_b + turn @ self.base_arm_b,
         )
+        self._arms_cache = (mounting, arms)
+        return arms
 
     def measured_mat_nb(self, att: AttitudeMeasurement) -> FloatArray:
         """Base_link FRD -> NED rotation from an attitude measurement and its mounting."""
