@@ -5,9 +5,9 @@ vectors from frame b into frame a: v_a = R(quat_ab) v_b, and q_ac = q_ab ⊗ q_b
 roll, pitch, yaw of the intrinsic z-y'-x'' sequence (yaw first), i.e. the standard NED/FRD angles
 of Aalborg notes §5.5 (7.10)-(7.12) (shared/reference/imu400cc-aalborg-notes.md).
 
-The scalar helpers (``quat_multiply``, ``quat_from_rotvec``, ``quat_rotate``) work on plain float
-tuples: they are the strapdown's per-sample hot path, where numpy on 3-vectors costs more than the
-arithmetic. Batch conversions use scipy.spatial.transform.Rotation.
+The scalar helpers (``quat_multiply``, ``quat_from_rotvec``, ``quat_rotate``, ...) work on plain
+float tuples and are ``compilable``: the compiled strapdown and solution (core.compiled) call
+them. Batch conversions use scipy.spatial.transform.Rotation.
 """
 
 from __future__ import annotations

@@ -10,8 +10,8 @@ then attitude, with a predictor-corrector midpoint for the earth/transport rates
 - rotation compensation dθ×dv/2 + dθ×(dθ×dv)/6 and two-sample sculling and coning corrections
   generalised to unequal intervals, so any (jittered) dt is handled.
 
-The per-sample path uses plain floats (see core.rotation): numpy on 3-vectors would cost more than
-the arithmetic. Errors of the algorithm are third order in dt for smooth motion.
+``mechanize`` is compiled (core.compiled) and works on a flat array; ``propagate`` is its form
+for NavState. Errors of the algorithm are third order in dt for smooth motion.
 """
 
 from __future__ import annotations
