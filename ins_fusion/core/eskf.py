@@ -383,6 +383,7 @@ def _joseph_update(
     P: FloatArray, z: FloatArray, H: FloatArray, R: FloatArray, threshold: float
 ) -> tuple[bool, float, FloatArray, FloatArray]:
     """(accepted, NIS, δx, new P) of ErrorStateFilter.update; a singular S gives NIS inf."""
+    H, R = np.ascontiguousarray(H), np.ascontiguousarray(R)  # views of a model's blocks
     PHt = P @ H.T
     S = H @ PHt + R
     try:
