@@ -11,7 +11,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ins_fusion.core import propagation, solution, strapdown
+from gnss_ins_common.params import validate_all
+from ins_fusion.core import eskf, propagation, solution, strapdown
+from ins_fusion.core.params import PARAMETERS
+from ins_fusion.core.warm_up import warm_up
+from ins_fusion.replay.inputs import load_bag
+from ins_fusion.replay.outages import Outage
+from ins_fusion.replay.run import run_fusion
+from ins_fusion.replay.topics import TopicMap
 from ins_fusion.sim.drive import SimulationConfig
 from ins_fusion.tools.simulate import write_bag
 
@@ -68,9 +75,37 @@ def test_compiled_track_equals_pure_python(drive: Path, tmp_path: Path, paramete
     np.testing.assert_allclose(compiled, pure, rtol=1e-12, atol=1e-9)
 
 
-def test_hot_path_is_compiled() -> None:
-    """Without NUMBA_DISABLE_JIT the per-sample functions are numba dispatchers."""
+#: The kernels the engine calls from Python, each to be compiled for one set of argument types
+#: (strapdown.mechanize is compiled into propagation.advance).
+_KERNELS = (
+    strapdown._integrate,
+    propagation.advance,
+    eskf._propagate,
+    eskf._joseph_update,
+    solution._fill_row,
+)
+_REAL = Path(__file__).parent / "fixtures" / "comma2k19" / "comma2k19_ex1_seg40"
+
+
+def test_warm_up_types_every_kernel_the_drives_use(drive: Path) -> None:
+    """After core.warm_up, drives (simulated with every optional state, the real segment) add
+    no compilation: a live sample never waits for the compiler."""
     if os.environ.get("NUMBA_DISABLE_JIT") == "1":
         pytest.skip("pure-Python run requested")
-    for function in (strapdown.mechanize, propagation.advance, solution._fill_row):
-        assert hasattr(function, "py_func"), function
+    warm_up()
+    assert all(hasattr(kernel, "py_func") for kernel in _KERNELS)  # compiled, not Python
+    signatures = {kernel: list(kernel.signatures) for kernel in _KERNELS}
+    assert all(len(s) == 1 for s in signatures.values()), signatures
+    all_states = {
+        "self_calibration.mounting": True,
+        "self_calibration.time_offset": True,
+        "imu_noise.gyro_scale_sigma": 0.001,
+        "imu_noise.accel_scale_sigma": 0.001,
+        "gnss_noise.correlation_time": 0.0,
+    }
+    for bag, values in ((drive, all_states), (drive, {}), (_REAL, {})):
+        run = run_fusion(
+            load_bag(bag, TopicMap()), validate_all(PARAMETERS, values), (Outage(40.0, 15.0),)
+        )
+        assert len(run.track.rows) > 1000
+    assert {kernel: list(kernel.signatures) for kernel in _KERNELS} == signatures

@@ -18,6 +18,7 @@ from collections.abc import Callable
 from typing import Any, TypeVar, cast
 
 import numba
+import numpy as np
 from numba.extending import register_jitable
 
 F = TypeVar("F", bound=Callable[..., Any])
@@ -33,3 +34,13 @@ def compilable(function: F) -> F:
     """``function`` unchanged for Python, compiled inline where a ``jit`` function calls it."""
     compiled: F = register_jitable(function)
     return compiled
+
+
+def kernel_array(values: Any) -> Any:
+    """``values`` as a writable C-contiguous float64 array (copied only when it is not one):
+    numba compiles a kernel anew for every array layout and for read-only arrays, so the
+    engine hands over arrays of one kind (core.warm_up compiles them)."""
+    flags = getattr(values, "flags", None)
+    if flags is not None and flags.c_contiguous and flags.writeable and values.dtype == np.float64:
+        return values
+    return np.array(values, dtype=np.float64)

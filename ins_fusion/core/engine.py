@@ -69,6 +69,7 @@ from ins_fusion.core.strapdown import SampleIntegrator, increment
 from ins_fusion.core.timeline import Checkpoint, Entry, Gap, Record, Timeline
 from ins_fusion.core.units import STANDARD_GRAVITY_M_S2
 from ins_fusion.core.updates import Corrections
+from ins_fusion.core.warm_up import warm_up
 
 __all__ = [
     "MEASUREMENT_NAMES",
@@ -105,6 +106,8 @@ class InsEngine:
     def __init__(self, config: FusionConfig, calibration: ImuCalibration | None = None) -> None:
         """``calibration`` overrides ``config.calibration_file`` (empty file name = none)."""
         self.config = config
+        #: Seconds spent readying the compiled kernels (core.warm_up; 0 after the first engine).
+        self.warm_up_s = warm_up()
         if calibration is None and config.calibration_file:
             calibration = ImuCalibration.from_yaml(config.calibration_file)
         self.calibration = calibration

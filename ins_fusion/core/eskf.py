@@ -50,7 +50,7 @@ from scipy.special import gammaincinv
 
 from gnss_ins_common.types import FloatArray, IntArray
 from ins_fusion.core import earth
-from ins_fusion.core.compiled import jit
+from ins_fusion.core.compiled import jit, kernel_array
 from ins_fusion.core.config import ImuNoise
 from ins_fusion.core.smoother import SmootherHooks
 
@@ -212,7 +212,7 @@ class ErrorStateFilter:
         """Propagate P over an interval of dt_s [s] (one or a few IMU samples); arguments as
         for ``dynamics`` (mean force and rate over the interval, state at its end)."""
         self.P, self.phi = _propagate(
-            self.P,
+            kernel_array(self.P),
             self._F,
             self._Q,
             dt_s,
@@ -259,7 +259,9 @@ class ErrorStateFilter:
 
     def update(self, z: FloatArray, H: FloatArray, R: FloatArray, threshold: float) -> UpdateResult:
         """Gated Joseph-form update with innovation z = measured - predicted, z ≈ H δx + v."""
-        accepted, nis, dx, P = _joseph_update(self.P, z, H, R, threshold)
+        accepted, nis, dx, P = _joseph_update(
+            kernel_array(self.P), kernel_array(z), kernel_array(H), kernel_array(R), float(threshold)
+        )
         if not accepted:
             return UpdateResult(False, nis, None)
         self.P = P
@@ -383,7 +385,6 @@ def _joseph_update(
     P: FloatArray, z: FloatArray, H: FloatArray, R: FloatArray, threshold: float
 ) -> tuple[bool, float, FloatArray, FloatArray]:
     """(accepted, NIS, δx, new P) of ErrorStateFilter.update; a singular S gives NIS inf."""
-    H, R = np.ascontiguousarray(H), np.ascontiguousarray(R)  # views of a model's blocks
     PHt = P @ H.T
     S = H @ PHt + R
     try:

@@ -14,7 +14,7 @@ import numpy as np
 
 from gnss_ins_common.types import FloatArray, IntArray, Vec3
 from ins_fusion.core import earth
-from ins_fusion.core.compiled import jit
+from ins_fusion.core.compiled import jit, kernel_array
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.earth import ecef_from_geodetic
 from ins_fusion.core.eskf import ATT, BG, ErrorStateFilter, StateLayout
@@ -148,7 +148,7 @@ class SolutionBuilder:
             out,
             self._jacobian,
             s.x,
-            kf.P,
+            kernel_array(kf.P),
             self._solution_states,
             geometry.arms(s)[1],
             self._r_bi,
