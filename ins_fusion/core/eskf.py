@@ -259,9 +259,8 @@ class ErrorStateFilter:
 
     def update(self, z: FloatArray, H: FloatArray, R: FloatArray, threshold: float) -> UpdateResult:
         """Gated Joseph-form update with innovation z = measured - predicted, z ≈ H δx + v."""
-        accepted, nis, dx, P = _joseph_update(
-            kernel_array(self.P), kernel_array(z), kernel_array(H), kernel_array(R), float(threshold)
-        )
+        P, z, H, R = (kernel_array(a) for a in (self.P, z, H, R))
+        accepted, nis, dx, P = _joseph_update(P, z, H, R, float(threshold))
         if not accepted:
             return UpdateResult(False, nis, None)
         self.P = P
