@@ -48,6 +48,8 @@ else
 	|| { tail -30 $(VENV)/tf2_msgs-build.log; exit 1; }
 endif
 	$(BIN)/pip install --quiet -e '.[test]'
+	@echo "Compiling the fusion engine's kernels into numba's cache (once, ~30 s)"
+	$(BIN)/python -c "from ins_fusion.core.warm_up import warm_up; warm_up()"
 	touch $@
 
 venv: $(BIN)/.installed

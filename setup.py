@@ -33,6 +33,8 @@ setup(
         "matplotlib>=3.7",
         "PyYAML>=6.0",
         "gpxpy>=1.6",
+        # The engine's per-sample arithmetic, compiled (ins_fusion/core/compiled.py).
+        "numba>=0.60",
     ],
     extras_require={
         "test": [

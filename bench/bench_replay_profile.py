@@ -4,7 +4,7 @@
    (resource.getrusage), and the read and fusion times its report gives (wall, one core).
 2. cProfile of the same command in this process (``ins_fusion.tools.cli.main``): the cumulative
    time of each phase (read: load_bag; filter: run_fusion, with the engine's IMU step, its
-   measurement updates, the solution output and packing it into the track's rows; metrics:
+   measurement updates, the solution rows and appending them to the track; metrics:
    evaluate and evaluate_withheld; report: build_report, the printed table and the JSON) and
    the rest (imports of the replay modules, parameter checks), then the functions with the most
    own time. The profiler's overhead per call inflates the filter, which makes many small
@@ -52,8 +52,8 @@ FILTER_PARTS: dict[str, list[tuple[str, str]]] = {
         ("ins_fusion/core/", "add_gnss_fix"),
         ("ins_fusion/core/", "add_gnss_velocity"),
     ],
-    "engine.solution": [("ins_fusion/core/", "solution")],
-    "track rows (solution_rows.pack)": [("core/solution_rows.py", "pack")],
+    "engine.solution_row": [("ins_fusion/core/", "solution_row")],
+    "track rows (RowBuffer.append)": [("core/solution_rows.py", "append")],
 }
 
 

@@ -53,6 +53,11 @@ class InsFusionNode(Node):
         self.params = values
         config = FusionConfig.from_parameters(values)
         self.engine = InsEngine(config)
+        if self.engine.warm_up_s > 2.0:  # compiled now, not from numba's cache
+            self.get_logger().info(
+                f"compiled the engine's kernels in {self.engine.warm_up_s:.0f} s (first start "
+                "after an install or update; later starts load them from the cache)"
+            )
         self._map_frame = tf_frames.world_frame(values)
         self._base_frame = config.base_frame
         self._output_period_s = 1.0 / config.output_rate_hz

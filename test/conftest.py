@@ -63,6 +63,6 @@ def pytest_runtest_logreport(report: pytest.TestReport) -> None:
 
 def pytest_sessionfinish(session: pytest.Session) -> None:
     """Keep the groups' seconds for the next run's order (not from the xdist workers)."""
-    cache = session.config.cache
+    cache = getattr(session.config, "cache", None)  # None with -p no:cacheprovider
     if cache is not None and _SECONDS and not hasattr(session.config, "workerinput"):
         cache.set(_DURATIONS_KEY, {**cache.get(_DURATIONS_KEY, {}), **_SECONDS})

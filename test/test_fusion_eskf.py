@@ -44,7 +44,7 @@ from ins_fusion.core.measurements import (
     zupt,
 )
 from ins_fusion.core.rotation import MAT_ENU_NED, euler_rad, quat_from_euler
-from ins_fusion.core.strapdown import ImuIncrement, NavState, propagate
+from ins_fusion.core.strapdown import NavState, increment, propagate
 
 NOISE = FusionConfig.default().imu_noise
 LAYOUT = StateLayout(gyro_scale=True, accel_scale=True)
@@ -93,7 +93,7 @@ def _minus(true: NavState, nav: NavState) -> np.ndarray:
 
 def _mechanize(nav: NavState, rate_i: np.ndarray, force_i: np.ndarray, steps: int, dt: float):
     """Strapdown with constant corrected imu rate/force, rotated into base_link."""
-    inc = ImuIncrement(dt, tuple(MAT_BI @ rate_i * dt), tuple(MAT_BI @ force_i * dt))
+    inc = increment(dt, tuple(MAT_BI @ rate_i * dt), tuple(MAT_BI @ force_i * dt))
     prev = None
     for _ in range(steps):
         nav = propagate(nav, inc, prev)

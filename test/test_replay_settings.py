@@ -91,7 +91,7 @@ class _RecordingEngine:
     def add_attitude(self, att):
         self.fed.append(("attitude", att.t_s))
 
-    def solution(self):
+    def solution_row(self):
         return None
 
     def status(self):

@@ -40,12 +40,17 @@ class OdometryArrays:
 _PSD_TOLERANCE = 1e-9
 
 
-def _psd(cov: FloatArray) -> bool:
-    """True for a finite, symmetric, positive semi-definite matrix (up to rounding)."""
-    if not np.isfinite(cov).all() or not np.allclose(cov, cov.T, rtol=1e-9, atol=0.0):
+def _psd(covs: FloatArray) -> bool:
+    """True for a stack of finite, symmetric, positive semi-definite matrices (up to rounding),
+    shape (k, n, n); one batched eigen-decomposition for all."""
+    if not np.isfinite(covs).all():
         return False
-    eigenvalues = np.linalg.eigvalsh(cov)
-    return bool(eigenvalues.min() >= -_PSD_TOLERANCE * max(1.0, float(eigenvalues.max())))
+    transposed = covs.transpose(0, 2, 1)
+    if (np.abs(covs - transposed) > 1e-9 * np.abs(transposed)).any():
+        return False
+    eigenvalues = np.linalg.eigvalsh(covs)
+    tolerance = _PSD_TOLERANCE * np.maximum(1.0, eigenvalues.max(axis=1))
+    return bool((eigenvalues.min(axis=1) >= -tolerance).all())
 
 
 def publishable(solution: InsSolution) -> bool:
@@ -61,7 +66,7 @@ def publishable(solution: InsSolution) -> bool:
     if not all(np.isfinite(v).all() for v in vectors):
         return False
     covariances = (solution.cov_pos_enu_m2, solution.cov_vel_enu, solution.cov_att_enu_rad2)
-    return all(_psd(np.asarray(c, dtype=np.float64)) for c in covariances)
+    return _psd(np.array(covariances, dtype=np.float64))
 
 
 def odometry_arrays(solution: InsSolution, rate_variance_rad2_s2: float) -> OdometryArrays:

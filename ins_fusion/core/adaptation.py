@@ -59,10 +59,10 @@ class _RunningMeanSquare:
             return self
         count = self.count + 1
         if count <= _MIN_COUNT:  # plain mean to start
-            return replace(self, count=count, mean=self.mean + (square - self.mean) / count)
+            return _RunningMeanSquare(self.window, count, self.mean + (square - self.mean) / count)
         clipped = np.minimum(square, _CLIP * self.mean)
         gain = min(1.0, weight / self.window)
-        return replace(self, count=count, mean=self.mean + (clipped - self.mean) * gain)
+        return _RunningMeanSquare(self.window, count, self.mean + (clipped - self.mean) * gain)
 
     @property
     def ready(self) -> bool:

@@ -15,6 +15,7 @@ import numpy as np
 import pymap3d
 
 from gnss_ins_common.types import FloatArray
+from ins_fusion.core.compiled import compilable
 
 F = TypeVar("F", float, FloatArray)
 
@@ -45,12 +46,13 @@ def radii_m(lat_rad: F) -> tuple[F, F]:
     return radii_from_sin(_sin_cos(lat_rad)[0])
 
 
+@compilable
 def displace(
     lat_rad: float, lon_rad: float, height_m: float, north_m: float, east_m: float, down_m: float
 ) -> tuple[float, float, float]:
     """The geodetic position (lat, lon [rad], ellipsoidal height [m]) a small NED offset [m]
     away, with the curvature radii at ``lat_rad`` (first order: offsets far below the radii)."""
-    r_m, r_n = radii_m(lat_rad)
+    r_m, r_n = radii_from_sin(math.sin(lat_rad))
     return (
         lat_rad + north_m / (r_m + height_m),
         lon_rad + east_m / ((r_n + height_m) * math.cos(lat_rad)),
@@ -58,6 +60,7 @@ def displace(
     )
 
 
+@compilable
 def radii_from_sin(sin_lat: F) -> tuple[F, F]:
     """radii_m from sin φ (the strapdown computes the sine once per sample)."""
     w = 1.0 - ECCENTRICITY_SQ * sin_lat * sin_lat
@@ -85,6 +88,7 @@ def normal_gravity_m_s2(lat_rad: F, height_m: F) -> F:
     return normal_gravity_from_sin_cos(sin_lat, cos_lat, height_m)
 
 
+@compilable
 def normal_gravity_from_sin_cos(sin_lat: F, cos_lat: F, height_m: F) -> F:
     """normal_gravity_m_s2 from sin φ and cos φ."""
     sin_sq = sin_lat * sin_lat
@@ -115,6 +119,7 @@ def transport_rate_ned_rad_s(lat_rad: F, height_m: F, vel_n_m_s: F, vel_e_m_s: F
     )
 
 
+@compilable
 def transport_rate_from(
     sin_lat: F,
     cos_lat: F,
@@ -187,10 +192,11 @@ class TangentPlane:
     def __init__(self, lat0_rad: float, lon0_rad: float, height0_m: float) -> None:
         """Datum: WGS-84 latitude, longitude [rad] and ellipsoidal height [m]."""
         self.datum = (lat0_rad, lon0_rad, height0_m)
-        self._origin = self._ecef(lat0_rad, lon0_rad, height0_m)
+        #: ECEF position of the datum [m] and the ECEF -> ENU rotation (read by compiled code).
+        self.origin = ecef_from_geodetic(lat0_rad, lon0_rad, height0_m)
         sin_lat, cos_lat = math.sin(lat0_rad), math.cos(lat0_rad)
         sin_lon, cos_lon = math.sin(lon0_rad), math.cos(lon0_rad)
-        self._mat_enu_ecef = np.array(
+        self.mat_enu_ecef = np.array(
             [
                 [-sin_lon, cos_lon, 0.0],
                 [-sin_lat * cos_lon, -sin_lat * sin_lon, cos_lat],
@@ -198,22 +204,26 @@ class TangentPlane:
             ]
         )
 
-    @staticmethod
-    def _ecef(lat_rad: float, lon_rad: float, height_m: float) -> tuple[float, float, float]:
-        sin_lat, cos_lat = math.sin(lat_rad), math.cos(lat_rad)
-        r_n = SEMI_MAJOR_AXIS_M / math.sqrt(1.0 - ECCENTRICITY_SQ * sin_lat * sin_lat)
-        return (
-            (r_n + height_m) * cos_lat * math.cos(lon_rad),
-            (r_n + height_m) * cos_lat * math.sin(lon_rad),
-            (r_n * (1.0 - ECCENTRICITY_SQ) + height_m) * sin_lat,
-        )
-
     def enu(self, lat_rad: float, lon_rad: float, height_m: float) -> FloatArray:
         """ENU position [m] of a geodetic point relative to the datum."""
-        x, y, z = self._ecef(lat_rad, lon_rad, height_m)
-        x0, y0, z0 = self._origin
-        enu: FloatArray = self._mat_enu_ecef @ np.array((x - x0, y - y0, z - z0))
+        x, y, z = ecef_from_geodetic(lat_rad, lon_rad, height_m)
+        x0, y0, z0 = self.origin
+        enu: FloatArray = self.mat_enu_ecef @ np.array((x - x0, y - y0, z - z0))
         return enu
+
+
+@compilable
+def ecef_from_geodetic(
+    lat_rad: float, lon_rad: float, height_m: float
+) -> tuple[float, float, float]:
+    """ECEF position [m] of a geodetic point (scalar form of geodetic_to_ecef)."""
+    sin_lat, cos_lat = math.sin(lat_rad), math.cos(lat_rad)
+    r_n = SEMI_MAJOR_AXIS_M / math.sqrt(1.0 - ECCENTRICITY_SQ * sin_lat * sin_lat)
+    return (
+        (r_n + height_m) * cos_lat * math.cos(lon_rad),
+        (r_n + height_m) * cos_lat * math.sin(lon_rad),
+        (r_n * (1.0 - ECCENTRICITY_SQ) + height_m) * sin_lat,
+    )
 
 
 def enu_to_geodetic(

@@ -60,15 +60,16 @@ from ins_fusion.core.measurements import (
 )
 from ins_fusion.core.propagation import ImuDensities, Propagator, bridge
 from ins_fusion.core.smoother import SmootherHooks
-from ins_fusion.core.solution import InsSolution, SolutionBuilder, self_calibration
+from ins_fusion.core.solution import InsSolution, SolutionBuilder, self_calibration, unpack
 from ins_fusion.core.startup import Startup
 from ins_fusion.core.state import FilterState, Geometry, LatestInputs
 from ins_fusion.core.status import MEASUREMENT_NAMES, EngineStatus, new_counters
 from ins_fusion.core.stop_detector import GNSS_SPEED_MAX_AGE_S, StopDetector
-from ins_fusion.core.strapdown import ImuIncrement, SampleIntegrator
+from ins_fusion.core.strapdown import SampleIntegrator, increment
 from ins_fusion.core.timeline import Checkpoint, Entry, Gap, Record, Timeline
 from ins_fusion.core.units import STANDARD_GRAVITY_M_S2
 from ins_fusion.core.updates import Corrections
+from ins_fusion.core.warm_up import warm_up
 
 __all__ = [
     "MEASUREMENT_NAMES",
@@ -105,6 +106,8 @@ class InsEngine:
     def __init__(self, config: FusionConfig, calibration: ImuCalibration | None = None) -> None:
         """``calibration`` overrides ``config.calibration_file`` (empty file name = none)."""
         self.config = config
+        #: Seconds spent readying the compiled kernels (core.warm_up; 0 after the first engine).
+        self.warm_up_s = warm_up()
         if calibration is None and config.calibration_file:
             calibration = ImuCalibration.from_yaml(config.calibration_file)
         self.calibration = calibration
@@ -272,11 +275,17 @@ class InsEngine:
     def solution(self) -> InsSolution | None:
         """The fused base_link state at the latest IMU sample; None before the filter starts
         (core.solution)."""
+        row = self.solution_row()
+        return None if row is None else unpack(row)
+
+    def solution_row(self) -> FloatArray | None:
+        """``solution()`` as a row of numbers (core.solution.WIDTH columns), without building
+        the object: what a replay records at every output tick."""
         self._catch_up()
         s, kf = self._state, self._filter
         if s is None or kf is None or self.datum is None:
             return None
-        return self._output.build(s, kf, self.datum, self._last_sample[0], self._state_name())
+        return self._output.row(s, kf, self.datum, self._last_sample[0], self._state_name())
 
     def status(self) -> EngineStatus:
         """Counters and diagnostics (see EngineStatus)."""
@@ -451,7 +460,7 @@ class InsEngine:
 
     def _step(
         self,
-        inc: ImuIncrement,
+        inc: FloatArray,
         gap: Gap | None,
         t: float,
         noise: tuple[FloatArray, FloatArray] | None,
@@ -519,9 +528,7 @@ class InsEngine:
         self._state, self._filter = started
         self._filter.recorder = self._recorder
         zero: Vec3 = (0.0, 0.0, 0.0)
-        self._timeline.start(
-            Entry(t, ImuIncrement(0.0, zero, zero), None, None, self._checkpoint())
-        )
+        self._timeline.start(Entry(t, increment(0.0, zero, zero), None, None, self._checkpoint()))
 
     def _state_name(self) -> str:
         s = self._state

@@ -46,10 +46,11 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.stats import chi2
+from scipy.special import gammaincinv
 
-from gnss_ins_common.types import FloatArray
+from gnss_ins_common.types import FloatArray, IntArray
 from ins_fusion.core import earth
+from ins_fusion.core.compiled import jit, kernel_array
 from ins_fusion.core.config import ImuNoise
 from ins_fusion.core.smoother import SmootherHooks
 
@@ -97,7 +98,8 @@ class StateLayout:
 
 def chi2_threshold(probability: float, dof: int) -> float:
     """Gate: normalised innovation squared accepted below this (chi-square quantile)."""
-    return float(chi2.ppf(probability, dof))
+    # scipy.stats.chi2.ppf's own formula; scipy.stats itself costs ~1 s of import.
+    return float(2.0 * gammaincinv(0.5 * dof, probability))
 
 
 @dataclass(frozen=True)
@@ -122,25 +124,19 @@ class ErrorStateFilter:
         n = layout.size
         self.layout = layout
         self.P: FloatArray = np.zeros((n, n))
-        self._eye = np.eye(n)
         #: Transition matrix Φ of the last ``propagate`` (a new array per call).
-        self.phi: FloatArray = self._eye
+        self.phi: FloatArray = np.eye(n)
         #: Observer of the covariance's changes (the RTS smoother's recorder), set by the engine.
         self.recorder: SmootherHooks | None = None
         # F and Q are rebuilt block by block through views; constant blocks are set once.
         F = self._F = np.zeros((n, n))
         F[POS : POS + 3, VEL : VEL + 3] = np.eye(3)
         Q = self._Q = np.zeros((n, n))
-        self._f_vv = F[VEL : VEL + 3, VEL : VEL + 3]
-        self._f_va = F[VEL : VEL + 3, ATT : ATT + 3]
-        self._f_vba = F[VEL : VEL + 3, BA : BA + 3]
-        self._f_av = F[ATT : ATT + 3, VEL : VEL + 3]
-        self._f_aa = F[ATT : ATT + 3, ATT : ATT + 3]
-        self._f_abg = F[ATT : ATT + 3, BG : BG + 3]
-        self._f_asg = None if layout.sg is None else F[ATT : ATT + 3, layout.sg : layout.sg + 3]
-        self._f_vsa = None if layout.sa is None else F[VEL : VEL + 3, layout.sa : layout.sa + 3]
-        self._q_vv = Q[VEL : VEL + 3, VEL : VEL + 3]
-        self._q_aa = Q[ATT : ATT + 3, ATT : ATT + 3]
+        # Columns of the gyro and accelerometer scale factors (-1: not estimated).
+        self._scales = (
+            -1 if layout.sg is None else layout.sg,
+            -1 if layout.sa is None else layout.sa,
+        )
         # Gauss-Markov states: F = -1/T, continuous noise 2σ²/T.
         t_b = noise.bias_correlation_time_s
         markov = [(BG, t_b, noise.gyro_bias_instability), (BA, t_b, noise.accel_bias_instability)]
@@ -190,44 +186,17 @@ class ErrorStateFilter:
         """The error-state matrix F (module docstring) for a rotation imu FRD -> NED, the
         specific force in NED and the corrected force/rate in imu FRD [m/s², rad/s], position
         and NED velocity. Returns an internal array, valid until the next call."""
-        vn, ve, vd = vel_ned_m_s
-        r_m, r_n = earth.radii_m(lat_rad)
-        rmh, rnh = r_m + height_m, r_n + height_m
-        tan_lat = math.tan(lat_rad)
-        w_ie_n, _, w_ie_d = earth.earth_rate_ned_rad_s(lat_rad)
-        # ω_en = (a v_E, b v_N, c v_E): ∂ω_en/∂v = [[0, a, 0], [b, 0, 0], [0, c, 0]].
-        a, b, c = 1.0 / rnh, -1.0 / rmh, -tan_lat / rnh
-        w_in = (w_ie_n + a * ve, b * vn, w_ie_d + c * ve)
-        cx, cy, cz = w_in[0] + w_ie_n, w_in[1], w_in[2] + w_ie_d  # 2ω_ie + ω_en
-        fx, fy, fz = force_n.tolist()
-        # δv̇: [v×] ∂ω_en/∂v - [(2ω_ie + ω_en)×]; -[f_n×]; ψ̇: -∂ω_en/∂v; -[ω_in×].
-        self._f_vv[...] = (
-            (-vd * b, ve * c + cz, -cy),
-            (-cz, vd * a - vn * c, cx),
-            (vn * b + cy, -ve * a - cx, 0.0),
+        _fill_dynamics(
+            self._F, mat_ni, force_n, force_i, rate_i, lat_rad, height_m, vel_ned_m_s, *self._scales
         )
-        self._F[VEL + 2, POS + 2] = (
-            2.0 * earth.normal_gravity_m_s2(lat_rad, height_m) / math.sqrt(rmh * rnh)
-        )
-        self._f_va[...] = ((0.0, fz, -fy), (-fz, 0.0, fx), (fy, -fx, 0.0))
-        self._f_av[...] = ((0.0, -a, 0.0), (-b, 0.0, 0.0), (0.0, -c, 0.0))
-        wx, wy, wz = w_in
-        self._f_aa[...] = ((0.0, wz, -wy), (-wz, 0.0, wx), (wy, -wx, 0.0))
-        np.negative(mat_ni, out=self._f_vba)
-        np.negative(mat_ni, out=self._f_abg)
-        if self._f_asg is not None:
-            np.multiply(mat_ni, -rate_i, out=self._f_asg)
-        if self._f_vsa is not None:
-            np.multiply(mat_ni, -force_i, out=self._f_vsa)
         return self._F
 
     def noise_density(self, mat_ni: FloatArray) -> FloatArray:
         """Continuous process noise Q_c = G Q Gᵀ [per second] for the rotation imu -> NED."""
-        Q = self._Q
-        self._q_vv[...] = (mat_ni * self._accel_psd) @ mat_ni.T
-        self._q_aa[...] = (mat_ni * self._gyro_psd) @ mat_ni.T
-        Q[self._markov_idx, self._markov_idx] = self._markov_q
-        return Q
+        _fill_noise(
+            self._Q, mat_ni, self._gyro_psd, self._accel_psd, self._markov_idx, self._markov_q
+        )
+        return self._Q
 
     def propagate(
         self,
@@ -242,15 +211,25 @@ class ErrorStateFilter:
     ) -> None:
         """Propagate P over an interval of dt_s [s] (one or a few IMU samples); arguments as
         for ``dynamics`` (mean force and rate over the interval, state at its end)."""
-        f_dt = self.dynamics(mat_ni, force_n, force_i, rate_i, lat_rad, height_m, vel_ned_m_s)
-        f_dt = f_dt * dt_s
-        phi = self._eye + f_dt + 0.5 * (f_dt @ f_dt)
-        q = self.noise_density(mat_ni) * (0.5 * dt_s)
-        # Φ P Φᵀ + (Φ Q_c Φᵀ + Q_c)Δt/2 = Φ (P + Q_cΔt/2) Φᵀ + Q_cΔt/2.
-        P = phi @ (self.P + q) @ phi.T
-        P += q
-        self.P = P
-        self.phi = phi  # RTS smoother hook (core.smoother): the transition of this interval
+        self.P, self.phi = _propagate(
+            kernel_array(self.P),
+            self._F,
+            self._Q,
+            dt_s,
+            mat_ni,
+            force_n,
+            force_i,
+            rate_i,
+            lat_rad,
+            height_m,
+            vel_ned_m_s,
+            self._scales[0],
+            self._scales[1],
+            self._gyro_psd,
+            self._accel_psd,
+            self._markov_idx,
+            self._markov_q,
+        )
 
     def set_white_noise(self, gyro_psd: FloatArray, accel_psd: FloatArray) -> None:
         """White-noise power densities per imu axis from now on: gyro [rad²/s] (ARW²),
@@ -280,21 +259,12 @@ class ErrorStateFilter:
 
     def update(self, z: FloatArray, H: FloatArray, R: FloatArray, threshold: float) -> UpdateResult:
         """Gated Joseph-form update with innovation z = measured - predicted, z ≈ H δx + v."""
-        P = self.P
-        PHt = P @ H.T
-        S = H @ PHt + R
-        try:
-            s_inv = np.linalg.inv(S)  # 1-3 rows: one inverse is cheaper than two solves
-        except np.linalg.LinAlgError:
-            return UpdateResult(False, math.inf, None)
-        nis = float(z @ s_inv @ z)
-        if not nis <= threshold:  # also rejects NaN
+        P, z, H, R = (kernel_array(a) for a in (self.P, z, H, R))
+        accepted, nis, dx, P = _joseph_update(P, z, H, R, float(threshold))
+        if not accepted:
             return UpdateResult(False, nis, None)
-        K = PHt @ s_inv
-        ikh = self._eye - K @ H
-        P = ikh @ P @ ikh.T + K @ R @ K.T
-        self.P = 0.5 * (P + P.T)
-        return UpdateResult(True, nis, K @ z)
+        self.P = P
+        return UpdateResult(True, nis, dx)
 
     def problem(self) -> str | None:
         """Why the covariance is unusable (non-finite, negative variance), or None."""
@@ -304,3 +274,126 @@ class ErrorStateFilter:
         if diagonal.min() < 0.0:
             return f"negative variance in state {int(diagonal.argmin())}"
         return None
+
+
+@jit
+def _fill_dynamics(
+    F: FloatArray,
+    mat_ni: FloatArray,
+    force_n: FloatArray,
+    force_i: FloatArray,
+    rate_i: FloatArray,
+    lat_rad: float,
+    height_m: float,
+    vel_ned_m_s: tuple[float, float, float],
+    sg: int,
+    sa: int,
+) -> None:
+    """The state-dependent blocks of F (ErrorStateFilter.dynamics; ``sg``, ``sa``: columns of
+    the scale factors, -1 when not estimated)."""
+    vn, ve, vd = vel_ned_m_s
+    sin_lat = math.sin(lat_rad)
+    r_m, r_n = earth.radii_from_sin(sin_lat)
+    rmh, rnh = r_m + height_m, r_n + height_m
+    tan_lat = math.tan(lat_rad)
+    cos_lat = math.cos(lat_rad)
+    w_ie_n, w_ie_d = earth.EARTH_RATE_RAD_S * cos_lat, -earth.EARTH_RATE_RAD_S * sin_lat
+    # ω_en = (a v_E, b v_N, c v_E): ∂ω_en/∂v = [[0, a, 0], [b, 0, 0], [0, c, 0]].
+    a, b, c = 1.0 / rnh, -1.0 / rmh, -tan_lat / rnh
+    wx, wy, wz = w_ie_n + a * ve, b * vn, w_ie_d + c * ve  # ω_in
+    cx, cy, cz = wx + w_ie_n, wy, wz + w_ie_d  # 2ω_ie + ω_en
+    fx, fy, fz = force_n[0], force_n[1], force_n[2]
+    # δv̇: [v×] ∂ω_en/∂v - [(2ω_ie + ω_en)×]; -[f_n×]; ψ̇: -∂ω_en/∂v; -[ω_in×].
+    blocks = (
+        (VEL, VEL, ((-vd * b, ve * c + cz, -cy), (-cz, vd * a - vn * c, cx))),
+        (VEL, ATT, ((0.0, fz, -fy), (-fz, 0.0, fx))),
+        (ATT, VEL, ((0.0, -a, 0.0), (-b, 0.0, 0.0))),
+        (ATT, ATT, ((0.0, wz, -wy), (-wz, 0.0, wx))),
+    )
+    for row, col, (first, second) in blocks:
+        for j in range(3):
+            F[row, col + j] = first[j]
+            F[row + 1, col + j] = second[j]
+    F[VEL + 2, VEL], F[VEL + 2, VEL + 1], F[VEL + 2, VEL + 2] = vn * b + cy, -ve * a - cx, 0.0
+    F[VEL + 2, ATT], F[VEL + 2, ATT + 1], F[VEL + 2, ATT + 2] = fy, -fx, 0.0
+    F[ATT + 2, VEL], F[ATT + 2, VEL + 1], F[ATT + 2, VEL + 2] = 0.0, -c, 0.0
+    F[ATT + 2, ATT], F[ATT + 2, ATT + 1], F[ATT + 2, ATT + 2] = wy, -wx, 0.0
+    F[VEL + 2, POS + 2] = (
+        2.0 * earth.normal_gravity_from_sin_cos(sin_lat, cos_lat, height_m) / math.sqrt(rmh * rnh)
+    )
+    for i in range(3):
+        for j in range(3):
+            F[VEL + i, BA + j] = -mat_ni[i, j]
+            F[ATT + i, BG + j] = -mat_ni[i, j]
+            if sg >= 0:
+                F[ATT + i, sg + j] = mat_ni[i, j] * -rate_i[j]
+            if sa >= 0:
+                F[VEL + i, sa + j] = mat_ni[i, j] * -force_i[j]
+
+
+@jit
+def _fill_noise(
+    Q: FloatArray,
+    mat_ni: FloatArray,
+    gyro_psd: FloatArray,
+    accel_psd: FloatArray,
+    markov_idx: IntArray,
+    markov_q: FloatArray,
+) -> None:
+    """The state-dependent blocks of Q_c (ErrorStateFilter.noise_density)."""
+    Q[VEL : VEL + 3, VEL : VEL + 3] = (mat_ni * accel_psd) @ mat_ni.T
+    Q[ATT : ATT + 3, ATT : ATT + 3] = (mat_ni * gyro_psd) @ mat_ni.T
+    for k in range(len(markov_idx)):
+        Q[markov_idx[k], markov_idx[k]] = markov_q[k]
+
+
+@jit
+def _propagate(
+    P: FloatArray,
+    F: FloatArray,
+    Q: FloatArray,
+    dt_s: float,
+    mat_ni: FloatArray,
+    force_n: FloatArray,
+    force_i: FloatArray,
+    rate_i: FloatArray,
+    lat_rad: float,
+    height_m: float,
+    vel_ned_m_s: tuple[float, float, float],
+    sg: int,
+    sa: int,
+    gyro_psd: FloatArray,
+    accel_psd: FloatArray,
+    markov_idx: IntArray,
+    markov_q: FloatArray,
+) -> tuple[FloatArray, FloatArray]:
+    """(P, Φ) after an interval (ErrorStateFilter.propagate); F and Q are filled in place."""
+    _fill_dynamics(F, mat_ni, force_n, force_i, rate_i, lat_rad, height_m, vel_ned_m_s, sg, sa)
+    _fill_noise(Q, mat_ni, gyro_psd, accel_psd, markov_idx, markov_q)
+    f_dt = F * dt_s
+    phi = np.eye(len(P)) + f_dt + 0.5 * (f_dt @ f_dt)
+    q = Q * (0.5 * dt_s)
+    # Φ P Φᵀ + (Φ Q_c Φᵀ + Q_c)Δt/2 = Φ (P + Q_cΔt/2) Φᵀ + Q_cΔt/2.
+    P_new = phi @ (P + q) @ phi.T
+    P_new += q
+    return P_new, phi
+
+
+@jit
+def _joseph_update(
+    P: FloatArray, z: FloatArray, H: FloatArray, R: FloatArray, threshold: float
+) -> tuple[bool, float, FloatArray, FloatArray]:
+    """(accepted, NIS, δx, new P) of ErrorStateFilter.update; a singular S gives NIS inf."""
+    PHt = P @ H.T
+    S = H @ PHt + R
+    try:
+        s_inv = np.linalg.inv(S)  # 1-3 rows: one inverse is cheaper than two solves
+    except Exception:  # singular (numba cannot name LinAlgError)
+        return False, math.inf, z, P
+    nis = float(z @ s_inv @ z)
+    if not nis <= threshold:  # also rejects NaN
+        return False, nis, z, P
+    K = PHt @ s_inv
+    ikh = np.eye(len(P)) - K @ H
+    P_new = ikh @ P @ ikh.T + K @ R @ K.T
+    return True, nis, K @ z, 0.5 * (P_new + P_new.T)

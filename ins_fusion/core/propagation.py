@@ -15,12 +15,33 @@ import numpy as np
 from gnss_ins_common.types import FloatArray, Vec3
 from ins_fusion.core import earth
 from ins_fusion.core.adaptation import ImuNoiseMonitor
+from ins_fusion.core.compiled import jit
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.eskf import ATT, VEL, ErrorStateFilter
 from ins_fusion.core.measurements import Prediction
 from ins_fusion.core.rotation import skew
-from ins_fusion.core.state import FilterState, Geometry, decouple_yaw
-from ins_fusion.core.strapdown import ImuIncrement, propagate
+from ins_fusion.core.state import (
+    X_ACCEL_LP,
+    X_ACCEL_N,
+    X_BA,
+    X_BG,
+    X_COV_DT,
+    X_COV_DTH,
+    X_COV_DV,
+    X_HAS_PREV,
+    X_NAV,
+    X_PREV,
+    X_RATE_B,
+    X_RATE_I,
+    X_RATE_LP,
+    X_SA,
+    X_SG,
+    X_T,
+    FilterState,
+    Geometry,
+    decouple_yaw,
+)
+from ins_fusion.core.strapdown import INCREMENT_SIZE, NAV_SIZE, increment, mechanize
 from ins_fusion.core.timeline import Gap
 
 #: Time constant of the smoothed acceleration and rate of the time-offset model [s].
@@ -53,15 +74,15 @@ class ImuDensities:
 
 def bridge(
     dt: float, last_sample: tuple[Vec3, Vec3], rate_i: Vec3, force_i: Vec3
-) -> tuple[ImuIncrement, Gap]:
-    """Trapezoidal increment over a gap of ``dt`` [s] from the last sample (rate, force; imu
-    FRD) to this one, and its uncertainty. The trapezoid is exact for a rate and force that
-    change linearly; for a change at an unknown instant inside the gap (a turn starting) it
-    errs by Δ·dt·(1/2 - τ/dt), of RMS Δ·dt/√12, with Δ the change from the last sample to
-    this one."""
+) -> tuple[FloatArray, Gap]:
+    """Trapezoidal increment (core.strapdown.increment) over a gap of ``dt`` [s] from the last
+    sample (rate, force; imu FRD) to this one, and its uncertainty. The trapezoid is exact for
+    a rate and force that change linearly; for a change at an unknown instant inside the gap (a
+    turn starting) it errs by Δ·dt·(1/2 - τ/dt), of RMS Δ·dt/√12, with Δ the change from the
+    last sample to this one."""
     rate0, force0 = last_sample
     h = 0.5 * dt
-    inc = ImuIncrement(
+    inc = increment(
         dt,
         (h * (rate0[0] + rate_i[0]), h * (rate0[1] + rate_i[1]), h * (rate0[2] + rate_i[2])),
         (
@@ -78,6 +99,55 @@ def bridge(
     return inc, gap
 
 
+@jit
+def advance(x: FloatArray, inc: FloatArray, r_bi: FloatArray, bridged: bool, t: float) -> None:
+    """The time update of the nominal state ``x`` (core.state X_* layout) over one increment
+    ``inc`` (imu FRD; ``bridged``: it spans missing samples, no coning/sculling history):
+    correct it with the estimated biases and scale factors, turn it into base_link FRD with
+    ``r_bi`` (row-major imu -> body), mechanize, and update the derived rates, the low-passed
+    acceleration and rate and the covariance interval; stamp ``t`` [s]."""
+    dt = inc[0]
+    ti0 = (inc[1] - x[X_BG] * dt) / (1.0 + x[X_SG])
+    ti1 = (inc[2] - x[X_BG + 1] * dt) / (1.0 + x[X_SG + 1])
+    ti2 = (inc[3] - x[X_BG + 2] * dt) / (1.0 + x[X_SG + 2])
+    vi0 = (inc[4] - x[X_BA] * dt) / (1.0 + x[X_SA])
+    vi1 = (inc[5] - x[X_BA + 1] * dt) / (1.0 + x[X_SA + 1])
+    vi2 = (inc[6] - x[X_BA + 2] * dt) / (1.0 + x[X_SA + 2])
+    inc_b = np.empty(INCREMENT_SIZE)
+    inc_b[0] = dt
+    for row in range(3):
+        r0, r1, r2 = r_bi[3 * row], r_bi[3 * row + 1], r_bi[3 * row + 2]
+        inc_b[1 + row] = r0 * ti0 + r1 * ti1 + r2 * ti2
+        inc_b[4 + row] = r0 * vi0 + r1 * vi1 + r2 * vi2
+    v0 = x[X_NAV + 3 : X_NAV + 6].copy()
+    use_prev = not bridged and x[X_HAS_PREV] != 0.0
+    mechanize(x[X_NAV : X_NAV + NAV_SIZE], inc_b, x[X_PREV : X_PREV + INCREMENT_SIZE], use_prev)
+    inv_dt = 1.0 / dt
+    # Acceleration and rate low-passed over ~0.1 s (vibration out) for the time-offset
+    # model: their noise would otherwise make H noisy and the estimate wander.
+    k = min(1.0, dt / _ACCEL_SMOOTHING_S)
+    for axis in range(3):
+        an = (x[X_NAV + 3 + axis] - v0[axis]) * inv_dt
+        rb = inc_b[1 + axis] * inv_dt
+        x[X_ACCEL_N + axis] = an
+        x[X_RATE_B + axis] = rb
+        lp = x[X_ACCEL_LP + axis]
+        x[X_ACCEL_LP + axis] = lp + k * (an - lp)
+        rl = x[X_RATE_LP + axis]
+        x[X_RATE_LP + axis] = rl + k * (rb - rl)
+    x[X_RATE_I], x[X_RATE_I + 1], x[X_RATE_I + 2] = ti0 * inv_dt, ti1 * inv_dt, ti2 * inv_dt
+    x[X_PREV : X_PREV + INCREMENT_SIZE] = inc_b
+    x[X_HAS_PREV] = 1.0
+    x[X_T] = t
+    x[X_COV_DTH] += ti0
+    x[X_COV_DTH + 1] += ti1
+    x[X_COV_DTH + 2] += ti2
+    x[X_COV_DV] += vi0
+    x[X_COV_DV + 1] += vi1
+    x[X_COV_DV + 2] += vi2
+    x[X_COV_DT] += dt
+
+
 class Propagator:
     """Strapdown and covariance propagation of the nominal state (see the module docstring)."""
 
@@ -85,66 +155,24 @@ class Propagator:
         self._covariance_interval_s = config.covariance_interval_s
         self._gnss_correlation_time_s = config.gnss_correlation_time_s
         self._geometry = geometry
+        self._r_bi = np.array(geometry.r_bi)
         self._densities = densities
 
     def step(
         self,
         s: FilterState,
         kf: ErrorStateFilter,
-        inc: ImuIncrement,
+        inc: FloatArray,
         gap: Gap | None,
         t: float,
         noise: tuple[FloatArray, FloatArray] | None,
     ) -> None:
-        """Correct an increment with the filter's sensor errors and mechanize (``gap``: it
-        bridges missing samples; ``noise``: the IMU white-noise densities from now on, None =
-        the user's); the covariance follows every ``covariance_interval`` seconds."""
+        """Correct an increment with the filter's sensor errors and mechanize (``advance``;
+        ``gap``: it bridges missing samples; ``noise``: the IMU white-noise densities from now
+        on, None = the user's); the covariance follows every ``covariance_interval`` seconds."""
         s.imu_psd = noise
-        dt = inc.dt_s
-        bg, ba, sg, sa = s.gyro_bias, s.accel_bias, s.gyro_scale, s.accel_scale
-        th, dv = inc.dtheta_rad, inc.dvel_m_s
-        ti0 = (th[0] - bg[0] * dt) / (1.0 + sg[0])
-        ti1 = (th[1] - bg[1] * dt) / (1.0 + sg[1])
-        ti2 = (th[2] - bg[2] * dt) / (1.0 + sg[2])
-        vi0 = (dv[0] - ba[0] * dt) / (1.0 + sa[0])
-        vi1 = (dv[1] - ba[1] * dt) / (1.0 + sa[1])
-        vi2 = (dv[2] - ba[2] * dt) / (1.0 + sa[2])
-        r0, r1, r2, r3, r4, r5, r6, r7, r8 = self._geometry.r_bi
-        tb = (
-            r0 * ti0 + r1 * ti1 + r2 * ti2,
-            r3 * ti0 + r4 * ti1 + r5 * ti2,
-            r6 * ti0 + r7 * ti1 + r8 * ti2,
-        )
-        vb = (
-            r0 * vi0 + r1 * vi1 + r2 * vi2,
-            r3 * vi0 + r4 * vi1 + r5 * vi2,
-            r6 * vi0 + r7 * vi1 + r8 * vi2,
-        )
-        inc_b = ImuIncrement(dt, tb, vb)
-        v0n, v0e, v0d = s.nav.vel_ned_m_s.tolist()
-        nav = propagate(s.nav, inc_b, s.prev_inc if gap is None else None)
-        s.set_nav(nav)
-        inv_dt = 1.0 / dt
-        v1n, v1e, v1d = nav.vel_ned_m_s.tolist()
-        an = ((v1n - v0n) * inv_dt, (v1e - v0e) * inv_dt, (v1d - v0d) * inv_dt)
-        s.accel_n = an
-        rb = s.rate_b = (tb[0] * inv_dt, tb[1] * inv_dt, tb[2] * inv_dt)
-        # Acceleration and rate low-passed over ~0.1 s (vibration out) for the time-offset
-        # model: their noise would otherwise make H noisy and the estimate wander.
-        k, lp, rl = min(1.0, dt / _ACCEL_SMOOTHING_S), s.accel_lp, s.rate_lp
-        s.accel_lp = (
-            lp[0] + k * (an[0] - lp[0]),
-            lp[1] + k * (an[1] - lp[1]),
-            lp[2] + k * (an[2] - lp[2]),
-        )
-        s.rate_lp = (
-            rl[0] + k * (rb[0] - rl[0]),
-            rl[1] + k * (rb[1] - rl[1]),
-            rl[2] + k * (rb[2] - rl[2]),
-        )
-        s.rate_i = (ti0 * inv_dt, ti1 * inv_dt, ti2 * inv_dt)
-        s.prev_inc = inc_b
-        s.t_s = t
+        advance(s.x, inc, self._r_bi, gap is not None, t)
+        s.changed()
         if gap is not None:
             mat_ni = s.mat_nb @ self._geometry.mat_bi
             P_before = kf.P
@@ -152,11 +180,7 @@ class Propagator:
             kf.add_noise(VEL, (mat_ni * gap.velocity_var_m2_s2) @ mat_ni.T)
             if kf.recorder is not None:  # smoother hook: the gap's noise
                 kf.recorder.on_noise(P_before, kf.P)
-        cdth, cdv = s.cov_dth, s.cov_dv
-        s.cov_dth = (cdth[0] + ti0, cdth[1] + ti1, cdth[2] + ti2)
-        s.cov_dv = (cdv[0] + vi0, cdv[1] + vi1, cdv[2] + vi2)
-        s.cov_dt += dt
-        if s.cov_dt >= self._covariance_interval_s:
+        if s.x[X_COV_DT] >= self._covariance_interval_s:
             self.propagate_covariance(s, kf)
 
     def propagate_covariance(self, s: FilterState, kf: ErrorStateFilter) -> None:

@@ -5,9 +5,9 @@ vectors from frame b into frame a: v_a = R(quat_ab) v_b, and q_ac = q_ab ⊗ q_b
 roll, pitch, yaw of the intrinsic z-y'-x'' sequence (yaw first), i.e. the standard NED/FRD angles
 of Aalborg notes §5.5 (7.10)-(7.12) (shared/reference/imu400cc-aalborg-notes.md).
 
-The scalar helpers (``quat_multiply``, ``quat_from_rotvec``, ``quat_rotate``) work on plain float
-tuples: they are the strapdown's per-sample hot path, where numpy on 3-vectors costs more than the
-arithmetic. Batch conversions use scipy.spatial.transform.Rotation.
+The scalar helpers (``quat_multiply``, ``quat_from_rotvec``, ``quat_rotate``, ...) work on plain
+float tuples and are ``compilable``: the compiled strapdown and solution (core.compiled) call
+them. Batch conversions use scipy.spatial.transform.Rotation.
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from gnss_ins_common.types import FloatArray, Quat, Vec3
+from ins_fusion.core.compiled import compilable
 
 #: NED -> ENU (and ENU -> NED): swap the first two axes and negate the third (REP-103).
 MAT_ENU_NED: FloatArray = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
@@ -31,6 +32,7 @@ _Q_ENU_NED: Quat = (math.sqrt(0.5), math.sqrt(0.5), 0.0, 0.0)
 _Q_FRD_FLU: Quat = (1.0, 0.0, 0.0, 0.0)
 
 
+@compilable
 def quat_multiply(q: Quat, p: Quat) -> Quat:
     """Hamilton product q ⊗ p of scalar-last quaternions."""
     qx, qy, qz, qw = q
@@ -43,6 +45,7 @@ def quat_multiply(q: Quat, p: Quat) -> Quat:
     )
 
 
+@compilable
 def quat_from_rotvec(rx: float, ry: float, rz: float) -> Quat:
     """Quaternion of the rotation vector (rx, ry, rz) [rad] (series form for small angles)."""
     angle_sq = rx * rx + ry * ry + rz * rz
@@ -57,6 +60,7 @@ def quat_from_rotvec(rx: float, ry: float, rz: float) -> Quat:
     return (k * rx, k * ry, k * rz, w)
 
 
+@compilable
 def mat_from_quat(x: float, y: float, z: float, w: float) -> FloatArray:
     """Rotation matrix of the unit quaternion (x, y, z, w): v_a = M v_b for quat_ab (scipy's
     ``Rotation.from_quat(q).as_matrix()`` in a tenth of the time, for per-output use)."""
@@ -69,6 +73,7 @@ def mat_from_quat(x: float, y: float, z: float, w: float) -> FloatArray:
     )
 
 
+@compilable
 def quat_normalize(q: Quat) -> Quat:
     """Unit quaternion with a non-negative scalar part."""
     x, y, z, w = q
@@ -78,6 +83,7 @@ def quat_normalize(q: Quat) -> Quat:
     return (x * inv, y * inv, z * inv, w * inv)
 
 
+@compilable
 def quat_rotate(q: Quat, v: Vec3) -> Vec3:
     """R(q) v for a unit quaternion q: v + 2w(u×v) + 2u×(u×v) with u the vector part."""
     x, y, z, w = q
@@ -163,6 +169,7 @@ def as_quat(values: FloatArray) -> Quat:
     return (x, y, z, w)
 
 
+@compilable
 def quat_enu_flu(quat_nb: Quat) -> Quat:
     """REP-103 orientation (FLU in ENU) of a body (FRD) -> NED quaternion, w >= 0; also the
     inverse map, as both frame changes are half turns (``quat_nb_from_enu_flu``)."""
@@ -181,6 +188,7 @@ def mat_from_rpy_flu(rpy_rad: Sequence[float]) -> FloatArray:
     return np.asarray(MAT_FLU_FRD @ mat @ MAT_FLU_FRD, dtype=np.float64)
 
 
+@compilable
 def enu_skew(x: float, y: float, z: float) -> tuple[Vec3, Vec3, Vec3]:
     """MAT_ENU_NED @ [v×] for a NED vector v = (x, y, z): the rows of [v×] for E, N and -D."""
     return ((z, 0.0, -x), (0.0, -z, y), (y, -x, 0.0))

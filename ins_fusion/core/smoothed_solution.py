@@ -53,13 +53,13 @@ def attach_recorder(
     ``chunk_records`` and ``directory``)."""
 
     def snapshot() -> Snapshot:
-        solution = engine.solution()
-        assert solution is not None  # transitions happen only once the filter runs
+        row = engine.solution_row()
+        assert row is not None  # transitions happen only once the filter runs
         return Snapshot(
-            solution.t_s,
-            rows.pack(solution),
+            float(row[rows.T]),
+            row,
             engine.solution_jacobian,
-            solution.state != "aligning",
+            rows.STATES[int(row[rows.STATE])] != "aligning",
         )
 
     recorder = SmootherRecorder(

@@ -12,19 +12,31 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gnss_ins_common.types import FloatArray
+from gnss_ins_common.types import FloatArray, IntArray, Vec3
 from ins_fusion.core import earth
+from ins_fusion.core.compiled import jit, kernel_array
 from ins_fusion.core.config import FusionConfig
-from ins_fusion.core.eskf import ATT, BG, POS, VEL, ErrorStateFilter, StateLayout
+from ins_fusion.core.earth import ecef_from_geodetic
+from ins_fusion.core.eskf import ATT, BG, ErrorStateFilter, StateLayout
+from ins_fusion.core.eskf import POS as POS_STATE
+from ins_fusion.core.eskf import VEL as VEL_STATE
 from ins_fusion.core.rotation import (
     MAT_ENU_NED,
-    as_quat,
     enu_skew,
+    mat_from_quat,
     quat_enu_flu,
     quat_from_rotvec,
     quat_multiply,
 )
-from ins_fusion.core.state import FilterState, Geometry
+from ins_fusion.core.state import (
+    X_BA,
+    X_BG,
+    X_NAV,
+    X_SG,
+    X_T,
+    FilterState,
+    Geometry,
+)
 
 
 @dataclass(frozen=True)
@@ -59,97 +71,168 @@ class InsSolution:
     imu_mounting_rpy_rad: FloatArray | None = None
 
 
+#: ``InsSolution`` as one row of float64 numbers (core.solution_rows holds many): t_s; lat_deg,
+#: lon_deg, height_m; pos_enu_m (3); vel_enu_m_s (3); quat_enu_flu_xyzw (4); rate_flu_rad_s (3);
+#: cov_pos_enu_m2, cov_vel_enu, cov_att_enu_rad2 (9 each, row-major); gyro_bias_flu_rad_s (3);
+#: accel_bias_flu_m_s2 (3); imu_mounting_rpy_rad (3, NaN = None); the state as its index in
+#: ``STATES``. Units and frames as InsSolution.
+STATES = ("aligning", "navigating", "degraded")
+T, LAT, LON, HEIGHT = 0, 1, 2, 3
+POS, VEL, QUAT, RATE = slice(4, 7), slice(7, 10), slice(10, 14), slice(14, 17)
+COV_POS, COV_VEL, COV_ATT = slice(17, 26), slice(26, 35), slice(35, 44)
+GYRO, ACCEL, MOUNTING, STATE = slice(44, 47), slice(47, 50), slice(50, 53), 53
+WIDTH = 54
+
+
+def unpack(row: FloatArray) -> InsSolution:
+    """The solution of one row (its arrays are copies)."""
+    mounting = row[MOUNTING]
+    return InsSolution(
+        t_s=float(row[T]),
+        lat_deg=float(row[LAT]),
+        lon_deg=float(row[LON]),
+        height_m=float(row[HEIGHT]),
+        pos_enu_m=row[POS].copy(),
+        vel_enu_m_s=row[VEL].copy(),
+        quat_enu_flu_xyzw=row[QUAT].copy(),
+        rate_flu_rad_s=row[RATE].copy(),
+        cov_pos_enu_m2=row[COV_POS].reshape(3, 3).copy(),
+        cov_vel_enu=row[COV_VEL].reshape(3, 3).copy(),
+        cov_att_enu_rad2=row[COV_ATT].reshape(3, 3).copy(),
+        gyro_bias_flu_rad_s=row[GYRO].copy(),
+        accel_bias_flu_m_s2=row[ACCEL].copy(),
+        state=STATES[int(row[STATE])],
+        imu_mounting_rpy_rad=None if np.isnan(mounting).any() else mounting.copy(),
+    )
+
+
 class SolutionBuilder:
-    """Builds ``InsSolution`` at the output rate (see the module docstring)."""
+    """Builds ``InsSolution`` rows at the output rate (see the module docstring)."""
 
     def __init__(self, geometry: Geometry, layout: StateLayout) -> None:
         self._geometry = geometry
+        self._r_bi = np.array(geometry.r_bi)
         self._mt = layout.mt
-        # ENU position, velocity and attitude of base_link over the first 12 error states; the
-        # blocks that depend on the state are filled in per call.
-        self._j_solution = np.zeros((9, BG + 3))
-        for row, col in ((0, POS), (3, VEL), (6, ATT)):
-            self._j_solution[row : row + 3, col : col + 3] = MAT_ENU_NED
-        self._j_mounting = np.zeros((9, BG + 5))
+        # ENU position, velocity and attitude of base_link over the first 12 error states (and
+        # the two mounting states when they are estimated); the blocks that depend on the state
+        # are filled in per call.
         mt = layout.mt
         self._solution_states = np.r_[0 : BG + 3, [] if mt is None else [mt, mt + 1]].astype(int)
+        self._jacobian = np.zeros((9, len(self._solution_states)))
+        for row, col in ((0, POS_STATE), (3, VEL_STATE), (6, ATT)):
+            self._jacobian[row : row + 3, col : col + 3] = MAT_ENU_NED
         self._plane: earth.TangentPlane | None = None
-        #: Jacobian of the last ``build`` (rows ENU position, velocity, attitude of base_link,
+        #: Jacobian of the last ``row`` (rows ENU position, velocity, attitude of base_link,
         #: columns the error states of core.smoothed_solution.solution_states); reused per call.
-        self.jacobian: FloatArray = self._j_solution
+        self.jacobian: FloatArray = self._jacobian
 
-    def build(
+    def row(
         self,
         s: FilterState,
         kf: ErrorStateFilter,
         datum_deg: tuple[float, float, float],
         rate_i: tuple[float, float, float],
         state_name: str,
-    ) -> InsSolution:
-        """The solution of state ``s`` with covariance ``kf.P``; ``rate_i``: the latest raw
-        sample's rate (imu FRD [rad/s]); ``datum_deg``: the ENU plane's origin (lat, lon [deg],
-        height [m])."""
+    ) -> FloatArray:
+        """The solution row (``WIDTH``) of state ``s`` with covariance ``kf.P``; ``rate_i``: the
+        latest raw sample's rate (imu FRD [rad/s]); ``datum_deg``: the ENU plane's origin (lat,
+        lon [deg], height [m])."""
         geometry = self._geometry
-        C = s.mat_nb
-        (c00, c01, c02), (c10, c11, c12), (c20, c21, c22) = C.tolist()
-        # base_link of the estimated mounting: the lever arm turned by it, and below the
-        # orientation and rate turned into it (C_bv = I + [μ×]).
-        ax, ay, az = geometry.arms(s)[1].tolist()
-        # Lever arm in NED, and its velocity ω × r (body) rotated into NED; 3-vectors in plain
-        # floats (numpy per 3-vector costs more than the arithmetic at the output rate).
-        n0 = c00 * ax + c01 * ay + c02 * az
-        n1 = c10 * ax + c11 * ay + c12 * az
-        n2 = c20 * ax + c21 * ay + c22 * az
-        wx, wy, wz = geometry.corrected_rate_b(s, rate_i)
-        ux, uy, uz = wy * az - wz * ay, wz * ax - wx * az, wx * ay - wy * ax
-        r0 = c00 * ux + c01 * uy + c02 * uz
-        r1 = c10 * ux + c11 * uy + c12 * uz
-        r2 = c20 * ux + c21 * uy + c22 * uz
-        nav = s.nav
-        lat, lon, height = earth.displace(nav.lat_rad, nav.lon_rad, nav.height_m, n0, n1, n2)
-        J = self._j_solution
-        J[0:3, ATT : ATT + 3] = enu_skew(-n0, -n1, -n2)
-        J[3:6, ATT : ATT + 3] = enu_skew(-r0, -r1, -r2)
-        J[3:6, BG : BG + 3] = MAT_ENU_NED @ C @ geometry.arm_bi
-        if self._mt is None:
-            cov = J @ kf.P[: BG + 3, : BG + 3] @ J.T
-            self.jacobian = J
-        else:  # the vehicle's attitude error is ψ + C_nb μ: the mounting states join
-            J_mt = self._j_mounting
-            J_mt[:, : BG + 3] = J
-            J_mt[6:9, BG + 3 :] = (MAT_ENU_NED @ C)[:, 1:3]
-            cov = J_mt @ kf.P[np.ix_(self._solution_states, self._solution_states)] @ J_mt.T
-            self.jacobian = J_mt
-        vn, ve, vd = nav.vel_ned_m_s.tolist()
         lat0, lon0, h0 = datum_deg
         datum_rad = (math.radians(lat0), math.radians(lon0), h0)
         if self._plane is None or self._plane.datum != datum_rad:
             self._plane = earth.TangentPlane(*datum_rad)
-        bg, ba = s.gyro_bias, s.accel_bias
-        quat_nb = as_quat(nav.quat_nb)
-        mounting = None
-        if self._mt is not None:
-            mu_y, mu_z = s.mounting
-            quat_nb = quat_multiply(quat_nb, quat_from_rotvec(0.0, mu_y, mu_z))
-            wx, wy, wz = wx - (mu_y * wz - mu_z * wy), wy - mu_z * wx, wz + mu_y * wx
-            mounting = geometry.mounting_rpy(s.mounting)
-        return InsSolution(
-            t_s=s.t_s,
-            lat_deg=math.degrees(lat),
-            lon_deg=math.degrees(lon),
-            height_m=height,
-            pos_enu_m=self._plane.enu(lat, lon, height),
-            vel_enu_m_s=np.array((ve + r1, vn + r0, -(vd + r2))),
-            quat_enu_flu_xyzw=np.array(quat_enu_flu(quat_nb)),
-            rate_flu_rad_s=np.array((wx, -wy, -wz)),
-            cov_pos_enu_m2=cov[0:3, 0:3],
-            cov_vel_enu=cov[3:6, 3:6],
-            cov_att_enu_rad2=cov[6:9, 6:9],
-            gyro_bias_flu_rad_s=np.array((bg[0], -bg[1], -bg[2])),
-            accel_bias_flu_m_s2=np.array((ba[0], -ba[1], -ba[2])),
-            state=state_name,
-            imu_mounting_rpy_rad=mounting,
+        out = np.empty(WIDTH)
+        mounting = s.mounting if self._mt is not None else None
+        _fill_row(
+            out,
+            self._jacobian,
+            s.x,
+            kernel_array(kf.P),
+            self._solution_states,
+            geometry.arms(s)[1],
+            self._r_bi,
+            geometry.arm_bi,
+            rate_i,
+            (0.0, 0.0) if mounting is None else mounting,
+            self._plane.origin,
+            self._plane.mat_enu_ecef,
         )
+        out[MOUNTING] = np.nan if mounting is None else geometry.mounting_rpy(mounting)
+        out[STATE] = STATES.index(state_name)
+        return out
+
+
+@jit
+def _fill_row(
+    out: FloatArray,
+    J: FloatArray,
+    x: FloatArray,
+    P: FloatArray,
+    states: IntArray,
+    arm_b: FloatArray,
+    r_bi: FloatArray,
+    arm_bi: FloatArray,
+    rate_i: Vec3,
+    mounting: tuple[float, float],
+    origin: Vec3,
+    mat_enu_ecef: FloatArray,
+) -> None:
+    """The numbers of a solution row but its mounting and state (``SolutionBuilder.row``),
+    and its Jacobian ``J`` (first 12 columns; the mounting's two when ``J`` has them)."""
+    C = mat_from_quat(x[X_NAV + 6], x[X_NAV + 7], x[X_NAV + 8], x[X_NAV + 9])
+    # base_link of the estimated mounting: the lever arm turned by it (arm_b), and below the
+    # orientation and rate turned into it (C_bv = I + [μ×]). The lever arm in NED, and its
+    # velocity ω × r (body) rotated into NED.
+    ax, ay, az = arm_b[0], arm_b[1], arm_b[2]
+    n0 = C[0, 0] * ax + C[0, 1] * ay + C[0, 2] * az
+    n1 = C[1, 0] * ax + C[1, 1] * ay + C[1, 2] * az
+    n2 = C[2, 0] * ax + C[2, 1] * ay + C[2, 2] * az
+    c0 = (rate_i[0] - x[X_BG]) / (1.0 + x[X_SG])
+    c1 = (rate_i[1] - x[X_BG + 1]) / (1.0 + x[X_SG + 1])
+    c2 = (rate_i[2] - x[X_BG + 2]) / (1.0 + x[X_SG + 2])
+    wx = r_bi[0] * c0 + r_bi[1] * c1 + r_bi[2] * c2
+    wy = r_bi[3] * c0 + r_bi[4] * c1 + r_bi[5] * c2
+    wz = r_bi[6] * c0 + r_bi[7] * c1 + r_bi[8] * c2
+    ux, uy, uz = wy * az - wz * ay, wz * ax - wx * az, wx * ay - wy * ax
+    r0 = C[0, 0] * ux + C[0, 1] * uy + C[0, 2] * uz
+    r1 = C[1, 0] * ux + C[1, 1] * uy + C[1, 2] * uz
+    r2 = C[2, 0] * ux + C[2, 1] * uy + C[2, 2] * uz
+    lat, lon, height = earth.displace(x[X_NAV], x[X_NAV + 1], x[X_NAV + 2], n0, n1, n2)
+    c_en = np.empty((3, 3))  # MAT_ENU_NED @ C
+    c_en[0, :], c_en[1, :], c_en[2, :] = C[1, :], C[0, :], -C[2, :]
+    for k, rows in enumerate((enu_skew(-n0, -n1, -n2), enu_skew(-r0, -r1, -r2))):
+        for i in range(3):
+            for j in range(3):
+                J[3 * k + i, ATT + j] = rows[i][j]
+    J[3:6, BG : BG + 3] = c_en @ arm_bi
+    mu_y, mu_z = mounting
+    if J.shape[1] > BG + 3:  # the vehicle's attitude error is ψ + C_nb μ: the mounting states
+        J[6:9, BG + 3 :] = c_en[:, 1:3]
+    n = len(states)
+    P_sub = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            P_sub[i, j] = P[states[i], states[j]]
+    cov = J @ P_sub @ J.T
+    vn, ve, vd = x[X_NAV + 3], x[X_NAV + 4], x[X_NAV + 5]
+    quat_nb = (x[X_NAV + 6], x[X_NAV + 7], x[X_NAV + 8], x[X_NAV + 9])
+    if J.shape[1] > BG + 3:
+        quat_nb = quat_multiply(quat_nb, quat_from_rotvec(0.0, mu_y, mu_z))
+        wx, wy, wz = wx - (mu_y * wz - mu_z * wy), wy - mu_z * wx, wz + mu_y * wx
+    e_x, e_y, e_z = ecef_from_geodetic(lat, lon, height)
+    d = np.array((e_x - origin[0], e_y - origin[1], e_z - origin[2]))
+    out[T] = x[X_T]
+    out[LAT], out[LON], out[HEIGHT] = math.degrees(lat), math.degrees(lon), height
+    out[POS] = mat_enu_ecef @ d
+    out[7], out[8], out[9] = ve + r1, vn + r0, -(vd + r2)
+    out[QUAT] = np.array(quat_enu_flu(quat_nb))
+    out[14], out[15], out[16] = wx, -wy, -wz
+    out[COV_POS] = cov[0:3, 0:3].copy().ravel()
+    out[COV_VEL] = cov[3:6, 3:6].copy().ravel()
+    out[COV_ATT] = cov[6:9, 6:9].copy().ravel()
+    out[44], out[45], out[46] = x[X_BG], -x[X_BG + 1], -x[X_BG + 2]
+    out[47], out[48], out[49] = x[X_BA], -x[X_BA + 1], -x[X_BA + 2]
 
 
 def self_calibration(

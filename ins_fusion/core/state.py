@@ -38,15 +38,57 @@ from ins_fusion.core.rotation import (
     quat_normalize,
     skew,
 )
-from ins_fusion.core.strapdown import ImuIncrement, NavState
+from ins_fusion.core.strapdown import NavState
 
 #: Yaw variance standing for 'heading unknown' [rad²].
 UNKNOWN_YAW_VARIANCE = (math.pi / 2.0) ** 2
 
 
+#: Layout of FilterState.x, the per-sample numbers the compiled time update advances
+#: (core.propagation.advance): navigation (strapdown.NAV_SIZE), gyro and accelerometer bias and
+#: scale (imu FRD), the previous corrected increment (body FRD; X_HAS_PREV 1.0 when there is
+#: one), the corrected rate in body and imu FRD, the NED acceleration, the low-passed NED
+#: acceleration and body rate, the covariance interval (duration, imu FRD angle and velocity
+#: increments, NED velocity at its start) and the stamp [s].
+X_NAV, X_BG, X_BA, X_SG, X_SA = 0, 10, 13, 16, 19
+X_PREV, X_HAS_PREV = 22, 29
+X_RATE_B, X_RATE_I, X_ACCEL_N, X_ACCEL_LP, X_RATE_LP = 30, 33, 36, 39, 42
+X_COV_DT, X_COV_DTH, X_COV_DV, X_COV_VEL0, X_T = 45, 46, 49, 52, 55
+X_SIZE = 56
+
+
+class _Vec3Field:
+    """A Vec3 attribute kept in FilterState.x from index ``start``."""
+
+    def __init__(self, start: int) -> None:
+        self.start = start
+
+    def __get__(self, s: FilterState, owner: type | None = None) -> Vec3:
+        x, k = s.x, self.start
+        return (float(x[k]), float(x[k + 1]), float(x[k + 2]))
+
+    def __set__(self, s: FilterState, value: Vec3 | FloatArray) -> None:
+        k = self.start
+        s.x[k : k + 3] = value
+
+
+class _ScalarField:
+    """A float attribute kept in FilterState.x at ``index``."""
+
+    def __init__(self, index: int) -> None:
+        self.index = index
+
+    def __get__(self, s: FilterState, owner: type | None = None) -> float:
+        return float(s.x[self.index])
+
+    def __set__(self, s: FilterState, value: float) -> None:
+        s.x[self.index] = value
+
+
 class FilterState:
     """Nominal state and filter bookkeeping at one IMU stamp. Copies are history checkpoints:
-    every field is immutable or never modified in place, so a shallow copy suffices.
+    ``x`` (X_* layout) is copied, every other field is immutable or never modified in place,
+    so a shallow copy of those suffices.
 
     cov_dt, cov_dth, cov_dv, cov_vel0: IMU interval not yet in the covariance (duration [s],
     corrected angle and velocity increments in imu FRD, NED velocity at its start).
@@ -54,91 +96,85 @@ class FilterState:
 
     __slots__ = (
         "_mat_nb",
-        "accel_bias",
-        "accel_lp",
-        "accel_n",
-        "accel_scale",
-        "cov_dt",
-        "cov_dth",
-        "cov_dv",
-        "cov_vel0",
+        "_nav",
         "gated_runs",
         "gnss_error",
         "gnss_reported",
         "gnss_variance",
         "gnss_white",
-        "gyro_bias",
-        "gyro_scale",
         "heading_known",
         "imu_psd",
         "last_position_t_s",
         "mounting",
-        "nav",
         "nis_mean",
-        "prev_inc",
         "q_scale",
-        "rate_b",
-        "rate_i",
-        "rate_lp",
-        "t_s",
         "time_offset",
+        "x",
     )
+
+    _nav: NavState | None
+    _mat_nb: FloatArray | None
+    gyro_bias = _Vec3Field(X_BG)
+    accel_bias = _Vec3Field(X_BA)
+    gyro_scale = _Vec3Field(X_SG)
+    accel_scale = _Vec3Field(X_SA)
+    rate_b = _Vec3Field(X_RATE_B)
+    rate_i = _Vec3Field(X_RATE_I)
+    accel_n = _Vec3Field(X_ACCEL_N)
+    accel_lp = _Vec3Field(X_ACCEL_LP)
+    rate_lp = _Vec3Field(X_RATE_LP)
+    cov_dt = _ScalarField(X_COV_DT)
+    cov_dth = _Vec3Field(X_COV_DTH)
+    cov_dv = _Vec3Field(X_COV_DV)
+    cov_vel0 = _Vec3Field(X_COV_VEL0)
+    t_s = _ScalarField(X_T)
 
     def __init__(self, t_s: float, nav: NavState, gyro_bias: Vec3, heading_known: bool) -> None:
         zero: Vec3 = (0.0, 0.0, 0.0)
+        self.x = np.zeros(X_SIZE)
         self.t_s = t_s
-        self.nav = nav
-        self._mat_nb: FloatArray | None = None
+        self.set_nav(nav)
         self.gyro_bias = gyro_bias
-        self.accel_bias = self.gyro_scale = self.accel_scale = zero
-        self.prev_inc: ImuIncrement | None = None
-        self.rate_b = self.rate_i = self.accel_n = zero
         self.heading_known = heading_known
         self.last_position_t_s = t_s
         self.gnss_error = self.gnss_variance = self.gnss_reported = zero
         self.gnss_white = WhiteNoiseMonitor()
         self.imu_psd: tuple[FloatArray, FloatArray] | None = None
-        self.accel_lp = self.rate_lp = zero
         self.nis_mean = self.q_scale = 1.0
         self.mounting = (0.0, 0.0)
         self.time_offset = 0.0
-        self.cov_dt = 0.0
-        self.cov_dth = self.cov_dv = zero
-        self.cov_vel0 = nav.vel_ned_m_s
+        self.x[X_COV_VEL0 : X_COV_VEL0 + 3] = nav.vel_ned_m_s
         self.gated_runs: dict[str, int] = {}  # replaced, never changed in place (copy shares it)
 
     def copy(self) -> FilterState:
         other = FilterState.__new__(FilterState)
+        other.x = self.x.copy()
+        other._nav = self._nav
         other._mat_nb = self._mat_nb
-        other.accel_bias = self.accel_bias
-        other.accel_n = self.accel_n
-        other.accel_scale = self.accel_scale
-        other.cov_dt = self.cov_dt
-        other.cov_dth = self.cov_dth
-        other.cov_dv = self.cov_dv
-        other.cov_vel0 = self.cov_vel0
         other.gnss_error = self.gnss_error
         other.gnss_variance = self.gnss_variance
         other.gnss_reported = self.gnss_reported
         other.gnss_white = self.gnss_white
         other.imu_psd = self.imu_psd
-        other.accel_lp = self.accel_lp
         other.nis_mean = self.nis_mean
         other.q_scale = self.q_scale
-        other.rate_lp = self.rate_lp
         other.mounting = self.mounting
         other.time_offset = self.time_offset
         other.gated_runs = self.gated_runs
-        other.gyro_bias = self.gyro_bias
-        other.gyro_scale = self.gyro_scale
         other.heading_known = self.heading_known
         other.last_position_t_s = self.last_position_t_s
-        other.nav = self.nav
-        other.prev_inc = self.prev_inc
-        other.rate_b = self.rate_b
-        other.rate_i = self.rate_i
-        other.t_s = self.t_s
         return other
+
+    @property
+    def nav(self) -> NavState:
+        """The navigation state (built from ``x`` once per change)."""
+        nav = self._nav
+        if nav is None:
+            x = self.x
+            nav = self._nav = NavState(
+                float(x[0]), float(x[1]), float(x[2]), x[3:6].copy(), x[6:10].copy()
+            )
+        return nav
 
     @property
     def mat_nb(self) -> FloatArray:
@@ -148,7 +184,16 @@ class FilterState:
         return self._mat_nb
 
     def set_nav(self, nav: NavState) -> None:
-        self.nav = nav
+        x = self.x
+        x[0], x[1], x[2] = nav.lat_rad, nav.lon_rad, nav.height_m
+        x[3:6] = nav.vel_ned_m_s
+        x[6:10] = nav.quat_nb
+        self._nav = nav
+        self._mat_nb = None
+
+    def changed(self) -> None:
+        """``x`` was advanced in place (core.propagation): drop what was derived from it."""
+        self._nav = None
         self._mat_nb = None
 
     def move(self, offset_ned_m: FloatArray) -> None:
@@ -193,18 +238,26 @@ class Geometry:
         # Orientation of base_link from that of the attitude receiver's frame a: q_ea ⊗ q_ab.
         q_ba = quat_from_euler(*config.attitude_mounting_rpy_rad)
         self.q_a_base: Quat = (-q_ba[0], -q_ba[1], -q_ba[2], q_ba[3])
+        # The last mounting's arms and angles (the mounting changes only at updates).
         self._mounting_cache: tuple[tuple[float, float], FloatArray] | None = None
+        self._arms_cache: tuple[tuple[float, float], tuple[FloatArray, FloatArray]] | None = None
 
     def arms(self, s: FilterState) -> tuple[FloatArray, FloatArray]:
         """(antenna, base_link origin) lever arms from the IMU [m] in the engine's body frame:
         the configured arms (vehicle axes) turned by the residual mounting, (I + [μ×]) l."""
-        if not self.estimates_mounting or s.mounting == (0.0, 0.0):
+        mounting = s.mounting
+        if not self.estimates_mounting or mounting == (0.0, 0.0):
             return self.antenna_arm_b, self.base_arm_b
-        turn = mounting_skew(s.mounting)  # np.cross costs 10x more
-        return (
+        cached = self._arms_cache
+        if cached is not None and cached[0] == mounting:
+            return cached[1]
+        turn = mounting_skew(mounting)  # np.cross costs 10x more
+        arms = (
             self.antenna_arm_b + turn @ self.antenna_arm_b,
             self.base_arm_b + turn @ self.base_arm_b,
         )
+        self._arms_cache = (mounting, arms)
+        return arms
 
     def measured_mat_nb(self, att: AttitudeMeasurement) -> FloatArray:
         """Base_link FRD -> NED rotation from an attitude measurement and its mounting."""

@@ -10,8 +10,8 @@ then attitude, with a predictor-corrector midpoint for the earth/transport rates
 - rotation compensation dθ×dv/2 + dθ×(dθ×dv)/6 and two-sample sculling and coning corrections
   generalised to unequal intervals, so any (jittered) dt is handled.
 
-The per-sample path uses plain floats (see core.rotation): numpy on 3-vectors would cost more than
-the arithmetic. Errors of the algorithm are third order in dt for smooth motion.
+``mechanize`` is compiled (core.compiled) and works on a flat array; ``propagate`` is its form
+for NavState. Errors of the algorithm are third order in dt for smooth motion.
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ import numpy as np
 
 from gnss_ins_common.types import FloatArray, Vec3
 from ins_fusion.core import earth
+from ins_fusion.core.compiled import compilable, jit
 from ins_fusion.core.rotation import (
     euler_from_quat,
     mat_from_quat,
@@ -91,16 +92,15 @@ class NavState:
         )
 
 
-@dataclass(frozen=True, slots=True)
-class ImuIncrement:
-    """IMU output integrated over one interval of dt_s seconds, in the FRD body frame.
+#: An IMU increment, the output integrated over one interval in the FRD body frame, is an array
+#: [dt [s], dθ (3) [rad], dv (3) [m/s]] (``increment``): the compiled code takes arrays.
+INCREMENT_SIZE = 7
 
-    dtheta_rad: angle increment ∫ω_ib dt [rad]; dvel_m_s: velocity increment ∫f dt [m/s].
-    """
 
-    dt_s: float
-    dtheta_rad: Vec3
-    dvel_m_s: Vec3
+def increment(dt_s: float, dtheta_rad: Sequence[float], dvel_m_s: Sequence[float]) -> FloatArray:
+    """The increment array of an interval of dt_s [s]: angle ∫ω_ib dt [rad] and velocity
+    ∫f dt [m/s] increments, FRD body."""
+    return np.array((dt_s, *dtheta_rad, *dvel_m_s), dtype=np.float64)
 
 
 class SampleIntegrator:
@@ -114,57 +114,78 @@ class SampleIntegrator:
     """
 
     def __init__(self) -> None:
-        self._samples: list[tuple[float, Vec3, Vec3]] = []
+        self._samples = np.zeros((3, INCREMENT_SIZE))  # rows (t, ω, f), the newest last
+        self._count = 0
 
     def reset(self) -> None:
         """Forget the history (after a data gap or a time jump)."""
-        self._samples.clear()
+        self._count = 0
 
     def push(
         self,
         t_s: float,
         rate_rad_s: Sequence[float] | FloatArray,
         specific_force_m_s2: Sequence[float] | FloatArray,
-    ) -> ImuIncrement | None:
+    ) -> FloatArray | None:
         """Add a sample; returns the increment since the previous sample (None for the first)."""
-        wx, wy, wz = float(rate_rad_s[0]), float(rate_rad_s[1]), float(rate_rad_s[2])
-        fx, fy, fz = (
+        inc = np.empty(INCREMENT_SIZE)
+        self._count = _integrate(
+            self._samples,
+            self._count,
+            float(t_s),
+            float(rate_rad_s[0]),
+            float(rate_rad_s[1]),
+            float(rate_rad_s[2]),
             float(specific_force_m_s2[0]),
             float(specific_force_m_s2[1]),
             float(specific_force_m_s2[2]),
+            inc,
         )
-        samples = self._samples
-        samples.append((t_s, (wx, wy, wz), (fx, fy, fz)))
-        if len(samples) == 1:
-            return None
-        if len(samples) == 4:
-            del samples[0]
-        t1, w1, f1 = samples[-2]
-        h2 = t_s - t1
-        if len(samples) == 2:
-            c0, c1, c2 = 0.0, 0.5 * h2, 0.5 * h2
-            w0, f0 = w1, f1
-        else:
-            t0, w0, f0 = samples[0]
-            h1 = t1 - t0
-            c0 = -(h2**3) / (6.0 * h1 * (h1 + h2))
-            c1 = h2 * h2 / (6.0 * h1) + 0.5 * h2
-            c2 = (h2 * h2 / 3.0 + 0.5 * h1 * h2) / (h1 + h2)
-        return ImuIncrement(
-            h2,
-            (
-                c0 * w0[0] + c1 * w1[0] + c2 * wx,
-                c0 * w0[1] + c1 * w1[1] + c2 * wy,
-                c0 * w0[2] + c1 * w1[2] + c2 * wz,
-            ),
-            (
-                c0 * f0[0] + c1 * f1[0] + c2 * fx,
-                c0 * f0[1] + c1 * f1[1] + c2 * fy,
-                c0 * f0[2] + c1 * f1[2] + c2 * fz,
-            ),
-        )
+        return None if self._count == 1 else inc
 
 
+@jit
+def _integrate(
+    samples: FloatArray,
+    count: int,
+    t_s: float,
+    wx: float,
+    wy: float,
+    wz: float,
+    fx: float,
+    fy: float,
+    fz: float,
+    inc: FloatArray,
+) -> int:
+    """SampleIntegrator.push: file the sample in ``samples`` (``count`` held), write the
+    increment into ``inc`` when there is an interval; returns the new count."""
+    if count == 3:
+        samples[0, :] = samples[1, :]
+        samples[1, :] = samples[2, :]
+        count = 2
+    row = samples[count]
+    row[0], row[1], row[2], row[3], row[4], row[5], row[6] = t_s, wx, wy, wz, fx, fy, fz
+    count += 1
+    if count == 1:
+        return count
+    t1 = samples[count - 2, 0]
+    h2 = t_s - t1
+    if count == 2:
+        c0, c1, c2 = 0.0, 0.5 * h2, 0.5 * h2
+        k0 = k1 = 0
+    else:
+        h1 = t1 - samples[0, 0]
+        c0 = -(h2**3) / (6.0 * h1 * (h1 + h2))
+        c1 = h2 * h2 / (6.0 * h1) + 0.5 * h2
+        c2 = (h2 * h2 / 3.0 + 0.5 * h1 * h2) / (h1 + h2)
+        k0, k1 = 0, 1
+    inc[0] = h2
+    for j in range(1, INCREMENT_SIZE):
+        inc[j] = c0 * samples[k0, j] + c1 * samples[k1, j] + c2 * samples[count - 1, j]
+    return count
+
+
+@compilable
 def _velocity_change(
     dvel_n: Vec3,
     vel: Vec3,
@@ -179,7 +200,7 @@ def _velocity_change(
     rates and gravity evaluated at (latitude, height, vel)."""
     w_ie_n, w_ie_d = earth.EARTH_RATE_RAD_S * cos_lat, -earth.EARTH_RATE_RAD_S * sin_lat
     w_en_n, w_en_e, w_en_d = earth.transport_rate_from(
-        sin_lat, cos_lat, *radii, height, vel[0], vel[1]
+        sin_lat, cos_lat, radii[0], radii[1], height, vel[0], vel[1]
     )
     g = earth.normal_gravity_from_sin_cos(sin_lat, cos_lat, height)
     # frame rotation ζ/2 × dvel_n with ζ = (ω_ie + ω_en) dt; Coriolis (2ω_ie + ω_en) × v.
@@ -194,38 +215,55 @@ def _velocity_change(
     )
 
 
-def propagate(state: NavState, inc: ImuIncrement, prev: ImuIncrement | None = None) -> NavState:
-    """Advance the state over one IMU increment (FRD body).
+#: Layout of the navigation array ``mechanize`` advances: latitude, longitude [rad], height [m],
+#: NED velocity (3) [m/s], body (FRD) -> NED quaternion (4, scalar last).
+NAV_SIZE = 10
+
+
+def propagate(state: NavState, inc: FloatArray, prev: FloatArray | None = None) -> NavState:
+    """Advance the state over one IMU increment (``increment``, FRD body).
 
     ``prev`` is the increment of the preceding interval, used for the two-sample coning and
     sculling corrections; pass None for the first sample or after a data gap.
+    """
+    nav = np.empty(NAV_SIZE)
+    nav[0], nav[1], nav[2] = state.lat_rad, state.lon_rad, state.height_m
+    nav[3:6] = state.vel_ned_m_s
+    nav[6:10] = state.quat_nb
+    mechanize(nav, inc, inc if prev is None else prev, prev is not None)
+    return NavState(float(nav[0]), float(nav[1]), float(nav[2]), nav[3:6], nav[6:10])
+
+
+@jit
+def mechanize(nav: FloatArray, inc: FloatArray, prev: FloatArray, use_prev: bool) -> None:
+    """Advance the navigation array ``nav`` (NAV_SIZE layout) in place over the increment
+    ``inc``; ``prev`` (read when ``use_prev``) is that of the preceding interval, for the
+    two-sample coning and sculling corrections.
 
     sin φ and cos φ are computed once: the midpoint values are their first-order expansions in
     the latitude step (≤ 2e-8 rad at 40 m/s, so the expansion errs by < 1e-16), and the radii of
     the start serve the whole interval (they change by < 1e-10 relative over a sample).
     """
-    dt = inc.dt_s
-    dth = inc.dtheta_rad
-    dv = inc.dvel_m_s
-    lat, lon, height = state.lat_rad, state.lon_rad, state.height_m
-    vn, ve, vd = state.vel_ned_m_s.tolist()
-    qx, qy, qz, qw = state.quat_nb.tolist()
+    dt = inc[0]
+    lat, lon, height = nav[0], nav[1], nav[2]
+    vn, ve, vd = nav[3], nav[4], nav[5]
+    qx, qy, qz, qw = nav[6], nav[7], nav[8], nav[9]
 
     # Specific-force increment in b(k-1): rotation compensation to third order plus sculling;
     # rotation vector with coning. Linear rate and specific force over both intervals (equal dt
-    # gives the usual 1/12 coefficient). Cross products written out: this is the hot path.
-    tx, ty, tz = dth
-    ux, uy, uz = dv
+    # gives the usual 1/12 coefficient). Cross products written out.
+    tx, ty, tz = inc[1], inc[2], inc[3]
+    ux, uy, uz = inc[4], inc[5], inc[6]
     r1x, r1y, r1z = ty * uz - tz * uy, tz * ux - tx * uz, tx * uy - ty * ux  # dθ × dv
     r2x, r2y, r2z = ty * r1z - tz * r1y, tz * r1x - tx * r1z, tx * r1y - ty * r1x  # dθ × (dθ × dv)
     dvb_x = ux + 0.5 * r1x + r2x / 6.0
     dvb_y = uy + 0.5 * r1y + r2y / 6.0
     dvb_z = uz + 0.5 * r1z + r2z / 6.0
     rx, ry, rz = tx, ty, tz
-    if prev is not None:
-        k = dt * dt / (6.0 * prev.dt_s * (dt + prev.dt_s))
-        px, py, pz = prev.dtheta_rad
-        wx, wy, wz = prev.dvel_m_s
+    if use_prev:
+        k = dt * dt / (6.0 * prev[0] * (dt + prev[0]))
+        px, py, pz = prev[1], prev[2], prev[3]
+        wx, wy, wz = prev[4], prev[5], prev[6]
         # sculling dθ_prev × dv + dv_prev × dθ; coning dθ_prev × dθ
         dvb_x += k * (py * uz - pz * uy + wy * tz - wz * ty)
         dvb_y += k * (pz * ux - px * uz + wz * tx - wx * tz)
@@ -259,18 +297,18 @@ def propagate(state: NavState, inc: ImuIncrement, prev: ImuIncrement | None = No
     height_mid = height - 0.5 * dt * vd_bar
     d_lat = 0.5 * dt * vn_bar / (r_meridian + height_mid)
     sin_mid, cos_mid = sin_lat + cos_lat * d_lat, cos_lat - sin_lat * d_lat
-    lat_new = lat + 2.0 * d_lat
-    lon_new = lon + dt * ve_bar / ((r_prime_vertical + height_mid) * cos_mid)
-    height_new = height - dt * vd_bar
+    nav[0] = lat + 2.0 * d_lat
+    nav[1] = lon + dt * ve_bar / ((r_prime_vertical + height_mid) * cos_mid)
+    nav[2] = height - dt * vd_bar
+    nav[3], nav[4], nav[5] = vn_new, ve_new, vd_new
 
     # Attitude: body rotation (with coning) and NED-frame rotation over dt at the midpoint.
-    w_en = earth.transport_rate_from(sin_mid, cos_mid, *radii, height_mid, vn_bar, ve_bar)
+    w_en = earth.transport_rate_from(
+        sin_mid, cos_mid, r_meridian, r_prime_vertical, height_mid, vn_bar, ve_bar
+    )
     w_n = earth.EARTH_RATE_RAD_S * cos_mid + w_en[0]
     w_d = -earth.EARTH_RATE_RAD_S * sin_mid + w_en[2]
     q_bb = quat_from_rotvec(rx, ry, rz)
     q_nn = quat_from_rotvec(-w_n * dt, -w_en[1] * dt, -w_d * dt)
     quat_new = quat_normalize(quat_multiply(q_nn, quat_multiply(quat, q_bb)))
-
-    return NavState(
-        lat_new, lon_new, height_new, np.array((vn_new, ve_new, vd_new)), np.array(quat_new)
-    )
+    nav[6], nav[7], nav[8], nav[9] = quat_new

@@ -21,7 +21,6 @@ from typing import Any
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core.state import FilterState
 from ins_fusion.core.status import MEASUREMENT_NAMES, Counters
-from ins_fusion.core.strapdown import ImuIncrement
 
 #: A measurement in the history: (stamp, rank of its kind in MEASUREMENT_NAMES, arrival
 #: sequence, kind, payload). Records sort by stamp, then kind: measurements with the same stamp
@@ -55,7 +54,7 @@ class Entry:
     def __init__(
         self,
         t_s: float,
-        inc: ImuIncrement,
+        inc: FloatArray,
         gap: Gap | None,
         noise: tuple[FloatArray, FloatArray] | None,
         checkpoint: Checkpoint,

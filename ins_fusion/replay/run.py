@@ -151,9 +151,9 @@ def run_fusion(
         engine.add_imu(t, rate, force)
         ticks = (t - t0) * rate_hz + _TICK_TOLERANCE
         if ticks >= next_tick:
-            solution = engine.solution()
-            if solution is not None:
-                solutions.append(solution_rows.pack(solution))
+            row = engine.solution_row()
+            if row is not None:
+                solutions.append(row)
             next_tick = math.floor(ticks) + 1.0
         if progress is not None and k % 2048 == 0:
             progress(k, total)

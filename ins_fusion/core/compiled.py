@@ -1,0 +1,46 @@
+"""Compilation of the engine's per-sample arithmetic with numba.
+
+``jit(f)`` compiles a plain Python function (floats, tuples and numpy arrays only) to machine
+code on its first call and keeps the result in numba's on-disk cache (the package's
+``__pycache__``, else the user's cache directory), so a later start loads it in milliseconds.
+The functions stay ordinary Python source: with ``NUMBA_DISABLE_JIT=1`` in the environment
+numba returns them unchanged and the engine runs as pure Python (the reference path the tests
+compare the compiled one with).
+
+Compiled code calls only compiled functions. ``compilable(f)`` marks a small helper (the
+earth model's and the quaternions' scalar formulas) that compiled code may call: for Python
+callers it stays the plain function, without a dispatcher's overhead.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any, TypeVar, cast
+
+import numba
+import numpy as np
+from numba.extending import register_jitable
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def jit(function: F) -> F:
+    """``function`` compiled in nopython mode with the on-disk cache (see the module
+    docstring); IEEE arithmetic as written (no fastmath), so results match the Python path."""
+    return cast(F, numba.njit(cache=True)(function))
+
+
+def compilable(function: F) -> F:
+    """``function`` unchanged for Python, compiled inline where a ``jit`` function calls it."""
+    compiled: F = register_jitable(function)
+    return compiled
+
+
+def kernel_array(values: Any) -> Any:
+    """``values`` as a writable C-contiguous float64 array (copied only when it is not one):
+    numba compiles a kernel anew for every array layout and for read-only arrays, so the
+    engine hands over arrays of one kind (core.warm_up compiles them)."""
+    flags = getattr(values, "flags", None)
+    if flags is not None and flags.c_contiguous and flags.writeable and values.dtype == np.float64:
+        return values
+    return np.array(values, dtype=np.float64)

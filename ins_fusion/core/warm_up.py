@@ -1,0 +1,51 @@
+"""Readying the engine's compiled kernels (core.compiled) before the first IMU sample.
+
+numba compiles a kernel at its first call (once per install, ~30 s for all of them, then from
+its on-disk cache in ~0.3 s). ``warm_up`` makes those first calls with the argument types the
+engine passes, so that neither happens on a live sample: InsEngine calls it when it is built,
+``make venv`` once after the install. A kernel called later with other argument types would
+compile again (test_compiled.py checks that a drive adds no signature).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from ins_fusion.core.config import FusionConfig
+from ins_fusion.core.eskf import ErrorStateFilter, StateLayout
+from ins_fusion.core.propagation import advance
+from ins_fusion.core.solution import SolutionBuilder
+from ins_fusion.core.state import X_SIZE, FilterState, Geometry
+from ins_fusion.core.strapdown import NavState, SampleIntegrator, increment
+
+_ready = False
+
+
+def warm_up() -> float:
+    """Compile or load every kernel once per process; returns the seconds it took (0 when
+    done already)."""
+    global _ready
+    if _ready:
+        return 0.0
+    start = time.perf_counter()
+    config = FusionConfig.from_parameters({})
+    layout = StateLayout(True, True, True, True, True)  # every block: every branch typed
+    zero = (0.0, 0.0, 0.0)
+    nav = NavState(1.0, 0.2, 40.0, np.zeros(3), np.array((0.0, 0.0, 0.0, 1.0)))
+    s = FilterState(0.0, nav, zero, True)
+    integrator = SampleIntegrator()
+    integrator.push(0.0, zero, (0.0, 0.0, -9.8))
+    integrator.push(0.01, zero, (0.0, 0.0, -9.8))
+    advance(s.x, increment(0.01, zero, (0.0, 0.0, -0.098)), np.eye(3).ravel(), False, 0.01)
+    kf = ErrorStateFilter(layout, config.imu_noise, config.gnss_correlation_time_s or 60.0)
+    kf.P = np.eye(layout.size) * 1e-2
+    kf.propagate(0.1, np.eye(3), np.zeros(3), np.zeros(3), np.zeros(3), 1.0, 40.0, zero)
+    kf.update(np.zeros(3), np.eye(3, layout.size), np.eye(3), math.inf)
+    output = SolutionBuilder(Geometry(config, layout), layout)
+    output.row(s, kf, (57.0, 10.0, 40.0), zero, "navigating")
+    assert s.x.shape == (X_SIZE,)
+    _ready = True
+    return time.perf_counter() - start
