@@ -212,11 +212,17 @@ def _write_outputs(
 ) -> None:
     # Imported when asked for: matplotlib and the message classes cost ~1 s of every start-up.
     if args.plot is not None:
-        from ins_fusion.replay.plot import plot_replay
+        from ins_fusion.replay.plot import measured, plot_replay
 
         title = f"gnss_ins replay {inputs.bag}"
         if outages:
             title += "; outages " + ", ".join(f"{o.start_s:g}:{o.duration_s:g}" for o in outages)
+        data = None
+        if result.evaluation is None and result.run.datum is not None:
+            arm = FusionConfig.from_parameters(parameters).gnss_lever_arm_flu_m
+            data = measured(
+                result.run.track, inputs.measurements, result.run.datum, arm, inputs.t0_s
+            )
         try:
             plot_replay(
                 args.plot,
@@ -226,6 +232,7 @@ def _write_outputs(
                 outages,
                 title,
                 result.smoothed,
+                data,
             )
         except (OSError, ValueError) as exc:
             if args.output is not None:
