@@ -18,7 +18,7 @@ from matplotlib.figure import Figure
 from gnss_ins_common.types import FloatArray
 from ins_fusion.replay.recorded import RecordedErrors
 
-_RUNS = (("live ins_fusion_node", "tab:blue"), ("offline replay with outages", "tab:orange"))
+_RUNS = (("live ins_fusion_node", "tab:blue"), ("offline gnss_ins replay", "tab:orange"))
 
 
 def plot_demo(

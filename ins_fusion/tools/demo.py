@@ -443,7 +443,8 @@ def _print_summary(report: dict[str, Any], out: Path, total_s: float) -> None:
     print("                                 horizontal [m]              vertical  yaw")
     print("                                 rms     p95     max         rms [m]   rms [deg]")
     print(_row("live ins_fusion_node", report["live"]))
-    print(_row("offline replay with outages", report["replay"]))
+    replay_row = "offline replay with outages" if report["outages"] else "offline replay"
+    print(_row(replay_row, report["replay"]))
     for outage in replay.get("outages", []):
         print(
             f"  {outage['duration_s']:.0f} s GNSS outage at {outage['start_s']:.0f} s: "
