@@ -95,15 +95,24 @@ def _utc_ns(text: str) -> int:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Command-line options of ``gnss_ins simulate``."""
-    parser.add_argument("--scenario", choices=sorted(SCENARIOS), default="test_pattern")
-    parser.add_argument("--imu", choices=sorted(imu_model.PROFILES), default="imu400cc")
+    parser.add_argument(
+        "--scenario",
+        choices=sorted(SCENARIOS),
+        default="test_pattern",
+        help="the drive (docs/simulator.md)",
+    )
+    parser.add_argument(
+        "--imu", choices=sorted(imu_model.PROFILES), default="imu400cc", help="IMU error profile"
+    )
     parser.add_argument(
         "--imu-rate", type=_positive, metavar="HZ", help="IMU output rate (default: the profile's)"
     )
     parser.add_argument("--duration", type=_positive, default=240.0, help="seconds to simulate")
     parser.add_argument("--seed", type=int, default=0, help="seed of every error model")
     parser.add_argument("-o", "--output", type=Path, help="bag directory to create")
-    parser.add_argument("--storage", choices=sorted(STORAGES), default="mcap")
+    parser.add_argument(
+        "--storage", choices=sorted(STORAGES), default="mcap", help="rosbag2 storage plugin"
+    )
     parser.add_argument(
         "--gnss",
         choices=[*POSITION_RECEIVERS, "none"],
@@ -177,18 +186,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Write the bag or run live; 2 on a usage, configuration or bag error."""
     if args.live == (args.output is not None):
-        print("error: give either --output BAG or --live", file=sys.stderr)
+        print("gnss_ins simulate: error: give either --output BAG or --live", file=sys.stderr)
         return 2
     if args.truth_output is not None and not args.live:
-        print("error: --truth-output is for --live (a bag holds the truth anyway)", file=sys.stderr)
+        print(
+            "gnss_ins simulate: error: --truth-output is for --live (a bag holds the truth anyway)",
+            file=sys.stderr,
+        )
         return 2
     if args.hold and not args.live:
-        print("error: --hold is for --live", file=sys.stderr)
+        print("gnss_ins simulate: error: --hold is for --live", file=sys.stderr)
         return 2
     if args.live and (args.imu_rate is not None or args.gnss_rate is not None):
         print(
-            "error: --imu-rate and --gnss-rate are for bags; the emulators run at their"
-            " devices' rates",
+            "gnss_ins simulate: error: --imu-rate and --gnss-rate are for bags; the emulators"
+            " run at their devices' rates",
             file=sys.stderr,
         )
         return 2
@@ -213,7 +225,7 @@ def run(args: argparse.Namespace) -> int:
             return run_live(config, args.truth_output, args.storage, args.hold)
         write_bag(config, args.output, args.storage)
     except (BagError, ValueError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"gnss_ins simulate: error: {exc}", file=sys.stderr)
         return 2
     return 0
 
