@@ -337,3 +337,13 @@ def test_plot_without_reference_shows_the_measurements_against_the_fused_solutio
     plot = tmp_path / "p.png"
     plot_replay(plot, result.compared_track, inputs.t0_s, None, [outage], "t", None, data)
     assert plot.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_a_refused_run_names_the_outputs_it_did_not_write(bag, tmp_path, capsys):
+    report, plot = tmp_path / "r.json", tmp_path / "p.png"
+    topics = "imu=/imu/data_raw,fix=/leica/gnss/fix"
+    code, _, err = _replay(capsys, bag, "--topics", topics, "--report", report, "--plot", plot)
+    assert code == 2 and "fix=/leica/gnss/fix, not in the bag" in err
+    assert f"report {report} not written because of the error" in err
+    assert f"plot {plot} not written because of the error" in err
+    assert not report.exists() and not plot.exists()
