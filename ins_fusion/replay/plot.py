@@ -124,13 +124,7 @@ def plot_replay(
     """Save the replay figure to ``path`` (format from its suffix, e.g. .png, .pdf); with
     ``smoothed``, the smoothed solution over the forward one; with ``measured`` (used when
     there is no ``evaluation``), the measurements against the fused solution."""
-    fig = Figure(figsize=(15, 10), layout="constrained")
-    FigureCanvasAgg(fig)
-    grid = fig.add_gridspec(6, 2, width_ratios=(1.0, 1.3))
-    ax_track = fig.add_subplot(grid[:, 0])
-    axes = [fig.add_subplot(grid[i, 1]) for i in range(6)]
-    for ax in axes[1:]:
-        ax.sharex(axes[0])
+    fig, ax_track, axes = track_and_time_panels((15, 10), 6, 1.3)
     _track_panel(ax_track, track, t0_s, evaluation, outages)
     if evaluation is None and measured is not None:
         _measured_panels(ax_track, axes, measured)
@@ -156,6 +150,21 @@ def plot_replay(
     axes[-1].set_xlabel("time after the first IMU sample [s]")
     fig.suptitle(title)
     fig.savefig(path, dpi=110)
+
+
+def track_and_time_panels(
+    size_in: tuple[float, float], rows: int, time_width: float
+) -> tuple[Figure, Axes, list[Axes]]:
+    """A figure (Agg canvas) with a track panel on the left and ``rows`` panels on the right
+    sharing their time axis, ``time_width`` times as wide as the track."""
+    fig = Figure(figsize=size_in, layout="constrained")
+    FigureCanvasAgg(fig)
+    grid = fig.add_gridspec(rows, 2, width_ratios=(1.0, time_width))
+    track = fig.add_subplot(grid[:, 0])
+    panels = [fig.add_subplot(grid[i, 1]) for i in range(rows)]
+    for ax in panels[1:]:
+        ax.sharex(panels[0])
+    return fig, track, panels
 
 
 def _errors_and_sigma(
@@ -223,21 +232,13 @@ def _measured_panels(ax_track: Axes, axes: Sequence[Axes], data: Measured) -> No
         *data.fix_enu_m[:, :2].T, ".", ms=2, color=_MEASURED_COLOUR, label="GNSS fixes", zorder=5
     )
     ax_track.legend(loc="best", fontsize="small")
-    for axis in range(3):
-        axes[axis].plot(
-            data.fix_t_s,
-            data.fix_minus_fused_m[:, axis],
-            ".",
-            ms=2,
-            color=_MEASURED_COLOUR,
-            label="fix − fused antenna",
-        )
-        axes[3 + axis].plot(
-            data.att_t_s,
-            data.att_minus_fused_deg[:, axis],
-            ".",
-            ms=2,
-            color=_MEASURED_COLOUR,
-            label="measured − fused",
-        )
+    rows = (
+        (0, data.fix_t_s, data.fix_minus_fused_m, "fix − fused antenna"),
+        (3, data.att_t_s, data.att_minus_fused_deg, "measured − fused"),
+    )
+    for first, t, values, label in rows:
+        for axis in range(3):
+            axes[first + axis].plot(
+                t, values[:, axis], ".", ms=2, color=_MEASURED_COLOUR, label=label
+            )
     axes[3].legend(loc="upper right", fontsize="small")

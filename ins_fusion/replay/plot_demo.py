@@ -12,10 +12,9 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 from gnss_ins_common.types import FloatArray
+from ins_fusion.replay.plot import track_and_time_panels
 from ins_fusion.replay.recorded import RecordedErrors
 
 _RUNS = (("live ins_fusion_node", "tab:blue"), ("offline gnss_ins replay", "tab:orange"))
@@ -31,13 +30,7 @@ def plot_demo(
 ) -> None:
     """Save the figure to ``path``: ``runs`` = (live, replay), either None when it has no
     output; ``truth_enu_m`` (n, 3) the truth track; ``outages_s``: (start, end) [s after t0]."""
-    fig = Figure(figsize=(15, 8), layout="constrained")
-    FigureCanvasAgg(fig)
-    grid = fig.add_gridspec(3, 2, width_ratios=(1.0, 1.4))
-    track = fig.add_subplot(grid[:, 0])
-    panels = [fig.add_subplot(grid[i, 1]) for i in range(3)]
-    for ax in panels[1:]:
-        ax.sharex(panels[0])
+    fig, track, panels = track_and_time_panels((15, 8), 3, 1.4)
     track.plot(truth_enu_m[:, 0], truth_enu_m[:, 1], "k--", lw=0.8, label="truth")
     for (label, colour), run in zip(_RUNS, runs, strict=True):
         if run is None:

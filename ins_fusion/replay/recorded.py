@@ -23,6 +23,7 @@ from ins_fusion.bags.bag_io import BagReader
 from ins_fusion.bags.topics import INS_FIX, INS_ODOMETRY, TRUTH_ATTITUDE, TRUTH_FIX
 from ins_fusion.core import earth
 from ins_fusion.core.rotation import wrap_angle
+from ins_fusion.replay.metrics import map_enu
 
 
 @dataclass(frozen=True)
@@ -106,14 +107,7 @@ def recorded_errors(fused_bag: Path, truth_bag: Path) -> RecordedErrors | None:
         ]
     ).T
     datum = (float(truth[0, 1]), float(truth[0, 2]), float(truth[0, 3]))
-    track = earth.geodetic_to_enu(
-        np.radians(fused[:, 1]),
-        np.radians(fused[:, 2]),
-        fused[:, 3],
-        math.radians(datum[0]),
-        math.radians(datum[1]),
-        datum[2],
-    ).reshape(-1, 3)
+    track = map_enu(fused[:, 1:4], datum)
     yaw_t, yaw_err = np.zeros(0), np.zeros(0)
     if len(truth_yaw) >= 2 and len(fused_yaw):
         inside = (fused_yaw[:, 0] >= truth_yaw[0, 0]) & (fused_yaw[:, 0] <= truth_yaw[-1, 0])
@@ -126,13 +120,4 @@ def recorded_errors(fused_bag: Path, truth_bag: Path) -> RecordedErrors | None:
 def truth_track(truth_bag: Path, datum: tuple[float, float, float]) -> FloatArray:
     """The truth positions of ``truth_bag`` in the tangent plane at ``datum``, (n, 3) [m]."""
     with BagReader(truth_bag) as reader:
-        truth = _fixes(reader, TRUTH_FIX)
-    enu: FloatArray = earth.geodetic_to_enu(
-        np.radians(truth[:, 1]),
-        np.radians(truth[:, 2]),
-        truth[:, 3],
-        math.radians(datum[0]),
-        math.radians(datum[1]),
-        datum[2],
-    ).reshape(-1, 3)
-    return enu
+        return map_enu(_fixes(reader, TRUTH_FIX)[:, 1:4], datum)
