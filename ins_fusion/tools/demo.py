@@ -446,13 +446,14 @@ def _print_summary(report: dict[str, Any], out: Path, total_s: float) -> None:
     replay_row = "offline replay with outages" if report["outages"] else "offline replay"
     print(_row(replay_row, report["replay"]))
     for outage in replay.get("outages", []):
-        print(
-            f"  {outage['duration_s']:.0f} s GNSS outage at {outage['start_s']:.0f} s: "
-            f"horizontal error at its end {outage['horizontal_error_end_m']:.2f} m, "
-            f"max {outage['horizontal_error_max_m']:.2f} m"
-        )
-    nees = replay.get("nees", {})
-    if nees:
+        what = f"  {outage['duration_s']:.0f} s GNSS outage at {outage['start_s']:.0f} s: "
+        end, peak = outage.get("horizontal_error_end_m"), outage.get("horizontal_error_max_m")
+        if end is None or peak is None:
+            print(what + "not evaluated (no aligned solution inside it)")
+        else:
+            print(what + f"horizontal error at its end {end:.2f} m, max {peak:.2f} m")
+    nees = replay.get("nees") or {}
+    if nees.get("position_mean") is not None:
         print(
             f"  replay position NEES mean {nees['position_mean']:.2f} (3 dof), inside 3 sigma "
             f"{100 * nees['position_within_3sigma_fraction']:.1f} %"
