@@ -31,6 +31,10 @@ def start_serial_link(
         try:
             on_data(chunk, received_s)
         except Exception as exc:  # a decoding bug must not take the link down
+            if not node.context.ok():
+                # Ctrl-C/SIGTERM shut ROS down before the node closes this link: publishing
+                # fails until then, which is no error of the data.
+                return
             errors.record(exc, getattr(on_data, "__name__", "on_data"))
 
     link = SerialLink(

@@ -64,19 +64,34 @@ def spinning(*nodes: Node) -> Iterator[SingleThreadedExecutor]:
     collection over the pytest process's heap can hold the GIL for tens of milliseconds, and a
     serial reader that wakes over ~45 ms late takes its packets for a whole timer wrap later
     (docs/timing.md, "What it cannot see").
+
+    The spin loop is ended from its own thread before the executor is shut down: rclpy
+    Jazzy's ``Executor.shutdown`` destroys the executor's guard condition at once, without
+    waiting for a spin in progress (its work-tracker wait sits behind a test of the flag it
+    has just set), so a shutdown from this thread races a callback that ends by triggering
+    that guard: ``InvalidHandle`` in the spin thread, seen under load.
     """
     gc.collect()
     gc.freeze()
     executor = SingleThreadedExecutor()
     for node in nodes:
         executor.add_node(node)
-    thread = threading.Thread(target=executor.spin, daemon=True)
+    stop = threading.Event()
+
+    def spin() -> None:
+        while not stop.is_set() and executor.context.ok():
+            executor.spin_once(timeout_sec=0.05)
+
+    thread = threading.Thread(target=spin, daemon=True)
     thread.start()
     try:
         yield executor
     finally:
+        stop.set()
+        thread.join(timeout=30.0)
+        if thread.is_alive():
+            raise RuntimeError("the spin thread did not stop within 30 s (a callback hangs)")
         executor.shutdown(timeout_sec=2.0)
-        thread.join(timeout=2.0)
 
 
 def wait_for(predicate: Callable[[], bool], timeout_s: float, poll_s: float = 0.02) -> bool:

@@ -1,14 +1,16 @@
-"""The gnss_ins tool: every registered sub-command imports and explains itself."""
+"""The gnss_ins tool: every registered sub-command imports and explains itself, with every
+option's default in its --help."""
 
 from __future__ import annotations
 
+import argparse
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
-from ins_fusion.tools.cli import SUBCOMMANDS
+from ins_fusion.tools.cli import SUBCOMMANDS, DefaultsHelpFormatter, build_parser
 
 GNSS_INS = Path(sys.executable).parent / "gnss_ins"
 
@@ -25,6 +27,31 @@ def test_sub_command_help(name):
     result = subprocess.run([GNSS_INS, name, "--help"], capture_output=True, text=True, timeout=60)
     assert result.returncode == 0, result.stderr
     assert f"usage: gnss_ins {name}" in result.stdout
+
+
+@pytest.mark.parametrize("name", sorted(SUBCOMMANDS))
+def test_every_option_with_a_default_explains_it_once(name):
+    parser = build_parser(name)
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    formatter = DefaultsHelpFormatter(name)
+    for action in sub.choices[name]._actions:
+        if not action.option_strings or action.help == argparse.SUPPRESS:
+            continue
+        text = formatter._get_help_string(action)
+        assert action.help, f"{name} {action.option_strings[-1]}: no help text"
+        default = action.default
+        unset = default is None or default is False or default in ([], (), argparse.SUPPRESS)
+        if not unset:
+            shown = text.replace("%(default)s", "")
+            assert shown.count("default") == 1, f"{name} {action.option_strings[-1]}: {text!r}"
+
+
+def test_help_shows_zero_defaults_and_hides_empty_ones():
+    parser = argparse.ArgumentParser(formatter_class=DefaultsHelpFormatter)
+    parser.add_argument("--seed", type=int, default=0, help="seed")
+    parser.add_argument("--extra", nargs="*", default=(), help="extras")
+    text = parser.format_help()
+    assert "seed (default: 0)" in text and "extras\n" in text
 
 
 def test_unknown_sub_command_is_refused():

@@ -12,7 +12,15 @@ import json
 import numpy as np
 import pytest
 
+from gnss_ins_common.params import validate_all
 from ins_fusion.bags.bag_io import BagReader, BagWriter
+from ins_fusion.core.config import FusionConfig
+from ins_fusion.core.measurements import GnssFixMeasurement
+from ins_fusion.core.params import PARAMETERS
+from ins_fusion.replay.inputs import load_bag
+from ins_fusion.replay.outages import Outage, mask
+from ins_fusion.replay.pipeline import replay
+from ins_fusion.replay.plot import measured, plot_replay
 from ins_fusion.sim.drive import SimulationConfig
 from ins_fusion.tools import cli
 from ins_fusion.tools.simulate import write_bag
@@ -278,17 +286,22 @@ def test_outputs_not_written_are_named_with_the_reason(bag, tmp_path, capsys):
     assert not plot.exists() and not fused.exists()
 
 
-def test_bag_without_reference_is_replayed_without_accuracy(bag, tmp_path, capsys):
-    """The first 40 s of the sensor topics only: speed, states and counters, accuracy null."""
-    sensors = tmp_path / "sensors"
+def _sensors_only(bag, path, seconds):
+    """The first ``seconds`` of the bag's sensor topics (no reference) at ``path``."""
     topics = ["/imu/data_raw", "/gnss/fix", "/gnss/vel", "/gnss/attitude"]
-    with BagReader(bag) as reader, BagWriter(sensors) as writer:
+    with BagReader(bag) as reader, BagWriter(path) as writer:
         for topic in topics:
             writer.add_topic(topic, reader.topics[topic].msgtype)
-        end_ns = reader.start_ns + 40_000_000_000
+        end_ns = reader.start_ns + round(seconds * 1e9)
         for msg in reader.messages(topics):
             if msg.log_time_ns < end_ns:
                 writer.write(msg.topic, msg.log_time_ns, msg.message)
+    return path
+
+
+def test_bag_without_reference_is_replayed_without_accuracy(bag, tmp_path, capsys):
+    """The first 40 s of the sensor topics only: speed, states and counters, accuracy null."""
+    sensors = _sensors_only(bag, tmp_path / "sensors", 40.0)
     report_path, plot_path = tmp_path / "r.json", tmp_path / "p.png"
     code, out, err = _replay(capsys, sensors, "--report", report_path, "--plot", plot_path)
     assert code == 0
@@ -300,3 +313,37 @@ def test_bag_without_reference_is_replayed_without_accuracy(bag, tmp_path, capsy
     assert report["nees"]["position_mean"] is None
     assert report["measurements"]["gnss_position"]["used"] > 10
     assert plot_path.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_plot_without_reference_shows_the_measurements_against_the_fused_solution(bag, tmp_path):
+    """Without a reference the plot's panels get the fixes (an outage's withheld ones too) and
+    the attitudes minus the fused solution: the withheld fixes show the drift."""
+    inputs = load_bag(_sensors_only(bag, tmp_path / "sensors", DURATION_S))
+    parameters = validate_all(PARAMETERS, {})
+    outage = Outage(*OUTAGE)
+    result = replay(inputs, parameters, [outage], None)
+    assert result.evaluation is None and result.run.datum is not None
+    arm = FusionConfig.from_parameters(parameters).gnss_lever_arm_flu_m
+    data = measured(result.run.track, inputs.measurements, result.run.datum, arm, inputs.t0_s)
+    track_s = result.run.track.t_s[[0, -1]]
+    fixes = [m.t_s for _, _, m in inputs.measurements if isinstance(m, GnssFixMeasurement)]
+    assert len(data.fix_t_s) == sum(track_s[0] <= t <= track_s[1] for t in fixes) > 60
+    horizontal = np.hypot(data.fix_minus_fused_m[:, 0], data.fix_minus_fused_m[:, 1])
+    inside = mask(data.fix_t_s, [outage])
+    aided = ~inside & (data.fix_t_s > 15.0)
+    assert inside.sum() >= 8 and np.median(horizontal[aided]) < 0.1
+    assert horizontal[inside][-1] > 5 * np.median(horizontal[aided])  # the drift is visible
+    assert len(data.att_t_s) > 100 and np.median(np.abs(data.att_minus_fused_deg)) < 1.0
+    plot = tmp_path / "p.png"
+    plot_replay(plot, result.compared_track, inputs.t0_s, None, [outage], "t", None, data)
+    assert plot.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_a_refused_run_names_the_outputs_it_did_not_write(bag, tmp_path, capsys):
+    report, plot = tmp_path / "r.json", tmp_path / "p.png"
+    topics = "imu=/imu/data_raw,fix=/leica/gnss/fix"
+    code, _, err = _replay(capsys, bag, "--topics", topics, "--report", report, "--plot", plot)
+    assert code == 2 and "fix=/leica/gnss/fix, not in the bag" in err
+    assert f"report {report} not written because of the error" in err
+    assert f"plot {plot} not written because of the error" in err
+    assert not report.exists() and not plot.exists()

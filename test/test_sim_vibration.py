@@ -130,6 +130,16 @@ def test_irregular_times_interpolate_the_grid():
     assert between == pytest.approx((grid[:-1] + grid[1:]) / 2.0, abs=1e-12)
 
 
+def test_samples_one_at_a_time_denser_than_the_grid_need_no_new_grid_point():
+    # The live IMU emulator asks for one sample per call; two calls inside one grid interval
+    # (a device clock a little faster than the grid) need no new grid value.
+    t = np.arange(40) * 0.4 / RATE_HZ
+    whole = np.hstack(Vibration(CAR, RATE_HZ, 4).sample(t, 10.0))
+    single = Vibration(CAR, RATE_HZ, 4)
+    one_by_one = np.vstack([np.hstack(single.sample([ti], 10.0)) for ti in t])
+    assert np.array_equal(one_by_one, whole)
+
+
 def test_decreasing_times_and_unknown_profiles_are_errors():
     vib = Vibration(CAR, RATE_HZ, 0)
     vib.sample([1.0, 2.0], 10.0)

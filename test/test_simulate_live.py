@@ -123,3 +123,25 @@ def test_gnss_ports_send_nmea_that_matches_the_truth_bag(live):
     east = math.radians(lon - lon_truth) * 6.39e6 * math.cos(math.radians(lat))
     assert math.hypot(north, east) < 0.3  # RTK noise, roll in the turn; a 10 ms slip is 0.17 m
     assert "sent: imu" in tail and "truth bag" in tail
+
+
+def test_hold_keeps_the_devices_open_after_the_drive_until_sigterm():
+    command = [sys.executable, "-m", "ins_fusion.tools.cli", "simulate", "--live", "--hold"]
+    command += ["--scenario=aalborg_turn", "--duration=2", "--no-adu5", "--gnss=none"]
+    proc = subprocess.Popen(command, stdout=subprocess.PIPE, text=True)
+    try:
+        imu_port = _port_lines(proc, {"imu"})["imu"]
+        assert proc.stdout is not None
+        assert proc.stdout.readline() == "drive ended\n"
+        time.sleep(1.0)  # past the drive: the process and its device are still there
+        assert proc.poll() is None
+        with serial.Serial(imu_port, 38400, timeout=0.1) as imu:
+            imu.write(b"C")
+            framer = PacketFramer(confirm_with_next_packet=True)
+            packets = list(framer.feed(_read(imu, 18 * 40, 5.0)))
+        assert len(packets) >= 20
+        proc.terminate()
+        proc.communicate(timeout=20.0)
+    finally:
+        proc.kill()
+    assert proc.returncode == 0

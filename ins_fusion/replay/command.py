@@ -40,12 +40,27 @@ class UsageError(Exception):
 
 
 def execute(args: argparse.Namespace) -> int:
-    """Replay (or sweep) as the arguments say; 0 done, 1 no fused solution, 2 bad input."""
+    """Replay (or sweep) as the arguments say; 0 done, 1 no fused solution, 2 bad input (the
+    requested outputs that were not written are named)."""
+    absent = [(label, path) for label, path in _requested(args) if not Path(path).exists()]
     try:
         return _run(args)
     except UsageError as exc:
         print(f"gnss_ins replay: error: {exc}", file=sys.stderr)
+        for label, path in absent:
+            if not Path(path).exists():
+                print(
+                    f"gnss_ins replay: {label} {path} not written because of the error",
+                    file=sys.stderr,
+                )
         return 2
+
+
+def _requested(args: argparse.Namespace) -> list[tuple[str, Path]]:
+    """The outputs the command line asks for, as (what, path)."""
+    requested = [("report", args.report), ("plot", args.plot), ("fused bag", args.output)]
+    requested += [("export", path) for path in args.export]
+    return [(label, Path(path)) for label, path in requested if path is not None]
 
 
 def _parameters(args: argparse.Namespace) -> dict[str, Any]:
@@ -188,10 +203,8 @@ def _free_inertial(start_s: float, result: Replay) -> None:
 
 def _not_written(args: argparse.Namespace, reason: str) -> None:
     """Name the requested plot, fused bag and exports that are not written, and why (stderr)."""
-    requested = [("plot", args.plot), ("fused bag", args.output)]
-    requested += [("export", path) for path in args.export]
-    for label, path in requested:
-        if path is not None:
+    for label, path in _requested(args):
+        if label != "report":
             print(f"gnss_ins replay: {label} {path} not written: {reason}", file=sys.stderr)
 
 
@@ -212,11 +225,17 @@ def _write_outputs(
 ) -> None:
     # Imported when asked for: matplotlib and the message classes cost ~1 s of every start-up.
     if args.plot is not None:
-        from ins_fusion.replay.plot import plot_replay
+        from ins_fusion.replay.plot import measured, plot_replay
 
         title = f"gnss_ins replay {inputs.bag}"
         if outages:
             title += "; outages " + ", ".join(f"{o.start_s:g}:{o.duration_s:g}" for o in outages)
+        data = None
+        if result.evaluation is None and result.run.datum is not None:
+            arm = FusionConfig.from_parameters(parameters).gnss_lever_arm_flu_m
+            data = measured(
+                result.run.track, inputs.measurements, result.run.datum, arm, inputs.t0_s
+            )
         try:
             plot_replay(
                 args.plot,
@@ -226,10 +245,9 @@ def _write_outputs(
                 outages,
                 title,
                 result.smoothed,
+                data,
             )
         except (OSError, ValueError) as exc:
-            if args.output is not None:
-                print(f"gnss_ins replay: fused bag {args.output} not written", file=sys.stderr)
             raise UsageError(f"cannot write the plot {args.plot}: {exc}") from None
         print(f"plot: {args.plot}")
     if args.output is not None:

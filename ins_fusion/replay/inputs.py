@@ -201,7 +201,8 @@ def load_bag(
                 reader, selected, topics.imu, roles, ref_topics, total, progress
             )
     except (BagError, AnyReaderError, ReaderError, SerdeError, CdrError, OSError) as exc:
-        raise InputError(f"cannot read bag {path}: {exc}") from exc
+        detail = str(exc).removeprefix(f"{path}: ")  # the bag's name once
+        raise InputError(f"cannot read bag {path}: {detail}") from exc
     return ReplayInputs(
         str(path), topics, imu, measurements, reference, time.perf_counter() - start, imu_frame
     )

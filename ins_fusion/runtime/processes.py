@@ -24,12 +24,11 @@ class ProcessGroup:
         self._read: dict[str, int] = {}  # bytes of each NAME.log already scanned by problems()
 
     def start(self, name: str, command: Sequence[str], **kwargs: Any) -> subprocess.Popen[str]:
-        """Start ``command``; its output goes to NAME.log unless ``stdout`` is given."""
+        """Start ``command``; its output goes to NAME.log unless ``stdout`` is given (then its
+        stderr does)."""
+        log = (self.log_dir / f"{name}.log").open("w")
         options: dict[str, Any] = {"env": self.env, "text": True}
-        if "stdout" not in kwargs:
-            options.update(
-                stdout=(self.log_dir / f"{name}.log").open("w"), stderr=subprocess.STDOUT
-            )
+        options.update(stdout=log, stderr=subprocess.STDOUT if "stdout" not in kwargs else log)
         options.update(kwargs)
         process = subprocess.Popen(list(command), **options)
         self.running.append((name, process))

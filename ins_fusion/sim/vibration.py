@@ -238,6 +238,8 @@ class Vibration:
 
     def _grid(self, count: int) -> FloatArray:
         """The next ``count`` grid values, unit σ per channel (gyro x, y, z, accel x, y, z)."""
+        if count == 0:  # scipy's sosfilt refuses an empty block
+            return np.zeros((0, 6))
         draws = self._rng.standard_normal((count, 2, 6))
         road, self._zi_road = signal.sosfilt(self._road.sos, draws[:, 0], axis=0, zi=self._zi_road)
         body, self._zi_body = signal.sosfilt(self._body.sos, draws[:, 1], axis=0, zi=self._zi_body)

@@ -49,26 +49,28 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="[BAG@]T0:T1,...",
         help="use these windows [s after the bag's first IMU stamp; BAG counts from 1]",
     )
-    seg.add_argument("--window", type=float, default=1.0, help="detection window [s] (1)")
+    seg.add_argument("--window", type=float, default=1.0, help="detection window [s]")
     seg.add_argument(
-        "--accel-std-max", type=float, default=0.05, help="static: accel std per axis [m/s²] (0.05)"
+        "--accel-std-max", type=float, default=0.05, help="static: accel std per axis [m/s²]"
     )
     seg.add_argument(
-        "--gyro-std-max", type=float, default=1.0, help="static: gyro std per axis [deg/s] (1)"
+        "--gyro-std-max", type=float, default=1.0, help="static: gyro std per axis [deg/s]"
     )
     seg.add_argument(
         "--static-rate-max",
         type=float,
         default=1.0,
-        help="largest |mean rate| of a static segment [deg/s] (1)",
+        help="largest |mean rate| of a static segment [deg/s]",
     )
-    seg.add_argument("--min-duration", type=float, default=10.0, help="shortest segment [s] (10)")
-    seg.add_argument("--trim", type=float, default=1.0, help="cut from each end [s] (1)")
-    seg.add_argument("--imu-topic", default=IMU_DATA)
-    seg.add_argument("--temperature-topic", default=IMU_TEMPERATURE)
+    seg.add_argument("--min-duration", type=float, default=10.0, help="shortest segment [s]")
+    seg.add_argument("--trim", type=float, default=1.0, help="cut from each end [s]")
+    seg.add_argument("--imu-topic", default=IMU_DATA, help="sensor_msgs/Imu topic")
+    seg.add_argument(
+        "--temperature-topic", default=IMU_TEMPERATURE, help="sensor_msgs/Temperature topic"
+    )
     site = parser.add_argument_group("static methods")
     site.add_argument("--latitude", type=float, metavar="DEG", help="laboratory latitude [deg]")
-    site.add_argument("--height", type=float, default=0.0, help="ellipsoidal height [m] (0)")
+    site.add_argument("--height", type=float, default=0.0, help="ellipsoidal height [m]")
     site.add_argument(
         "--gravity", type=float, metavar="M_S2", help="local gravity (default: normal gravity)"
     )
@@ -77,7 +79,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=float,
         default=0.1,
         metavar="DEG",
-        help="attitude (levelling) σ of each position [deg] (0.1)",
+        help="attitude (levelling) σ of each position [deg]",
     )
     site.add_argument(
         "--accel-scale",
@@ -116,14 +118,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     # gyro axis against the spin axis 0.5°.
     table = parser.add_argument_group("rotation methods")
     table.add_argument("--rate", type=float, metavar="DEG_S", help="rate-table: table rate")
-    table.add_argument("--rate-sigma", type=float, default=0.015, help="its σ [deg/s] (0.015)")
+    table.add_argument("--rate-sigma", type=float, default=0.015, help="its σ [deg/s]")
     table.add_argument("--angle", type=float, metavar="DEG", help="known-angle: rotation angle")
-    table.add_argument("--angle-sigma", type=float, default=0.1, help="its σ [deg] (0.1)")
+    table.add_argument("--angle-sigma", type=float, default=0.1, help="its σ [deg]")
     table.add_argument(
         "--mount-sigma",
         type=float,
         default=0.5,
-        help="σ of the unit's axis against the table axis [deg] (0.5)",
+        help="σ of the unit's axis against the table axis [deg]",
     )
     axes = parser.add_argument_group("axes")
     axes.add_argument(

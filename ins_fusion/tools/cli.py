@@ -55,11 +55,8 @@ class DefaultsHelpFormatter(argparse.HelpFormatter):
     def _get_help_string(self, action: argparse.Action) -> str:
         text = action.help or ""
         default = action.default
-        if (
-            "default" in text
-            or default in (None, False, [], argparse.SUPPRESS)
-            or not action.option_strings
-        ):
+        nothing = default is None or default is False or default == argparse.SUPPRESS
+        if "default" in text or nothing or default in ([], ()) or not action.option_strings:
             return text
         return f"{text} (default: %(default)s)"
 

@@ -14,7 +14,10 @@ from gnss_driver.profiles import Receiver
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of the emulated receiver."""
     parser.add_argument(
-        "--receiver", choices=[Receiver.LEICA.value, Receiver.ADU5.value], default="leica"
+        "--receiver",
+        choices=[Receiver.LEICA.value, Receiver.ADU5.value],
+        default="leica",
+        help="which receiver's sentences and baud rate",
     )
     parser.add_argument("--link", help="stable path for the port (default: a temporary symlink)")
     parser.add_argument(

@@ -59,9 +59,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--mems", type=Path, required=True, help="MEMS log (14 columns)")
     parser.add_argument("--reference", type=Path, help="GNSS log of the reference (equipment id 6)")
     parser.add_argument("-o", "--output", type=Path, required=True, help="bag directory to create")
-    parser.add_argument("--storage", choices=sorted(STORAGES), default="mcap")
-    parser.add_argument("--accel-unit", choices=sorted(logs.ACCEL_UNITS))
-    parser.add_argument("--gyro-unit", choices=sorted(logs.GYRO_UNITS))
+    parser.add_argument(
+        "--storage", choices=sorted(STORAGES), default="mcap", help="rosbag2 storage plugin"
+    )
+    parser.add_argument(
+        "--accel-unit",
+        choices=sorted(logs.ACCEL_UNITS),
+        help="unit of the MEMS log's accelerations (default: mg)",
+    )
+    parser.add_argument(
+        "--gyro-unit",
+        choices=sorted(logs.GYRO_UNITS),
+        help="unit of the MEMS log's rates (default: mdps, milli-degrees per second)",
+    )
     parser.add_argument(
         "--mounting",
         type=_mounting,
@@ -238,7 +248,7 @@ def run(args: argparse.Namespace) -> int:
         if args.reference:
             parsed.append(_read(args.reference, logs.parse_gnss))
     except OSError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"gnss_ins import-qfree: error: {exc}", file=sys.stderr)
         return 2
     gnss, mems, *reference = parsed
     refused: Counter[str] = Counter()
@@ -248,7 +258,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         accel, gyro = _transforms(args)
     except ValueError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"gnss_ins import-qfree: error: {exc}", file=sys.stderr)
         return 2
     mems_problem = partial(checks.mems_problem, accel_unit=accel.unit, gyro_unit=gyro.unit)
     mems_records = _validated(mems, mems_problem, refused)
@@ -275,12 +285,15 @@ def run(args: argparse.Namespace) -> int:
     _listed(series.wraps, "gyro wrap")
     events, no_velocity = _events(epochs, series, selected)
     if not events:
-        print("error: no valid GNSS epoch or MEMS sample to import", file=sys.stderr)
+        print(
+            "gnss_ins import-qfree: error: no valid GNSS epoch or MEMS sample to import",
+            file=sys.stderr,
+        )
         return 1
     try:
         writer = BagWriter(args.output, storage=args.storage)
     except BagError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"gnss_ins import-qfree: error: {exc}", file=sys.stderr)
         return 2
     with writer, Progress("import", total=len(events), unit="msgs") as progress:
         for done, (t, _, topic, make) in enumerate(events, start=1):

@@ -13,7 +13,12 @@ import numpy as np
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Demo options."""
     parser.add_argument("--duration", type=float, default=5.0, help="how long to run [s]")
-    parser.add_argument("--mode", choices=("continuous", "polled"), default="continuous")
+    parser.add_argument(
+        "--mode",
+        choices=("continuous", "polled"),
+        default="continuous",
+        help="imu400cc_node's mode parameter",
+    )
     parser.add_argument("--every", type=int, default=67, help="print every N-th Imu message")
 
 

@@ -37,7 +37,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Start the nodes and wait; returns 1 when a node stopped on its own."""
     if args.config is not None and not args.config.is_dir():
-        print(f"error: --config {args.config} is not a directory")
+        print(f"gnss_ins launch: error: --config {args.config} is not a directory")
         return 2
     ports = {role: getattr(args, f"{role}_port") for role in DEFAULT_PORTS}
     group = ProcessGroup(args.log_dir)
@@ -73,5 +73,5 @@ def run(args: argparse.Namespace) -> int:
     finally:
         group.stop_all()
     for name in ended:
-        print(f"error: {name} stopped on its own; see {args.log_dir}/{name}.log")
+        print(f"gnss_ins launch: error: {name} stopped on its own; see {args.log_dir}/{name}.log")
     return 1 if ended else 0

@@ -61,15 +61,18 @@ def run(args: argparse.Namespace) -> int:
     try:
         reader = BagReader(args.bag)
     except BagError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"gnss_ins play: error: {exc}", file=sys.stderr)
         return 2
     with reader:
         if not reader.topics:
-            print(f"error: {args.bag} has no messages", file=sys.stderr)
+            print(f"gnss_ins play: error: {args.bag} has no messages", file=sys.stderr)
             return 1
         topics = sorted(reader.topics) if args.topics is None else list(args.topics)
         if unknown := sorted(set(topics) - set(reader.topics)):
-            print(f"error: {args.bag} has no topic {', '.join(unknown)}", file=sys.stderr)
+            print(
+                f"gnss_ins play: error: {args.bag} has no topic {', '.join(unknown)}",
+                file=sys.stderr,
+            )
             return 2
         from ins_fusion.tools.ros_play import importable, play
 

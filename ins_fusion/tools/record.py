@@ -23,7 +23,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("topics", nargs="*", help="topics to record (relative names resolved)")
     parser.add_argument("-o", "--output", type=Path, required=True, help="bag directory to create")
     parser.add_argument("-a", "--all", action="store_true", help="record every topic that appears")
-    parser.add_argument("--storage", choices=sorted(STORAGES), default="mcap")
+    parser.add_argument(
+        "--storage", choices=sorted(STORAGES), default="mcap", help="rosbag2 storage plugin"
+    )
     parser.add_argument(
         "--max-bag-size",
         type=int,
@@ -44,7 +46,7 @@ def run(args: argparse.Namespace) -> int:
     """Record until Ctrl-C/SIGTERM; prints the summary. 2 on bad arguments, 1 if writing
     failed."""
     if not args.topics and not args.all:
-        print("error: name topics to record or use --all", file=sys.stderr)
+        print("gnss_ins record: error: name topics to record or use --all", file=sys.stderr)
         return 2
     try:
         writer = BagWriter(
@@ -54,13 +56,13 @@ def run(args: argparse.Namespace) -> int:
             max_file_duration_s=args.max_bag_duration,
         )
     except BagError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"gnss_ins record: error: {exc}", file=sys.stderr)
         return 2
     from ins_fusion.tools.ros_record import record
 
     lost, failure = record(writer, None if args.all else list(args.topics))
     if failure is not None:
-        print(f"error: writing {args.output} failed: {failure!r}", file=sys.stderr)
+        print(f"gnss_ins record: error: writing {args.output} failed: {failure!r}", file=sys.stderr)
         return 1
     print(writer.summary.format(f"bag {args.output} ({args.storage}, files: {len(writer.files)})"))
     lost_text = ", ".join(f"{t} {n}" for t, n in sorted(lost.items()) if n) or "none"

@@ -27,12 +27,12 @@ def run(args: argparse.Namespace) -> int:
     bag = Path(args.bag)
     output = args.output or bag.with_name(f"{bag.name}_recovered")
     if not bag.is_dir():
-        print(f"error: {bag}: not a bag directory", file=sys.stderr)
+        print(f"gnss_ins recover: error: {bag}: not a bag directory", file=sys.stderr)
         return 2
     try:
         recovered = recover_bag(bag, output)
     except (BagError, OSError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"gnss_ins recover: error: {exc}", file=sys.stderr)
         return 2
     print(recovered.summary.format(f"bag {output} recovered from {len(recovered.files)} file(s)"))
     print(f"  incomplete records dropped: {recovered.dropped_bytes} bytes")

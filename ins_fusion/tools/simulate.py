@@ -9,7 +9,9 @@ position receiver, and the ADU5) on pseudo-terminals take their samples from the
 error models, and the port paths are printed first, one line each (``imu: PATH``, ``gnss: PATH``,
 ``adu5: PATH``), for the real nodes to open. ``--truth-output BAG`` records the truth meanwhile,
 stamped on the host clock from the start time the emulators use. Runs until the duration ends or
-Ctrl-C / SIGTERM.
+Ctrl-C / SIGTERM; with ``--hold`` it prints ``drive ended`` when the duration ends and keeps the
+devices open (the vehicle parked where the drive ended, the receivers without a fix) until
+Ctrl-C / SIGTERM, so that the nodes reading them can be stopped first (``gnss_ins demo``).
 """
 
 from __future__ import annotations
@@ -93,15 +95,24 @@ def _utc_ns(text: str) -> int:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Command-line options of ``gnss_ins simulate``."""
-    parser.add_argument("--scenario", choices=sorted(SCENARIOS), default="test_pattern")
-    parser.add_argument("--imu", choices=sorted(imu_model.PROFILES), default="imu400cc")
+    parser.add_argument(
+        "--scenario",
+        choices=sorted(SCENARIOS),
+        default="test_pattern",
+        help="the drive (docs/simulator.md)",
+    )
+    parser.add_argument(
+        "--imu", choices=sorted(imu_model.PROFILES), default="imu400cc", help="IMU error profile"
+    )
     parser.add_argument(
         "--imu-rate", type=_positive, metavar="HZ", help="IMU output rate (default: the profile's)"
     )
     parser.add_argument("--duration", type=_positive, default=240.0, help="seconds to simulate")
     parser.add_argument("--seed", type=int, default=0, help="seed of every error model")
     parser.add_argument("-o", "--output", type=Path, help="bag directory to create")
-    parser.add_argument("--storage", choices=sorted(STORAGES), default="mcap")
+    parser.add_argument(
+        "--storage", choices=sorted(STORAGES), default="mcap", help="rosbag2 storage plugin"
+    )
     parser.add_argument(
         "--gnss",
         choices=[*POSITION_RECEIVERS, "none"],
@@ -164,20 +175,32 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--live", action="store_true", help="emulated devices on pseudo-terminals in real time"
     )
     parser.add_argument("--truth-output", type=Path, help="live mode: bag of the truth topics")
+    parser.add_argument(
+        "--hold",
+        action="store_true",
+        help="live mode: at the end of the drive print 'drive ended' and keep the devices open"
+        " until Ctrl-C/SIGTERM",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
     """Write the bag or run live; 2 on a usage, configuration or bag error."""
     if args.live == (args.output is not None):
-        print("error: give either --output BAG or --live", file=sys.stderr)
+        print("gnss_ins simulate: error: give either --output BAG or --live", file=sys.stderr)
         return 2
     if args.truth_output is not None and not args.live:
-        print("error: --truth-output is for --live (a bag holds the truth anyway)", file=sys.stderr)
+        print(
+            "gnss_ins simulate: error: --truth-output is for --live (a bag holds the truth anyway)",
+            file=sys.stderr,
+        )
+        return 2
+    if args.hold and not args.live:
+        print("gnss_ins simulate: error: --hold is for --live", file=sys.stderr)
         return 2
     if args.live and (args.imu_rate is not None or args.gnss_rate is not None):
         print(
-            "error: --imu-rate and --gnss-rate are for bags; the emulators run at their"
-            " devices' rates",
+            "gnss_ins simulate: error: --imu-rate and --gnss-rate are for bags; the emulators"
+            " run at their devices' rates",
             file=sys.stderr,
         )
         return 2
@@ -199,10 +222,10 @@ def run(args: argparse.Namespace) -> int:
     )
     try:
         if args.live:
-            return run_live(config, args.truth_output, args.storage)
+            return run_live(config, args.truth_output, args.storage, args.hold)
         write_bag(config, args.output, args.storage)
     except (BagError, ValueError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"gnss_ins simulate: error: {exc}", file=sys.stderr)
         return 2
     return 0
 
@@ -323,8 +346,11 @@ class LiveGnss:
         return emulator_truth(epoch.fix)
 
 
-def run_live(config: SimulationConfig, truth_output: Path | None, storage: str = "mcap") -> int:
-    """Run the emulators in real time until the duration ends or a stop signal."""
+def run_live(
+    config: SimulationConfig, truth_output: Path | None, storage: str = "mcap", hold: bool = False
+) -> int:
+    """Run the emulators in real time until the duration ends (with ``hold``: until a stop
+    signal after it) or a stop signal."""
     start_s = time.time()
     simulation = Simulation(dataclasses.replace(config, start_ns=round(start_s * 1e9)))
     temperature = float(simulation.imu_model.temperature_c(np.array([0.0]))[0])
@@ -367,6 +393,9 @@ def run_live(config: SimulationConfig, truth_output: Path | None, storage: str =
             progress.update(now_s)
             if now_s >= config.duration_s:
                 break
+        if hold and not done.is_set():
+            print("drive ended", flush=True)
+            done.wait()
     sent = [f"imu {imu.packets_sent} packets"]
     sent += [f"{d.config.receiver.value} {d.epochs_sent} epochs" for d in gnss_devices]
     print(f"sent: {', '.join(sent)}", flush=True)
