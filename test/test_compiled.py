@@ -13,6 +13,7 @@ import pytest
 
 from gnss_ins_common.params import validate_all
 from ins_fusion.core import eskf, propagation, solution, strapdown
+from ins_fusion.core.compiled import jit
 from ins_fusion.core.params import PARAMETERS
 from ins_fusion.core.warm_up import warm_up
 from ins_fusion.replay.inputs import load_bag
@@ -109,3 +110,13 @@ def test_warm_up_types_every_kernel_the_drives_use(drive: Path) -> None:
         )
         assert len(run.track.rows) > 1000
     assert {kernel: list(kernel.signatures) for kernel in _KERNELS} == signatures
+
+
+def test_kernel_without_a_writable_cache_still_compiles() -> None:
+    """A function numba cannot cache (no file: no cache locator, as for a read-only install
+    and home) is compiled without the cache, with a warning naming NUMBA_CACHE_DIR."""
+    namespace: dict[str, object] = {}
+    exec("def add_one(x):\n    return x + 1.0", namespace)  # defined without a source file
+    with pytest.warns(RuntimeWarning, match="NUMBA_CACHE_DIR"):
+        kernel = jit(namespace["add_one"])
+    assert kernel(1.0) == 2.0

@@ -14,6 +14,7 @@ callers it stays the plain function, without a dispatcher's overhead.
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable
 from typing import Any, TypeVar, cast
 
@@ -26,8 +27,18 @@ F = TypeVar("F", bound=Callable[..., Any])
 
 def jit(function: F) -> F:
     """``function`` compiled in nopython mode with the on-disk cache (see the module
-    docstring); IEEE arithmetic as written (no fastmath), so results match the Python path."""
-    return cast(F, numba.njit(cache=True)(function))
+    docstring); IEEE arithmetic as written (no fastmath), so results match the Python path.
+    Where no cache directory is writable (a read-only install and home), it is compiled at
+    every start instead, with a warning."""
+    try:
+        return cast(F, numba.njit(cache=True)(function))
+    except RuntimeError as exc:  # numba: "cannot cache function ...: no locator available"
+        warnings.warn(
+            f"{exc}; compiling at every start (set NUMBA_CACHE_DIR to a writable directory)",
+            RuntimeWarning,
+            stacklevel=2,
+        )
+        return cast(F, numba.njit(function))
 
 
 def compilable(function: F) -> F:
