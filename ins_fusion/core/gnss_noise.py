@@ -92,6 +92,28 @@ class GnssNoise:
     def set_correlated_variance(
         s: FilterState, kf: ErrorStateFilter, correlated: FloatArray
     ) -> None:
-        """Stationary variance of the correlated GNSS error process per NED axis [m²]."""
+        """Stationary variance of the correlated GNSS error process per NED axis [m²].
+
+        The error of a Gauss-Markov process is never less certain than the process itself: an
+        error state whose variance exceeds the new stationary one (the measured split moved
+        towards white) is shrunk to it, estimate and covariance by the same factor (x -> D x,
+        P -> D P D). Left at the old variance it would take the navigation error as the
+        receiver's: a white receiver's first fixes, split by the prior as mostly correlated,
+        held the position 2 m off for a minute (docs/accuracy.md)."""
         s.gnss_variance = (float(correlated[0]), float(correlated[1]), float(correlated[2]))
         kf.gnss_variance = s.gnss_variance
+        gp = kf.layout.gp
+        if gp is None:
+            return
+        variance = np.diagonal(kf.P)[gp : gp + 3]
+        shrink = np.sqrt(np.minimum(1.0, correlated / np.maximum(variance, 1e-300)))
+        if shrink.min() >= 1.0:
+            return
+        factors = np.ones(kf.layout.size)
+        factors[gp : gp + 3] = shrink
+        P_before = kf.P
+        kf.P = kf.P * np.outer(factors, factors)
+        e = s.gnss_error
+        s.gnss_error = (e[0] * shrink[0], e[1] * shrink[1], e[2] * shrink[2])
+        if kf.recorder is not None:  # smoother hook: a deterministic transition x -> D x
+            kf.recorder.on_transition(P_before, np.diag(factors), kf.P)
