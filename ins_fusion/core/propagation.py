@@ -155,7 +155,6 @@ class Propagator:
         self._covariance_interval_s = config.covariance_interval_s
         self._gnss_correlation_time_s = config.gnss_correlation_time_s
         self._geometry = geometry
-        self._r_bi = np.array(geometry.r_bi)
         self._densities = densities
 
     def step(
@@ -171,7 +170,7 @@ class Propagator:
         ``gap``: it bridges missing samples; ``noise``: the IMU white-noise densities from now
         on, None = the user's); the covariance follows every ``covariance_interval`` seconds."""
         s.imu_psd = noise
-        advance(s.x, inc, self._r_bi, gap is not None, t)
+        advance(s.x, inc, self._geometry.r_bi, gap is not None, t)
         s.changed()
         if gap is not None:
             mat_ni = s.mat_nb @ self._geometry.mat_bi

@@ -111,7 +111,6 @@ class SolutionBuilder:
 
     def __init__(self, geometry: Geometry, layout: StateLayout) -> None:
         self._geometry = geometry
-        self._r_bi = np.array(geometry.r_bi)
         self._mt = layout.mt
         # ENU position, velocity and attitude of base_link over the first 12 error states (and
         # the two mounting states when they are estimated); the blocks that depend on the state
@@ -151,7 +150,7 @@ class SolutionBuilder:
             kernel_array(kf.P),
             self._solution_states,
             geometry.arms(s)[1],
-            self._r_bi,
+            self._geometry.r_bi,
             geometry.arm_bi,
             rate_i,
             (0.0, 0.0) if mounting is None else mounting,

@@ -223,14 +223,14 @@ class LatestInputs:
 
 class Geometry:
     """The configured sensor geometry in the engine's body frame (base_link FRD): the IMU
-    mounting rotation imu FRD -> body (``mat_bi``, also row-major ``r_bi`` for the hot path),
+    mounting rotation imu FRD -> body (``mat_bi``, also row-major ``r_bi`` for the kernels),
     the lever arms from the IMU to the antenna and to the base_link origin [m], and the
     attitude receiver's mounting."""
 
     def __init__(self, config: FusionConfig, layout: StateLayout) -> None:
         self.estimates_mounting = layout.mt is not None
         self.mat_bi = mat_from_rpy_flu(config.imu_mounting_rpy_rad)
-        self.r_bi = tuple(float(v) for v in self.mat_bi.ravel())
+        self.r_bi = self.mat_bi.ravel().copy()
         imu_arm_b = flu_to_frd_array(config.imu_lever_arm_flu_m)
         self.antenna_arm_b = flu_to_frd_array(config.gnss_lever_arm_flu_m) - imu_arm_b
         self.base_arm_b = -imu_arm_b
@@ -275,17 +275,6 @@ class Geometry:
         rpy = euler_rad(MAT_FLU_FRD @ mat_vi @ MAT_FLU_FRD)  # z-y'-x'' of the FLU rotation
         self._mounting_cache = (mounting, rpy)
         return rpy
-
-    def corrected_rate_b(self, s: FilterState, rate_i: Vec3) -> Vec3:
-        """An imu FRD rate [rad/s] corrected for the estimated gyro errors, base_link FRD."""
-        (w0, w1, w2), (b0, b1, b2), (k0, k1, k2) = rate_i, s.gyro_bias, s.gyro_scale
-        c0, c1, c2 = (w0 - b0) / (1.0 + k0), (w1 - b1) / (1.0 + k1), (w2 - b2) / (1.0 + k2)
-        r = self.r_bi
-        return (
-            r[0] * c0 + r[1] * c1 + r[2] * c2,
-            r[3] * c0 + r[4] * c1 + r[5] * c2,
-            r[6] * c0 + r[7] * c1 + r[8] * c2,
-        )
 
 
 def inject(s: FilterState, kf: ErrorStateFilter, dx: FloatArray) -> None:
