@@ -11,6 +11,8 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -21,9 +23,11 @@ from scipy.linalg import expm
 from scipy.spatial.transform import Rotation
 
 from ins_fusion.core import earth
+from ins_fusion.core.calibration import ImuCalibration
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.eskf import (
     ATT,
+    AXIS_ERROR_TIME_S,
     BA,
     BG,
     POS,
@@ -31,6 +35,7 @@ from ins_fusion.core.eskf import (
     ErrorStateFilter,
     StateLayout,
     chi2_threshold,
+    gyro_misalignment_variance,
 )
 from ins_fusion.core.measurements import (
     GnssFixMeasurement,
@@ -46,6 +51,7 @@ from ins_fusion.core.measurements import (
 from ins_fusion.core.rotation import MAT_ENU_NED, euler_rad, quat_from_euler
 from ins_fusion.core.strapdown import NavState, increment, propagate
 
+REPO = Path(__file__).resolve().parents[1]
 NOISE = FusionConfig.default().imu_noise
 LAYOUT = StateLayout(gyro_scale=True, accel_scale=True)
 #: A car at 57° N turning left at 15 m/s on a slope, IMU yawed 90° and tilted in base_link.
@@ -151,7 +157,7 @@ def test_discretisation_matches_van_loan_over_ten_seconds(interval_s):
     mat_ni = _nav().mat_nb @ MAT_BI
     args = (mat_ni, mat_ni @ FORCE_I, FORCE_I, RATE_I, LAT, HEIGHT, tuple(VEL_NED))
     F = kf.dynamics(*args).copy()
-    G = _noise_root(kf.noise_density(mat_ni).copy())
+    G = _noise_root(kf.noise_density(mat_ni, RATE_I).copy())
     sigmas = [0.02] * 3 + [0.02] * 3 + [1e-3] * 3 + [1e-4] * 3 + [1e-3] * 3 + [1e-3] * 6
     P0 = np.diag(np.square(sigmas))
     kf.P = P0
@@ -336,3 +342,45 @@ def test_attitude_model_converts_rep103_covariance_and_drops_unknown_angles():
 
 def test_ned_enu_axis_swap_is_its_own_inverse():
     assert np.array_equal(MAT_ENU_NED @ MAT_ENU_NED, np.eye(3))
+
+
+def test_misalignment_noise_matches_a_constant_misalignment_after_its_time():
+    """The turn-rate-dependent noise standing for the gyro's misalignment: after
+    AXIS_ERROR_TIME_S of a steady turn the attitude σ it builds about the other two axes equals
+    the error a constant misalignment of that σ makes (σ ω t); none about the turn's own axis
+    (a scale factor, estimated by states) and none without rate."""
+    quiet = replace(
+        NOISE,
+        gyro_arw=(0.0, 0.0, 0.0),
+        accel_vrw=(0.0, 0.0, 0.0),
+        gyro_bias_instability=(0.0, 0.0, 0.0),
+        accel_bias_instability=(0.0, 0.0, 0.0),
+        gyro_misalignment=1e-3,
+    )
+    rate = np.array([0.0, 0.0, 0.25])  # a turn about imu z [rad/s]
+    args = (np.eye(3), np.array([0.0, 0.0, -9.8]), np.array([0.0, 0.0, -9.8]), rate, 0.0, 0.0)
+    layout = StateLayout()
+    kf = ErrorStateFilter(layout, quiet)
+    assert np.count_nonzero(kf.noise_density(np.eye(3), np.zeros(3))) == 0
+    kf.P = np.zeros((layout.size, layout.size))
+    for _ in range(round(AXIS_ERROR_TIME_S / 0.01)):
+        kf.propagate(0.01, *args, (0.0, 0.0, 0.0))
+    variance = np.diagonal(kf.P)[ATT : ATT + 3]
+    assert variance[:2] == pytest.approx([(1e-3 * 0.25 * AXIS_ERROR_TIME_S) ** 2] * 2, rel=0.01)
+    assert variance[2] < 1e-10
+
+
+def test_misalignment_variance_comes_from_the_calibration_when_it_corrects_one():
+    """Without a calibration, or with one that leaves the misalignment alone (the IMU400CC
+    file), the datasheet's σ on every off-diagonal element; a calibration that corrects a
+    misalignment leaves its own σ."""
+    noise = replace(NOISE, gyro_misalignment=2e-3)
+    off = ~np.eye(3, dtype=bool)
+    datasheet = gyro_misalignment_variance(noise)
+    assert np.allclose(datasheet[off], 4e-6) and not np.diagonal(datasheet).any()
+    file = ImuCalibration.from_yaml(REPO / "config" / "imu400cc_calibration.yaml").gyro
+    assert np.array_equal(gyro_misalignment_variance(noise, file), datasheet)
+    sigma = ((0.0, 3e-4, 0.0), (1e-4, 0.0, 0.0), (0.0, 0.0, 0.0))
+    aligned = replace(file, misalignment_rad=((0.0, 1e-3, 0.0), (0.0,) * 3, (0.0,) * 3))
+    aligned = replace(aligned, misalignment_sigma_rad=sigma)
+    assert np.allclose(gyro_misalignment_variance(noise, aligned), np.square(sigma))

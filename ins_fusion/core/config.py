@@ -45,6 +45,7 @@ class ImuNoise:
     bias_correlation_time_s: float
     gyro_scale_sigma: float
     accel_scale_sigma: float
+    gyro_misalignment: float
     gyro_turn_on_bias: float
     accel_turn_on_bias: float
 
@@ -125,6 +126,7 @@ class FusionConfig:
                 bias_correlation_time_s=p["imu_noise.bias_correlation_time"],
                 gyro_scale_sigma=ppm(p["imu_noise.gyro_scale_sigma"]),
                 accel_scale_sigma=ppm(p["imu_noise.accel_scale_sigma"]),
+                gyro_misalignment=1e-3 * p["imu_noise.gyro_misalignment"],
                 gyro_turn_on_bias=deg_s(p["imu_noise.gyro_turn_on_bias"]),
                 accel_turn_on_bias=mg(p["imu_noise.accel_turn_on_bias"]),
             ),

@@ -27,6 +27,18 @@ strapdown):
     ε̇_g = -ε_g/T_g + w_g, E[w_g²] = 2σ_g²/T_g with σ_g² from the latest fix (gnss_variance)
     δμ̇ = w_μ, δṫ_d = w_t: random constants with a small random walk (``CALIBRATION_WALK``)
 
+The gyro's misalignment m (σ_m per off-diagonal element, from a datasheet or a calibration),
+which has no states, adds a turn-rate-dependent white noise to n_g, per imu axis i:
+
+    E[n_m,i²] = T_m σ_m² Σ_{j≠i} ω_j²    [rad²/s], T_m = ``AXIS_ERROR_TIME_S``
+
+m is a constant, so the attitude error it makes in a turn grows as σ_m ω t; white noise of this
+density grows as σ_m ω √(T_m t): the two agree after T_m = 10 s, about a car's turn (a corner at
+10 °/s), and the GNSS corrects the attitude within that. Without it a tactical IMU's 1 mrad
+misalignment at 14 °/s (50 °/h) turns the attitude by several times its σ and the position
+leaves its fixes (docs/accuracy.md). Scale factors are states instead (δs_g): as noise of this
+kind they hid the gyro bias's signature in turns and lengthened outage drifts several times.
+
 Discretisation over an interval Δt: Φ = I + FΔt + (FΔt)²/2 and Q_d = (Φ Q_c Φᵀ + Q_c)Δt/2, both
 second-order accurate; propagated in steps of 1/134 s or 0.1 s for 10 s they agree with Van Loan's
 exact form to 0.5 % (test_fusion_eskf.py; Oslo notes "Implications" R2). The engine propagates P
@@ -50,6 +62,7 @@ from scipy.special import gammaincinv
 
 from gnss_ins_common.types import FloatArray, IntArray
 from ins_fusion.core import earth
+from ins_fusion.core.calibration import TriadCalibration
 from ins_fusion.core.compiled import jit, kernel_array
 from ins_fusion.core.config import ImuNoise
 from ins_fusion.core.smoother import SmootherHooks
@@ -61,6 +74,9 @@ _CORE_SIZE = 15
 #: mounting that settles by a few hundredths of a degree per minute) and time offset [s²/s]
 #: (0.1 ms/√s: a clock mapping that wanders by about a millisecond per minute).
 CALIBRATION_WALK = {"mounting": math.radians(0.01) ** 2, "time_offset": 1e-4**2}
+#: Time [s] over which the white noise standing for the gyro's misalignment matches its effect
+#: in a steady turn (module docstring).
+AXIS_ERROR_TIME_S = 10.0
 
 
 @dataclass(frozen=True)
@@ -96,6 +112,21 @@ class StateLayout:
         object.__setattr__(self, "size", next_index)
 
 
+def gyro_misalignment_variance(
+    noise: ImuNoise, calibration: TriadCalibration | None = None
+) -> FloatArray:
+    """Variance [rad²] of each off-diagonal element of the gyro's misalignment (row: sensing
+    axis, column: input axis; zero diagonal), which no state estimates (module docstring): a
+    calibration's own σ when it corrects a misalignment, else the datasheet's
+    ``gyro_misalignment``. Axis signs do not matter (squares): FLU and FRD give the same."""
+    if calibration is not None and np.any(calibration.misalignment_rad):
+        variance = np.square(calibration.misalignment_sigma_rad)
+    else:
+        variance = np.full((3, 3), noise.gyro_misalignment**2)
+    np.fill_diagonal(variance, 0.0)
+    return variance
+
+
 def chi2_threshold(probability: float, dof: int) -> float:
     """Gate: normalised innovation squared accepted below this (chi-square quantile)."""
     # scipy.stats.chi2.ppf's own formula; scipy.stats itself costs ~1 s of import.
@@ -117,10 +148,15 @@ class ErrorStateFilter:
     between updates: closed loop)."""
 
     def __init__(
-        self, layout: StateLayout, noise: ImuNoise, gnss_correlation_time_s: float = 60.0
+        self,
+        layout: StateLayout,
+        noise: ImuNoise,
+        gnss_correlation_time_s: float = 60.0,
+        gyro_misalignment_var: FloatArray | None = None,
     ) -> None:
         """P starts at zero; set it before use. P arrays are replaced, never modified in place,
-        so a reference to ``P`` is a snapshot."""
+        so a reference to ``P`` is a snapshot. ``gyro_misalignment_var``: from
+        ``gyro_misalignment_variance`` (None: from ``noise`` alone)."""
         n = layout.size
         self.layout = layout
         self.P: FloatArray = np.zeros((n, n))
@@ -160,6 +196,10 @@ class ErrorStateFilter:
         self._gnss_rate = 2.0 / gnss_correlation_time_s if layout.gp is not None else 0.0
         self._accel_psd = np.square(noise.accel_vrw)
         self._gyro_psd = np.square(noise.gyro_arw)
+        # Turn-rate-dependent gyro noise of the misalignment (module docstring).
+        if gyro_misalignment_var is None:
+            gyro_misalignment_var = gyro_misalignment_variance(noise)
+        self._gyro_misalignment_q = gyro_misalignment_var * AXIS_ERROR_TIME_S
         self._gnss_variance: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     @property
@@ -191,10 +231,18 @@ class ErrorStateFilter:
         )
         return self._F
 
-    def noise_density(self, mat_ni: FloatArray) -> FloatArray:
-        """Continuous process noise Q_c = G Q Gᵀ [per second] for the rotation imu -> NED."""
+    def noise_density(self, mat_ni: FloatArray, rate_i: FloatArray) -> FloatArray:
+        """Continuous process noise Q_c = G Q Gᵀ [per second] for the rotation imu -> NED
+        and the corrected angular rate in imu FRD [rad/s]."""
         _fill_noise(
-            self._Q, mat_ni, self._gyro_psd, self._accel_psd, self._markov_idx, self._markov_q
+            self._Q,
+            mat_ni,
+            rate_i,
+            self._gyro_psd,
+            self._gyro_misalignment_q,
+            self._accel_psd,
+            self._markov_idx,
+            self._markov_q,
         )
         return self._Q
 
@@ -226,6 +274,7 @@ class ErrorStateFilter:
             self._scales[0],
             self._scales[1],
             self._gyro_psd,
+            self._gyro_misalignment_q,
             self._accel_psd,
             self._markov_idx,
             self._markov_q,
@@ -335,14 +384,17 @@ def _fill_dynamics(
 def _fill_noise(
     Q: FloatArray,
     mat_ni: FloatArray,
+    rate_i: FloatArray,
     gyro_psd: FloatArray,
+    gyro_misalignment_q: FloatArray,
     accel_psd: FloatArray,
     markov_idx: IntArray,
     markov_q: FloatArray,
 ) -> None:
     """The state-dependent blocks of Q_c (ErrorStateFilter.noise_density)."""
     Q[VEL : VEL + 3, VEL : VEL + 3] = (mat_ni * accel_psd) @ mat_ni.T
-    Q[ATT : ATT + 3, ATT : ATT + 3] = (mat_ni * gyro_psd) @ mat_ni.T
+    turn_psd = gyro_misalignment_q @ (rate_i * rate_i)
+    Q[ATT : ATT + 3, ATT : ATT + 3] = (mat_ni * (gyro_psd + turn_psd)) @ mat_ni.T
     for k in range(len(markov_idx)):
         Q[markov_idx[k], markov_idx[k]] = markov_q[k]
 
@@ -363,13 +415,14 @@ def _propagate(
     sg: int,
     sa: int,
     gyro_psd: FloatArray,
+    gyro_misalignment_q: FloatArray,
     accel_psd: FloatArray,
     markov_idx: IntArray,
     markov_q: FloatArray,
 ) -> tuple[FloatArray, FloatArray]:
     """(P, Φ) after an interval (ErrorStateFilter.propagate); F and Q are filled in place."""
     _fill_dynamics(F, mat_ni, force_n, force_i, rate_i, lat_rad, height_m, vel_ned_m_s, sg, sa)
-    _fill_noise(Q, mat_ni, gyro_psd, accel_psd, markov_idx, markov_q)
+    _fill_noise(Q, mat_ni, rate_i, gyro_psd, gyro_misalignment_q, accel_psd, markov_idx, markov_q)
     f_dt = F * dt_s
     phi = np.eye(len(P)) + f_dt + 0.5 * (f_dt @ f_dt)
     q = Q * (0.5 * dt_s)

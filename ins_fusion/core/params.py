@@ -132,6 +132,13 @@ PARAMETERS: tuple[Param, ...] = (
         1.0e5,
     ),
     Param(
+        "imu_noise.gyro_misalignment",
+        0.0,
+        "gyro axis misalignment sigma (datasheet) [mrad]: turn-rate-dependent attitude noise",
+        0.0,
+        100.0,
+    ),
+    Param(
         "imu_noise.gyro_turn_on_bias",
         1.0,
         "initial gyro bias sigma when no standstill seeds it and no calibration gives one [deg/s]",

@@ -25,7 +25,15 @@ from ins_fusion.core.alignment import (
 )
 from ins_fusion.core.calibration import ImuCalibration
 from ins_fusion.core.config import FusionConfig
-from ins_fusion.core.eskf import ATT, BA, BG, VEL, ErrorStateFilter, StateLayout
+from ins_fusion.core.eskf import (
+    ATT,
+    BA,
+    BG,
+    VEL,
+    ErrorStateFilter,
+    StateLayout,
+    gyro_misalignment_variance,
+)
 from ins_fusion.core.gnss_noise import GnssNoise
 from ins_fusion.core.heading import ALIGN_FIX_MAX_AGE_S, course, fast_enough, velocity_variance
 from ins_fusion.core.measurements import (
@@ -211,7 +219,13 @@ class Startup:
         state = FilterState(t, nav, gyro_bias, heading_known)
         state.move(-(state.mat_nb @ self._geometry.antenna_arm_b) + vel_ned * (t - fix.t_s))
         layout = self._layout
-        kf = ErrorStateFilter(layout, noise, config.gnss_correlation_time_s)
+        calibration = None if self._calibration is None else self._calibration.gyro
+        kf = ErrorStateFilter(
+            layout,
+            noise,
+            config.gnss_correlation_time_s,
+            gyro_misalignment_variance(noise, calibration),
+        )
         n = layout.size
         P = np.zeros((n, n))
         P[VEL : VEL + 3, VEL : VEL + 3] = np.diag(vel_var)
