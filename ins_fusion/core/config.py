@@ -13,8 +13,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from gnss_ins_common.params import load_yaml, validate_all
-from gnss_ins_common.types import Vec3
+from gnss_ins_common.types import FloatArray, Vec3
 from ins_fusion.core.params import PARAMETERS
 from ins_fusion.core.units import deg_h, deg_s, deg_sqrt_h, m_s_sqrt_h, mg, ppm
 
@@ -48,6 +50,16 @@ class ImuNoise:
     gyro_misalignment: float
     gyro_turn_on_bias: float
     accel_turn_on_bias: float
+
+    @property
+    def gyro_psd(self) -> FloatArray:
+        """Gyro white-noise power density per axis [rad²/s] (ARW²)."""
+        return np.square(self.gyro_arw)
+
+    @property
+    def accel_psd(self) -> FloatArray:
+        """Accelerometer white-noise power density per axis [m²/s³] (VRW²)."""
+        return np.square(self.accel_vrw)
 
 
 @dataclass(frozen=True)

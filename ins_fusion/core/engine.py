@@ -124,7 +124,7 @@ class InsEngine:
         self._counters = new_counters()
         self._latest = LatestInputs()
         gnss_noise = GnssNoise(config, self.layout)
-        self._densities = ImuDensities(np.square(noise.gyro_arw), np.square(noise.accel_vrw))
+        self._densities = ImuDensities(noise.gyro_psd, noise.accel_psd)
         self._propagator = Propagator(config, geometry, self._densities)
         self._corrections = Corrections(config, geometry, gnss_noise, self._counters, self._latest)
         self._startup = Startup(

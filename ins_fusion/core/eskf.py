@@ -194,8 +194,8 @@ class ErrorStateFilter:
         self._F[self._markov_idx, self._markov_idx] = np.repeat([-1.0 / m[1] for m in markov], 3)
         # No GNSS error states (correlation time 0 = all white): no rate either.
         self._gnss_rate = 2.0 / gnss_correlation_time_s if layout.gp is not None else 0.0
-        self._accel_psd = np.square(noise.accel_vrw)
-        self._gyro_psd = np.square(noise.gyro_arw)
+        self._accel_psd = noise.accel_psd
+        self._gyro_psd = noise.gyro_psd
         # Turn-rate-dependent gyro noise of the misalignment (module docstring).
         if gyro_misalignment_var is None:
             gyro_misalignment_var = gyro_misalignment_variance(noise)

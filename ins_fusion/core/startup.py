@@ -77,7 +77,7 @@ class Startup:
         self._layout = layout
         self._counters = counters
         self._latest = latest
-        self._gyro_psd = np.square(config.imu_noise.gyro_arw)
+        self._gyro_psd = config.imu_noise.gyro_psd
         self.levelling = Levelling()
         self.warnings: tuple[str, ...] = ()
 

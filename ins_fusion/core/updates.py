@@ -76,7 +76,7 @@ class Corrections:
         self._counters = counters
         self._latest = latest
         self._gates = {dof: chi2_threshold(config.gate_probability, dof) for dof in (1, 2, 3)}
-        self._gyro_psd = np.square(config.imu_noise.gyro_arw)
+        self._gyro_psd = config.imu_noise.gyro_psd
         self.nis = dict.fromkeys(MEASUREMENT_NAMES, math.nan)
         self.fading = 1.0
         self.handlers: dict[str, Handler] = {
