@@ -42,7 +42,8 @@ def _group(ros: bool, nodeid: str) -> str:
 @pytest.hookimpl(tryfirst=True)  # before pytest-xdist reads the groups
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """Mark each test with its xdist group; the longest groups of the last run first."""
-    seconds = config.cache.get(_DURATIONS_KEY, {}) if config.cache is not None else {}
+    cache = getattr(config, "cache", None)  # None with -p no:cacheprovider
+    seconds = cache.get(_DURATIONS_KEY, {}) if cache is not None else {}
     groups = {}
     for item in items:
         group = _group(item.get_closest_marker("ros") is not None, item.nodeid)
