@@ -291,18 +291,25 @@ def test_adu5_fault_run():
         try:
             with spinning(node, collector.node):
                 assert wait_for(lambda: collector.count("gnss/attitude") >= 5, 10.0)
+
+                def received(epochs: int) -> None:
+                    """Wait until the node published ``epochs`` more fixes: the emulator's
+                    pending faults (one epoch each, 5 damaged sentences within two) are spent."""
+                    count = collector.count("gnss/fix")
+                    assert wait_for(lambda: collector.count("gnss/fix") >= count + epochs, 10.0)
+
                 dev.corrupt_checksums(3)
                 dev.cut_lines(2)
                 dev.send_garbage(b"\x00\xff\xfe\x13garbage\r\n")
-                time.sleep(1.5)
+                received(4)
                 dev.reset_attitude(3)
-                time.sleep(1.0)
+                received(4)
                 dev.degrade_attitude(2)
-                time.sleep(1.0)
+                received(3)
                 dev.lose_fix(3)
-                time.sleep(1.0)
+                received(4)
                 dev.jump(2, north_m=50.0)
-                time.sleep(1.0)
+                received(3)
                 before = collector.count("gnss/fix")
                 dev.unplug()
                 time.sleep(1.0)
@@ -311,11 +318,11 @@ def test_adu5_fault_run():
                 assert wait_for(lambda: collector.count("gnss/fix") > before + 5, 10.0)
                 setups = dev.commands.count("$PASHS,ELM,15")
                 dev.go_silent(1.0)  # a stalled stream: reopen, set up again
-                time.sleep(1.2)
                 assert wait_for(lambda: dev.commands.count("$PASHS,ELM,15") > setups, 5.0)
                 after = collector.count("gnss/fix")
                 assert wait_for(lambda: collector.count("gnss/fix") > after + 5, 10.0)
-                time.sleep(1.1)  # one more diagnostics period
+                reports = collector.count("/diagnostics")  # one more after the last fix
+                assert wait_for(lambda: collector.count("/diagnostics") > reports, 5.0)
         finally:
             node.close()
             node.destroy_node()
