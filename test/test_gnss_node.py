@@ -94,6 +94,17 @@ def _run(device: GnssEmulator, receiver: Receiver, until, timeout_s: float, **pa
     return collector
 
 
+def _each_fix_has_its_utc(collector: Collector) -> bool:
+    """Every fix (with a position) received has its time reference (published after it)."""
+    utc_of = _utc_by_stamp(collector)
+    fixes = collector.get("gnss/fix")
+    return all(
+        round(stamp_s(f), 6) in utc_of
+        for f in fixes
+        if f.status.status != NavSatStatus.STATUS_NO_FIX
+    )
+
+
 def _utc_by_stamp(collector: Collector) -> dict[float, float]:
     return {
         round(stamp_s(m), 6): m.time_ref.sec + m.time_ref.nanosec * 1e-9
@@ -323,6 +334,7 @@ def test_adu5_fault_run():
                 assert wait_for(lambda: collector.count("gnss/fix") > after + 5, 10.0)
                 reports = collector.count("/diagnostics")  # one more after the last fix
                 assert wait_for(lambda: collector.count("/diagnostics") > reports, 5.0)
+                assert wait_for(lambda: _each_fix_has_its_utc(collector), 5.0)
         finally:
             node.close()
             node.destroy_node()
