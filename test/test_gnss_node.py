@@ -334,6 +334,7 @@ def test_adu5_fault_run():
                 assert wait_for(lambda: collector.count("gnss/fix") > after + 5, 10.0)
                 reports = collector.count("/diagnostics")  # one more after the last fix
                 assert wait_for(lambda: collector.count("/diagnostics") > reports, 5.0)
+                dev.go_silent(60.0)  # no more epochs: the time reference of the last fix
                 assert wait_for(lambda: _each_fix_has_its_utc(collector), 5.0)
         finally:
             node.close()
