@@ -8,6 +8,8 @@ PYTHON ?= python3
 VENV   ?= .venv
 # pytest-xdist workers of `make pytest` for the tests without real nodes.
 PYTEST_WORKERS ?= 2
+# Their niceness: the real-time node tests beside them come first for the CPU.
+PURE_NICE ?= 3
 BIN    := $(VENV)/bin
 ROS_SYSTEM := $(shell [ "$$ROS_DISTRO" = "jazzy" ] && $(PYTHON) -c 'import rclpy' 2>/dev/null && echo yes)
 # mypy --strict on every package folder; pyproject.toml excludes the ROS modules (node.py,
@@ -64,11 +66,18 @@ lint: venv
 typecheck: venv
 	$(BIN)/mypy $(MYPY_TARGETS)
 
-# The real-time node tests (marker ros) run after the others, alone: on 2 cores a test suite in the
-# other worker starves their nodes (IMU samples late, shutdown races).
+# The real-time node tests (marker ros) run one after another in a pytest session of their own,
+# beside the others' and at a higher priority: at equal priority a worker of the other tests
+# starves their nodes on 2 cores (IMU samples late, shutdown races), and two node tests at once
+# starve each other. The other tests' output is shown once both sessions have ended.
 pytest: venv
-	$(BIN)/python -m pytest -q -n $(PYTEST_WORKERS) --dist loadgroup --no-loadscope-reorder -m "not ros"
-	$(BIN)/python -m pytest -q -m ros
+	@log=$$(mktemp); \
+	nice -n $(PURE_NICE) $(BIN)/python -m pytest -q -n $(PYTEST_WORKERS) --dist loadgroup \
+	--no-loadscope-reorder -m "not ros" >$$log 2>&1 & pure=$$!; \
+	echo "tests with real nodes (the others run beside them, their output follows):"; \
+	$(BIN)/python -m pytest -q -m ros; ros=$$?; \
+	wait $$pure; status=$$?; echo "tests without real nodes:"; cat $$log; rm -f $$log; \
+	[ $$ros -eq 0 ] && [ $$status -eq 0 ]
 
 test: lint typecheck pytest
 

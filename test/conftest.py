@@ -5,10 +5,10 @@ developers' nodes) by a random DDS domain restricted to this host; subprocess no
 Under pytest-xdist every worker (gw0, gw1, ...) takes the next domains after the controller's,
 so the nodes of tests running at the same time in two workers never see each other. With
 ``--dist loadgroup`` the tests that run real nodes (marker ``ros``) form one group, run one
-after another in one worker (never two real-time node tests at once; make pytest runs them on
-their own after the others), and every other test module is a group of its own: its
-module-scoped fixtures (simulated drives and records) are built once, not once per worker. The
-groups are handed out longest first, by the seconds they took in the previous run (pytest's
+after another in one worker (never two real-time node tests at once; make pytest runs them in a
+session of their own beside the others), and every other test module is a group of its own:
+its module-scoped fixtures (simulated drives and records) are built once, not once per worker.
+The groups are handed out longest first, by the seconds they took in the previous run (pytest's
 cache; unknown ones first), so that the workers finish together (make pytest passes
 --no-loadscope-reorder to keep that order).
 """

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from gnss_ins_common.message_fields import fill_imu, stamp_ns
-from ins_fusion.bags.bag_io import BagError, BagWriter
+from ins_fusion.bags.bag_io import BagError, BagReader, BagWriter, jazzy_typestore
 from ins_fusion.bags.imu import ImuRecord, read_imu, write_imu_bag
 from ins_fusion.bags.messages import new_message
 from ins_fusion.bags.topics import IMU_DATA, IMU_TYPE
@@ -40,6 +40,24 @@ def test_written_record_reads_back_on_both_time_bases(tmp_path):
         relative.temperature_t_s, back.temperature_t_s - back.t_s[0], rtol=0, atol=1e-6
     )
     assert read_imu(tmp_path / "lab", temperature_topic=None).temperature_t_s.shape == (0,)
+
+
+def test_written_imu_messages_are_the_bytes_rosbags_serializes(tmp_path):
+    """The writer's numpy encoding: every message as rosbags serializes fill_imu's message,
+    logged its delay after its stamp (one stamp on the last nanosecond of a second)."""
+    record = _record()
+    stamps = np.array([stamp_ns(t) for t in record.t_s])
+    stamps[0] = 1_717_235_999_999_999_999
+    write_imu_bag(tmp_path / "lab", record, stamps_ns=stamps, delay_ns=4_690_000)
+    with BagReader(tmp_path / "lab") as reader:
+        written = list(reader.messages([IMU_DATA]))
+    typestore, zero = jazzy_typestore(), (0.0,) * 3
+    assert [m.log_time_ns for m in written] == [int(s) + 4_690_000 for s in stamps]
+    for message, stamp, rate, force in zip(
+        written, stamps.tolist(), record.rate_flu_rad_s, record.force_flu_m_s2, strict=True
+    ):
+        expected = fill_imu(new_message(IMU_TYPE), stamp, "imu_link", rate, force, zero, zero)
+        assert bytes(message.message) == bytes(typestore.serialize_cdr(expected, IMU_TYPE))
 
 
 def test_samples_come_in_stamp_order_without_repeats(tmp_path):

@@ -90,6 +90,8 @@ def test_node_fuses_a_played_bag_into_odometry_fix_and_imu(drive_bag):
             player = subprocess.run(played, capture_output=True, text=True, timeout=120)
             assert player.returncode == 0, player.stderr
             assert wait_for(lambda: collector.count("/diagnostics") > 0, 5.0)
+            # the last odometry's transform may still be on its way
+            assert wait_for(lambda: collector.count("/tf") >= collector.count("ins/odometry"), 5.0)
     finally:
         node.destroy_node()
         collector.node.destroy_node()

@@ -68,7 +68,12 @@ def test_gnss_node_survives_a_live_fuzz():
         )
         try:
             with spinning(collector.node):
-                time.sleep(1.5)  # the node opens the port
+                # The node runs and has opened the port: a diagnostics report says so.
+                def port_open() -> bool:
+                    reports = collector.get("/diagnostics")
+                    return bool(reports) and not reports[-1].status[0].message.startswith("port")
+
+                assert wait_for(port_open, 60.0)
                 second, written = 0, 0
                 while written < FUZZED:
                     burst = []

@@ -94,6 +94,17 @@ def _run(device: GnssEmulator, receiver: Receiver, until, timeout_s: float, **pa
     return collector
 
 
+def _each_fix_has_its_utc(collector: Collector) -> bool:
+    """Every fix (with a position) received has its time reference (published after it)."""
+    utc_of = _utc_by_stamp(collector)
+    fixes = collector.get("gnss/fix")
+    return all(
+        round(stamp_s(f), 6) in utc_of
+        for f in fixes
+        if f.status.status != NavSatStatus.STATUS_NO_FIX
+    )
+
+
 def _utc_by_stamp(collector: Collector) -> dict[float, float]:
     return {
         round(stamp_s(m), 6): m.time_ref.sec + m.time_ref.nanosec * 1e-9
@@ -291,18 +302,25 @@ def test_adu5_fault_run():
         try:
             with spinning(node, collector.node):
                 assert wait_for(lambda: collector.count("gnss/attitude") >= 5, 10.0)
+
+                def received(epochs: int) -> None:
+                    """Wait until the node published ``epochs`` more fixes: the emulator's
+                    pending faults (one epoch each, 5 damaged sentences within two) are spent."""
+                    count = collector.count("gnss/fix")
+                    assert wait_for(lambda: collector.count("gnss/fix") >= count + epochs, 10.0)
+
                 dev.corrupt_checksums(3)
                 dev.cut_lines(2)
                 dev.send_garbage(b"\x00\xff\xfe\x13garbage\r\n")
-                time.sleep(1.5)
+                received(4)
                 dev.reset_attitude(3)
-                time.sleep(1.0)
+                received(4)
                 dev.degrade_attitude(2)
-                time.sleep(1.0)
+                received(3)
                 dev.lose_fix(3)
-                time.sleep(1.0)
+                received(4)
                 dev.jump(2, north_m=50.0)
-                time.sleep(1.0)
+                received(3)
                 before = collector.count("gnss/fix")
                 dev.unplug()
                 time.sleep(1.0)
@@ -311,11 +329,13 @@ def test_adu5_fault_run():
                 assert wait_for(lambda: collector.count("gnss/fix") > before + 5, 10.0)
                 setups = dev.commands.count("$PASHS,ELM,15")
                 dev.go_silent(1.0)  # a stalled stream: reopen, set up again
-                time.sleep(1.2)
                 assert wait_for(lambda: dev.commands.count("$PASHS,ELM,15") > setups, 5.0)
                 after = collector.count("gnss/fix")
                 assert wait_for(lambda: collector.count("gnss/fix") > after + 5, 10.0)
-                time.sleep(1.1)  # one more diagnostics period
+                reports = collector.count("/diagnostics")  # one more after the last fix
+                assert wait_for(lambda: collector.count("/diagnostics") > reports, 5.0)
+                dev.go_silent(60.0)  # no more epochs: the time reference of the last fix
+                assert wait_for(lambda: _each_fix_has_its_utc(collector), 5.0)
         finally:
             node.close()
             node.destroy_node()

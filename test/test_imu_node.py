@@ -160,11 +160,13 @@ def test_fault_run_garbage_corruption_drops_and_a_vanishing_port():
                 assert wait_for(
                     lambda: collector.count("imu/data_raw") > before_unplug + 150, 10.0
                 ), "no data after the port came back"
+                starts = dev.commands["C"]
                 dev.go_silent(1.5)  # a stalled stream: the node must reopen and re-issue 'C'
-                time.sleep(1.6)
+                assert wait_for(lambda: dev.commands["C"] > starts, 10.0)
                 after_stall = collector.count("imu/data_raw")
                 assert wait_for(lambda: collector.count("imu/data_raw") > after_stall + 100, 10)
-                time.sleep(1.2)  # one more diagnostics period
+                reports = collector.count("/diagnostics")  # one more after the last sample
+                assert wait_for(lambda: collector.count("/diagnostics") > reports, 5.0)
         finally:
             node.close()
             node.destroy_node()

@@ -12,6 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import signal
 
+from imu400cc_driver.emulator import SentPacket
 from ins_fusion.bags import topics as T  # noqa: N812
 from ins_fusion.bags.bag_io import BagReader
 from ins_fusion.sim import vibration
@@ -239,3 +240,16 @@ def test_live_source_sees_the_same_vibration_as_the_bag():
     without = quiet.apply(t, truth.rate_flu_rad_s, truth.specific_force_flu_m_s2)
     vibrating = np.std(live_values - np.hstack(without), axis=0)
     assert np.all(vibrating > 0.5 * np.concatenate(vibration_sigma(CAR, 60 / 3.6)))
+
+
+def test_live_source_offset_is_measured_on_the_first_sample_of_a_late_batch():
+    """A late emulator thread asks for 20 samples, then writes them: the offset measured on the
+    first packet is its own (sample time - device time); the next sample time comes after the
+    last one (an offset measured against the batch's last sample went back by the batch)."""
+    live = LiveImu(Simulation(CONFIG), start_s=1000.0, offset_s=0.0)
+    device_s = 5.0 + np.arange(21) / 134.0
+    for d in device_s[:20]:
+        live(float(d))
+    live.on_packet(SentPacket(0, 1000.0 + 0.01 + device_s[0], 1000.2))
+    assert live.offset_s == pytest.approx(0.01, abs=1e-9)
+    live(float(device_s[20]))  # sample time 0.01 s later than asked: still increasing

@@ -193,29 +193,61 @@ def write_imu_bag(
     sensor_msgs/Temperature on /imu/temperature. Stamps are the record's ``start_ns`` + its times
     [ns] (IMU stamps: ``stamps_ns`` when given); each message is logged ``delay_ns`` after its
     stamp."""
-    zero = (0.0, 0.0, 0.0)
     if stamps_ns is None:
         imu_stamps = [record.start_ns + stamp_ns(t) for t in record.t_s.tolist()]
     else:
         imu_stamps = [int(stamp) for stamp in stamps_ns]
-    events = [
-        (stamp, topic, fill_imu(new_message(IMU_TYPE), stamp, IMU_FRAME, w, f, zero, zero))
-        for stamp, w, f in zip(
-            imu_stamps, record.rate_flu_rad_s.tolist(), record.force_flu_m_s2.tolist(), strict=True
-        )
-    ]
-    temperature_stamps = [record.start_ns + stamp_ns(t) for t in record.temperature_t_s.tolist()]
-    events += [
-        (
-            stamp,
-            IMU_TEMPERATURE,
-            fill_temperature(new_message(TEMPERATURE_TYPE), stamp, IMU_FRAME, c, 0.0),
-        )
-        for stamp, c in zip(temperature_stamps, record.temperature_c.tolist(), strict=True)
-    ]
     with BagWriter(path, storage=storage) as writer:
+        payloads = _imu_payloads(writer, imu_stamps, record.rate_flu_rad_s, record.force_flu_m_s2)
+        events: list[tuple[int, str, object]] = list(
+            zip(imu_stamps, [topic] * len(imu_stamps), payloads, strict=True)
+        )
+        temperature_stamps = [
+            record.start_ns + stamp_ns(t) for t in record.temperature_t_s.tolist()
+        ]
+        events += [
+            (
+                stamp,
+                IMU_TEMPERATURE,
+                fill_temperature(new_message(TEMPERATURE_TYPE), stamp, IMU_FRAME, c, 0.0),
+            )
+            for stamp, c in zip(temperature_stamps, record.temperature_c.tolist(), strict=True)
+        ]
         writer.add_topic(topic, IMU_TYPE)
         if len(record.temperature_t_s):
             writer.add_topic(IMU_TEMPERATURE, TEMPERATURE_TYPE)
         for stamp, name, message in sorted(events, key=lambda e: e[0]):
             writer.write(name, stamp + delay_ns, message)
+
+
+def _imu_payloads(
+    writer: BagWriter, stamps_ns: list[int], rate_rad_s: FloatArray, force_m_s2: FloatArray
+) -> list[bytes]:
+    """The CDR bytes of the sensor_msgs/Imu that ``fill_imu`` makes of each sample (zero
+    covariances), all at once: one message serialized by rosbags is the template, and numpy
+    writes each sample's stamp, rate and force at their fixed offsets (layout: the module
+    docstring of ins_fusion.adapters.cdr_fields), ~40 times faster than one rosbags message
+    object serialized per sample (a 40 min record: 321 600 messages)."""
+    zero = (0.0, 0.0, 0.0)
+    message = fill_imu(new_message(IMU_TYPE), 0, IMU_FRAME, zero, zero, zero, zero)
+    template = np.frombuffer(writer.typestore.serialize_cdr(message, IMU_TYPE), np.uint8)
+    if template[1] != 1:
+        raise BagError("the typestore does not serialize little-endian CDR")
+    stamp_at = 4  # after the encapsulation header: sec (int32), nanosec (uint32), frame_id
+    body = stamp_at + ((8 + 4 + len(IMU_FRAME) + 1 + 7) & ~7)  # aligned to 8 after it
+    rate_at = body + 8 * (4 + 9)  # after the orientation and its covariance
+    force_at = rate_at + 8 * (3 + 9)  # after the rate and its covariance
+    n = len(stamps_ns)
+    sec, nanosec = np.divmod(np.array(stamps_ns, dtype=np.int64), 1_000_000_000)
+    raw = np.empty((n, len(template)), np.uint8)
+    raw[:] = template
+    for at, values in (
+        (stamp_at, sec.astype("<i4")),
+        (stamp_at + 4, nanosec.astype("<u4")),
+        (rate_at, np.asarray(rate_rad_s, dtype="<f8")),
+        (force_at, np.asarray(force_m_s2, dtype="<f8")),
+    ):
+        columns = np.ascontiguousarray(values).view(np.uint8).reshape(n, -1)
+        raw[:, at : at + columns.shape[1]] = columns
+    data, size = raw.tobytes(), len(template)
+    return [data[k * size : (k + 1) * size] for k in range(n)]

@@ -293,10 +293,11 @@ class LiveImu:
         self._start_s = start_s
         self.offset_s = offset_s
         self._measured = False
-        self._last_device_s = math.nan
+        self._first_device_s = math.nan
 
     def __call__(self, device_s: float) -> tuple[FloatArray, FloatArray]:
-        self._last_device_s = device_s
+        if math.isnan(self._first_device_s):
+            self._first_device_s = device_s
         t = device_s + self.offset_s
         rate, force, speed = self._truth(t)
         if not self._vibration.profile.silent:
@@ -306,9 +307,11 @@ class LiveImu:
         return measured_rate[0], measured_force[0]
 
     def on_packet(self, packet: SentPacket) -> None:
-        """Emulator callback (its thread, right after the sample's source call)."""
+        """Emulator callback (its thread, once the packets of its samples were written). The
+        first is the first sample's: a late emulator thread asks for several samples before it
+        writes them, so the offset is measured against the first sample's device time."""
         if not self._measured:
-            self.offset_s = packet.sample_wall_s - self._start_s - self._last_device_s
+            self.offset_s = packet.sample_wall_s - self._start_s - self._first_device_s
             self._measured = True
 
 
