@@ -4,9 +4,16 @@ A simulated bag (imu400cc, test pattern, Leica RTK + ADU5) is played in real tim
 `gnss_ins play`; the node runs as its own executable with output_rate = 134 Hz (one Odometry
 per IMU sample). A subscriber in this process receives both imu/data_raw and ins/odometry;
 latency = receive time of the Odometry - receive time of the Imu message with the same stamp
-(the node's processing plus one DDS hop). CPU = the node process's user + system time.
+(the node's processing plus one DDS hop). CPU = the node process's user + system time, and per
+thread (/proc/PID/task: the Python thread that spins the executor, Fast DDS's receive and event
+threads, ...); the load average beside it (the machine is shared).
 
-    .venv/bin/python bench/bench_fusion_node.py [--duration 120]
+    .venv/bin/python bench/bench_fusion_node.py [--duration 120] [--executor events|single]
+        [--profile FILE]
+
+``--profile FILE`` runs the node under cProfile, timed by the CPU time of its executor thread
+(where every callback runs), and writes the pstats to FILE; CPU and latency then include the
+profiler's overhead.
 """
 
 from __future__ import annotations
@@ -22,15 +29,26 @@ from pathlib import Path
 
 import numpy as np
 import rclpy
-from bench_imu_node import process_cpu_s
+from bench_imu_node import process_cpu_s, thread_cpu_s
 from nav_msgs.msg import Odometry
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu
 
+from gnss_ins_common.ros_node_main import EXECUTOR_ENV
 from ins_fusion.bags.topics import GNSS_ATTITUDE, GNSS_FIX, GNSS_VEL, IMU_DATA
 from ins_fusion.sim.drive import SimulationConfig
 from ins_fusion.tools.simulate import write_bag
+
+# The node's main() under cProfile, timed by the CPU time of the executor's thread (wall time
+# would count the waits and, on a loaded machine, the time the thread was not scheduled).
+_PROFILED = """
+import cProfile, sys, time
+from ins_fusion.node import main
+profile = cProfile.Profile(time.thread_time)
+profile.runcall(main, ["ins_fusion_node", *sys.argv[1:]])
+profile.dump_stats({!r})
+"""
 
 
 def _stamp_us(msg) -> int:
@@ -47,6 +65,13 @@ def main() -> None:
         default=134.0,
         help="node output_rate [Hz]; 134 = one Odometry per IMU sample",
     )
+    parser.add_argument(
+        "--executor",
+        choices=("events", "single"),
+        default="events",
+        help="the node's executor ($GNSS_INS_EXECUTOR, gnss_ins_common/ros_node_main.py)",
+    )
+    parser.add_argument("--profile", type=Path, help="write the node's cProfile pstats here")
     args = parser.parse_args()
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     os.environ.setdefault("ROS_DOMAIN_ID", str(40 + os.getpid() % 50))
@@ -77,12 +102,18 @@ def main() -> None:
         executor.add_node(listener)
         threading.Thread(target=executor.spin, daemon=True).start()
 
+        node_args = ["--ros-args", "-p", f"output_rate:={args.output_rate}"]
+        command = [bin_dir / "ins_fusion_node", *node_args]
+        if args.profile:
+            command = [sys.executable, "-c", _PROFILED.format(str(args.profile)), *node_args]
         node = subprocess.Popen(
-            [bin_dir / "ins_fusion_node", "--ros-args", "-p", f"output_rate:={args.output_rate}"],
+            command,
             stderr=subprocess.DEVNULL,
+            env={**os.environ, EXECUTOR_ENV: args.executor},
         )
         time.sleep(3.0)  # discovery
         cpu0, wall0 = process_cpu_s(node.pid), time.monotonic()
+        threads0 = thread_cpu_s(node.pid)
         subprocess.run(
             [
                 bin_dir / "gnss_ins",
@@ -99,9 +130,11 @@ def main() -> None:
             capture_output=True,
         )
         cpu1, wall1 = process_cpu_s(node.pid), time.monotonic()
+        threads1 = thread_cpu_s(node.pid)
+        load = os.getloadavg()
         time.sleep(0.5)
         node.terminate()
-        node.wait(timeout=10)
+        node.wait(timeout=30)
         executor.shutdown()
         listener.destroy_node()
         rclpy.shutdown()
@@ -111,7 +144,7 @@ def main() -> None:
         latency_ms = np.array([(odom_rx[s] - imu_rx[s]) * 1e3 for s in common])
     print(
         f"ins_fusion_node, {args.duration:.0f} s bag played in real time, "
-        f"output_rate {args.output_rate:g} Hz"
+        f"output_rate {args.output_rate:g} Hz, {args.executor} executor"
     )
     print(f"  Imu messages received {len(imu_rx)}, Odometry {len(odom_rx)}, matched {len(common)}")
     if len(latency_ms):
@@ -120,7 +153,15 @@ def main() -> None:
             f"p50 {np.percentile(latency_ms, 50):.3f}  p99 {np.percentile(latency_ms, 99):.3f}  "
             f"max {latency_ms.max():.3f}"
         )
-    print(f"  node CPU: {100 * (cpu1 - cpu0) / (wall1 - wall0):.1f} % of one core")
+    wall = wall1 - wall0
+    print(
+        f"  node CPU: {100 * (cpu1 - cpu0) / wall:.1f} % of one core "
+        f"(load average {load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f})"
+    )
+    for name in sorted(threads1, key=lambda n: threads0.get(n, 0.0) - threads1[n]):
+        share = 100 * (threads1[name] - threads0.get(name, 0.0)) / wall
+        if share >= 0.05:
+            print(f"    thread {name}: {share:.1f} %")
 
 
 if __name__ == "__main__":

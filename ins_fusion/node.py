@@ -97,7 +97,9 @@ class InsFusionNode(Node):
         self._tf = TfBroadcaster(
             self, tf_frames.static_transforms(values), dynamic=values["tf_mode"] != "none"
         )
-        self.create_timer(values["diagnostics_period"], self._publish_diagnostics)
+        self.create_timer(
+            values["diagnostics_period"], diag.guarded(self, self._publish_diagnostics)
+        )
         self.get_logger().info(
             f"fusing imu/data_raw + gnss/* into ins/odometry at {config.output_rate_hz:g} Hz"
         )
