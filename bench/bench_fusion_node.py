@@ -9,11 +9,12 @@ thread (/proc/PID/task: the Python thread that spins the executor, Fast DDS's re
 threads, ...); the load average beside it (the machine is shared).
 
     .venv/bin/python bench/bench_fusion_node.py [--duration 120] [--executor events|single]
-        [--profile FILE]
+        [--profile FILE] [--tree DIR]
 
 ``--profile FILE`` runs the node under cProfile, timed by the CPU time of its executor thread
 (where every callback runs), and writes the pstats to FILE; CPU and latency then include the
-profiler's overhead.
+profiler's overhead. ``--tree DIR`` runs the node from another source tree (an A/B in one
+session: ``git worktree add DIR COMMIT``; its numba cache is compiled before the measurement).
 """
 
 from __future__ import annotations
@@ -72,6 +73,7 @@ def main() -> None:
         help="the node's executor ($GNSS_INS_EXECUTOR, gnss_ins_common/ros_node_main.py)",
     )
     parser.add_argument("--profile", type=Path, help="write the node's cProfile pstats here")
+    parser.add_argument("--tree", type=Path, help="run the node from this source tree")
     args = parser.parse_args()
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     os.environ.setdefault("ROS_DOMAIN_ID", str(40 + os.getpid() % 50))
@@ -102,6 +104,11 @@ def main() -> None:
         executor.add_node(listener)
         threading.Thread(target=executor.spin, daemon=True).start()
 
+        node_env = {**os.environ, EXECUTOR_ENV: args.executor}
+        if args.tree:
+            node_env["PYTHONPATH"] = str(args.tree.resolve())
+            warm_up = "from ins_fusion.core.warm_up import warm_up; warm_up()"
+            subprocess.run([sys.executable, "-c", warm_up], env=node_env, check=True)
         node_args = ["--ros-args", "-p", f"output_rate:={args.output_rate}"]
         command = [bin_dir / "ins_fusion_node", *node_args]
         if args.profile:
@@ -109,7 +116,7 @@ def main() -> None:
         node = subprocess.Popen(
             command,
             stderr=subprocess.DEVNULL,
-            env={**os.environ, EXECUTOR_ENV: args.executor},
+            env=node_env,
         )
         time.sleep(3.0)  # discovery
         cpu0, wall0 = process_cpu_s(node.pid), time.monotonic()
