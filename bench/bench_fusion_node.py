@@ -9,12 +9,15 @@ thread (/proc/PID/task: the Python thread that spins the executor, Fast DDS's re
 threads, ...); the load average beside it (the machine is shared).
 
     .venv/bin/python bench/bench_fusion_node.py [--duration 120] [--executor events|single]
-        [--profile FILE] [--tree DIR]
+        [--profile FILE] [--tree DIR] [--floor]
 
 ``--profile FILE`` runs the node under cProfile, timed by the CPU time of its executor thread
 (where every callback runs), and writes the pstats to FILE; CPU and latency then include the
 profiler's overhead. ``--tree DIR`` runs the node from another source tree (an A/B in one
 session: ``git worktree add DIR COMMIT``; its numba cache is compiled before the measurement).
+``--floor`` runs, instead of the node, an rclpy node that takes the fusion node's inputs
+(serialized, the same QoS, executor and spin loop) and drops them: what rclpy and DDS cost at
+134 Hz before any work (no Odometry, so no latency).
 """
 
 from __future__ import annotations
@@ -52,6 +55,28 @@ profile.dump_stats({!r})
 """
 
 
+# A node that takes what ins_fusion_node subscribes to and drops it (serialized, same QoS).
+_FLOOR = """
+import rclpy
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import Imu, NavSatFix
+from geometry_msgs.msg import TwistWithCovarianceStamped
+from gnss_ins_common.ros_endpoints import Endpoints
+from gnss_ins_common.ros_node_main import make_executor, spin_guarded
+rclpy.init()
+node = rclpy.create_node("ins_fusion_floor")
+endpoints = Endpoints(node)
+sensor_qos = QoSProfile(depth=200, reliability=ReliabilityPolicy.BEST_EFFORT)
+endpoints.subscription(Imu, "imu/data_raw", lambda data: None, sensor_qos, raw=True)
+endpoints.subscription(NavSatFix, "gnss/fix", lambda data: None, 20, raw=True)
+endpoints.subscription(TwistWithCovarianceStamped, "gnss/vel", lambda data: None, 20, raw=True)
+endpoints.subscription(Imu, "gnss/attitude", lambda data: None, 20, raw=True)
+executor = make_executor()
+executor.add_node(node)
+spin_guarded(executor, node, rclpy.ok)
+"""
+
+
 def _stamp_us(msg) -> int:
     """Stamp in whole µs: the Odometry stamp went through float seconds, the Imu one did not."""
     return round((msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec) / 1000)
@@ -74,6 +99,9 @@ def main() -> None:
     )
     parser.add_argument("--profile", type=Path, help="write the node's cProfile pstats here")
     parser.add_argument("--tree", type=Path, help="run the node from this source tree")
+    parser.add_argument(
+        "--floor", action="store_true", help="a node that takes the inputs and drops them"
+    )
     args = parser.parse_args()
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     os.environ.setdefault("ROS_DOMAIN_ID", str(40 + os.getpid() % 50))
@@ -113,6 +141,8 @@ def main() -> None:
         command = [bin_dir / "ins_fusion_node", *node_args]
         if args.profile:
             command = [sys.executable, "-c", _PROFILED.format(str(args.profile)), *node_args]
+        if args.floor:
+            command = [sys.executable, "-c", _FLOOR]
         node = subprocess.Popen(
             command,
             stderr=subprocess.DEVNULL,
@@ -152,6 +182,7 @@ def main() -> None:
     print(
         f"ins_fusion_node, {args.duration:.0f} s bag played in real time, "
         f"output_rate {args.output_rate:g} Hz, {args.executor} executor"
+        + (", floor (inputs taken and dropped)" if args.floor else "")
     )
     print(f"  Imu messages received {len(imu_rx)}, Odometry {len(odom_rx)}, matched {len(common)}")
     if len(latency_ms):
