@@ -1,6 +1,7 @@
 """Diagnostics common to the three nodes (real rclpy nodes, real emulated devices): callback
-exceptions are caught by the nodes' spin loop, counted in ``callback_errors`` and reported in the
-next status only (cleared on recovery); ins_fusion_node's level is stable through an outage."""
+exceptions are caught around the callback or by the nodes' spin loop, counted in
+``callback_errors`` and reported in the next status only (cleared on recovery); ins_fusion_node's
+level is stable through an outage."""
 
 from __future__ import annotations
 
