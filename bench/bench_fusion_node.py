@@ -4,9 +4,20 @@ A simulated bag (imu400cc, test pattern, Leica RTK + ADU5) is played in real tim
 `gnss_ins play`; the node runs as its own executable with output_rate = 134 Hz (one Odometry
 per IMU sample). A subscriber in this process receives both imu/data_raw and ins/odometry;
 latency = receive time of the Odometry - receive time of the Imu message with the same stamp
-(the node's processing plus one DDS hop). CPU = the node process's user + system time.
+(the node's processing plus one DDS hop). CPU = the node process's user + system time, and per
+thread (/proc/PID/task: the Python thread that spins the executor, Fast DDS's receive and event
+threads, ...); the load average beside it (the machine is shared).
 
-    .venv/bin/python bench/bench_fusion_node.py [--duration 120]
+    .venv/bin/python bench/bench_fusion_node.py [--duration 120] [--executor events|single]
+        [--profile FILE] [--tree DIR] [--floor]
+
+``--profile FILE`` runs the node under cProfile, timed by the CPU time of its executor thread
+(where every callback runs), and writes the pstats to FILE; CPU and latency then include the
+profiler's overhead. ``--tree DIR`` runs the node from another source tree (an A/B in one
+session: ``git worktree add DIR COMMIT``; its numba cache is compiled before the measurement).
+``--floor`` runs, instead of the node, an rclpy node that takes the fusion node's inputs
+(serialized, the same QoS, executor and spin loop) and drops them: what rclpy and DDS cost at
+134 Hz before any work (no Odometry, so no latency).
 """
 
 from __future__ import annotations
@@ -22,15 +33,48 @@ from pathlib import Path
 
 import numpy as np
 import rclpy
-from bench_imu_node import process_cpu_s
+from bench_imu_node import process_cpu_s, thread_cpu_s
 from nav_msgs.msg import Odometry
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu
 
+from gnss_ins_common.ros_node_main import EXECUTOR_ENV
 from ins_fusion.bags.topics import GNSS_ATTITUDE, GNSS_FIX, GNSS_VEL, IMU_DATA
 from ins_fusion.sim.drive import SimulationConfig
 from ins_fusion.tools.simulate import write_bag
+
+# The node's main() under cProfile, timed by the CPU time of the executor's thread (wall time
+# would count the waits and, on a loaded machine, the time the thread was not scheduled).
+_PROFILED = """
+import cProfile, sys, time
+from ins_fusion.node import main
+profile = cProfile.Profile(time.thread_time)
+profile.runcall(main, ["ins_fusion_node", *sys.argv[1:]])
+profile.dump_stats({!r})
+"""
+
+
+# A node that takes what ins_fusion_node subscribes to and drops it (serialized, same QoS).
+_FLOOR = """
+import rclpy
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import Imu, NavSatFix
+from geometry_msgs.msg import TwistWithCovarianceStamped
+from gnss_ins_common.ros_endpoints import Endpoints
+from gnss_ins_common.ros_node_main import make_executor, spin_guarded
+rclpy.init()
+node = rclpy.create_node("ins_fusion_floor")
+endpoints = Endpoints(node)
+sensor_qos = QoSProfile(depth=200, reliability=ReliabilityPolicy.BEST_EFFORT)
+endpoints.subscription(Imu, "imu/data_raw", lambda data: None, sensor_qos, raw=True)
+endpoints.subscription(NavSatFix, "gnss/fix", lambda data: None, 20, raw=True)
+endpoints.subscription(TwistWithCovarianceStamped, "gnss/vel", lambda data: None, 20, raw=True)
+endpoints.subscription(Imu, "gnss/attitude", lambda data: None, 20, raw=True)
+executor = make_executor()
+executor.add_node(node)
+spin_guarded(executor, node, rclpy.ok)
+"""
 
 
 def _stamp_us(msg) -> int:
@@ -46,6 +90,17 @@ def main() -> None:
         type=float,
         default=134.0,
         help="node output_rate [Hz]; 134 = one Odometry per IMU sample",
+    )
+    parser.add_argument(
+        "--executor",
+        choices=("events", "single"),
+        default="events",
+        help="the node's executor ($GNSS_INS_EXECUTOR, gnss_ins_common/ros_node_main.py)",
+    )
+    parser.add_argument("--profile", type=Path, help="write the node's cProfile pstats here")
+    parser.add_argument("--tree", type=Path, help="run the node from this source tree")
+    parser.add_argument(
+        "--floor", action="store_true", help="a node that takes the inputs and drops them"
     )
     args = parser.parse_args()
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
@@ -77,12 +132,25 @@ def main() -> None:
         executor.add_node(listener)
         threading.Thread(target=executor.spin, daemon=True).start()
 
+        node_env = {**os.environ, EXECUTOR_ENV: args.executor}
+        if args.tree:
+            node_env["PYTHONPATH"] = str(args.tree.resolve())
+            warm_up = "from ins_fusion.core.warm_up import warm_up; warm_up()"
+            subprocess.run([sys.executable, "-c", warm_up], env=node_env, check=True)
+        node_args = ["--ros-args", "-p", f"output_rate:={args.output_rate}"]
+        command = [bin_dir / "ins_fusion_node", *node_args]
+        if args.profile:
+            command = [sys.executable, "-c", _PROFILED.format(str(args.profile)), *node_args]
+        if args.floor:
+            command = [sys.executable, "-c", _FLOOR]
         node = subprocess.Popen(
-            [bin_dir / "ins_fusion_node", "--ros-args", "-p", f"output_rate:={args.output_rate}"],
+            command,
             stderr=subprocess.DEVNULL,
+            env=node_env,
         )
         time.sleep(3.0)  # discovery
         cpu0, wall0 = process_cpu_s(node.pid), time.monotonic()
+        threads0 = thread_cpu_s(node.pid)
         subprocess.run(
             [
                 bin_dir / "gnss_ins",
@@ -99,9 +167,11 @@ def main() -> None:
             capture_output=True,
         )
         cpu1, wall1 = process_cpu_s(node.pid), time.monotonic()
+        threads1 = thread_cpu_s(node.pid)
+        load = os.getloadavg()
         time.sleep(0.5)
         node.terminate()
-        node.wait(timeout=10)
+        node.wait(timeout=30)
         executor.shutdown()
         listener.destroy_node()
         rclpy.shutdown()
@@ -111,7 +181,8 @@ def main() -> None:
         latency_ms = np.array([(odom_rx[s] - imu_rx[s]) * 1e3 for s in common])
     print(
         f"ins_fusion_node, {args.duration:.0f} s bag played in real time, "
-        f"output_rate {args.output_rate:g} Hz"
+        f"output_rate {args.output_rate:g} Hz, {args.executor} executor"
+        + (", floor (inputs taken and dropped)" if args.floor else "")
     )
     print(f"  Imu messages received {len(imu_rx)}, Odometry {len(odom_rx)}, matched {len(common)}")
     if len(latency_ms):
@@ -120,7 +191,15 @@ def main() -> None:
             f"p50 {np.percentile(latency_ms, 50):.3f}  p99 {np.percentile(latency_ms, 99):.3f}  "
             f"max {latency_ms.max():.3f}"
         )
-    print(f"  node CPU: {100 * (cpu1 - cpu0) / (wall1 - wall0):.1f} % of one core")
+    wall = wall1 - wall0
+    print(
+        f"  node CPU: {100 * (cpu1 - cpu0) / wall:.1f} % of one core "
+        f"(load average {load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f})"
+    )
+    for name in sorted(threads1, key=lambda n: threads0.get(n, 0.0) - threads1[n]):
+        share = 100 * (threads1[name] - threads0.get(name, 0.0)) / wall
+        if share >= 0.05:
+            print(f"    thread {name}: {share:.1f} %")
 
 
 if __name__ == "__main__":

@@ -259,8 +259,8 @@ class GnssNode(Node):
         self._att_pub = endpoints.publisher(Imu, "gnss/attitude", qos)
         self._time_pub = endpoints.publisher(TimeReference, "gnss/time_reference", qos)
         self._diagnostics = diag.DiagnosticsPublisher(self, endpoints)
-        self.create_timer(p["diagnostics_period"], self._publish_diagnostics)
-        self.create_timer(p["epoch_idle_timeout"] / 2.0, self._flush_idle)
+        self.create_timer(p["diagnostics_period"], diag.guarded(self, self._publish_diagnostics))
+        self.create_timer(p["epoch_idle_timeout"] / 2.0, diag.guarded(self, self._flush_idle))
 
         self._link = start_serial_link(
             self,

@@ -2,14 +2,17 @@
 
 from __future__ import annotations
 
+import functools
 import threading
 import weakref
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING, Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.node import Node
 
-from gnss_ins_common.ros_endpoints import Endpoints
+if TYPE_CHECKING:  # ros_endpoints guards its callbacks with ``guarded`` below
+    from gnss_ins_common.ros_endpoints import Endpoints
 
 #: Status levels (one-byte ``bytes`` values, as the message field wants them).
 OK: bytes = DiagnosticStatus.OK
@@ -42,8 +45,9 @@ CALLBACK_ERROR_LOG_PERIOD_S = 10.0
 
 
 class CallbackErrors:
-    """Exceptions raised by a node's subscription and timer callbacks, caught by the spin loop
-    (``ros_node_main.spin_guarded``) so that one bad message or tick does not end the node.
+    """Exceptions raised by a node's subscription and timer callbacks, caught around each
+    callback (``guarded``) or by the spin loop (``ros_node_main.spin_guarded``) so that one bad
+    message or tick does not end the node.
 
     Each kind (exception type and callback) is logged at ERROR the first time, then at most once
     per ``CALLBACK_ERROR_LOG_PERIOD_S`` with its count."""
@@ -89,6 +93,24 @@ def callback_errors(node: Node) -> CallbackErrors:
     if errors is None:
         errors = _CALLBACK_ERRORS[node] = CallbackErrors(node)
     return errors
+
+
+def guarded(node: Node, callback: Callable[..., None]) -> Callable[..., None]:
+    """``callback`` with its exceptions counted and logged in ``node``'s ``CallbackErrors`` (under
+    its own name) instead of raised to the executor. The spin loop catches them too, but
+    EventsExecutor logs each as fatal with a traceback first and, for a subscription, leaves the
+    rest of a burst of messages queued until later ones arrive."""
+    errors = callback_errors(node)
+    name = getattr(callback, "__name__", "callback")
+
+    @functools.wraps(callback)  # rclpy reads the callback's signature (message info or not)
+    def call(*args: Any) -> None:
+        try:
+            callback(*args)
+        except Exception as exc:
+            errors.record(exc, name)
+
+    return call
 
 
 class DiagnosticsPublisher:

@@ -21,6 +21,8 @@ from rclpy.qos_overriding_options import QoSOverridingOptions
 from rclpy.subscription import Subscription
 from rclpy.topic_endpoint_info import TopicEndpointInfo
 
+from gnss_ins_common.ros_diagnostics import guarded
+
 
 def type_name(msg_type: Any) -> str:
     """'pkg/msg/Name' of a generated message class (the form the ROS graph reports)."""
@@ -58,13 +60,14 @@ class Endpoints:
         raw: bool = False,
         overridable: bool = False,
     ) -> Subscription:
-        """A subscription without QoS event handlers; ``raw``: the callback gets the serialized
-        message (bytes); ``overridable``: its history, depth and reliability can be set by the
-        standard ROS parameters ``qos_overrides.<topic>.subscription.<policy>``."""
+        """A subscription without QoS event handlers whose callback's exceptions are counted in
+        the node's callback errors (ros_diagnostics.guarded); ``raw``: the callback gets the
+        serialized message (bytes); ``overridable``: its history, depth and reliability can be
+        set by the standard ROS parameters ``qos_overrides.<topic>.subscription.<policy>``."""
         subscription = self._node.create_subscription(
             msg_type,
             topic,
-            callback,
+            guarded(self._node, callback),
             qos,
             event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False),
             raw=raw,

@@ -1,7 +1,16 @@
-"""The ``main`` shared by the gnss_ins node executables."""
+"""The ``main`` shared by the gnss_ins node executables.
+
+The nodes spin rclpy's EventsExecutor (``rclpy.experimental``) when this rclpy has it: it takes
+each message from rcl's on-new-message callback in C++, where SingleThreadedExecutor rebuilds its
+whole wait set in Python for every message (ins_fusion_node at 134 Hz: about half of its CPU,
+docs/benchmarks.md). It is spun ``spin_until_future_complete`` with a time-out in a loop: its
+``spin()`` busy-waits in rclpy 7.1 (a full core). ``GNSS_INS_EXECUTOR=single`` in the
+environment selects SingleThreadedExecutor instead.
+"""
 
 from __future__ import annotations
 
+import os
 import re
 import sys
 import traceback
@@ -11,17 +20,42 @@ import rclpy
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.task import Future
 
 from gnss_ins_common.params import ParameterValueError, check_parameter_files
 from gnss_ins_common.ros_diagnostics import callback_errors
 
+#: Environment variable that selects the nodes' executor: "events" (default) or "single".
+EXECUTOR_ENV = "GNSS_INS_EXECUTOR"
 
-def spin_guarded(executor: Executor, node: Node, keep_going: Callable[[], bool]) -> None:
-    """Spin ``executor`` while ``keep_going()``; an exception from a callback is counted and
-    logged in ``node``'s ``callback_errors`` (ros_diagnostics) instead of ending the node."""
+
+def make_executor() -> Executor:
+    """The nodes' executor: EventsExecutor if this rclpy has one and ``$GNSS_INS_EXECUTOR`` is
+    not "single", else SingleThreadedExecutor (ParameterValueError for another value)."""
+    choice = os.environ.get(EXECUTOR_ENV, "events")
+    if choice not in ("events", "single"):
+        raise ParameterValueError(f"{EXECUTOR_ENV}={choice!r}: expected 'events' or 'single'")
+    if choice == "events":
+        try:
+            from rclpy.experimental import EventsExecutor
+        except ImportError:  # an older rclpy
+            pass
+        else:
+            return EventsExecutor()
+    return SingleThreadedExecutor()
+
+
+def spin_guarded(
+    executor: Executor, node: Node, keep_going: Callable[[], bool], period_s: float = 0.1
+) -> None:
+    """Spin ``executor`` while ``keep_going()`` (asked every ``period_s``, every callback run in
+    between); an exception from a callback is counted and logged in ``node``'s
+    ``callback_errors`` (ros_diagnostics) instead of ending the node."""
     while keep_going():
         try:
-            executor.spin_once(timeout_sec=0.1)
+            # A future never done, new each time (its done callbacks do not pile up): all the
+            # events of period_s in one call, not one Python loop per message.
+            executor.spin_until_future_complete(Future(), timeout_sec=period_s)
         except (KeyboardInterrupt, ExternalShutdownException):
             raise
         except Exception as exc:
@@ -29,10 +63,11 @@ def spin_guarded(executor: Executor, node: Node, keep_going: Callable[[], bool])
 
 
 def _callback_name(exc: BaseException) -> str:
-    """The function the executor called: the frame after rclpy's innermost one."""
+    """The function the executor called: the frame after the innermost one of rclpy or of this
+    module (EventsExecutor calls from C++: no rclpy frame in between)."""
     frames = traceback.extract_tb(exc.__traceback__)
-    rclpy_frames = [i for i, f in enumerate(frames) if "/rclpy/" in f.filename]
-    after = rclpy_frames[-1] + 1 if rclpy_frames else len(frames) - 1
+    outer = [i for i, f in enumerate(frames) if "/rclpy/" in f.filename or f.filename == __file__]
+    after = outer[-1] + 1 if outer else len(frames) - 1
     return frames[after].name if 0 <= after < len(frames) else "callback"
 
 
@@ -55,9 +90,10 @@ def run_node(factory: Callable[[], Node], args: Sequence[str] | None = None) -> 
         print(f"error: {exc}", file=sys.stderr)
         return 2
     node: Node | None = None
+    executor: Executor | None = None
     try:
         node = factory()
-        executor = SingleThreadedExecutor()
+        executor = make_executor()
         executor.add_node(node)
         spin_guarded(executor, node, rclpy.ok)
     except ParameterValueError as exc:
@@ -66,6 +102,8 @@ def run_node(factory: Callable[[], Node], args: Sequence[str] | None = None) -> 
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
+        if executor is not None:  # its callbacks off the node's endpoints before they go
+            executor.shutdown(timeout_sec=2.0)
         if node is not None:
             close = getattr(node, "close", None)
             if close is not None:

@@ -145,9 +145,9 @@ class Imu400ccNode(Node):
         self._imu_pub = endpoints.publisher(Imu, "imu/data_raw", qos)
         self._temp_pub = endpoints.publisher(Temperature, "imu/temperature", 10)
         self._diagnostics = diag.DiagnosticsPublisher(self, endpoints)
-        self.create_timer(p["diagnostics_period"], self._publish_diagnostics)
+        self.create_timer(p["diagnostics_period"], diag.guarded(self, self._publish_diagnostics))
         if not config.continuous:
-            self.create_timer(1.0 / p["poll_rate"], self._poll)
+            self.create_timer(1.0 / p["poll_rate"], diag.guarded(self, self._poll))
 
         # Polled: one packet per poll period, so wait at least three of them.
         min_timeout_s = 0.0 if config.continuous else 3.0 / p["poll_rate"]

@@ -22,22 +22,24 @@ from geometry_msgs.msg import TwistWithCovarianceStamped
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.serialization import serialize_message
 from sensor_msgs.msg import Imu, NavSatFix, Temperature
 
 from gnss_ins_common import ros_diagnostics as diag
-from gnss_ins_common.message_fields import fill_orientation, stamp_ns
+from gnss_ins_common.navsat import SERVICE_GPS, CovarianceType
 from gnss_ins_common.rates import IMU400CC_RATE_HZ as NOMINAL_RATE_HZ
 from gnss_ins_common.ros_endpoints import Endpoints
 from gnss_ins_common.ros_node_main import run_node
 from gnss_ins_common.ros_params import declare_parameters
 from ins_fusion.adapters import cdr_fields, messages_in, tf_frames
 from ins_fusion.adapters.cdr_fields import CdrError
-from ins_fusion.adapters.solution_out import fill_fused_fix, fill_odometry, publishable
+from ins_fusion.adapters.cdr_out import OutputWriter
+from ins_fusion.adapters.solution_out import publishable
 from ins_fusion.adapters.status_log import WARN, StatusLog
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.engine import InsEngine, InsSolution
 from ins_fusion.core.params import PARAMETERS as FUSION_PARAMETERS
-from ins_fusion.ros_tf import TfBroadcaster
+from ins_fusion.ros_tf import TfBroadcaster, transform_template
 
 #: One table for the node and `gnss_ins replay` (ins_fusion/core/params.py).
 PARAMETERS = FUSION_PARAMETERS
@@ -64,11 +66,10 @@ class InsFusionNode(Node):
         self._last_output_s = -math.inf
         # Variance of one bias-corrected rate sample: white-noise density^2 x the IMU rate.
         gyro_psd = float(np.mean(np.square(config.imu_noise.gyro_arw)))
-        self._rate_variance = gyro_psd * NOMINAL_RATE_HZ
+        rate_variance = gyro_psd * NOMINAL_RATE_HZ
+        self._outputs = output_writer(self._map_frame, self._base_frame, rate_variance)
         self._published = 0
         self._invalid_outputs = 0
-        self._rate_covariance = np.eye(3).ravel() * self._rate_variance
-        self._odom_msg, self._fix_msg, self._imu_msg = Odometry(), NavSatFix(), Imu()
         self._bad_imu_messages = 0
         self._degraded_after_s = config.degraded_after_s
         # IMU stamp [s] from which the state is 'navigating' again after an outage; None: not
@@ -97,7 +98,9 @@ class InsFusionNode(Node):
         self._tf = TfBroadcaster(
             self, tf_frames.static_transforms(values), dynamic=values["tf_mode"] != "none"
         )
-        self.create_timer(values["diagnostics_period"], self._publish_diagnostics)
+        self.create_timer(
+            values["diagnostics_period"], diag.guarded(self, self._publish_diagnostics)
+        )
         self.get_logger().info(
             f"fusing imu/data_raw + gnss/* into ins/odometry at {config.output_rate_hz:g} Hz"
         )
@@ -156,26 +159,12 @@ class InsFusionNode(Node):
                 throttle_duration_sec=10.0,
             )
             return
-        # One message object per topic, refilled every time (every field is set; publish()
-        # serializes before it returns): building three new messages cost more than filling.
-        odom = fill_odometry(
-            self._odom_msg, solution, self._map_frame, self._base_frame, self._rate_variance
-        )
-        self._odom_pub.publish(odom)
-        self._tf.send(odom)
-        self._fix_pub.publish(fill_fused_fix(self._fix_msg, solution, self._base_frame))
-
-        imu = fill_orientation(
-            self._imu_msg,
-            stamp_ns(solution.t_s),
-            self._base_frame,
-            solution.quat_enu_flu_xyzw,
-            solution.cov_att_enu_rad2.ravel(),
-        )
-        rate, w = imu.angular_velocity, odom.twist.twist.angular  # bias-corrected, base_link
-        rate.x, rate.y, rate.z = w.x, w.y, w.z
-        imu.angular_velocity_covariance = self._rate_covariance
-        self._imu_pub.publish(imu)
+        # Serialized once and rewritten in place (adapters.cdr_out): no Python message to convert.
+        outputs = self._outputs.write(solution)
+        self._odom_pub.publish(outputs.odometry)
+        self._tf.send(outputs.transform)
+        self._fix_pub.publish(outputs.fix)
+        self._imu_pub.publish(outputs.imu)
         self._published += 1
 
     def _state_level(self, state: str, t_s: float | None) -> tuple[bytes, str]:
@@ -249,6 +238,22 @@ class InsFusionNode(Node):
         self._diagnostics.publish(
             diag.make_status(f"{self.get_name()}: INS", "gnss_ins", level, message, values)
         )
+
+
+def output_writer(map_frame: str, base_frame: str, rate_variance_rad2_s2: float) -> OutputWriter:
+    """The outputs' serialized templates: frame ids, the fix's service and covariance type."""
+    odometry = Odometry(child_frame_id=base_frame)
+    odometry.header.frame_id = map_frame
+    fix = NavSatFix(position_covariance_type=int(CovarianceType.KNOWN))
+    fix.header.frame_id = base_frame
+    fix.status.service = SERVICE_GPS
+    imu = Imu()
+    imu.header.frame_id = base_frame
+    return OutputWriter(
+        *(bytes(serialize_message(msg)) for msg in (odometry, fix, imu)),
+        transform_template(map_frame, base_frame),
+        rate_variance_rad2_s2,
+    )
 
 
 def main(args: list[str] | None = None) -> int:

@@ -8,9 +8,9 @@ TransformBroadcaster (depth 100) and StaticTransformBroadcaster (transient local
 from __future__ import annotations
 
 from geometry_msgs.msg import TransformStamped
-from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
+from rclpy.serialization import serialize_message
 from tf2_msgs.msg import TFMessage
 
 from ins_fusion.adapters.tf_frames import FrameTransform
@@ -18,8 +18,15 @@ from ins_fusion.adapters.tf_frames import FrameTransform
 _STATIC_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
+def transform_template(parent: str, child: str) -> bytes:
+    """A serialized TFMessage of one transform parent → child (for ``adapters.cdr_out``)."""
+    transform = TransformStamped(child_frame_id=child)
+    transform.header.frame_id = parent
+    return bytes(serialize_message(TFMessage(transforms=[transform])))
+
+
 class TfBroadcaster:
-    """Sends the static transforms once at construction; ``send`` mirrors one Odometry."""
+    """Sends the static transforms once at construction; ``send`` the odometry's transform."""
 
     def __init__(self, node: Node, static: list[FrameTransform], dynamic: bool) -> None:
         self._static_pub = node.create_publisher(TFMessage, "/tf_static", _STATIC_QOS)
@@ -35,16 +42,9 @@ class TfBroadcaster:
             q.x, q.y, q.z, q.w = frame.quat_xyzw
             transforms.append(msg)
         self._static_pub.publish(TFMessage(transforms=transforms))
-        self._msg = TFMessage(transforms=[TransformStamped()])
 
-    def send(self, odom: Odometry) -> None:
-        """The odometry's pose as frame_id → child_frame_id at its stamp (when dynamic)."""
-        if self._pub is None:
-            return
-        tf = self._msg.transforms[0]
-        tf.header = odom.header
-        tf.child_frame_id = odom.child_frame_id
-        p, t = odom.pose.pose.position, tf.transform.translation
-        t.x, t.y, t.z = p.x, p.y, p.z
-        tf.transform.rotation = odom.pose.pose.orientation
-        self._pub.publish(self._msg)
+    def send(self, transform: bytes) -> None:
+        """A serialized TFMessage (``transform_template`` rewritten by ``adapters.cdr_out``) on
+        /tf, when dynamic."""
+        if self._pub is not None:
+            self._pub.publish(transform)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import signal
 import subprocess
 import sys
 import time
@@ -19,6 +21,7 @@ from ros_harness import (
     Collector,
     assert_executable_refuses,
     diagnostic_values,
+    node_executable,
     overrides,
     spinning,
     stamp_s,
@@ -28,6 +31,7 @@ from sensor_msgs.msg import Imu, NavSatFix, Temperature
 from tf2_msgs.msg import TFMessage
 
 from gnss_ins_common.params import ParameterValueError
+from gnss_ins_common.ros_node_main import EXECUTOR_ENV
 from ins_fusion.bags.bag_io import BagReader
 from ins_fusion.node import InsFusionNode
 from ins_fusion.sim.drive import SimulationConfig
@@ -69,13 +73,12 @@ def _truth(bag: Path) -> np.ndarray:
     return np.array(rows)
 
 
-def test_node_fuses_a_played_bag_into_odometry_fix_and_imu(drive_bag):
-    node = InsFusionNode(parameter_overrides=overrides(output_rate=20.0))
-    collector = Collector(TOPICS)
+def _play(bag: Path) -> None:
+    """Play the bag's sensor topics at RATE times real time, once the node subscribes."""
     played = [
         Path(sys.executable).parent / "gnss_ins",
         "play",
-        str(drive_bag),
+        str(bag),
         "--rate",
         str(RATE),
         "--wait-for-subscribers",
@@ -85,17 +88,53 @@ def test_node_fuses_a_played_bag_into_odometry_fix_and_imu(drive_bag):
         "/gnss/vel",
         "/gnss/attitude",
     ]
+    player = subprocess.run(played, capture_output=True, text=True, timeout=120)
+    assert player.returncode == 0, player.stderr
+
+
+def test_node_fuses_a_played_bag_into_odometry_fix_and_imu(drive_bag):
+    node = InsFusionNode(parameter_overrides=overrides(output_rate=20.0))
+    collector = Collector(TOPICS)
     try:
         with spinning(node, collector.node):
-            player = subprocess.run(played, capture_output=True, text=True, timeout=120)
-            assert player.returncode == 0, player.stderr
+            _play(drive_bag)
             assert wait_for(lambda: collector.count("/diagnostics") > 0, 5.0)
             # the last odometry's transform may still be on its way
             assert wait_for(lambda: collector.count("/tf") >= collector.count("ins/odometry"), 5.0)
     finally:
         node.destroy_node()
         collector.node.destroy_node()
+    _check_outputs(collector, drive_bag)
 
+
+def test_the_executable_fuses_with_its_executor_and_stops_on_sigterm(drive_bag):
+    """The ins_fusion_node process, spun by EventsExecutor (gnss_ins_common.ros_node_main):
+    the same outputs as the node spun in this process, and exit code 0 on SIGTERM."""
+    collector = Collector(TOPICS)
+    node = subprocess.Popen(
+        [node_executable("ins_fusion_node"), "--ros-args", "-p", "output_rate:=20.0"],
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, EXECUTOR_ENV: "events"},
+    )
+    try:
+        with spinning(collector.node):
+            _play(drive_bag)
+            assert wait_for(lambda: collector.count("/diagnostics") > 0, 5.0)
+    finally:
+        node.send_signal(signal.SIGTERM)
+        try:
+            _, stderr = node.communicate(timeout=30)
+        finally:
+            node.kill()  # if SIGTERM did not end it (then the time-out fails the test)
+            collector.node.destroy_node()
+    assert node.returncode == 0, stderr
+    assert "callback error" not in stderr
+    _check_outputs(collector, drive_bag)
+
+
+def _check_outputs(collector: Collector, drive_bag: Path) -> None:
+    """What the node published while fed the played bag (TOPICS, output_rate 20 Hz)."""
     odometry = collector.get("ins/odometry")
     fixes = collector.get("ins/fix")
     assert len(odometry) > 0.5 * (DURATION_S - 60.0) * 20.0

@@ -1,6 +1,7 @@
 """Diagnostics common to the three nodes (real rclpy nodes, real emulated devices): callback
-exceptions are caught by the nodes' spin loop, counted in ``callback_errors`` and reported in the
-next status only (cleared on recovery); ins_fusion_node's level is stable through an outage."""
+exceptions are caught around the callback or by the nodes' spin loop, counted in
+``callback_errors`` and reported in the next status only (cleared on recovery); ins_fusion_node's
+level is stable through an outage."""
 
 from __future__ import annotations
 
@@ -14,9 +15,12 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from ros_harness import Collector, diagnostic_values, overrides, spinning, wait_for
+from sensor_msgs.msg import Temperature
 
 from gnss_driver.emulator import GnssEmulator, constant_velocity
 from gnss_driver.node import GnssNode
+from gnss_ins_common.ros_diagnostics import callback_errors
+from gnss_ins_common.ros_endpoints import Endpoints
 from gnss_ins_common.ros_node_main import spin_guarded
 from imu400cc_driver.emulator import Imu400ccEmulator
 from imu400cc_driver.node import Imu400ccNode
@@ -131,3 +135,32 @@ def test_fusion_level_is_stable_through_an_outage_with_sparse_fixes():
     assert levels[3:-1] == [warn] * (len(timeline) - 4)  # no OK/WARN flipping in the outage
     assert levels[-1] == ok  # 5.5 s of positions after the outage
     assert DiagnosticStatus.ERROR not in levels
+
+
+def test_a_failing_subscription_callback_is_counted_and_every_message_still_arrives():
+    """Endpoints guards its subscriptions' callbacks (ros_diagnostics.guarded): each exception
+    is counted under the callback's name instead of reaching the executor (EventsExecutor
+    would leave the rest of a burst queued), and every message of a burst is delivered."""
+    node = rclpy.create_node("guarded_subscriber")
+    received: list[float] = []
+
+    def on_temperature(msg: Temperature) -> None:
+        received.append(msg.temperature)
+        raise ValueError("test failure")
+
+    Endpoints(node).subscription(Temperature, "guarded_test", on_temperature, 100)
+    sender = rclpy.create_node("guarded_sender")
+    publisher = sender.create_publisher(Temperature, "guarded_test", 100)
+    try:
+        with spinning(node):
+            assert wait_for(lambda: publisher.get_subscription_count() > 0, 10.0)
+            for celsius in range(5):
+                publisher.publish(Temperature(temperature=float(celsius)))
+            assert wait_for(lambda: len(received) == 5, 10.0)
+    finally:
+        node.destroy_node()
+        sender.destroy_node()
+    assert received == [0.0, 1.0, 2.0, 3.0, 4.0]
+    errors = callback_errors(node)
+    assert errors.count == 5
+    assert "callback error (ValueError in on_temperature): test failure" in errors.take_new()

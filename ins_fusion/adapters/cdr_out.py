@@ -1,0 +1,131 @@
+"""ins_fusion_node's outputs written straight into serialized (CDR) messages (no ROS import).
+
+rclpy converts a Python message to its C twin field by field before it serializes it (~20 µs for
+an Odometry and its two 36-element covariances, most of a publish); a publisher also takes the
+serialized bytes. The node therefore serializes one message per output once, with its frame ids
+(the only variable-length fields) set, and for each output overwrites in place the stamp and the
+fixed-size run of float64 at the end of the message, where every number it publishes sits:
+
+- nav_msgs/Odometry: position, orientation, pose covariance, linear and angular velocity, twist
+  covariance (85 float64, ``solution_out.odometry_arrays``);
+- sensor_msgs/NavSatFix: status (int8 just after frame_id), then latitude, longitude, altitude
+  and the covariance (12 float64) before position_covariance_type (uint8, the last byte);
+- sensor_msgs/Imu of ins/imu: orientation, its covariance, angular_velocity, its covariance,
+  linear_acceleration, its covariance (37 float64; no acceleration: covariance[0] = -1);
+- tf2_msgs/TFMessage with one transform: translation and rotation (7 float64); its stamp comes
+  after the sequence length.
+
+Layouts as in ``cdr_fields`` (XCDR1: a 4-byte encapsulation header whose second byte is 1 for
+little-endian). The messages decode to what ``solution_out.fill_odometry`` / ``fill_fused_fix``
+and ``message_fields.fill_orientation`` fill (test_cdr_out.py).
+"""
+
+from __future__ import annotations
+
+import struct
+from typing import NamedTuple
+
+import numpy as np
+
+from gnss_ins_common.message_fields import stamp_ns
+from gnss_ins_common.navsat import NavSatStatus
+from gnss_ins_common.types import FloatArray
+from ins_fusion.adapters.solution_out import odometry_arrays
+from ins_fusion.core.engine import InsSolution
+
+_ENCAPSULATION = 4
+_NS_PER_S = 1_000_000_000
+_ODOMETRY_DOUBLES = 3 + 4 + 36 + 3 + 3 + 36
+_FIX_DOUBLES = 3 + 9
+_IMU_DOUBLES = 4 + 9 + 3 + 9 + 3 + 9
+_TF_DOUBLES = 3 + 4
+
+
+class SerializedMessage:
+    """A serialized message whose stamp and last ``doubles`` float64 (followed by ``trailing``
+    bytes) are rewritten for each output; ``stamp_at``: offset of header.stamp [bytes]."""
+
+    def __init__(self, template: bytes, stamp_at: int, doubles: int, trailing: int = 0) -> None:
+        """Take a copy of ``template`` (a serialized message of the type, frame ids set)."""
+        if len(template) < _ENCAPSULATION or template[1] not in (0, 1):
+            raise ValueError(f"not a CDR message: {bytes(template[:4]).hex()}")
+        order = "<" if template[1] == 1 else ">"
+        self.buffer = bytearray(template)
+        self._stamp = struct.Struct(order + "iI")
+        self._stamp_at = stamp_at
+        start = len(template) - trailing - 8 * doubles
+        self.values = np.frombuffer(self.buffer, np.dtype(order + "f8"), doubles, start)
+
+    def write(self, time_ns: int, values: FloatArray) -> bytes:
+        """The message stamped ``time_ns`` [ns since the epoch] with ``values`` at its end."""
+        self._stamp.pack_into(self.buffer, self._stamp_at, *divmod(time_ns, _NS_PER_S))
+        self.values[:] = values
+        return bytes(self.buffer)
+
+
+class Outputs(NamedTuple):
+    """One output's serialized messages."""
+
+    odometry: bytes
+    fix: bytes
+    imu: bytes
+    transform: bytes
+
+
+class OutputWriter:
+    """Serialized ins/odometry, ins/fix, ins/imu and /tf of a solution, from one template each
+    (serialized by the node with the frame ids and constant fields set:
+    ``status.service`` and ``position_covariance_type`` of the fix)."""
+
+    def __init__(
+        self,
+        odometry: bytes,
+        fix: bytes,
+        imu: bytes,
+        transform: bytes,
+        rate_variance_rad2_s2: float,
+    ) -> None:
+        """Templates of each message; ``rate_variance_rad2_s2``: variance of each rate axis."""
+        self._odometry = SerializedMessage(odometry, _ENCAPSULATION, _ODOMETRY_DOUBLES)
+        self._fix = SerializedMessage(fix, _ENCAPSULATION, _FIX_DOUBLES, trailing=1)
+        self._imu = SerializedMessage(imu, _ENCAPSULATION, _IMU_DOUBLES)
+        self._transform = SerializedMessage(transform, _ENCAPSULATION + 4, _TF_DOUBLES)
+        # status.status: the int8 right after frame_id (stamp, then its length and characters)
+        (length,) = struct.unpack_from("<I" if fix[1] == 1 else ">I", fix, _ENCAPSULATION + 8)
+        self._fix_status_at = _ENCAPSULATION + 12 + length
+        self._rate_variance = rate_variance_rad2_s2
+        self._imu_values = np.zeros(_IMU_DOUBLES)
+        self._imu_values[28] = -1.0  # linear_acceleration_covariance[0]: no acceleration
+        self._imu_values[16:25] = np.eye(3).ravel() * rate_variance_rad2_s2
+
+    def write(self, solution: InsSolution) -> Outputs:
+        """The four messages of ``solution``, stamped at its IMU stamp."""
+        time_ns = stamp_ns(solution.t_s)
+        arrays = odometry_arrays(solution, self._rate_variance)
+        odometry = np.concatenate(
+            (
+                arrays.position_enu_m,
+                arrays.orientation_xyzw,
+                arrays.pose_covariance,
+                arrays.linear_velocity_flu_m_s,
+                arrays.angular_velocity_flu_rad_s,
+                arrays.twist_covariance,
+            )
+        )
+        fix = np.empty(_FIX_DOUBLES)
+        fix[:3] = (solution.lat_deg, solution.lon_deg, solution.height_m)
+        fix[3:] = solution.cov_pos_enu_m2.ravel()
+        aligning = solution.state == "aligning"
+        self._fix.buffer[self._fix_status_at] = (
+            NavSatStatus.NO_FIX if aligning else NavSatStatus.FIX
+        ) & 0xFF
+        imu = self._imu_values
+        imu[:4] = arrays.orientation_xyzw
+        imu[4:13] = solution.cov_att_enu_rad2.ravel()
+        imu[13:16] = arrays.angular_velocity_flu_rad_s
+        return Outputs(
+            self._odometry.write(time_ns, odometry),
+            self._fix.write(time_ns, fix),
+            self._imu.write(time_ns, imu),
+            self._transform.write(time_ns, odometry[:7]),
+        )
