@@ -17,7 +17,6 @@ import math
 import time
 from typing import Any
 
-import numpy as np
 from geometry_msgs.msg import TwistWithCovarianceStamped
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
@@ -65,7 +64,7 @@ class InsFusionNode(Node):
         self._output_period_s = 1.0 / config.output_rate_hz
         self._last_output_s = -math.inf
         # Variance of one bias-corrected rate sample: white-noise density^2 x the IMU rate.
-        gyro_psd = float(np.mean(np.square(config.imu_noise.gyro_arw)))
+        gyro_psd = float(config.imu_noise.gyro_psd.mean())
         rate_variance = gyro_psd * NOMINAL_RATE_HZ
         self._outputs = output_writer(self._map_frame, self._base_frame, rate_variance)
         self._published = 0

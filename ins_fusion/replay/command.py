@@ -12,8 +12,6 @@ import sys
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from gnss_ins_common.params import ParameterValueError, load_yaml, validate_all
 from ins_fusion.bags.bag_io import BagError
 from ins_fusion.core.calibration import CalibrationError
@@ -256,7 +254,7 @@ def _write_outputs(
         config = FusionConfig.from_parameters(parameters)
         # Rate variance per axis as the node publishes it: mean gyro density² x the IMU rate.
         imu_rate_hz = (len(inputs.imu) - 1) / inputs.duration_s
-        rate_variance = float(np.mean(np.square(config.imu_noise.gyro_arw))) * imu_rate_hz
+        rate_variance = float(config.imu_noise.gyro_psd.mean()) * imu_rate_hz
         smoothed = result.run.smoothed
         try:
             summary = write_fused_bag(
