@@ -12,7 +12,14 @@ import numpy as np
 import pytest
 
 from gnss_ins_common.params import validate_all
-from ins_fusion.core import eskf, propagation, solution, strapdown
+from ins_fusion.core import (
+    eskf,
+    intake,
+    propagation,
+    solution,
+    stop_detector,
+    strapdown,
+)
 from ins_fusion.core.compiled import jit
 from ins_fusion.core.params import PARAMETERS
 from ins_fusion.core.warm_up import warm_up
@@ -77,9 +84,13 @@ def test_compiled_track_equals_pure_python(drive: Path, tmp_path: Path, paramete
 
 
 #: The kernels the engine calls from Python, each to be compiled for one set of argument types
-#: (strapdown.mechanize is compiled into propagation.advance).
+#: (strapdown.mechanize is compiled into propagation.advance, the calibration into
+#: intake.take_sample).
 _KERNELS = (
-    strapdown._integrate,
+    strapdown.integrate_sample,
+    intake.take_sample,
+    intake.record_sample,
+    stop_detector.ring_push,
     propagation.advance,
     eskf._propagate,
     eskf._joseph_update,

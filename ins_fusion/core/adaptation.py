@@ -37,11 +37,16 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from gnss_ins_common.types import FloatArray
+from ins_fusion.core.compiled import jit
 
 #: A squared difference above this many times the running mean is clipped to it.
 _CLIP = 9.0
 #: Differences needed before an estimate is reported.
 _MIN_COUNT = 10
+#: Layout of ImuNoiseMonitor.block, the open block's sums that ``block_push`` keeps: its start
+#: [s] (NaN: none), the sums of ω (3) and f (3), their count, the block length τ [s], and the
+#: length [s] and the means (6) of the block the last push closed.
+B_START, B_SUM, B_N, B_TAU, B_CLOSED_S, B_MEANS, B_SIZE = 0, 1, 7, 8, 9, 10, 16
 
 
 @dataclass(frozen=True)
@@ -79,13 +84,14 @@ class ImuNoiseMonitor:
         self._gyro = _RunningMeanSquare(window_s)
         self._accel = _RunningMeanSquare(window_s)
         self._psd: tuple[FloatArray, FloatArray] | None = None
+        self.block = np.zeros(B_SIZE)
         self.reset()
 
     def reset(self) -> None:
         """Forget the blocks (a gap or a reset); the running estimate is kept."""
-        self._start_s: float | None = None
-        self._sum = [0.0] * 6  # plain floats: this runs for every IMU sample
-        self._n = 0
+        self.block[:] = 0.0
+        self.block[B_START] = math.nan
+        self.block[B_TAU] = self.block_s
         self._means: list[FloatArray] = []
 
     def push(
@@ -95,27 +101,16 @@ class ImuNoiseMonitor:
         force: tuple[float, float, float],
     ) -> None:
         """One IMU sample at t_s [s]: angular rate [rad/s] and specific force [m/s²]."""
-        if self._start_s is None:
-            self._start_s = t_s
-        elif t_s - self._start_s >= self.block_s and self._n:
-            self._close_block(t_s - self._start_s)
-            self._start_s = t_s
-        acc = self._sum
-        acc[0] += rate[0]
-        acc[1] += rate[1]
-        acc[2] += rate[2]
-        acc[3] += force[0]
-        acc[4] += force[1]
-        acc[5] += force[2]
-        self._n += 1
+        if block_push(self.block, t_s, *rate, *force):
+            self.close_block()
 
-    def _close_block(self, tau_s: float) -> None:
+    def close_block(self) -> None:
+        """Take in the block ``block_push`` closed (its means and length in ``block``)."""
         means = self._means
-        means.append(np.array(self._sum) / self._n)
-        self._sum = [0.0] * 6
-        self._n = 0
+        means.append(self.block[B_MEANS : B_MEANS + 6].copy())
         if len(means) < 3:
             return
+        tau_s = self.block[B_CLOSED_S]
         d = means[2] - 2.0 * means[1] + means[0]
         del means[0]
         psd = np.square(d) * (tau_s / 6.0)
@@ -130,6 +125,35 @@ class ImuNoiseMonitor:
         squares of ARW [rad/√s] and VRW [m/s/√s]; None before enough blocks. The same
         (read-only) objects until the next block closes."""
         return self._psd
+
+
+@jit
+def block_push(
+    block: FloatArray, t_s: float, wx: float, wy: float, wz: float, fx: float, fy: float, fz: float
+) -> bool:
+    """ImuNoiseMonitor.push on its ``block`` (B_* layout): add the sample to the open block;
+    True when the block closed first (its length and means are then in ``block``)."""
+    closed = False
+    start = block[B_START]
+    if math.isnan(start):
+        block[B_START] = t_s
+    elif t_s - start >= block[B_TAU] and block[B_N] > 0.0:
+        n = block[B_N]
+        for k in range(6):
+            block[B_MEANS + k] = block[B_SUM + k] / n
+            block[B_SUM + k] = 0.0
+        block[B_N] = 0.0
+        block[B_CLOSED_S] = t_s - start
+        block[B_START] = t_s
+        closed = True
+    block[B_SUM] += wx
+    block[B_SUM + 1] += wy
+    block[B_SUM + 2] += wz
+    block[B_SUM + 3] += fx
+    block[B_SUM + 4] += fy
+    block[B_SUM + 5] += fz
+    block[B_N] += 1.0
+    return closed
 
 
 @dataclass(frozen=True)

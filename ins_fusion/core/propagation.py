@@ -166,11 +166,22 @@ class Propagator:
         t: float,
         noise: tuple[FloatArray, FloatArray] | None,
     ) -> None:
-        """Correct an increment with the filter's sensor errors and mechanize (``advance``;
-        ``gap``: it bridges missing samples; ``noise``: the IMU white-noise densities from now
-        on, None = the user's); the covariance follows every ``covariance_interval`` seconds."""
-        s.imu_psd = noise
+        """Correct an increment with the filter's sensor errors and mechanize (``advance``),
+        then ``advanced``."""
         advance(s.x, inc, self._geometry.r_bi, gap is not None, t)
+        self.advanced(s, kf, gap, noise)
+
+    def advanced(
+        self,
+        s: FilterState,
+        kf: ErrorStateFilter,
+        gap: Gap | None,
+        noise: tuple[FloatArray, FloatArray] | None,
+    ) -> None:
+        """What follows ``advance`` of ``s.x``: ``gap``: the increment bridged missing samples
+        (its uncertainty goes into P); ``noise``: the IMU white-noise densities from now on
+        (None = the user's); the covariance follows every ``covariance_interval`` seconds."""
+        s.imu_psd = noise
         s.changed()
         if gap is not None:
             mat_ni = s.mat_nb @ self._geometry.mat_bi

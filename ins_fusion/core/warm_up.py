@@ -14,12 +14,16 @@ import time
 
 import numpy as np
 
+from ins_fusion.core.adaptation import ImuNoiseMonitor
+from ins_fusion.core.calibration import ImuCalibration
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.eskf import ErrorStateFilter, StateLayout
+from ins_fusion.core.intake import new_intake, record_sample, take_sample
 from ins_fusion.core.propagation import advance
 from ins_fusion.core.solution import SolutionBuilder
 from ins_fusion.core.state import X_SIZE, FilterState, Geometry
-from ins_fusion.core.strapdown import NavState, SampleIntegrator, increment
+from ins_fusion.core.stop_detector import StopDetector
+from ins_fusion.core.strapdown import INCREMENT_SIZE, NavState, SampleIntegrator, increment
 
 _ready = False
 
@@ -38,7 +42,17 @@ def warm_up() -> float:
     s = FilterState(0.0, nav, zero, True)
     integrator = SampleIntegrator()
     integrator.push(0.0, zero, (0.0, 0.0, -9.8))
-    integrator.push(0.01, zero, (0.0, 0.0, -9.8))
+    detector = StopDetector(config.stop_detector, np.eye(3))
+    detector.push(0.0, zero, (0.0, 0.0, -9.8))
+    monitor = ImuNoiseMonitor()
+    monitor.push(0.0, zero, (0.0, 0.0, -9.8))
+    intake = new_intake(10.0, 100.0, True)
+    table = ImuCalibration().table
+    r_bi = np.eye(3).ravel()
+    stores = (intake, table, integrator.buffer, detector.ring, monitor.block, s.x, r_bi)
+    for t in (0.0, 0.01):  # the first sample, then an interval with the calibration
+        take_sample(*stores, np.empty(INCREMENT_SIZE), t, *zero, *zero, True)
+    record_sample(intake, detector.ring, monitor.block, 0.02)
     advance(s.x, increment(0.01, zero, (0.0, 0.0, -0.098)), np.eye(3).ravel(), False, 0.01)
     kf = ErrorStateFilter(layout, config.imu_noise, config.gnss_correlation_time_s or 60.0)
     kf.P = np.eye(layout.size) * 1e-2
