@@ -17,6 +17,7 @@ from ins_fusion.core import (
     intake,
     propagation,
     solution,
+    state,
     stop_detector,
     strapdown,
 )
@@ -92,9 +93,11 @@ _KERNELS = (
     intake.record_sample,
     stop_detector.ring_push,
     propagation.advance,
+    propagation.covariance_interval,
     eskf._propagate,
     eskf._joseph_update,
     solution._fill_row,
+    state.inject_nominal,
 )
 _REAL = Path(__file__).parent / "fixtures" / "comma2k19" / "comma2k19_ex1_seg40"
 

@@ -56,7 +56,6 @@ from ins_fusion.core.eskf import ErrorStateFilter, StateLayout
 from ins_fusion.core.gnss_noise import GnssNoise
 from ins_fusion.core.intake import (
     BACK_RUN_RESET,
-    BLOCK_CLOSED,
     GAP,
     PUSHED,
     REJECTED,
@@ -240,8 +239,6 @@ class InsEngine:
         it), the history entry and the pseudo-measurements."""
         if flags & RING_FULL:
             self._detector.grow()
-        if flags & BLOCK_CLOSED:
-            self._densities.monitor.close_block()
         if self._filter is None:
             if self._detector.stationary:
                 self._startup.levelling.push(t, *self._sample())
@@ -303,7 +300,8 @@ class InsEngine:
         s, kf = self._state, self._filter
         if s is None or kf is None or self.datum is None:
             return None
-        return self._output.row(s, kf, self.datum, self._last_sample[0], self._state_name())
+        rate_i = self._intake[S_LAST_RATE : S_LAST_RATE + 3]
+        return self._output.row(s, kf, self.datum, rate_i, self._state_name())
 
     def status(self) -> EngineStatus:
         """Counters and diagnostics (see EngineStatus)."""

@@ -168,8 +168,8 @@ class ErrorStateFilter:
         F = self._F = np.zeros((n, n))
         F[POS : POS + 3, VEL : VEL + 3] = np.eye(3)
         Q = self._Q = np.zeros((n, n))
-        # Columns of the gyro and accelerometer scale factors (-1: not estimated).
-        self._scales = (
+        #: Columns of the gyro and accelerometer scale factors (-1: not estimated).
+        self.scale_columns = (
             -1 if layout.sg is None else layout.sg,
             -1 if layout.sa is None else layout.sa,
         )
@@ -227,7 +227,15 @@ class ErrorStateFilter:
         specific force in NED and the corrected force/rate in imu FRD [m/s², rad/s], position
         and NED velocity. Returns an internal array, valid until the next call."""
         _fill_dynamics(
-            self._F, mat_ni, force_n, force_i, rate_i, lat_rad, height_m, vel_ned_m_s, *self._scales
+            self._F,
+            mat_ni,
+            force_n,
+            force_i,
+            rate_i,
+            lat_rad,
+            height_m,
+            vel_ned_m_s,
+            *self.scale_columns,
         )
         return self._F
 
@@ -271,8 +279,8 @@ class ErrorStateFilter:
             lat_rad,
             height_m,
             vel_ned_m_s,
-            self._scales[0],
-            self._scales[1],
+            self.scale_columns[0],
+            self.scale_columns[1],
             self._gyro_psd,
             self._gyro_misalignment_q,
             self._accel_psd,

@@ -39,9 +39,9 @@ S_MAX_RATE, S_MAX_FORCE, S_CALIBRATED, S_RATE, S_FORCE, S_SIZE = 18, 19, 20, 21,
 #: dropped), the stream restarts with this sample (a run of stamps in the past), it starts with
 #: this sample, the interval is a gap (counted; the engine bridges it).
 REJECTED, RESTART, FIRST, GAP, PUSHED = 0, 1, 2, 3, 4
-#: Flags added to PUSHED (and returned by ``record_sample``): the noise monitor closed a block,
-#: the stop detector's ring is full, the nominal state was advanced.
-BLOCK_CLOSED, RING_FULL, STEPPED = 8, 16, 32
+#: Flags added to PUSHED (and returned by ``record_sample``): the stop detector's ring is full,
+#: the nominal state was advanced.
+RING_FULL, STEPPED = 8, 16
 
 #: An IMU interval longer than this many nominal intervals is a gap (bridged, counted).
 GAP_FACTOR = 2.5
@@ -143,7 +143,7 @@ def take_sample(
 def record_sample(buf: FloatArray, ring: FloatArray, block: FloatArray, t: float) -> int:
     """The sample in S_RATE/S_FORCE, stamped ``t`` [s], becomes the last one; into the stop
     detector's ring (core.stop_detector.ring_push), the noise monitor's block
-    (core.adaptation.block_push) and the ZARU sums. Returns BLOCK_CLOSED and RING_FULL flags."""
+    (core.adaptation.block_push) and the ZARU sums. Returns the RING_FULL flag."""
     wx, wy, wz = buf[S_RATE], buf[S_RATE + 1], buf[S_RATE + 2]
     fx, fy, fz = buf[S_FORCE], buf[S_FORCE + 1], buf[S_FORCE + 2]
     buf[S_LAST_T] = t
@@ -151,8 +151,7 @@ def record_sample(buf: FloatArray, ring: FloatArray, block: FloatArray, t: float
     flags = 0
     if ring_push(ring, t, wx, wy, wz, fx, fy, fz):
         flags += RING_FULL
-    if block_push(block, t, wx, wy, wz, fx, fy, fz):
-        flags += BLOCK_CLOSED
+    block_push(block, t, wx, wy, wz, fx, fy, fz)
     buf[S_ZARU_SUM] += wx
     buf[S_ZARU_SUM + 1] += wy
     buf[S_ZARU_SUM + 2] += wz

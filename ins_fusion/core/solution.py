@@ -121,6 +121,7 @@ class SolutionBuilder:
         for row, col in ((0, POS_STATE), (3, VEL_STATE), (6, ATT)):
             self._jacobian[row : row + 3, col : col + 3] = MAT_ENU_NED
         self._plane: earth.TangentPlane | None = None
+        self._datum_deg = (math.nan, math.nan, math.nan)  # that of _plane
         #: Jacobian of the last ``row`` (rows ENU position, velocity, attitude of base_link,
         #: columns the error states of core.smoothed_solution.solution_states); reused per call.
         self.jacobian: FloatArray = self._jacobian
@@ -130,17 +131,17 @@ class SolutionBuilder:
         s: FilterState,
         kf: ErrorStateFilter,
         datum_deg: tuple[float, float, float],
-        rate_i: tuple[float, float, float],
+        rate_i: FloatArray,
         state_name: str,
     ) -> FloatArray:
         """The solution row (``WIDTH``) of state ``s`` with covariance ``kf.P``; ``rate_i``: the
         latest raw sample's rate (imu FRD [rad/s]); ``datum_deg``: the ENU plane's origin (lat,
         lon [deg], height [m])."""
         geometry = self._geometry
-        lat0, lon0, h0 = datum_deg
-        datum_rad = (math.radians(lat0), math.radians(lon0), h0)
-        if self._plane is None or self._plane.datum != datum_rad:
-            self._plane = earth.TangentPlane(*datum_rad)
+        if self._plane is None or self._datum_deg != datum_deg:
+            lat0, lon0, h0 = datum_deg
+            self._plane = earth.TangentPlane(math.radians(lat0), math.radians(lon0), h0)
+            self._datum_deg = datum_deg
         out = np.empty(WIDTH)
         mounting = s.mounting if self._mt is not None else None
         _fill_row(
@@ -172,7 +173,7 @@ def _fill_row(
     arm_b: FloatArray,
     r_bi: FloatArray,
     arm_bi: FloatArray,
-    rate_i: Vec3,
+    rate_i: FloatArray,
     mounting: tuple[float, float],
     origin: Vec3,
     mat_enu_ecef: FloatArray,

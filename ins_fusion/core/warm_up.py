@@ -19,9 +19,9 @@ from ins_fusion.core.calibration import ImuCalibration
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.eskf import ErrorStateFilter, StateLayout
 from ins_fusion.core.intake import new_intake, record_sample, take_sample
-from ins_fusion.core.propagation import advance
+from ins_fusion.core.propagation import advance, covariance_interval
 from ins_fusion.core.solution import SolutionBuilder
-from ins_fusion.core.state import X_SIZE, FilterState, Geometry
+from ins_fusion.core.state import X_COV_DT, X_SIZE, FilterState, Geometry, inject_nominal
 from ins_fusion.core.stop_detector import StopDetector
 from ins_fusion.core.strapdown import INCREMENT_SIZE, NavState, SampleIntegrator, increment
 
@@ -45,7 +45,6 @@ def warm_up() -> float:
     detector = StopDetector(config.stop_detector, np.eye(3))
     detector.push(0.0, zero, (0.0, 0.0, -9.8))
     monitor = ImuNoiseMonitor()
-    monitor.push(0.0, zero, (0.0, 0.0, -9.8))
     intake = new_intake(10.0, 100.0, True)
     table = ImuCalibration().table
     r_bi = np.eye(3).ravel()
@@ -56,10 +55,12 @@ def warm_up() -> float:
     advance(s.x, increment(0.01, zero, (0.0, 0.0, -0.098)), np.eye(3).ravel(), False, 0.01)
     kf = ErrorStateFilter(layout, config.imu_noise, config.gnss_correlation_time_s or 60.0)
     kf.P = np.eye(layout.size) * 1e-2
-    kf.propagate(0.1, np.eye(3), np.zeros(3), np.zeros(3), np.zeros(3), 1.0, 40.0, zero)
+    s.x[X_COV_DT] = 0.01
+    kf.propagate(*covariance_interval(s.x, Geometry(config, layout).mat_bi))
     kf.update(np.zeros(3), np.eye(3, layout.size), np.eye(3), math.inf)
+    inject_nominal(s.x, np.zeros(layout.size), *kf.scale_columns)
     output = SolutionBuilder(Geometry(config, layout), layout)
-    output.row(s, kf, (57.0, 10.0, 40.0), zero, "navigating")
+    output.row(s, kf, (57.0, 10.0, 40.0), np.zeros(3), "navigating")
     assert s.x.shape == (X_SIZE,)
     _ready = True
     return time.perf_counter() - start
