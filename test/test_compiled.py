@@ -92,6 +92,7 @@ _KERNELS = (
     intake.take_sample,
     intake.record_sample,
     stop_detector.ring_push,
+    stop_detector.window_statistics,
     propagation.advance,
     propagation.covariance_interval,
     eskf._propagate,

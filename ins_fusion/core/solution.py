@@ -36,6 +36,7 @@ from ins_fusion.core.state import (
     X_T,
     FilterState,
     Geometry,
+    mounting_rpy_from,
 )
 
 
@@ -158,7 +159,6 @@ class SolutionBuilder:
             self._plane.origin,
             self._plane.mat_enu_ecef,
         )
-        out[MOUNTING] = np.nan if mounting is None else geometry.mounting_rpy(mounting)
         out[STATE] = STATES.index(state_name)
         return out
 
@@ -178,8 +178,9 @@ def _fill_row(
     origin: Vec3,
     mat_enu_ecef: FloatArray,
 ) -> None:
-    """The numbers of a solution row but its mounting and state (``SolutionBuilder.row``),
-    and its Jacobian ``J`` (first 12 columns; the mounting's two when ``J`` has them)."""
+    """The numbers of a solution row but its state (``SolutionBuilder.row``), and its Jacobian
+    ``J`` (first 12 columns; the mounting's two when ``J`` has them: then the row's mounting,
+    else NaN)."""
     C = mat_from_quat(x[X_NAV + 6], x[X_NAV + 7], x[X_NAV + 8], x[X_NAV + 9])
     # base_link of the estimated mounting: the lever arm turned by it (arm_b), and below the
     # orientation and rate turned into it (C_bv = I + [μ×]). The lever arm in NED, and its
@@ -217,7 +218,9 @@ def _fill_row(
     cov = J @ P_sub @ J.T
     vn, ve, vd = x[X_NAV + 3], x[X_NAV + 4], x[X_NAV + 5]
     quat_nb = (x[X_NAV + 6], x[X_NAV + 7], x[X_NAV + 8], x[X_NAV + 9])
+    out[MOUNTING] = np.nan
     if J.shape[1] > BG + 3:
+        out[MOUNTING] = np.array(mounting_rpy_from(r_bi, mu_y, mu_z))
         quat_nb = quat_multiply(quat_nb, quat_from_rotvec(0.0, mu_y, mu_z))
         wx, wy, wz = wx - (mu_y * wz - mu_z * wy), wy - mu_z * wx, wz + mu_y * wx
     e_x, e_y, e_z = ecef_from_geodetic(lat, lon, height)

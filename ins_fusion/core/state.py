@@ -16,7 +16,7 @@ import numpy as np
 from gnss_ins_common.types import FloatArray, Quat, Vec3
 from ins_fusion.core import earth
 from ins_fusion.core.adaptation import WhiteNoiseMonitor
-from ins_fusion.core.compiled import jit
+from ins_fusion.core.compiled import compilable, jit
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.eskf import ATT, BA, BG, POS, VEL, ErrorStateFilter, StateLayout
 from ins_fusion.core.measurements import (
@@ -26,9 +26,7 @@ from ins_fusion.core.measurements import (
     mounting_skew,
 )
 from ins_fusion.core.rotation import (
-    MAT_FLU_FRD,
     as_quat,
-    euler_rad,
     flu_to_frd_array,
     mat_from_quat,
     mat_from_rpy_flu,
@@ -268,14 +266,28 @@ class Geometry:
 
     def mounting_rpy(self, mounting: tuple[float, float]) -> FloatArray:
         """REP-103 roll, pitch, yaw [rad] of imu_link in the base_link of a residual mounting
-        (pitch, yaw about base_link FRD y, z [rad]): imu -> vehicle (FRD) = (I - [μ×]) R_bi."""
+        (pitch, yaw about base_link FRD y, z [rad]; ``mounting_rpy_from``)."""
         cached = self._mounting_cache
         if cached is not None and cached[0] == mounting:
             return cached[1]
-        mat_vi = (np.eye(3) - mounting_skew(mounting)) @ self.mat_bi
-        rpy = euler_rad(MAT_FLU_FRD @ mat_vi @ MAT_FLU_FRD)  # z-y'-x'' of the FLU rotation
+        rpy = np.array(mounting_rpy_from(self.r_bi, mounting[0], mounting[1]))
         self._mounting_cache = (mounting, rpy)
         return rpy
+
+
+@compilable
+def mounting_rpy_from(r_bi: FloatArray, pitch: float, yaw: float) -> Vec3:
+    """REP-103 roll, pitch, yaw [rad] (z-y'-x'') of imu_link in the vehicle frame of a residual
+    mounting μ = (0, pitch, yaw) about base_link FRD y, z [rad], for the configured rotation
+    ``r_bi`` (imu FRD -> base_link FRD, row-major): imu -> vehicle (FRD) = (I - [μ×]) R_bi,
+    taken into FLU on both sides (the signs below), then Aalborg notes (7.16)-(7.18)."""
+    turn = np.array(((1.0, yaw, -pitch), (-yaw, 1.0, 0.0), (pitch, 0.0, 1.0)))  # I - [μ×]
+    m = turn @ r_bi.reshape((3, 3))
+    return (
+        math.atan2(m[2, 1], m[2, 2]),
+        -math.asin(max(-1.0, min(1.0, -m[2, 0]))),
+        math.atan2(-m[1, 0], m[0, 0]),
+    )
 
 
 def inject(s: FilterState, kf: ErrorStateFilter, dx: FloatArray) -> None:

@@ -24,6 +24,8 @@ threshold.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from gnss_ins_common.types import FloatArray, Vec3
@@ -46,7 +48,7 @@ class StopDetector:
     def __init__(self, config: StopDetectorConfig, mat_bi: FloatArray) -> None:
         """``mat_bi``: imu FRD -> base_link FRD rotation applied to the specific force."""
         self.config = config
-        self._mat_bi_t = np.asarray(mat_bi, dtype=np.float64).T
+        self._mat_bi = np.array(mat_bi, dtype=np.float64)
         self.ring = np.zeros((int(config.window_s * _RING_RATE_HZ) + 2, 7))
         self.ring[0, _WINDOW] = config.window_s
         self._candidate_since: float | None = None
@@ -91,19 +93,18 @@ class StopDetector:
         cfg = self.config
         factor = cfg.hysteresis if self.stationary else 1.0
         slow = all(s is None or s < cfg.speed_m_s * factor for s in (gnss_speed_m_s, ins_speed_m_s))
-        window = self.window()
-        full = len(window) > 2 and window[0, 0] <= t_s - 0.9 * cfg.window_s
+        ring = self.ring
+        capacity = ring.shape[0] - 1
+        count = int(ring[0, _COUNT])
+        first_t = ring[1 + (int(ring[0, _HEAD]) - count) % capacity, 0]
+        full = count > 2 and first_t <= t_s - 0.9 * cfg.window_s
         window_force = None
         if slow and full:  # the IMU only matters when no speed vetoes the stop
-            samples = window[:, 1:]
-            forces = samples[:, 3:] @ self._mat_bi_t
-            horizontal = forces[:, :2]
-            window_force = horizontal.mean(axis=0)
+            stats = window_statistics(ring, self._mat_bi)
+            window_force = np.array(stats[0:2])
             reference = window_force if self._stop_force is None else self._stop_force
-            recent = horizontal[-max(1, len(horizontal) // 4) :].mean(axis=0)
-            self.accel_change = float(np.hypot(*(recent - reference)))
-            self.accel_variance = float(horizontal.var(axis=0).sum())
-            self.gyro_variance = float(samples[:, :3].var(axis=0).sum())
+            self.accel_change = math.hypot(stats[2] - reference[0], stats[3] - reference[1])
+            self.accel_variance, self.gyro_variance = stats[4], stats[5]
         candidate = (
             window_force is not None
             and self.accel_variance < cfg.accel_variance * factor
@@ -141,3 +142,44 @@ def ring_push(
         count -= 1
     ring[0, _HEAD], ring[0, _COUNT] = head, count
     return count == capacity
+
+
+@jit
+def window_statistics(
+    ring: FloatArray, mat_bi: FloatArray
+) -> tuple[float, float, float, float, float, float]:
+    """Of the samples in the ring (StopDetector.evaluate): the mean horizontal specific force
+    of base_link (x, y; ``mat_bi`` imu -> base_link) over the window and over its last quarter
+    [m/s²], var(f_x) + var(f_y) [(m/s²)²] and var(ω_x) + var(ω_y) + var(ω_z) [(rad/s)²]."""
+    capacity = ring.shape[0] - 1
+    head, count = int(ring[0, _HEAD]), int(ring[0, _COUNT])
+    rows = np.empty((count, 5))  # f_x, f_y of base_link, ω (3)
+    for i in range(count):
+        sample = ring[1 + (head - count + i) % capacity]
+        for c in range(2):
+            rows[i, c] = (
+                sample[4] * mat_bi[c, 0] + sample[5] * mat_bi[c, 1] + sample[6] * mat_bi[c, 2]
+            )
+        rows[i, 2], rows[i, 3], rows[i, 4] = sample[1], sample[2], sample[3]
+    means = np.zeros(5)
+    for i in range(count):
+        means += rows[i]
+    means /= count
+    variances = np.zeros(5)
+    for i in range(count):
+        d = rows[i] - means
+        variances += d * d
+    variances /= count
+    recent = max(1, count // 4)
+    fx = fy = 0.0
+    for i in range(count - recent, count):
+        fx += rows[i, 0]
+        fy += rows[i, 1]
+    return (
+        means[0],
+        means[1],
+        fx / recent,
+        fy / recent,
+        variances[0] + variances[1],
+        variances[2] + variances[3] + variances[4],
+    )

@@ -22,7 +22,7 @@ from ins_fusion.core.intake import new_intake, record_sample, take_sample
 from ins_fusion.core.propagation import advance, covariance_interval
 from ins_fusion.core.solution import SolutionBuilder
 from ins_fusion.core.state import X_COV_DT, X_SIZE, FilterState, Geometry, inject_nominal
-from ins_fusion.core.stop_detector import StopDetector
+from ins_fusion.core.stop_detector import StopDetector, window_statistics
 from ins_fusion.core.strapdown import INCREMENT_SIZE, NavState, SampleIntegrator, increment
 
 _ready = False
@@ -44,6 +44,7 @@ def warm_up() -> float:
     integrator.push(0.0, zero, (0.0, 0.0, -9.8))
     detector = StopDetector(config.stop_detector, np.eye(3))
     detector.push(0.0, zero, (0.0, 0.0, -9.8))
+    window_statistics(detector.ring, np.eye(3))
     monitor = ImuNoiseMonitor()
     intake = new_intake(10.0, 100.0, True)
     table = ImuCalibration().table
