@@ -7,7 +7,9 @@ Pipeline per IMU sample (imu_link FLU, SI, REP-145): calibration (core.calibrati
 (9.1)/(9.2)) -> FRD -> increments (strapdown.SampleIntegrator, interval from the stamps) ->
 filter bias/scale correction, mounting rotation imu_link -> base_link and strapdown mechanization
 of the IMU point with base_link axes (core.propagation) -> covariance propagation (core.eskf) ->
-pseudo-measurements (ZUPT, ZARU, NHC) at ``pseudo_measurement_rate``.
+pseudo-measurements (ZUPT, ZARU, NHC) at ``pseudo_measurement_rate``. An ordinary sample's part
+up to the strapdown step (with the stop detector's and noise monitor's stores) is one compiled
+call (core.intake); starts, restarts and gaps come back to Python.
 
 Measurements at their own stamps (core.timeline): every IMU sample leaves a history entry (its
 increment and a checkpoint of the state after it) for ``history_s`` seconds. A measurement
