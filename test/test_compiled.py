@@ -95,6 +95,7 @@ _KERNELS = (
     stop_detector.window_statistics,
     propagation.advance,
     propagation.covariance_interval,
+    propagation.predicted_state,
     eskf._propagate,
     eskf._joseph_update,
     solution._fill_row,

@@ -19,7 +19,7 @@ from ins_fusion.core.compiled import jit
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.eskf import ATT, VEL, ErrorStateFilter
 from ins_fusion.core.measurements import Prediction
-from ins_fusion.core.rotation import mat_from_quat, skew
+from ins_fusion.core.rotation import mat_from_quat
 from ins_fusion.core.state import (
     X_ACCEL_LP,
     X_ACCEL_N,
@@ -241,38 +241,33 @@ class Propagator:
 
     @staticmethod
     def predict(s: FilterState, kf: ErrorStateFilter, t_m: float) -> Prediction:
-        """The nominal state carried from the current state to t_m (< one IMU interval)."""
-        nav, dt = s.nav, t_m - s.t_s
-        rate_b = np.array(s.rate_b)
-        if dt == 0.0:
-            return Prediction(
-                nav.lat_rad,
-                nav.lon_rad,
-                nav.height_m,
-                nav.vel_ned_m_s,
-                s.mat_nb,
-                rate_b,
-                np.array(s.rate_i),
-                kf.layout,
-            )
-        vel = nav.vel_ned_m_s + np.array(s.accel_n) * dt
-        mean_vel = 0.5 * (nav.vel_ned_m_s + vel)
-        lat, lon, height = earth.displace(
-            nav.lat_rad,
-            nav.lon_rad,
-            nav.height_m,
-            mean_vel[0] * dt,
-            mean_vel[1] * dt,
-            mean_vel[2] * dt,
-        )
-        rotation = skew(rate_b * dt)
-        return Prediction(
-            lat_rad=lat,
-            lon_rad=lon,
-            height_m=height,
-            vel_ned_m_s=vel,
-            mat_nb=s.mat_nb @ (np.eye(3) + rotation + 0.5 * rotation @ rotation),
-            rate_b=rate_b,
-            rate_i=np.array(s.rate_i),
-            layout=kf.layout,
-        )
+        """The nominal state carried from the current state to t_m (< one IMU interval;
+        ``predicted_state``)."""
+        return Prediction(*predicted_state(s.x, t_m), layout=kf.layout)
+
+
+@jit
+def predicted_state(
+    x: FloatArray, t_m: float
+) -> tuple[float, float, float, FloatArray, FloatArray, FloatArray, FloatArray]:
+    """The nominal state of ``x`` (X_* layout) carried to t_m [s] with its NED acceleration
+    and body rate (constant over less than an IMU interval): latitude, longitude [rad],
+    height [m], NED velocity [m/s], body -> NED rotation, corrected rate in body and imu FRD
+    [rad/s] (core.measurements.Prediction's fields)."""
+    dt = t_m - x[X_T]
+    n = X_NAV
+    mat_nb = mat_from_quat(x[n + 6], x[n + 7], x[n + 8], x[n + 9])
+    vel = x[n + 3 : n + 6].copy()
+    rate_b = x[X_RATE_B : X_RATE_B + 3].copy()
+    rate_i = x[X_RATE_I : X_RATE_I + 3].copy()
+    if dt == 0.0:
+        return x[n], x[n + 1], x[n + 2], vel, mat_nb, rate_b, rate_i
+    vel_m = vel + x[X_ACCEL_N : X_ACCEL_N + 3] * dt
+    mean_vel = 0.5 * (vel + vel_m)
+    lat, lon, height = earth.displace(
+        x[n], x[n + 1], x[n + 2], mean_vel[0] * dt, mean_vel[1] * dt, mean_vel[2] * dt
+    )
+    r = rate_b * dt
+    rotation = np.array(((0.0, -r[2], r[1]), (r[2], 0.0, -r[0]), (-r[1], r[0], 0.0)))  # [r×]
+    turn = np.eye(3) + rotation + 0.5 * rotation @ rotation
+    return lat, lon, height, vel_m, mat_nb @ turn, rate_b, rate_i
