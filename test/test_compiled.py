@@ -15,6 +15,7 @@ from gnss_ins_common.params import validate_all
 from ins_fusion.core import (
     eskf,
     intake,
+    measurements,
     propagation,
     solution,
     state,
@@ -93,6 +94,7 @@ _KERNELS = (
     intake.record_sample,
     stop_detector.ring_push,
     stop_detector.window_statistics,
+    measurements._nhc_model,
     propagation.advance,
     propagation.covariance_interval,
     propagation.predicted_state,

@@ -19,6 +19,7 @@ from ins_fusion.core.calibration import ImuCalibration
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.eskf import ErrorStateFilter, StateLayout
 from ins_fusion.core.intake import new_intake, record_sample, take_sample
+from ins_fusion.core.measurements import Prediction, nhc
 from ins_fusion.core.propagation import advance, covariance_interval, predicted_state
 from ins_fusion.core.solution import SolutionBuilder
 from ins_fusion.core.state import X_COV_DT, X_SIZE, FilterState, Geometry, inject_nominal
@@ -60,7 +61,8 @@ def warm_up() -> float:
     kf.propagate(*covariance_interval(s.x, Geometry(config, layout).mat_bi))
     kf.update(np.zeros(3), np.eye(3, layout.size), np.eye(3), math.inf)
     inject_nominal(s.x, np.zeros(layout.size), *kf.scale_columns)
-    predicted_state(s.x, 0.015)
+    prediction = Prediction(*predicted_state(s.x, 0.015), layout=layout)
+    nhc(prediction, np.zeros(3), np.eye(3), 0.1, (0.0, 0.0))
     output = SolutionBuilder(Geometry(config, layout), layout)
     output.row(s, kf, (57.0, 10.0, 40.0), np.zeros(3), "navigating")
     assert s.x.shape == (X_SIZE,)
