@@ -130,7 +130,7 @@ def take_sample(
     if dt > GAP_FACTOR * nominal:
         buf[S_GAPS] += 1.0
         return GAP
-    integrate_sample(integrator, t, wx, wy, wz, fx, fy, fz, inc)
+    integrate_sample(integrator, t, (wx, wy, wz, fx, fy, fz), inc)
     buf[S_NOMINAL_DT] = dt if nominal == math.inf else nominal + 0.01 * (dt - nominal)
     flags = record_sample(buf, ring, block, t)
     if step:

@@ -129,41 +129,27 @@ class SampleIntegrator:
     ) -> FloatArray | None:
         """Add a sample; returns the increment since the previous sample (None for the first)."""
         inc = np.empty(INCREMENT_SIZE)
-        has_interval = integrate_sample(
-            self.buffer,
-            float(t_s),
-            float(rate_rad_s[0]),
-            float(rate_rad_s[1]),
-            float(rate_rad_s[2]),
-            float(specific_force_m_s2[0]),
-            float(specific_force_m_s2[1]),
-            float(specific_force_m_s2[2]),
-            inc,
-        )
+        sample = tuple(float(v) for v in (*rate_rad_s[:3], *specific_force_m_s2[:3]))
+        has_interval = integrate_sample(self.buffer, float(t_s), sample, inc)
         return inc if has_interval else None
 
 
 @jit
 def integrate_sample(
-    buffer: FloatArray,
-    t_s: float,
-    wx: float,
-    wy: float,
-    wz: float,
-    fx: float,
-    fy: float,
-    fz: float,
-    inc: FloatArray,
+    buffer: FloatArray, t_s: float, sample: tuple[float, ...], inc: FloatArray
 ) -> bool:
-    """SampleIntegrator.push on its ``buffer``: file the sample, write the increment since the
-    previous one into ``inc``; False (``inc`` untouched) for the first sample."""
+    """SampleIntegrator.push on its ``buffer``: file the sample (ω (3), f (3)) stamped ``t_s``,
+    write the increment since the previous one into ``inc``; False (``inc`` untouched) for the
+    first sample."""
     count = int(buffer[3, 0])
     if count == 3:
         buffer[0, :] = buffer[1, :]
         buffer[1, :] = buffer[2, :]
         count = 2
     row = buffer[count]
-    row[0], row[1], row[2], row[3], row[4], row[5], row[6] = t_s, wx, wy, wz, fx, fy, fz
+    row[0] = t_s
+    for k in range(6):
+        row[1 + k] = sample[k]
     count += 1
     buffer[3, 0] = count
     if count == 1:
