@@ -9,6 +9,12 @@
    the rest (imports of the replay modules, parameter checks), then the functions with the most
    own time. The profiler's overhead per call inflates the filter, which makes many small
    calls, more than the vectorised phases: compare fractions with section 1.
+3. A sampled profile of the same command (``--sample``): SIGPROF every millisecond of CPU
+   (delivered at most every few ms by the kernel's timer), the Python stack at each signal;
+   prints the share of the samples in which each engine function was on the stack (inclusive)
+   and at its top (own). Nothing is added per call, so small functions are not inflated. A
+   signal arriving in compiled code is taken when the kernel returns: kernel time shows as the
+   caller's own time, or as numba's ``_numba_unpickle`` for kernels that return arrays.
 
 Bag: bench/speed_bag.py (437 s test pattern, imu400cc 200 Hz, GNSS fix + velocity 5 Hz, truth
 50 Hz) or ``--bag``. ``--profile FILE`` keeps the pstats file (e.g. for snakeviz).
@@ -17,15 +23,18 @@ Bag: bench/speed_bag.py (437 s test pattern, imu400cc 200 Hz, GNSS fix + velocit
 from __future__ import annotations
 
 import argparse
+import collections
 import cProfile
 import io
 import json
 import pstats
 import resource
+import signal
 import subprocess
 import tempfile
 from contextlib import redirect_stdout
 from pathlib import Path
+from types import FrameType
 
 from speed_bag import gnss_ins_command, simulated_bag
 
@@ -108,12 +117,51 @@ def profiled(bag: Path, workdir: Path, top: int, keep: Path | None) -> None:
     print("\n".join("   " + line for line in lines[start : start + top + 1]))
 
 
+def sampled(bag: Path, workdir: Path, top: int) -> None:
+    inclusive: collections.Counter[str] = collections.Counter()
+    own: collections.Counter[str] = collections.Counter()
+    samples = 0
+
+    def record(_: int, frame: FrameType | None) -> None:
+        nonlocal samples
+        samples += 1
+        seen = set()
+        first = True
+        while frame is not None:
+            code = frame.f_code
+            name = f"{Path(code.co_filename).name}:{code.co_name}"
+            if first:
+                own[name] += 1
+                first = False
+            if name not in seen:
+                inclusive[name] += 1
+                seen.add(name)
+            frame = frame.f_back
+
+    signal.signal(signal.SIGPROF, record)
+    signal.setitimer(signal.ITIMER_PROF, 0.001, 0.001)
+    try:
+        with redirect_stdout(io.StringIO()):
+            cli.main(["replay", str(bag), f"--report={workdir / 'sampled.json'}"])
+    finally:
+        signal.setitimer(signal.ITIMER_PROF, 0.0, 0.0)
+        signal.signal(signal.SIGPROF, signal.SIG_DFL)
+    print(f"3. sampled profile, {samples} samples; on the stack (inclusive) / at its top (own):")
+    below_outer = [item for item in inclusive.most_common() if item[1] < 0.95 * samples]
+    for name, count in below_outer[: 2 * top]:  # the command's outer frames left out
+        print(f"   {count / samples:6.1%} {name}")
+    print("   own:")
+    for name, count in own.most_common(top):
+        print(f"   {count / samples:6.1%} {name}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--bag", type=Path, help="bag to replay (default: bench/speed_bag.py)")
     parser.add_argument("--top", type=int, default=15, help="functions listed (default 15)")
     parser.add_argument("--profile", type=Path, help="write the pstats file here")
     parser.add_argument("--workdir", type=Path, help="keep the bag and reports here")
+    parser.add_argument("--sample", action="store_true", help="also a sampled profile (3.)")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory(prefix="replay_profile_") as temporary:
         workdir = args.workdir or Path(temporary)
@@ -121,6 +169,8 @@ def main() -> None:
         bag = args.bag or simulated_bag(workdir)
         unprofiled(bag, workdir)
         profiled(bag, workdir, args.top, args.profile)
+        if args.sample:
+            sampled(bag, workdir, args.top)
 
 
 if __name__ == "__main__":

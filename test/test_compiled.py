@@ -12,7 +12,16 @@ import numpy as np
 import pytest
 
 from gnss_ins_common.params import validate_all
-from ins_fusion.core import eskf, propagation, solution, strapdown
+from ins_fusion.core import (
+    eskf,
+    intake,
+    measurements,
+    propagation,
+    solution,
+    state,
+    stop_detector,
+    strapdown,
+)
 from ins_fusion.core.compiled import jit
 from ins_fusion.core.params import PARAMETERS
 from ins_fusion.core.warm_up import warm_up
@@ -77,13 +86,22 @@ def test_compiled_track_equals_pure_python(drive: Path, tmp_path: Path, paramete
 
 
 #: The kernels the engine calls from Python, each to be compiled for one set of argument types
-#: (strapdown.mechanize is compiled into propagation.advance).
+#: (strapdown.mechanize is compiled into propagation.advance, the calibration into
+#: intake.take_sample).
 _KERNELS = (
-    strapdown._integrate,
+    strapdown.integrate_sample,
+    intake.take_sample,
+    intake.record_sample,
+    stop_detector.ring_push,
+    stop_detector.window_statistics,
+    measurements._nhc_model,
     propagation.advance,
+    propagation.covariance_interval,
+    propagation.predicted_state,
     eskf._propagate,
     eskf._joseph_update,
     solution._fill_row,
+    state.inject_nominal,
 )
 _REAL = Path(__file__).parent / "fixtures" / "comma2k19" / "comma2k19_ex1_seg40"
 

@@ -9,6 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from config_checks import assert_file_holds_defaults
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from gnss_ins_common.params import ParameterValueError, load_yaml
@@ -305,3 +307,28 @@ def test_stop_detector_rotates_the_specific_force_into_base_link():
         det.push(t, (0.0, 0.0, 0.0), (0.0, 0.0, rng.normal(-9.81, 0.3)))
     assert not det.evaluate(t, None, None)
     assert det.accel_variance < 1e-20
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    rate_hz=st.floats(50.0, 2000.0),
+    window_s=st.floats(0.1, 3.0),
+    seconds=st.floats(0.0, 4.0),
+)
+def test_stop_detector_window_holds_exactly_the_last_window_of_samples(
+    rate_hz: float, window_s: float, seconds: float
+) -> None:
+    """The detector's sample ring keeps every sample of the last window, oldest first, at any
+    IMU rate (a rate above what the ring was sized for makes it grow, dropping nothing)."""
+    config = StopDetectorConfig(window_s, 0.048, 5e-4, 0.05, 0.2, 1.5, 0.5)
+    det = StopDetector(config, np.eye(3))
+    times = np.arange(1, int(seconds * rate_hz) + 2) / rate_hz
+    for k, t in enumerate(times):
+        det.push(float(t), (float(k), 0.0, 0.0), (0.0, float(-k), -9.81))
+    window = det.window()
+    kept = np.flatnonzero(times >= times[-1] - window_s)
+    np.testing.assert_array_equal(window[:, 0], times[kept])
+    np.testing.assert_array_equal(window[:, 1], kept)
+    np.testing.assert_array_equal(window[:, 5], -kept)
+    det.reset()
+    assert len(det.window()) == 0

@@ -37,16 +37,47 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from gnss_ins_common.types import FloatArray
+from ins_fusion.core.compiled import compilable, jit
 
 #: A squared difference above this many times the running mean is clipped to it.
 _CLIP = 9.0
 #: Differences needed before an estimate is reported.
 _MIN_COUNT = 10
+#: Layout of ImuNoiseMonitor.block, all the monitor keeps (``block_push`` updates it): the open
+#: block's start [s] (NaN: none), sums of ω (3) and f (3) and count; the block length τ [s];
+#: the means of the last two closed blocks (older first, 6 each) and how many are held (0-2);
+#: the running mean squares (gyro 3, accelerometer 3) and their counts; the running mean's
+#: time constant [s]; the estimate's version (+1 whenever ``psd`` changes).
+B_START, B_SUM, B_N, B_TAU, B_PREV, B_HELD = 0, 1, 7, 8, 9, 21
+B_MEAN, B_GYRO_N, B_ACCEL_N, B_WINDOW, B_VERSION, B_SIZE = 22, 28, 29, 30, 31, 32
+
+
+@compilable
+def push_square(
+    mean: FloatArray, count: int, square: FloatArray, weight: float, window: float
+) -> int:
+    """Add a per-axis square (3) of ``weight`` (in the units of ``window``) to the running
+    ``mean`` (3, in place) of ``count`` squares so far; returns the new count (unchanged, and
+    the mean too, when a square is not finite). Plain mean for the first ``_MIN_COUNT``, then
+    exponential with gain weight/window and each square clipped at ``_CLIP`` times the mean."""
+    for k in range(3):
+        if not math.isfinite(square[k]):
+            return count
+    count += 1
+    if count <= _MIN_COUNT:
+        for k in range(3):
+            mean[k] = mean[k] + (square[k] - mean[k]) / count
+        return count
+    gain = min(1.0, weight / window)
+    for k in range(3):
+        clipped = min(square[k], _CLIP * mean[k])
+        mean[k] = mean[k] + (clipped - mean[k]) * gain
+    return count
 
 
 @dataclass(frozen=True)
 class _RunningMeanSquare:
-    """Exponentially weighted mean of per-axis squares, with clipping (module docstring);
+    """Exponentially weighted mean of per-axis squares, with clipping (``push_square``);
     immutable: ``pushed`` returns the updated mean."""
 
     window: float
@@ -55,14 +86,9 @@ class _RunningMeanSquare:
 
     def pushed(self, square: FloatArray, weight: float) -> _RunningMeanSquare:
         """With a per-axis square of ``weight`` (in the units of ``window``) added."""
-        if not np.isfinite(square).all():
-            return self
-        count = self.count + 1
-        if count <= _MIN_COUNT:  # plain mean to start
-            return _RunningMeanSquare(self.window, count, self.mean + (square - self.mean) / count)
-        clipped = np.minimum(square, _CLIP * self.mean)
-        gain = min(1.0, weight / self.window)
-        return _RunningMeanSquare(self.window, count, self.mean + (clipped - self.mean) * gain)
+        mean = self.mean.copy()
+        count = push_square(mean, self.count, square, weight, self.window)
+        return self if count == self.count else _RunningMeanSquare(self.window, count, mean)
 
     @property
     def ready(self) -> bool:
@@ -71,22 +97,23 @@ class _RunningMeanSquare:
 
 class ImuNoiseMonitor:
     """White-equivalent noise density of the IMU's rate and specific force, per imu axis, at
-    the filter's time scale (module docstring). Feed every sample; read ``psd``."""
+    the filter's time scale (module docstring). Feed every sample; read ``psd``. Its numbers
+    live in ``block`` (B_* layout), which the engine's compiled sample intake updates."""
 
     def __init__(self, block_s: float = 0.05, window_s: float = 10.0) -> None:
         """block_s: block length τ [s]; window_s: time constant of the running mean [s]."""
-        self.block_s = block_s
-        self._gyro = _RunningMeanSquare(window_s)
-        self._accel = _RunningMeanSquare(window_s)
+        self.block = np.zeros(B_SIZE)
+        self.block[B_TAU] = block_s
+        self.block[B_WINDOW] = window_s
         self._psd: tuple[FloatArray, FloatArray] | None = None
+        self._version = 0.0
         self.reset()
 
     def reset(self) -> None:
         """Forget the blocks (a gap or a reset); the running estimate is kept."""
-        self._start_s: float | None = None
-        self._sum = [0.0] * 6  # plain floats: this runs for every IMU sample
-        self._n = 0
-        self._means: list[FloatArray] = []
+        self.block[B_START] = math.nan
+        self.block[B_SUM : B_N + 1] = 0.0
+        self.block[B_HELD] = 0.0
 
     def push(
         self,
@@ -95,41 +122,71 @@ class ImuNoiseMonitor:
         force: tuple[float, float, float],
     ) -> None:
         """One IMU sample at t_s [s]: angular rate [rad/s] and specific force [m/s²]."""
-        if self._start_s is None:
-            self._start_s = t_s
-        elif t_s - self._start_s >= self.block_s and self._n:
-            self._close_block(t_s - self._start_s)
-            self._start_s = t_s
-        acc = self._sum
-        acc[0] += rate[0]
-        acc[1] += rate[1]
-        acc[2] += rate[2]
-        acc[3] += force[0]
-        acc[4] += force[1]
-        acc[5] += force[2]
-        self._n += 1
-
-    def _close_block(self, tau_s: float) -> None:
-        means = self._means
-        means.append(np.array(self._sum) / self._n)
-        self._sum = [0.0] * 6
-        self._n = 0
-        if len(means) < 3:
-            return
-        d = means[2] - 2.0 * means[1] + means[0]
-        del means[0]
-        psd = np.square(d) * (tau_s / 6.0)
-        self._gyro = self._gyro.pushed(psd[:3], tau_s)
-        self._accel = self._accel.pushed(psd[3:], tau_s)
-        if self._gyro.ready:
-            self._psd = (self._gyro.mean, self._accel.mean)
+        block_push(self.block, t_s, *rate, *force)
 
     @property
     def psd(self) -> tuple[FloatArray, FloatArray] | None:
         """(gyro [rad²/s], accelerometer [m²/s³]) white-noise power densities per axis, the
         squares of ARW [rad/√s] and VRW [m/s/√s]; None before enough blocks. The same
-        (read-only) objects until the next block closes."""
+        (read-only) objects until the estimate changes."""
+        block = self.block
+        if block[B_VERSION] != self._version:
+            self._version = block[B_VERSION]
+            gyro = block[B_MEAN : B_MEAN + 3].copy()
+            accel = block[B_MEAN + 3 : B_MEAN + 6].copy()
+            gyro.flags.writeable = accel.flags.writeable = False
+            self._psd = (gyro, accel)
         return self._psd
+
+
+@jit
+def block_push(
+    block: FloatArray, t_s: float, wx: float, wy: float, wz: float, fx: float, fy: float, fz: float
+) -> bool:
+    """ImuNoiseMonitor.push on its ``block`` (B_* layout): add the sample to the open block,
+    closing it first when it is τ long; a closed block's mean, with the two before it, gives
+    D = ȳ_k - 2ȳ_{k-1} + ȳ_{k-2} and the density τ D²/6 into the running means (module
+    docstring). True when the estimate changed."""
+    changed = False
+    start = block[B_START]
+    if math.isnan(start):
+        block[B_START] = t_s
+    elif t_s - start >= block[B_TAU] and block[B_N] > 0.0:
+        tau = t_s - start
+        n = block[B_N]
+        means = np.empty(6)
+        for k in range(6):
+            means[k] = block[B_SUM + k] / n
+            block[B_SUM + k] = 0.0
+        block[B_N] = 0.0
+        block[B_START] = t_s
+        held = int(block[B_HELD])
+        if held < 2:
+            block[B_PREV + 6 * held : B_PREV + 6 * held + 6] = means
+            block[B_HELD] = held + 1
+        else:
+            psd = np.empty(6)
+            for k in range(6):
+                d = means[k] - 2.0 * block[B_PREV + 6 + k] + block[B_PREV + k]
+                psd[k] = d * d * (tau / 6.0)
+            window = block[B_WINDOW]
+            gyro_mean = block[B_MEAN : B_MEAN + 3]
+            accel_mean = block[B_MEAN + 3 : B_MEAN + 6]
+            block[B_GYRO_N] = push_square(gyro_mean, int(block[B_GYRO_N]), psd[:3], tau, window)
+            block[B_ACCEL_N] = push_square(accel_mean, int(block[B_ACCEL_N]), psd[3:], tau, window)
+            if block[B_GYRO_N] >= _MIN_COUNT:
+                block[B_VERSION] += 1.0
+                changed = True
+            block[B_PREV : B_PREV + 6] = block[B_PREV + 6 : B_PREV + 12]
+            block[B_PREV + 6 : B_PREV + 12] = means
+    block[B_SUM] += wx
+    block[B_SUM + 1] += wy
+    block[B_SUM + 2] += wz
+    block[B_SUM + 3] += fx
+    block[B_SUM + 4] += fy
+    block[B_SUM + 5] += fz
+    block[B_N] += 1.0
+    return changed
 
 
 @dataclass(frozen=True)

@@ -65,11 +65,17 @@ import numpy as np
 import yaml
 
 from gnss_ins_common.axes import AxisMap
-from gnss_ins_common.types import Mat3, Vec3
+from gnss_ins_common.types import FloatArray, Mat3, Vec3
+from ins_fusion.core.compiled import compilable, jit
 from ins_fusion.core.units import STANDARD_GRAVITY_M_S2, deg_s, mg, percent
 
 _ZERO3: Vec3 = (0.0, 0.0, 0.0)
 _ZERO33: Mat3 = (_ZERO3, _ZERO3, _ZERO3)
+
+#: Layout of ImuCalibration.table, the numbers ``correct_sample`` reads: per triad (gyro, then
+#: accelerometer) the 64 matrices of TriadCalibration.inverses, then the two biases, the two
+#: large-input thresholds and G, row-major.
+T_INVERSES, T_BIAS, T_LARGE, T_G, T_SIZE = 0, 1152, 1158, 1160, 1169
 
 
 class CalibrationError(ValueError):
@@ -133,7 +139,7 @@ class TriadCalibration:
         )
 
     @functools.cached_property
-    def _inverses(self) -> tuple[tuple[float, ...], ...]:
+    def inverses(self) -> tuple[tuple[float, ...], ...]:
         """(I + diag(s) + A)⁻¹ row-major for the 64 patterns: bit i set = axis i < 0, bit i + 3
         set = axis i in the large range."""
         inverses = []
@@ -144,22 +150,6 @@ class TriadCalibration:
             mat = np.eye(3) + np.diag(scale) + np.array(self.misalignment_rad) * (1 - np.eye(3))
             inverses.append(tuple(float(v) for v in np.linalg.inv(mat).ravel()))
         return tuple(inverses)
-
-    def correct(self, measured: Vec3, extra_bias: Vec3 = _ZERO3) -> Vec3:
-        """True input from a measured triad sample; extra_bias (the G f term) is removed too."""
-        x = measured[0] - self.bias[0] - extra_bias[0]
-        y = measured[1] - self.bias[1] - extra_bias[1]
-        z = measured[2] - self.bias[2] - extra_bias[2]
-        pattern = (x < 0.0) | (y < 0.0) << 1 | (z < 0.0) << 2
-        big = self.large_input
-        if big != math.inf:
-            pattern |= (abs(x) >= big) << 3 | (abs(y) >= big) << 4 | (abs(z) >= big) << 5
-        m = self._inverses[pattern]
-        return (
-            m[0] * x + m[1] * y + m[2] * z,
-            m[3] * x + m[4] * y + m[5] * z,
-            m[6] * x + m[7] * y + m[8] * z,
-        )
 
 
 @dataclass(frozen=True)
@@ -225,14 +215,18 @@ class ImuCalibration:
 
     def correct(self, rate_flu_rad_s: Vec3, force_flu_m_s2: Vec3) -> tuple[Vec3, Vec3]:
         """(rate, specific force) corrected for the deterministic errors, imu_link FLU, SI."""
-        force = self.accel.correct(force_flu_m_s2)
-        g = self.g_sensitivity
-        g_term = (
-            g[0][0] * force[0] + g[0][1] * force[1] + g[0][2] * force[2],
-            g[1][0] * force[0] + g[1][1] * force[1] + g[1][2] * force[2],
-            g[2][0] * force[0] + g[2][1] * force[1] + g[2][2] * force[2],
-        )
-        return self.gyro.correct(rate_flu_rad_s, g_term), force
+        wx, wy, wz, fx, fy, fz = correct_sample(self.table, *rate_flu_rad_s, *force_flu_m_s2)
+        return (wx, wy, wz), (fx, fy, fz)
+
+    @functools.cached_property
+    def table(self) -> FloatArray:
+        """The correction as numbers (T_* layout) for ``correct_sample``."""
+        table = np.empty(T_SIZE)
+        table[T_INVERSES:T_BIAS] = np.ravel((self.gyro.inverses, self.accel.inverses))
+        table[T_BIAS : T_BIAS + 6] = (*self.gyro.bias, *self.accel.bias)
+        table[T_LARGE : T_LARGE + 2] = (self.gyro.large_input, self.accel.large_input)
+        table[T_G:] = np.ravel(self.g_sensitivity)
+        return table
 
     def in_temperature_range(self, temperature_c: float) -> bool:
         """Whether the IMU temperature is inside the calibration's range (True when unknown)."""
@@ -384,3 +378,40 @@ def _numbers(value: Any, where: str) -> list[float]:
     ):
         raise CalibrationError(f"{where}: expected a list of finite numbers, got {value!r}")
     return [float(v) for v in value]
+
+
+@compilable
+def _invert(table: FloatArray, triad: int, x: float, y: float, z: float) -> Vec3:
+    """(I + diag(s±) + A)⁻¹ (x, y, z) of a triad (0 gyro, 1 accelerometer) of ``table``, with
+    the matrix chosen by the signs and sizes of x, y, z (TriadCalibration.inverses)."""
+    pattern = (1 if x < 0.0 else 0) + (2 if y < 0.0 else 0) + (4 if z < 0.0 else 0)
+    big = table[T_LARGE + triad]
+    if big != math.inf:
+        pattern += (8 if abs(x) >= big else 0) + (16 if abs(y) >= big else 0)
+        pattern += 32 if abs(z) >= big else 0
+    k = T_INVERSES + (triad * 64 + pattern) * 9
+    m = table[k : k + 9]
+    return (
+        m[0] * x + m[1] * y + m[2] * z,
+        m[3] * x + m[4] * y + m[5] * z,
+        m[6] * x + m[7] * y + m[8] * z,
+    )
+
+
+@jit
+def correct_sample(
+    table: FloatArray, wx: float, wy: float, wz: float, fx: float, fy: float, fz: float
+) -> tuple[float, float, float, float, float, float]:
+    """ImuCalibration.correct of one sample with its ``table``: the accelerometers first, their
+    result is the f of the g-dependent gyro bias G f; the sign of each input is that of the
+    reading minus its bias."""
+    b = T_BIAS
+    ax, ay, az = _invert(table, 1, fx - table[b + 3], fy - table[b + 4], fz - table[b + 5])
+    g = table[T_G : T_G + 9]
+    gx = g[0] * ax + g[1] * ay + g[2] * az
+    gy = g[3] * ax + g[4] * ay + g[5] * az
+    gz = g[6] * ax + g[7] * ay + g[8] * az
+    rx, ry, rz = _invert(
+        table, 0, wx - table[b] - gx, wy - table[b + 1] - gy, wz - table[b + 2] - gz
+    )
+    return rx, ry, rz, ax, ay, az

@@ -7,7 +7,9 @@ Pipeline per IMU sample (imu_link FLU, SI, REP-145): calibration (core.calibrati
 (9.1)/(9.2)) -> FRD -> increments (strapdown.SampleIntegrator, interval from the stamps) ->
 filter bias/scale correction, mounting rotation imu_link -> base_link and strapdown mechanization
 of the IMU point with base_link axes (core.propagation) -> covariance propagation (core.eskf) ->
-pseudo-measurements (ZUPT, ZARU, NHC) at ``pseudo_measurement_rate``.
+pseudo-measurements (ZUPT, ZARU, NHC) at ``pseudo_measurement_rate``. An ordinary sample's part
+up to the strapdown step (with the stop detector's and noise monitor's stores) is one compiled
+call (core.intake); starts, restarts and gaps come back to Python.
 
 Measurements at their own stamps (core.timeline): every IMU sample leaves a history entry (its
 increment and a checkpoint of the state after it) for ``history_s`` seconds. A measurement
@@ -49,10 +51,37 @@ from typing import Any
 import numpy as np
 
 from gnss_ins_common.types import FloatArray, Vec3
+from ins_fusion.core.calibration import T_SIZE as CALIBRATION_SIZE
 from ins_fusion.core.calibration import ImuCalibration
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.eskf import ErrorStateFilter, StateLayout
 from ins_fusion.core.gnss_noise import GnssNoise
+from ins_fusion.core.intake import (
+    BACK_RUN_RESET,
+    GAP,
+    PUSHED,
+    REJECTED,
+    RESTART,
+    RING_FULL,
+    S_DUPLICATES,
+    S_FORCE,
+    S_GAPS,
+    S_IMPLAUSIBLE,
+    S_LAST_FORCE,
+    S_LAST_RATE,
+    S_LAST_T,
+    S_NOMINAL_DT,
+    S_OUT_OF_ORDER,
+    S_RATE,
+    S_SAMPLES,
+    S_ZARU_N,
+    S_ZARU_SUM,
+    STEPPED,
+    forget_stream,
+    new_intake,
+    record_sample,
+    take_sample,
+)
 from ins_fusion.core.measurements import (
     AttitudeMeasurement,
     GnssFixMeasurement,
@@ -62,10 +91,10 @@ from ins_fusion.core.propagation import ImuDensities, Propagator, bridge
 from ins_fusion.core.smoother import SmootherHooks
 from ins_fusion.core.solution import InsSolution, SolutionBuilder, self_calibration, unpack
 from ins_fusion.core.startup import Startup
-from ins_fusion.core.state import FilterState, Geometry, LatestInputs
+from ins_fusion.core.state import X_SIZE, FilterState, Geometry, LatestInputs
 from ins_fusion.core.status import MEASUREMENT_NAMES, EngineStatus, new_counters
 from ins_fusion.core.stop_detector import GNSS_SPEED_MAX_AGE_S, StopDetector
-from ins_fusion.core.strapdown import SampleIntegrator, increment
+from ins_fusion.core.strapdown import INCREMENT_SIZE, SampleIntegrator, increment
 from ins_fusion.core.timeline import Checkpoint, Entry, Gap, Record, Timeline
 from ins_fusion.core.units import STANDARD_GRAVITY_M_S2
 from ins_fusion.core.updates import Corrections
@@ -83,24 +112,13 @@ __all__ = [
     "InsSolution",
 ]
 
-#: An IMU interval longer than this many nominal intervals is a gap (bridged, counted).
-_GAP_FACTOR = 2.5
-#: IMU samples stamped before the last one, in a row, that make a new stream (a reset); fewer
-#: are skipped one by one.
-_BACK_RUN_RESET = 10
-
 
 class InsEngine:
     """Loosely coupled, closed-loop error-state GNSS/INS (see the module docstring)."""
 
     _filter: ErrorStateFilter | None
     _state: FilterState | None
-    _last_t_s: float | None
-    _last_sample: tuple[Vec3, Vec3]
-    _nominal_dt_s: float
     _next_pseudo_t_s: float
-    _zaru_sum: list[float]
-    _zaru_count: int
     _zaru_start_s: float
 
     def __init__(self, config: FusionConfig, calibration: ImuCalibration | None = None) -> None:
@@ -135,15 +153,16 @@ class InsEngine:
         self._pseudo_period_s = 1.0 / config.pseudo_measurement_rate_hz
         self._resets = 0
         self._last_reset_reason = ""
-        self._imu_samples = 0
-        self._imu_gaps = 0
-        self._imu_duplicates = 0
-        self._imu_out_of_order = 0
-        self._imu_implausible = 0
-        self._imu_back_run = 0
         range_margin = 1.1  # calibration and scale errors may carry a reading past the range
-        self._max_rate = math.radians(config.imu_range_rate_deg_s) * range_margin
-        self._max_force = config.imu_range_accel_g * STANDARD_GRAVITY_M_S2 * range_margin
+        self._intake = new_intake(
+            math.radians(config.imu_range_rate_deg_s) * range_margin,
+            config.imu_range_accel_g * STANDARD_GRAVITY_M_S2 * range_margin,
+            calibration is not None,
+        )
+        self._calibration_table = (
+            calibration.table if calibration is not None else np.zeros(CALIBRATION_SIZE)
+        )
+        self._idle_x = np.zeros(X_SIZE)  # the intake's state argument while it does not step
         self._rollbacks = 0
         self._replayed_samples = 0
         self._detector = StopDetector(config.stop_detector, geometry.mat_bi)
@@ -162,86 +181,84 @@ class InsEngine:
         """One IMU sample as published by imu400cc_node: imu_link FLU, rad/s and m/s², stamp
         (``imu_time_offset`` is taken off it: the engine runs on the GNSS time base)."""
         t = float(t_s) - self.config.imu_time_offset_s
-        rate: Vec3 = (float(rate_flu_rad_s[0]), float(rate_flu_rad_s[1]), float(rate_flu_rad_s[2]))
-        force: Vec3 = (float(force_flu_m_s2[0]), float(force_flu_m_s2[1]), float(force_flu_m_s2[2]))
-        # One test for all seven: a NaN or an infinity in any makes the sum non-finite.
-        if not math.isfinite(t + rate[0] + rate[1] + rate[2] + force[0] + force[1] + force[2]):
-            self._imu_gaps += 1  # a corrupt sample is a one-sample gap
-            return
-        if (
-            max(abs(rate[0]), abs(rate[1]), abs(rate[2])) > self._max_rate
-            or max(abs(force[0]), abs(force[1]), abs(force[2])) > self._max_force
-        ):
-            self._imu_gaps += 1  # beyond what the unit can measure: corrupt, a one-sample gap
-            self._imu_implausible += 1
-            return
-        last = self._last_t_s
-        if last is not None and t <= last:
-            if t == last:
-                self._imu_duplicates += 1
-                return
-            # One sample in the past is a fault of that sample (skipped); a run of them is the
-            # clock that went back (a restarted recording, a reset device): start again.
-            self._imu_back_run += 1
-            if self._imu_back_run < _BACK_RUN_RESET:
-                self._imu_out_of_order += 1
-                return
-            self._reset(
-                f"IMU stamp went back by {last - t:.3f} s for {_BACK_RUN_RESET} samples in a row"
-            )
-            last = None
-        self._imu_back_run = 0
-        self._imu_samples += 1
-        if self.calibration is not None:
-            rate, force = self.calibration.correct(rate, force)
-        rate_i: Vec3 = (rate[0], -rate[1], -rate[2])
-        force_i: Vec3 = (force[0], -force[1], -force[2])
+        timeline = self._timeline
+        # The strapdown step goes with the intake unless measurements are due before it.
+        ready = self._filter is not None and timeline.replay_from is None and not timeline.due_by(t)
+        inc = np.empty(INCREMENT_SIZE)
+        code = take_sample(
+            self._intake,
+            self._calibration_table,
+            self._integrator.buffer,
+            self._detector.ring,
+            self._densities.monitor.block,
+            self._state.x if ready else self._idle_x,  # type: ignore[union-attr]
+            self._geometry.r_bi,
+            inc,
+            t,
+            float(rate_flu_rad_s[0]),
+            float(rate_flu_rad_s[1]),
+            float(rate_flu_rad_s[2]),
+            float(force_flu_m_s2[0]),
+            float(force_flu_m_s2[1]),
+            float(force_flu_m_s2[2]),
+            ready,
+        )
+        if code >= PUSHED:
+            self._advance(t, inc, None, code)
+        elif code != REJECTED:
+            self._take_exception(t, code)
 
-        if last is None:
+    def _take_exception(self, t: float, code: int) -> None:
+        """A sample that starts or restarts the stream, or ends a gap (core.intake codes)."""
+        buf = self._intake
+        rate_i, force_i = self._sample()
+        last = float(buf[S_LAST_T])
+        if code == RESTART:
+            self._reset(
+                f"IMU stamp went back by {last - t:.3f} s for {BACK_RUN_RESET} samples in a row"
+            )
+        dt = t - last
+        if code != GAP or dt > self.config.imu_gap_reset_s:
+            if code == GAP:
+                self._reset(f"IMU gap of {dt:.3f} s")
             self._start_stream(t, rate_i, force_i)
             return
-        dt = t - last
-        gap: Gap | None = None
-        if dt > _GAP_FACTOR * self._nominal_dt_s:
-            self._imu_gaps += 1
-            if dt > self.config.imu_gap_reset_s:
-                self._reset(f"IMU gap of {dt:.3f} s")
-                self._start_stream(t, rate_i, force_i)
-                return
-            inc, gap = bridge(dt, self._last_sample, rate_i, force_i)
-            self._integrator.reset()  # the coning/sculling history restarts at this sample
-            self._integrator.push(last + dt, rate_i, force_i)
-        else:
-            pushed = self._integrator.push(t, rate_i, force_i)
-            assert pushed is not None
-            inc = pushed
-            nominal = self._nominal_dt_s
-            self._nominal_dt_s = dt if nominal == math.inf else nominal + 0.01 * (dt - nominal)
-        self._last_t_s = t
-        self._last_sample = (rate_i, force_i)
-        self._detector.push(t, rate_i, force_i)
-        if gap is not None:
-            self._densities.monitor.reset()
-        self._densities.monitor.push(t, rate_i, force_i)
-        zs = self._zaru_sum
-        zs[0] += rate_i[0]
-        zs[1] += rate_i[1]
-        zs[2] += rate_i[2]
-        self._zaru_count += 1
+        inc, gap = bridge(dt, self._last_sample, rate_i, force_i)
+        self._integrator.reset()  # the coning/sculling history restarts at this sample
+        self._integrator.push(last + dt, rate_i, force_i)
+        self._densities.monitor.reset()
+        flags = record_sample(buf, self._detector.ring, self._densities.monitor.block, t)
+        self._advance(t, inc, gap, flags)
 
+    def _sample(self) -> tuple[Vec3, Vec3]:
+        """The sample just taken (rate [rad/s], specific force [m/s²]; calibrated, imu FRD)."""
+        wx, wy, wz, fx, fy, fz = self._intake[S_RATE : S_FORCE + 3].tolist()
+        return (wx, wy, wz), (fx, fy, fz)
+
+    def _advance(self, t: float, inc: FloatArray, gap: Gap | None, flags: int) -> None:
+        """After the intake of a sample (``flags``: core.intake): the detector's and monitor's
+        follow-ups, then levelling and alignment, or the strapdown step (unless the intake did
+        it), the history entry and the pseudo-measurements."""
+        if flags & RING_FULL:
+            self._detector.grow()
         if self._filter is None:
             if self._detector.stationary:
-                self._startup.levelling.push(t, rate_i, force_i)
+                self._startup.levelling.push(t, *self._sample())
             if t >= self._next_pseudo_t_s:
                 self._align_epoch(t)
             return
-        self._catch_up()
-        for record in self._timeline.due(t):
-            if self._timeline.insert(record):
-                self._apply(record, live=True)
-        self._catch_up()
         noise = self._densities.current()
-        self._step(inc, gap, t, noise)
+        if flags & STEPPED:
+            s, kf = self._state, self._filter
+            assert s is not None
+            self._propagator.advanced(s, kf, None, noise)
+        else:
+            self._catch_up()
+            for record in self._timeline.due(t):
+                if self._timeline.insert(record):
+                    self._apply(record, live=True)
+            self._catch_up()
+            self._step(inc, gap, t, noise)
         entry = Entry(t, inc, gap, noise, self._checkpoint())
         self._timeline.append(entry)
         if t >= self._next_pseudo_t_s:
@@ -285,7 +302,8 @@ class InsEngine:
         s, kf = self._state, self._filter
         if s is None or kf is None or self.datum is None:
             return None
-        return self._output.row(s, kf, self.datum, self._last_sample[0], self._state_name())
+        rate_i = self._intake[S_LAST_RATE : S_LAST_RATE + 3]
+        return self._output.row(s, kf, self.datum, rate_i, self._state_name())
 
     def status(self) -> EngineStatus:
         """Counters and diagnostics (see EngineStatus)."""
@@ -295,11 +313,11 @@ class InsEngine:
             measurements={name: dict(c) for name, c in self._counters.items()},
             resets=self._resets,
             last_reset_reason=self._last_reset_reason,
-            imu_samples=self._imu_samples,
-            imu_gaps=self._imu_gaps,
-            imu_duplicates=self._imu_duplicates,
-            imu_out_of_order=self._imu_out_of_order,
-            imu_implausible=self._imu_implausible,
+            imu_samples=int(self._intake[S_SAMPLES]),
+            imu_gaps=int(self._intake[S_GAPS]),
+            imu_duplicates=int(self._intake[S_DUPLICATES]),
+            imu_out_of_order=int(self._intake[S_OUT_OF_ORDER]),
+            imu_implausible=int(self._intake[S_IMPLAUSIBLE]),
             nis=dict(self._corrections.nis),
             rollbacks=self._rollbacks,
             replayed_samples=self._replayed_samples,
@@ -367,12 +385,8 @@ class InsEngine:
         self._filter = None
         self._state = None
         self._timeline.clear()
-        self._last_t_s = None
-        self._last_sample = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
-        self._nominal_dt_s = math.inf
+        forget_stream(self._intake)
         self._next_pseudo_t_s = math.inf
-        self._zaru_sum = [0.0, 0.0, 0.0]
-        self._zaru_count = 0
         self._zaru_start_s = 0.0
         latest = self._latest
         latest.fix = latest.velocity = latest.attitude = latest.gnss_speed = None
@@ -390,18 +404,25 @@ class InsEngine:
         """First sample after start or reset: no interval yet."""
         self._integrator.reset()
         self._integrator.push(t, rate_i, force_i)
-        self._last_t_s = t
-        self._last_sample = (rate_i, force_i)
-        self._nominal_dt_s = math.inf
+        buf = self._intake
+        buf[S_LAST_T] = t
+        buf[S_LAST_RATE : S_LAST_RATE + 3] = rate_i
+        buf[S_LAST_FORCE : S_LAST_FORCE + 3] = force_i
+        buf[S_NOMINAL_DT] = math.inf
         self._detector.push(t, rate_i, force_i)
         self._start_pseudo_interval(t)
+
+    @property
+    def _last_sample(self) -> tuple[Vec3, Vec3]:
+        """The last accepted sample (rate [rad/s], specific force [m/s²], imu FRD)."""
+        wx, wy, wz, fx, fy, fz = self._intake[S_LAST_RATE : S_LAST_FORCE + 3].tolist()
+        return (wx, wy, wz), (fx, fy, fz)
 
     def _start_pseudo_interval(self, t: float) -> None:
         self._next_pseudo_t_s = (
             math.floor(t / self._pseudo_period_s) + 1.0
         ) * self._pseudo_period_s
-        self._zaru_sum = [0.0, 0.0, 0.0]
-        self._zaru_count = 0
+        self._intake[S_ZARU_SUM : S_ZARU_N + 1] = 0.0
         self._zaru_start_s = t
 
     def _checkpoint(self) -> Checkpoint:
@@ -478,7 +499,8 @@ class InsEngine:
         cfg = self.config
         speed = float(np.linalg.norm(s.nav.vel_ned_m_s))
         stationary = self._detector.evaluate(t, self._recent_gnss_speed(t), speed)
-        mean_rate = np.array(self._zaru_sum) / max(self._zaru_count, 1)
+        buf = self._intake
+        mean_rate = buf[S_ZARU_SUM : S_ZARU_SUM + 3] / max(int(buf[S_ZARU_N]), 1)
         span = t - self._zaru_start_s
         self._start_pseudo_interval(t)
         kinds: list[tuple[str, Any]] = []

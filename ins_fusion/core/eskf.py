@@ -168,8 +168,8 @@ class ErrorStateFilter:
         F = self._F = np.zeros((n, n))
         F[POS : POS + 3, VEL : VEL + 3] = np.eye(3)
         Q = self._Q = np.zeros((n, n))
-        # Columns of the gyro and accelerometer scale factors (-1: not estimated).
-        self._scales = (
+        #: Columns of the gyro and accelerometer scale factors (-1: not estimated).
+        self.scale_columns = (
             -1 if layout.sg is None else layout.sg,
             -1 if layout.sa is None else layout.sa,
         )
@@ -226,9 +226,8 @@ class ErrorStateFilter:
         """The error-state matrix F (module docstring) for a rotation imu FRD -> NED, the
         specific force in NED and the corrected force/rate in imu FRD [m/s², rad/s], position
         and NED velocity. Returns an internal array, valid until the next call."""
-        _fill_dynamics(
-            self._F, mat_ni, force_n, force_i, rate_i, lat_rad, height_m, vel_ned_m_s, *self._scales
-        )
+        inputs = (mat_ni, force_n, force_i, rate_i, lat_rad, height_m, vel_ned_m_s)
+        _fill_dynamics(self._F, *inputs, *self.scale_columns)
         return self._F
 
     def noise_density(self, mat_ni: FloatArray, rate_i: FloatArray) -> FloatArray:
@@ -259,20 +258,14 @@ class ErrorStateFilter:
     ) -> None:
         """Propagate P over an interval of dt_s [s] (one or a few IMU samples); arguments as
         for ``dynamics`` (mean force and rate over the interval, state at its end)."""
+        inputs = (mat_ni, force_n, force_i, rate_i, lat_rad, height_m, vel_ned_m_s)
         self.P, self.phi = _propagate(
             kernel_array(self.P),
             self._F,
             self._Q,
             dt_s,
-            mat_ni,
-            force_n,
-            force_i,
-            rate_i,
-            lat_rad,
-            height_m,
-            vel_ned_m_s,
-            self._scales[0],
-            self._scales[1],
+            *inputs,
+            *self.scale_columns,
             self._gyro_psd,
             self._gyro_misalignment_q,
             self._accel_psd,

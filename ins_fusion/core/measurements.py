@@ -17,6 +17,7 @@ import numpy as np
 
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core import earth
+from ins_fusion.core.compiled import jit
 from ins_fusion.core.eskf import ATT, BG, POS, VEL, StateLayout
 from ins_fusion.core.rotation import MAT_ENU_NED, euler_rad, skew, wrap_angle
 
@@ -273,20 +274,54 @@ def nhc(
     vehicle frame: v_b = C_nbᵀ v + ω_b × r in base_link, turned into the vehicle frame by the
     residual mounting μ = (pitch, yaw) about base_link FRD y and z, C_vb = I - [μ×]:
     lateral v_b,y - μ_z v_b,x, vertical v_b,z + μ_y v_b,x. H: δv -> C_nbᵀ, ψ -> C_nbᵀ [v×],
-    gyro errors -> -[r×] dω_b, δμ_y -> +v_b,x (vertical), δμ_z -> -v_b,x (lateral) (the
-    mounting's second-order terms in H left out)."""
-    c_bn = pred.mat_nb.T
-    v_b = c_bn @ pred.vel_ned_m_s + skew(pred.rate_b) @ arm_b
-    H = pred.jacobian(3)
+    gyro errors -> -[r×] dω_b (``Prediction.gyro_error_jacobian``), δμ_y -> +v_b,x
+    (vertical), δμ_z -> -v_b,x (lateral) (the mounting's second-order terms in H left out).
+    Compiled (``_nhc_model``)."""
+    layout = pred.layout
+    return _nhc_model(
+        pred.mat_nb,
+        pred.vel_ned_m_s,
+        pred.rate_b,
+        pred.rate_i,
+        arm_b,
+        mat_bi,
+        sigma_m_s,
+        mounting_rad,
+        layout.size,
+        -1 if layout.sg is None else layout.sg,
+        -1 if layout.mt is None else layout.mt,
+    )
+
+
+@jit
+def _nhc_model(
+    mat_nb: FloatArray,
+    vel: FloatArray,
+    rate_b: FloatArray,
+    rate_i: FloatArray,
+    arm_b: FloatArray,
+    mat_bi: FloatArray,
+    sigma_m_s: float,
+    mounting_rad: tuple[float, float],
+    size: int,
+    sg: int,
+    mt: int,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """``nhc``'s model from the prediction's arrays and the layout's size and columns (-1:
+    state not estimated)."""
+    c_bn = np.ascontiguousarray(mat_nb.T)
+    v_b = c_bn @ vel + skew(rate_b) @ arm_b
+    H = np.zeros((3, size))
     H[:, VEL : VEL + 3] = c_bn
-    H[:, ATT : ATT + 3] = c_bn @ skew(pred.vel_ned_m_s)
-    for start, d_rate in pred.gyro_error_jacobian(mat_bi):
-        H[:, start : start + 3] = -skew(arm_b) @ d_rate
+    H[:, ATT : ATT + 3] = c_bn @ skew(vel)
+    arm = -skew(arm_b)
+    H[:, BG : BG + 3] = arm @ -mat_bi
+    if sg >= 0:
+        H[:, sg : sg + 3] = arm @ (-mat_bi * rate_i)
     pitch, yaw = mounting_rad
-    forward = float(v_b[0])
-    predicted = np.array([v_b[1] - yaw * forward, v_b[2] + pitch * forward])
-    mt = pred.layout.mt
-    if mt is not None:
+    forward = v_b[0]
+    predicted = np.array((v_b[1] - yaw * forward, v_b[2] + pitch * forward))
+    if mt >= 0:
         H[1, mt + 1] = -forward
         H[2, mt] = forward
-    return -predicted, H[1:], np.eye(2) * sigma_m_s**2
+    return -predicted, H[1:].copy(), np.eye(2) * sigma_m_s**2

@@ -19,7 +19,7 @@ from ins_fusion.core.compiled import jit
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.eskf import ATT, VEL, ErrorStateFilter
 from ins_fusion.core.measurements import Prediction
-from ins_fusion.core.rotation import skew
+from ins_fusion.core.rotation import mat_from_quat
 from ins_fusion.core.state import (
     X_ACCEL_LP,
     X_ACCEL_N,
@@ -28,6 +28,7 @@ from ins_fusion.core.state import (
     X_COV_DT,
     X_COV_DTH,
     X_COV_DV,
+    X_COV_VEL0,
     X_HAS_PREV,
     X_NAV,
     X_PREV,
@@ -148,6 +149,32 @@ def advance(x: FloatArray, inc: FloatArray, r_bi: FloatArray, bridged: bool, t: 
     x[X_COV_DT] += dt
 
 
+@jit
+def covariance_interval(
+    x: FloatArray, mat_bi: FloatArray
+) -> tuple[float, FloatArray, FloatArray, FloatArray, FloatArray, float, float, Vec3]:
+    """The arguments of ErrorStateFilter.propagate for the interval accumulated in ``x``
+    (X_COV_* of core.state; ``mat_bi`` imu -> body): its length [s], the rotation imu -> NED,
+    the mean specific force in NED (from the velocity change and normal gravity) and in imu
+    FRD, the mean rate (imu FRD), latitude, height and NED velocity at its end; the interval
+    restarts (accumulators zero, its start velocity the current one)."""
+    dt = x[X_COV_DT]
+    inv_dt = 1.0 / dt
+    lat, height = x[X_NAV], x[X_NAV + 2]
+    vel = x[X_NAV + 3 : X_NAV + 6].copy()
+    force_n = (vel - x[X_COV_VEL0 : X_COV_VEL0 + 3]) * inv_dt
+    force_n[2] -= earth.normal_gravity_from_sin_cos(math.sin(lat), math.cos(lat), height)
+    mat_nb = mat_from_quat(x[X_NAV + 6], x[X_NAV + 7], x[X_NAV + 8], x[X_NAV + 9])
+    force_i = x[X_COV_DV : X_COV_DV + 3] * inv_dt
+    rate_i = x[X_COV_DTH : X_COV_DTH + 3] * inv_dt
+    x[X_COV_DT] = 0.0
+    x[X_COV_DTH : X_COV_DTH + 3] = 0.0
+    x[X_COV_DV : X_COV_DV + 3] = 0.0
+    x[X_COV_VEL0 : X_COV_VEL0 + 3] = vel
+    velocity = (vel[0], vel[1], vel[2])
+    return dt, mat_nb @ mat_bi, force_n, force_i, rate_i, lat, height, velocity
+
+
 class Propagator:
     """Strapdown and covariance propagation of the nominal state (see the module docstring)."""
 
@@ -166,11 +193,22 @@ class Propagator:
         t: float,
         noise: tuple[FloatArray, FloatArray] | None,
     ) -> None:
-        """Correct an increment with the filter's sensor errors and mechanize (``advance``;
-        ``gap``: it bridges missing samples; ``noise``: the IMU white-noise densities from now
-        on, None = the user's); the covariance follows every ``covariance_interval`` seconds."""
-        s.imu_psd = noise
+        """Correct an increment with the filter's sensor errors and mechanize (``advance``),
+        then ``advanced``."""
         advance(s.x, inc, self._geometry.r_bi, gap is not None, t)
+        self.advanced(s, kf, gap, noise)
+
+    def advanced(
+        self,
+        s: FilterState,
+        kf: ErrorStateFilter,
+        gap: Gap | None,
+        noise: tuple[FloatArray, FloatArray] | None,
+    ) -> None:
+        """What follows ``advance`` of ``s.x``: ``gap``: the increment bridged missing samples
+        (its uncertainty goes into P); ``noise``: the IMU white-noise densities from now on
+        (None = the user's); the covariance follows every ``covariance_interval`` seconds."""
+        s.imu_psd = noise
         s.changed()
         if gap is not None:
             mat_ni = s.mat_nb @ self._geometry.mat_bi
@@ -185,72 +223,51 @@ class Propagator:
     def propagate_covariance(self, s: FilterState, kf: ErrorStateFilter) -> None:
         """Propagate P over the accumulated interval with its mean specific force (NED from the
         velocity change; Coriolis, < 3e-3 m/s², left out of F)."""
-        if s.cov_dt <= 0.0:
+        if s.x[X_COV_DT] <= 0.0:
             return
-        nav = s.nav
-        inv_dt = 1.0 / s.cov_dt
-        force_n = (nav.vel_ned_m_s - s.cov_vel0) * inv_dt
-        force_n[2] -= earth.normal_gravity_m_s2(nav.lat_rad, nav.height_m)
-        vn, ve, vd = nav.vel_ned_m_s.tolist()
         gyro_psd, accel_psd = s.imu_psd or self._densities.floor
         kf.set_white_noise(gyro_psd * s.q_scale, accel_psd * s.q_scale)
         P_before = kf.P
-        kf.propagate(
-            s.cov_dt,
-            s.mat_nb @ self._geometry.mat_bi,
-            force_n,
-            np.array(s.cov_dv) * inv_dt,
-            np.array(s.cov_dth) * inv_dt,
-            nav.lat_rad,
-            nav.height_m,
-            (vn, ve, vd),
-        )
+        interval = covariance_interval(s.x, self._geometry.mat_bi)
+        kf.propagate(*interval)
         if kf.recorder is not None:  # smoother hook: a covariance step
             kf.recorder.on_transition(P_before, kf.phi, kf.P)
         if kf.layout.gp is not None:  # the estimate of a Gauss-Markov error decays
-            decay = math.exp(-s.cov_dt / self._gnss_correlation_time_s)
+            decay = math.exp(-interval[0] / self._gnss_correlation_time_s)
             e = s.gnss_error
             s.gnss_error = (e[0] * decay, e[1] * decay, e[2] * decay)
-        s.cov_dt = 0.0
-        s.cov_dth = s.cov_dv = (0.0, 0.0, 0.0)
-        s.cov_vel0 = nav.vel_ned_m_s
         if not s.heading_known:
             decouple_yaw(kf)
 
     @staticmethod
     def predict(s: FilterState, kf: ErrorStateFilter, t_m: float) -> Prediction:
-        """The nominal state carried from the current state to t_m (< one IMU interval)."""
-        nav, dt = s.nav, t_m - s.t_s
-        rate_b = np.array(s.rate_b)
-        if dt == 0.0:
-            return Prediction(
-                nav.lat_rad,
-                nav.lon_rad,
-                nav.height_m,
-                nav.vel_ned_m_s,
-                s.mat_nb,
-                rate_b,
-                np.array(s.rate_i),
-                kf.layout,
-            )
-        vel = nav.vel_ned_m_s + np.array(s.accel_n) * dt
-        mean_vel = 0.5 * (nav.vel_ned_m_s + vel)
-        lat, lon, height = earth.displace(
-            nav.lat_rad,
-            nav.lon_rad,
-            nav.height_m,
-            mean_vel[0] * dt,
-            mean_vel[1] * dt,
-            mean_vel[2] * dt,
-        )
-        rotation = skew(rate_b * dt)
-        return Prediction(
-            lat_rad=lat,
-            lon_rad=lon,
-            height_m=height,
-            vel_ned_m_s=vel,
-            mat_nb=s.mat_nb @ (np.eye(3) + rotation + 0.5 * rotation @ rotation),
-            rate_b=rate_b,
-            rate_i=np.array(s.rate_i),
-            layout=kf.layout,
-        )
+        """The nominal state carried from the current state to t_m (< one IMU interval;
+        ``predicted_state``)."""
+        return Prediction(*predicted_state(s.x, t_m), layout=kf.layout)
+
+
+@jit
+def predicted_state(
+    x: FloatArray, t_m: float
+) -> tuple[float, float, float, FloatArray, FloatArray, FloatArray, FloatArray]:
+    """The nominal state of ``x`` (X_* layout) carried to t_m [s] with its NED acceleration
+    and body rate (constant over less than an IMU interval): latitude, longitude [rad],
+    height [m], NED velocity [m/s], body -> NED rotation, corrected rate in body and imu FRD
+    [rad/s] (core.measurements.Prediction's fields)."""
+    dt = t_m - x[X_T]
+    n = X_NAV
+    mat_nb = mat_from_quat(x[n + 6], x[n + 7], x[n + 8], x[n + 9])
+    vel = x[n + 3 : n + 6].copy()
+    rate_b = x[X_RATE_B : X_RATE_B + 3].copy()
+    rate_i = x[X_RATE_I : X_RATE_I + 3].copy()
+    if dt == 0.0:
+        return x[n], x[n + 1], x[n + 2], vel, mat_nb, rate_b, rate_i
+    vel_m = vel + x[X_ACCEL_N : X_ACCEL_N + 3] * dt
+    mean_vel = 0.5 * (vel + vel_m)
+    lat, lon, height = earth.displace(
+        x[n], x[n + 1], x[n + 2], mean_vel[0] * dt, mean_vel[1] * dt, mean_vel[2] * dt
+    )
+    r = rate_b * dt
+    rotation = np.array(((0.0, -r[2], r[1]), (r[2], 0.0, -r[0]), (-r[1], r[0], 0.0)))  # [r×]
+    turn = np.eye(3) + rotation + 0.5 * rotation @ rotation
+    return lat, lon, height, vel_m, mat_nb @ turn, rate_b, rate_i

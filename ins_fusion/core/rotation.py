@@ -141,10 +141,11 @@ def quat_nb_from_enu_flu(quat_enu_flu: FloatArray) -> FloatArray:
     return np.asarray(rot.as_quat(canonical=True), dtype=np.float64)
 
 
+@compilable
 def skew(v: FloatArray | Vec3) -> FloatArray:
     """[v×]: the matrix with [v×] a = v × a."""
     x, y, z = float(v[0]), float(v[1]), float(v[2])
-    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+    return np.array(((0.0, -z, y), (z, 0.0, -x), (-y, x, 0.0)))
 
 
 def euler_rad(mat_nb: FloatArray) -> FloatArray:

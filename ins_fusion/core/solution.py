@@ -36,6 +36,7 @@ from ins_fusion.core.state import (
     X_T,
     FilterState,
     Geometry,
+    mounting_rpy_from,
 )
 
 
@@ -121,6 +122,7 @@ class SolutionBuilder:
         for row, col in ((0, POS_STATE), (3, VEL_STATE), (6, ATT)):
             self._jacobian[row : row + 3, col : col + 3] = MAT_ENU_NED
         self._plane: earth.TangentPlane | None = None
+        self._datum_deg = (math.nan, math.nan, math.nan)  # that of _plane
         #: Jacobian of the last ``row`` (rows ENU position, velocity, attitude of base_link,
         #: columns the error states of core.smoothed_solution.solution_states); reused per call.
         self.jacobian: FloatArray = self._jacobian
@@ -130,17 +132,17 @@ class SolutionBuilder:
         s: FilterState,
         kf: ErrorStateFilter,
         datum_deg: tuple[float, float, float],
-        rate_i: tuple[float, float, float],
+        rate_i: FloatArray,
         state_name: str,
     ) -> FloatArray:
         """The solution row (``WIDTH``) of state ``s`` with covariance ``kf.P``; ``rate_i``: the
         latest raw sample's rate (imu FRD [rad/s]); ``datum_deg``: the ENU plane's origin (lat,
         lon [deg], height [m])."""
         geometry = self._geometry
-        lat0, lon0, h0 = datum_deg
-        datum_rad = (math.radians(lat0), math.radians(lon0), h0)
-        if self._plane is None or self._plane.datum != datum_rad:
-            self._plane = earth.TangentPlane(*datum_rad)
+        if self._plane is None or self._datum_deg != datum_deg:
+            lat0, lon0, h0 = datum_deg
+            self._plane = earth.TangentPlane(math.radians(lat0), math.radians(lon0), h0)
+            self._datum_deg = datum_deg
         out = np.empty(WIDTH)
         mounting = s.mounting if self._mt is not None else None
         _fill_row(
@@ -157,7 +159,6 @@ class SolutionBuilder:
             self._plane.origin,
             self._plane.mat_enu_ecef,
         )
-        out[MOUNTING] = np.nan if mounting is None else geometry.mounting_rpy(mounting)
         out[STATE] = STATES.index(state_name)
         return out
 
@@ -172,13 +173,14 @@ def _fill_row(
     arm_b: FloatArray,
     r_bi: FloatArray,
     arm_bi: FloatArray,
-    rate_i: Vec3,
+    rate_i: FloatArray,
     mounting: tuple[float, float],
     origin: Vec3,
     mat_enu_ecef: FloatArray,
 ) -> None:
-    """The numbers of a solution row but its mounting and state (``SolutionBuilder.row``),
-    and its Jacobian ``J`` (first 12 columns; the mounting's two when ``J`` has them)."""
+    """The numbers of a solution row but its state (``SolutionBuilder.row``), and its Jacobian
+    ``J`` (first 12 columns; the mounting's two when ``J`` has them: then the row's mounting,
+    else NaN)."""
     C = mat_from_quat(x[X_NAV + 6], x[X_NAV + 7], x[X_NAV + 8], x[X_NAV + 9])
     # base_link of the estimated mounting: the lever arm turned by it (arm_b), and below the
     # orientation and rate turned into it (C_bv = I + [μ×]). The lever arm in NED, and its
@@ -216,7 +218,9 @@ def _fill_row(
     cov = J @ P_sub @ J.T
     vn, ve, vd = x[X_NAV + 3], x[X_NAV + 4], x[X_NAV + 5]
     quat_nb = (x[X_NAV + 6], x[X_NAV + 7], x[X_NAV + 8], x[X_NAV + 9])
+    out[MOUNTING] = np.nan
     if J.shape[1] > BG + 3:
+        out[MOUNTING] = np.array(mounting_rpy_from(r_bi, mu_y, mu_z))
         quat_nb = quat_multiply(quat_nb, quat_from_rotvec(0.0, mu_y, mu_z))
         wx, wy, wz = wx - (mu_y * wz - mu_z * wy), wy - mu_z * wx, wz + mu_y * wx
     e_x, e_y, e_z = ecef_from_geodetic(lat, lon, height)

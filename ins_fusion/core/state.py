@@ -16,6 +16,7 @@ import numpy as np
 from gnss_ins_common.types import FloatArray, Quat, Vec3
 from ins_fusion.core import earth
 from ins_fusion.core.adaptation import WhiteNoiseMonitor
+from ins_fusion.core.compiled import compilable, jit
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.eskf import ATT, BA, BG, POS, VEL, ErrorStateFilter, StateLayout
 from ins_fusion.core.measurements import (
@@ -25,9 +26,7 @@ from ins_fusion.core.measurements import (
     mounting_skew,
 )
 from ins_fusion.core.rotation import (
-    MAT_FLU_FRD,
     as_quat,
-    euler_rad,
     flu_to_frd_array,
     mat_from_quat,
     mat_from_rpy_flu,
@@ -267,14 +266,28 @@ class Geometry:
 
     def mounting_rpy(self, mounting: tuple[float, float]) -> FloatArray:
         """REP-103 roll, pitch, yaw [rad] of imu_link in the base_link of a residual mounting
-        (pitch, yaw about base_link FRD y, z [rad]): imu -> vehicle (FRD) = (I - [μ×]) R_bi."""
+        (pitch, yaw about base_link FRD y, z [rad]; ``mounting_rpy_from``)."""
         cached = self._mounting_cache
         if cached is not None and cached[0] == mounting:
             return cached[1]
-        mat_vi = (np.eye(3) - mounting_skew(mounting)) @ self.mat_bi
-        rpy = euler_rad(MAT_FLU_FRD @ mat_vi @ MAT_FLU_FRD)  # z-y'-x'' of the FLU rotation
+        rpy = np.array(mounting_rpy_from(self.r_bi, mounting[0], mounting[1]))
         self._mounting_cache = (mounting, rpy)
         return rpy
+
+
+@compilable
+def mounting_rpy_from(r_bi: FloatArray, pitch: float, yaw: float) -> Vec3:
+    """REP-103 roll, pitch, yaw [rad] (z-y'-x'') of imu_link in the vehicle frame of a residual
+    mounting μ = (0, pitch, yaw) about base_link FRD y, z [rad], for the configured rotation
+    ``r_bi`` (imu FRD -> base_link FRD, row-major): imu -> vehicle (FRD) = (I - [μ×]) R_bi,
+    taken into FLU on both sides (the signs below), then Aalborg notes (7.16)-(7.18)."""
+    turn = np.array(((1.0, yaw, -pitch), (-yaw, 1.0, 0.0), (pitch, 0.0, 1.0)))  # I - [μ×]
+    m = turn @ r_bi.reshape((3, 3))
+    return (
+        math.atan2(m[2, 1], m[2, 2]),
+        -math.asin(max(-1.0, min(1.0, -m[2, 0]))),
+        math.atan2(-m[1, 0], m[0, 0]),
+    )
 
 
 def inject(s: FilterState, kf: ErrorStateFilter, dx: FloatArray) -> None:
@@ -283,29 +296,43 @@ def inject(s: FilterState, kf: ErrorStateFilter, dx: FloatArray) -> None:
     layout = kf.layout
     if kf.recorder is not None:  # smoother hook: the correction of this step
         kf.recorder.on_correction(dx)
-    d = dx.tolist()
-    nav = s.nav
-    q_err = quat_from_rotvec(d[ATT], d[ATT + 1], d[ATT + 2])
-    quat = quat_normalize(quat_multiply(q_err, as_quat(nav.quat_nb)))
-    lat, lon, height = earth.displace(
-        nav.lat_rad, nav.lon_rad, nav.height_m, d[POS], d[POS + 1], d[POS + 2]
-    )
-    s.set_nav(NavState(lat, lon, height, nav.vel_ned_m_s + dx[VEL : VEL + 3], np.array(quat)))
-    s.gyro_bias = _add3(s.gyro_bias, d, BG)
-    s.accel_bias = _add3(s.accel_bias, d, BA)
-    if layout.sg is not None:
-        s.gyro_scale = _add3(s.gyro_scale, d, layout.sg)
-    if layout.sa is not None:
-        s.accel_scale = _add3(s.accel_scale, d, layout.sa)
+    inject_nominal(s.x, dx, *kf.scale_columns)
+    s.changed()
     if layout.gp is not None:
-        s.gnss_error = _add3(s.gnss_error, d, layout.gp)
+        gp = layout.gp
+        e = s.gnss_error
+        s.gnss_error = (e[0] + dx[gp], e[1] + dx[gp + 1], e[2] + dx[gp + 2])
     if layout.mt is not None:
         mt = layout.mt
-        s.mounting = (s.mounting[0] + d[mt], s.mounting[1] + d[mt + 1])
+        s.mounting = (s.mounting[0] + dx[mt], s.mounting[1] + dx[mt + 1])
     if layout.td is not None:
-        s.time_offset += d[layout.td]
+        s.time_offset += dx[layout.td]
     if not s.heading_known:
         decouple_yaw(kf)
+
+
+@jit
+def inject_nominal(x: FloatArray, dx: FloatArray, sg: int, sa: int) -> None:
+    """The part of ``inject`` kept in ``x`` (X_* layout): attitude (the error rotation applied
+    on the NED side), position (a NED offset), velocity, the biases and, where their columns
+    ``sg``/``sa`` are not -1, the scale factors."""
+    q_err = quat_from_rotvec(dx[ATT], dx[ATT + 1], dx[ATT + 2])
+    q = quat_normalize(
+        quat_multiply(q_err, (x[X_NAV + 6], x[X_NAV + 7], x[X_NAV + 8], x[X_NAV + 9]))
+    )
+    lat, lon, height = earth.displace(
+        x[X_NAV], x[X_NAV + 1], x[X_NAV + 2], dx[POS], dx[POS + 1], dx[POS + 2]
+    )
+    x[X_NAV], x[X_NAV + 1], x[X_NAV + 2] = lat, lon, height
+    x[X_NAV + 6], x[X_NAV + 7], x[X_NAV + 8], x[X_NAV + 9] = q
+    for k in range(3):
+        x[X_NAV + 3 + k] += dx[VEL + k]
+        x[X_BG + k] += dx[BG + k]
+        x[X_BA + k] += dx[BA + k]
+        if sg >= 0:
+            x[X_SG + k] += dx[sg + k]
+        if sa >= 0:
+            x[X_SA + k] += dx[sa + k]
 
 
 def decouple_yaw(kf: ErrorStateFilter, yaw_variance: float = UNKNOWN_YAW_VARIANCE) -> None:
@@ -323,7 +350,3 @@ def restart_block(P: FloatArray, start: int, block: FloatArray) -> None:
     P[start : start + 3, :] = 0.0
     P[:, start : start + 3] = 0.0
     P[start : start + 3, start : start + 3] = block
-
-
-def _add3(values: Vec3, dx: list[float], start: int) -> Vec3:
-    return (values[0] + dx[start], values[1] + dx[start + 1], values[2] + dx[start + 2])

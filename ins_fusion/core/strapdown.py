@@ -114,12 +114,12 @@ class SampleIntegrator:
     """
 
     def __init__(self) -> None:
-        self._samples = np.zeros((3, INCREMENT_SIZE))  # rows (t, ω, f), the newest last
-        self._count = 0
+        #: Rows 0-2: the last samples (t, ω, f), the newest last; [3, 0]: how many are held.
+        self.buffer = np.zeros((4, INCREMENT_SIZE))
 
     def reset(self) -> None:
         """Forget the history (after a data gap or a time jump)."""
-        self._count = 0
+        self.buffer[3, 0] = 0.0
 
     def push(
         self,
@@ -129,60 +129,46 @@ class SampleIntegrator:
     ) -> FloatArray | None:
         """Add a sample; returns the increment since the previous sample (None for the first)."""
         inc = np.empty(INCREMENT_SIZE)
-        self._count = _integrate(
-            self._samples,
-            self._count,
-            float(t_s),
-            float(rate_rad_s[0]),
-            float(rate_rad_s[1]),
-            float(rate_rad_s[2]),
-            float(specific_force_m_s2[0]),
-            float(specific_force_m_s2[1]),
-            float(specific_force_m_s2[2]),
-            inc,
-        )
-        return None if self._count == 1 else inc
+        sample = tuple(float(v) for v in (*rate_rad_s[:3], *specific_force_m_s2[:3]))
+        has_interval = integrate_sample(self.buffer, float(t_s), sample, inc)
+        return inc if has_interval else None
 
 
 @jit
-def _integrate(
-    samples: FloatArray,
-    count: int,
-    t_s: float,
-    wx: float,
-    wy: float,
-    wz: float,
-    fx: float,
-    fy: float,
-    fz: float,
-    inc: FloatArray,
-) -> int:
-    """SampleIntegrator.push: file the sample in ``samples`` (``count`` held), write the
-    increment into ``inc`` when there is an interval; returns the new count."""
+def integrate_sample(
+    buffer: FloatArray, t_s: float, sample: tuple[float, ...], inc: FloatArray
+) -> bool:
+    """SampleIntegrator.push on its ``buffer``: file the sample (ω (3), f (3)) stamped ``t_s``,
+    write the increment since the previous one into ``inc``; False (``inc`` untouched) for the
+    first sample."""
+    count = int(buffer[3, 0])
     if count == 3:
-        samples[0, :] = samples[1, :]
-        samples[1, :] = samples[2, :]
+        buffer[0, :] = buffer[1, :]
+        buffer[1, :] = buffer[2, :]
         count = 2
-    row = samples[count]
-    row[0], row[1], row[2], row[3], row[4], row[5], row[6] = t_s, wx, wy, wz, fx, fy, fz
+    row = buffer[count]
+    row[0] = t_s
+    for k in range(6):
+        row[1 + k] = sample[k]
     count += 1
+    buffer[3, 0] = count
     if count == 1:
-        return count
-    t1 = samples[count - 2, 0]
+        return False
+    t1 = buffer[count - 2, 0]
     h2 = t_s - t1
     if count == 2:
         c0, c1, c2 = 0.0, 0.5 * h2, 0.5 * h2
         k0 = k1 = 0
     else:
-        h1 = t1 - samples[0, 0]
+        h1 = t1 - buffer[0, 0]
         c0 = -(h2**3) / (6.0 * h1 * (h1 + h2))
         c1 = h2 * h2 / (6.0 * h1) + 0.5 * h2
         c2 = (h2 * h2 / 3.0 + 0.5 * h1 * h2) / (h1 + h2)
         k0, k1 = 0, 1
     inc[0] = h2
     for j in range(1, INCREMENT_SIZE):
-        inc[j] = c0 * samples[k0, j] + c1 * samples[k1, j] + c2 * samples[count - 1, j]
-    return count
+        inc[j] = c0 * buffer[k0, j] + c1 * buffer[k1, j] + c2 * buffer[count - 1, j]
+    return True
 
 
 @compilable

@@ -135,6 +135,11 @@ class Timeline:
             return None
         return record if self.insert(record) else None
 
+    def due_by(self, t_s: float) -> bool:
+        """Whether a pending measurement is stamped before ``t_s`` (``due`` would take it)."""
+        pending = self._pending
+        return bool(pending) and pending[0][0] < t_s
+
     def due(self, t_s: float) -> list[Record]:
         """Take the pending measurements stamped before ``t_s`` (stamp order)."""
         pending = self._pending

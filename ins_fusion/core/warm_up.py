@@ -14,12 +14,17 @@ import time
 
 import numpy as np
 
+from ins_fusion.core.adaptation import ImuNoiseMonitor
+from ins_fusion.core.calibration import ImuCalibration
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.eskf import ErrorStateFilter, StateLayout
-from ins_fusion.core.propagation import advance
+from ins_fusion.core.intake import new_intake, record_sample, take_sample
+from ins_fusion.core.measurements import Prediction, nhc
+from ins_fusion.core.propagation import advance, covariance_interval, predicted_state
 from ins_fusion.core.solution import SolutionBuilder
-from ins_fusion.core.state import X_SIZE, FilterState, Geometry
-from ins_fusion.core.strapdown import NavState, SampleIntegrator, increment
+from ins_fusion.core.state import X_COV_DT, X_SIZE, FilterState, Geometry, inject_nominal
+from ins_fusion.core.stop_detector import StopDetector, window_statistics
+from ins_fusion.core.strapdown import INCREMENT_SIZE, NavState, SampleIntegrator, increment
 
 _ready = False
 
@@ -38,14 +43,28 @@ def warm_up() -> float:
     s = FilterState(0.0, nav, zero, True)
     integrator = SampleIntegrator()
     integrator.push(0.0, zero, (0.0, 0.0, -9.8))
-    integrator.push(0.01, zero, (0.0, 0.0, -9.8))
+    detector = StopDetector(config.stop_detector, np.eye(3))
+    detector.push(0.0, zero, (0.0, 0.0, -9.8))
+    window_statistics(detector.ring, np.eye(3))
+    monitor = ImuNoiseMonitor()
+    intake = new_intake(10.0, 100.0, True)
+    table = ImuCalibration().table
+    r_bi = np.eye(3).ravel()
+    stores = (intake, table, integrator.buffer, detector.ring, monitor.block, s.x, r_bi)
+    for t in (0.0, 0.01):  # the first sample, then an interval with the calibration
+        take_sample(*stores, np.empty(INCREMENT_SIZE), t, *zero, *zero, True)
+    record_sample(intake, detector.ring, monitor.block, 0.02)
     advance(s.x, increment(0.01, zero, (0.0, 0.0, -0.098)), np.eye(3).ravel(), False, 0.01)
     kf = ErrorStateFilter(layout, config.imu_noise, config.gnss_correlation_time_s or 60.0)
     kf.P = np.eye(layout.size) * 1e-2
-    kf.propagate(0.1, np.eye(3), np.zeros(3), np.zeros(3), np.zeros(3), 1.0, 40.0, zero)
+    s.x[X_COV_DT] = 0.01
+    kf.propagate(*covariance_interval(s.x, Geometry(config, layout).mat_bi))
     kf.update(np.zeros(3), np.eye(3, layout.size), np.eye(3), math.inf)
+    inject_nominal(s.x, np.zeros(layout.size), *kf.scale_columns)
+    prediction = Prediction(*predicted_state(s.x, 0.015), layout=layout)
+    nhc(prediction, np.zeros(3), np.eye(3), 0.1, (0.0, 0.0))
     output = SolutionBuilder(Geometry(config, layout), layout)
-    output.row(s, kf, (57.0, 10.0, 40.0), zero, "navigating")
+    output.row(s, kf, (57.0, 10.0, 40.0), np.zeros(3), "navigating")
     assert s.x.shape == (X_SIZE,)
     _ready = True
     return time.perf_counter() - start
