@@ -16,7 +16,7 @@ ROS_SYSTEM := $(shell [ "$$ROS_DISTRO" = "jazzy" ] && $(PYTHON) -c 'import rclpy
 # ros_*.py: thin rclpy glue) and keeps them silent when a pure module imports one lazily.
 MYPY_TARGETS := gnss_ins_common imu400cc_driver gnss_driver ins_fusion
 
-.PHONY: all venv demo test lint typecheck pytest bench colcon clean
+.PHONY: all venv demo test lint typecheck pytest group-seconds bench colcon clean
 
 all: test
 
@@ -80,6 +80,14 @@ pytest: venv
 	[ $$ros -eq 0 ] && [ $$status -eq 0 ]
 
 test: lint typecheck pytest
+
+# The seconds of each xdist group in the last `make pytest` (pytest's cache) as the order of a
+# run without a cache (a fresh clone, CI): test/group_seconds.json, read by test/conftest.py.
+group-seconds:
+	$(BIN)/python -c "import json, pathlib; \
+	seconds = json.loads(pathlib.Path('.pytest_cache/v/gnss_ins/group_seconds').read_text()); \
+	table = {group: round(s, 1) for group, s in sorted(seconds.items())}; \
+	pathlib.Path('test/group_seconds.json').write_text(json.dumps(table, indent=1) + '\\n')"
 
 bench: venv
 	@for b in bench/bench_*.py; do echo "== $$b"; $(BIN)/python $$b || exit 1; done
