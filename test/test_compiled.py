@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from sim_bags import FIGURE_EIGHT_90_S, shared_bag
 
 from gnss_ins_common.params import validate_all
 from ins_fusion.core import eskf, propagation, solution, strapdown
@@ -21,8 +22,6 @@ from ins_fusion.replay.inputs import load_bag
 from ins_fusion.replay.outages import Outage
 from ins_fusion.replay.run import run_fusion
 from ins_fusion.replay.topics import TopicMap
-from ins_fusion.sim.drive import SimulationConfig
-from ins_fusion.tools.simulate import write_bag
 
 PARAMETER_SETS: dict[str, dict[str, object]] = {
     "defaults": {},
@@ -49,9 +48,7 @@ for name in PARAMETER_SETS:
 
 @pytest.fixture(scope="module")
 def drive(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    path = tmp_path_factory.mktemp("compiled") / "drive"
-    write_bag(SimulationConfig(scenario="figure_eight", duration_s=90.0, seed=6), path)
-    return path
+    return shared_bag(tmp_path_factory, "figure_eight_90_s", FIGURE_EIGHT_90_S)
 
 
 @pytest.fixture(scope="module")
