@@ -43,7 +43,9 @@ pytestmark = pytest.mark.ros
 #: 10 s, cruising, braking to a stop in 8 s (no lap fits in 45 s).
 DURATION_S = 45.0
 STANDSTILL_S = 10.0
-RATE = 5.0
+#: Played at 4× real time: the 45 s take 11 s, and the node in the test process keeps up on a
+#: loaded machine (at 5× and load 4.5 it got 59 % of the samples, 60 % asserted).
+RATE = 4.0
 TOPICS = {
     "ins/odometry": Odometry,
     "ins/fix": NavSatFix,
@@ -179,7 +181,7 @@ def _check_outputs(collector: Collector, drive_bag: Path) -> None:
     values = diagnostic_values(collector.get("/diagnostics")[-1])
     assert values["state"] == "navigating"
     assert int(values["gnss_position.used"]) > 20
-    # Most samples arrive; played at 5x on a loaded machine, a fraction of the best-effort
+    # Most samples arrive; played at 4x on a loaded machine, a fraction of the best-effort
     # stream is dropped (bridged by the engine and counted as imu_gaps).
     assert int(values["imu_samples"]) > 0.6 * DURATION_S * 134
     assert float(values["adapted.accel_vrw_x_m_s_sqrt_h"]) > 0.0  # the noise in use
