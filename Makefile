@@ -15,8 +15,11 @@ ROS_SYSTEM := $(shell [ "$$ROS_DISTRO" = "jazzy" ] && $(PYTHON) -c 'import rclpy
 # mypy --strict on every package folder; pyproject.toml excludes the ROS modules (node.py,
 # ros_*.py: thin rclpy glue) and keeps them silent when a pure module imports one lazily.
 MYPY_TARGETS := gnss_ins_common imu400cc_driver gnss_driver ins_fusion
+MYPY := $(BIN)/mypy $(MYPY_TARGETS)
+# Test files with real-node tests (marker ros): the node session collects only these.
+ROS_TEST_FILES = $(shell grep -l 'mark\.ros' test/test_*.py)
 
-.PHONY: all venv demo test lint typecheck pytest bench colcon clean
+.PHONY: all venv demo test lint typecheck pytest group-seconds bench colcon clean
 
 all: test
 
@@ -64,7 +67,7 @@ lint: venv
 	$(BIN)/ruff format --check .
 
 typecheck: venv
-	$(BIN)/mypy $(MYPY_TARGETS)
+	$(MYPY)
 
 # The real-time node tests (marker ros) run one after another in a pytest session of their own,
 # beside the others' and at a higher priority: at equal priority a worker of the other tests
@@ -75,11 +78,24 @@ pytest: venv
 	nice -n $(PURE_NICE) $(BIN)/python -m pytest -q -n $(PYTEST_WORKERS) --dist loadgroup \
 	--no-loadscope-reorder -m "not ros" >$$log 2>&1 & pure=$$!; \
 	echo "tests with real nodes (the others run beside them, their output follows):"; \
-	$(BIN)/python -m pytest -q -m ros; ros=$$?; \
+	$(BIN)/python -m pytest -q -m ros $(ROS_TEST_FILES); ros=$$?; \
 	wait $$pure; status=$$?; echo "tests without real nodes:"; cat $$log; rm -f $$log; \
 	[ $$ros -eq 0 ] && [ $$status -eq 0 ]
 
-test: lint typecheck pytest
+# ruff, then mypy beside the tests (at the niceness of those without nodes; its output follows
+# theirs): on a fresh clone mypy takes ~20 s of CPU.
+test: lint
+	@log=$$(mktemp); nice -n $(PURE_NICE) $(MYPY) >$$log 2>&1 & types=$$!; \
+	$(MAKE) --no-print-directory pytest; tests=$$?; wait $$types; typed=$$?; \
+	echo "mypy:"; cat $$log; rm -f $$log; [ $$tests -eq 0 ] && [ $$typed -eq 0 ]
+
+# The seconds of each xdist group in the last `make pytest` (pytest's cache) as the order of a
+# run without a cache (a fresh clone, CI): test/group_seconds.json, read by test/conftest.py.
+group-seconds:
+	$(BIN)/python -c "import json, pathlib; \
+	seconds = json.loads(pathlib.Path('.pytest_cache/v/gnss_ins/group_seconds').read_text()); \
+	table = {group: round(s, 1) for group, s in sorted(seconds.items())}; \
+	pathlib.Path('test/group_seconds.json').write_text(json.dumps(table, indent=1) + '\\n')"
 
 bench: venv
 	@for b in bench/bench_*.py; do echo "== $$b"; $(BIN)/python $$b || exit 1; done

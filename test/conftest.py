@@ -9,15 +9,18 @@ after another in one worker (never two real-time node tests at once; make pytest
 session of their own beside the others), and every other test module is a group of its own:
 its module-scoped fixtures (simulated drives and records) are built once, not once per worker.
 The groups are handed out longest first, by the seconds they took in the previous run (pytest's
-cache; unknown ones first), so that the workers finish together (make pytest passes
---no-loadscope-reorder to keep that order).
+cache; on a fresh clone, as in CI, those of test/group_seconds.json; unknown ones first), so that
+the workers finish together (make pytest passes --no-loadscope-reorder to keep that order).
+`make group-seconds` writes the last run's seconds to test/group_seconds.json.
 """
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import random
+from pathlib import Path
 
 import pytest
 
@@ -31,6 +34,8 @@ os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 
 #: pytest cache key of the seconds each xdist group took in the last run.
 _DURATIONS_KEY = "gnss_ins/group_seconds"
+#: The seconds of a full run kept in the repository, for a run without a cache.
+_FALLBACK = Path(__file__).with_name("group_seconds.json")
 _SECONDS: dict[str, float] = {}
 
 
@@ -43,7 +48,8 @@ def _group(ros: bool, nodeid: str) -> str:
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """Mark each test with its xdist group; the longest groups of the last run first."""
     cache = getattr(config, "cache", None)  # None with -p no:cacheprovider
-    seconds = cache.get(_DURATIONS_KEY, {}) if cache is not None else {}
+    seconds = json.loads(_FALLBACK.read_text(encoding="utf-8"))
+    seconds.update(cache.get(_DURATIONS_KEY, {}) if cache is not None else {})
     groups = {}
     for item in items:
         group = _group(item.get_closest_marker("ros") is not None, item.nodeid)

@@ -1,5 +1,6 @@
 """The compiled engine (numba, core.compiled) against its pure-Python source: the same drive
-replayed in two processes, one with NUMBA_DISABLE_JIT=1, must give the same track to 1e-9."""
+replayed in this process (compiled) and in a process with NUMBA_DISABLE_JIT=1 (every parameter
+set in one run) must give the same track to 1e-9."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from sim_bags import FIGURE_EIGHT_90_S, shared_bag
 
 from gnss_ins_common.params import validate_all
 from ins_fusion.core import (
@@ -29,21 +31,8 @@ from ins_fusion.replay.inputs import load_bag
 from ins_fusion.replay.outages import Outage
 from ins_fusion.replay.run import run_fusion
 from ins_fusion.replay.topics import TopicMap
-from ins_fusion.sim.drive import SimulationConfig
-from ins_fusion.tools.simulate import write_bag
 
-#: Runs the replay's engine over a bag and saves the track's rows (argv: bag, output, set).
-_RUN = """
-import sys
-import numpy as np
-from gnss_ins_common.params import validate_all
-from ins_fusion.core.params import PARAMETERS
-from ins_fusion.replay.inputs import load_bag
-from ins_fusion.replay.outages import Outage
-from ins_fusion.replay.run import run_fusion
-from ins_fusion.replay.topics import TopicMap
-
-sets = {
+PARAMETER_SETS: dict[str, dict[str, object]] = {
     "defaults": {},
     "all_states": {
         "self_calibration.mounting": True,
@@ -52,34 +41,53 @@ sets = {
         "imu_noise.accel_scale_sigma": 0.001,
     },
 }
-params = validate_all(PARAMETERS, sets[sys.argv[3]])
-run = run_fusion(load_bag(sys.argv[1], TopicMap()), params, (Outage(40.0, 15.0),))
-np.save(sys.argv[2], run.track.rows)
+OUTAGES = (Outage(40.0, 15.0),)
+
+#: Saves the track of every parameter set, by _track below (argv: this folder, bag, output).
+_RUN = """
+import sys
+from pathlib import Path
+import numpy as np
+sys.path.insert(0, sys.argv[1])
+from test_compiled import PARAMETER_SETS, _track
+for name in PARAMETER_SETS:
+    np.save(Path(sys.argv[3]) / f"{name}.npy", _track(Path(sys.argv[2]), name))
 """
 
 
 @pytest.fixture(scope="module")
 def drive(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    path = tmp_path_factory.mktemp("compiled") / "drive"
-    write_bag(SimulationConfig(scenario="figure_eight", duration_s=90.0, seed=6), path)
-    return path
+    return shared_bag(tmp_path_factory, "figure_eight_90_s", FIGURE_EIGHT_90_S)
 
 
-def _track(bag: Path, out: Path, parameter_set: str, pure_python: bool) -> np.ndarray:
-    env = dict(os.environ)
-    env.pop("NUMBA_DISABLE_JIT", None)
-    if pure_python:
-        env["NUMBA_DISABLE_JIT"] = "1"
-    subprocess.run(
-        [sys.executable, "-c", _RUN, str(bag), str(out), parameter_set], check=True, env=env
-    )
-    return np.load(out)
+@pytest.fixture(scope="module")
+def pure_tracks(drive: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[str, np.ndarray]:
+    """The track of every parameter set from the pure-Python source (one process)."""
+    out = tmp_path_factory.mktemp("pure")
+    env = {**os.environ, "NUMBA_DISABLE_JIT": "1"}
+    here = str(Path(__file__).parent)
+    subprocess.run([sys.executable, "-c", _RUN, here, str(drive), str(out)], check=True, env=env)
+    return {name: np.load(out / f"{name}.npy") for name in PARAMETER_SETS}
 
 
-@pytest.mark.parametrize("parameter_set", ["defaults", "all_states"])
-def test_compiled_track_equals_pure_python(drive: Path, tmp_path: Path, parameter_set: str) -> None:
-    compiled = _track(drive, tmp_path / "compiled.npy", parameter_set, pure_python=False)
-    pure = _track(drive, tmp_path / "pure.npy", parameter_set, pure_python=True)
+def _track(bag: Path, parameter_set: str) -> np.ndarray:
+    params = validate_all(PARAMETERS, PARAMETER_SETS[parameter_set])
+    return run_fusion(load_bag(bag, TopicMap()), params, OUTAGES).track.rows
+
+
+#: The whole session runs uncompiled: nothing to compare with.
+_PURE_SESSION = os.environ.get("NUMBA_DISABLE_JIT") == "1"
+
+
+@pytest.mark.parametrize("parameter_set", sorted(PARAMETER_SETS))
+def test_compiled_track_equals_pure_python(
+    drive: Path, pure_tracks: dict[str, np.ndarray], parameter_set: str
+) -> None:
+    if _PURE_SESSION:
+        pytest.skip("pure-Python run requested")
+    assert all(hasattr(kernel, "py_func") for kernel in _KERNELS)  # compiled, not Python
+    compiled = _track(drive, parameter_set)
+    pure = pure_tracks[parameter_set]
     assert compiled.shape == pure.shape and len(compiled) > 2000
     assert np.isfinite(compiled[:, :50]).all()
     np.testing.assert_allclose(compiled, pure, rtol=1e-12, atol=1e-9)
@@ -109,23 +117,15 @@ _REAL = Path(__file__).parent / "fixtures" / "comma2k19" / "comma2k19_ex1_seg40"
 def test_warm_up_types_every_kernel_the_drives_use(drive: Path) -> None:
     """After core.warm_up, drives (simulated with every optional state, the real segment) add
     no compilation: a live sample never waits for the compiler."""
-    if os.environ.get("NUMBA_DISABLE_JIT") == "1":
+    if _PURE_SESSION:
         pytest.skip("pure-Python run requested")
     warm_up()
     assert all(hasattr(kernel, "py_func") for kernel in _KERNELS)  # compiled, not Python
     signatures = {kernel: list(kernel.signatures) for kernel in _KERNELS}
     assert all(len(s) == 1 for s in signatures.values()), signatures
-    all_states = {
-        "self_calibration.mounting": True,
-        "self_calibration.time_offset": True,
-        "imu_noise.gyro_scale_sigma": 0.001,
-        "imu_noise.accel_scale_sigma": 0.001,
-        "gnss_noise.correlation_time": 0.0,
-    }
+    all_states = {**PARAMETER_SETS["all_states"], "gnss_noise.correlation_time": 0.0}
     for bag, values in ((drive, all_states), (drive, {}), (_REAL, {})):
-        run = run_fusion(
-            load_bag(bag, TopicMap()), validate_all(PARAMETERS, values), (Outage(40.0, 15.0),)
-        )
+        run = run_fusion(load_bag(bag, TopicMap()), validate_all(PARAMETERS, values), OUTAGES)
         assert len(run.track.rows) > 1000
     assert {kernel: list(kernel.signatures) for kernel in _KERNELS} == signatures
 

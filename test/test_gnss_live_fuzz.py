@@ -27,7 +27,6 @@ pytestmark = pytest.mark.ros
 
 FUZZED = 20_000
 VALID_EVERY = 50
-BURST = 25  # sentences per write: ~1.6 kB, below the pty's buffer
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -45,6 +44,13 @@ def valid_epoch(second: int) -> bytes:
         frame_sentence(t.replace("123519.00", hhmmss).replace("218137.0", f"{218137 + second}.0"))
         for t in TEMPLATES
     )
+
+
+def write_whole(device: PtyDevice, data: bytes) -> None:
+    """Write every byte, as fast as the node reads them: the pty takes what fits in its buffer
+    (the rest would be dropped), the remainder once the node has read some."""
+    while data := data[device.write(data) :]:
+        time.sleep(0.002)
 
 
 def test_gnss_node_survives_a_live_fuzz():
@@ -74,18 +80,19 @@ def test_gnss_node_survives_a_live_fuzz():
                     return bool(reports) and not reports[-1].status[0].message.startswith("port")
 
                 assert wait_for(port_open, 60.0)
-                second, written = 0, 0
-                while written < FUZZED:
-                    burst = []
-                    for _ in range(BURST):
-                        burst.append(source.sentence())
-                        written += 1
-                        if written % VALID_EVERY == 0:
-                            second += 1
-                            burst.append(valid_epoch(second))
-                    device.write(b"".join(burst))
-                    time.sleep(0.01)
-                fuzz_fixes = collector.count("gnss/fix")
+                stream, second = [], 0
+                for written in range(1, FUZZED + 1):
+                    stream.append(source.sentence())
+                    if written % VALID_EVERY == 0:
+                        second += 1
+                        stream.append(valid_epoch(second))
+                write_whole(device, b"".join(stream))
+                # Until the node has read and published the last of it: no new fix for 0.5 s.
+                fuzz_fixes, deadline = -1, time.monotonic() + 30.0
+                while (count := collector.count("gnss/fix")) != fuzz_fixes:
+                    assert time.monotonic() < deadline, "the fixes keep coming"
+                    fuzz_fixes = count
+                    time.sleep(0.5)
                 for _ in range(5):
                     second += 1
                     device.write(valid_epoch(second))

@@ -11,6 +11,7 @@ import json
 
 import numpy as np
 import pytest
+from sim_bags import FIGURE_EIGHT_90_S, shared_bag
 
 from gnss_ins_common.params import validate_all
 from ins_fusion.bags.bag_io import BagReader, BagWriter
@@ -21,19 +22,15 @@ from ins_fusion.replay.inputs import load_bag
 from ins_fusion.replay.outages import Outage, mask
 from ins_fusion.replay.pipeline import replay
 from ins_fusion.replay.plot import measured, plot_replay
-from ins_fusion.sim.drive import SimulationConfig
 from ins_fusion.tools import cli
-from ins_fusion.tools.simulate import write_bag
 
-DURATION_S = 90.0
+DURATION_S = FIGURE_EIGHT_90_S.duration_s
 OUTAGE = (40.0, 10.0)
 
 
 @pytest.fixture(scope="module")
 def bag(tmp_path_factory):
-    path = tmp_path_factory.mktemp("replay") / "figure_eight"
-    write_bag(SimulationConfig(scenario="figure_eight", duration_s=DURATION_S, seed=3), path)
-    return path
+    return shared_bag(tmp_path_factory, "figure_eight_90_s", FIGURE_EIGHT_90_S)
 
 
 def _replay(capsys, *argv):

@@ -14,11 +14,10 @@ import json
 import gpxpy
 import pynmea2
 import pytest
+from sim_bags import FIGURE_EIGHT_90_S, shared_bag
 
 from ins_fusion.bags.bag_io import BagReader
-from ins_fusion.sim.drive import SimulationConfig
 from ins_fusion.tools import cli
-from ins_fusion.tools.simulate import write_bag
 
 OUTAGE = (40.0, 12.0)
 ACCURACY_KEYS = {"position_error_m", "attitude_error_deg", "outages", "nees"}
@@ -26,9 +25,7 @@ ACCURACY_KEYS = {"position_error_m", "attitude_error_deg", "outages", "nees"}
 
 @pytest.fixture(scope="module")
 def bag(tmp_path_factory):
-    path = tmp_path_factory.mktemp("smooth") / "figure_eight"
-    write_bag(SimulationConfig(scenario="figure_eight", duration_s=90.0, seed=4), path)
-    return path
+    return shared_bag(tmp_path_factory, "figure_eight_90_s", FIGURE_EIGHT_90_S)
 
 
 @pytest.fixture(scope="module")

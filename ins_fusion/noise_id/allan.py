@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from functools import lru_cache
 
 import allantools
 import numpy as np
@@ -66,15 +67,20 @@ def equivalent_dof(
     types α (Greenhall; allantools counts phase points, n_samples + 1)."""
     edf = np.empty(len(tau_s))
     for i, (tau, a) in enumerate(zip(tau_s, alpha, strict=True)):
-        m = max(1, round(float(tau) * rate_hz))
-        try:
-            value = allantools.edf_greenhall(
-                alpha=int(a), d=2, m=m, N=n_samples + 1, overlapping=True
-            )
-        except NotImplementedError:
-            value = allantools.edf_simple(n_samples + 1, m, int(a))
-        edf[i] = float(value)
+        edf[i] = _edf(int(a), max(1, round(float(tau) * rate_hz)), n_samples + 1)
     return edf
+
+
+@lru_cache(maxsize=4096)
+def _edf(alpha: int, m: int, n_phase: int) -> float:
+    """Greenhall's edf of the overlapping Allan variance (allantools; edf_simple where it has no
+    case) for noise type alpha, averaging factor m and n_phase phase points. Cached: the fit
+    asks for the same few (alpha, m) of a record many times, and Greenhall's sums are slow."""
+    try:
+        value = allantools.edf_greenhall(alpha=alpha, d=2, m=m, N=n_phase, overlapping=True)
+    except NotImplementedError:
+        value = allantools.edf_simple(n_phase, m, alpha)
+    return float(value)
 
 
 def tau_grid(n_samples: int, rate_hz: float) -> FloatArray:

@@ -193,10 +193,15 @@ class _Columns:
         self._walk = _expected_periodogram(
             _ma1(n, 2.0 * block_s / 3.0, block_s / 6.0), self._correlation
         )
+        # The bias column of each T asked for: the fits with and without a random walk search
+        # the same grid of T, and each fit solves again at the T it found.
+        self._bias: dict[float, FloatArray] = {}
 
     def at(self, time_constant_s: float) -> FloatArray:
         """Columns (white, bias, walk) for the correlation time T [s]."""
-        bias = _gauss_markov_column(self.block_s, time_constant_s, self._correlation)
+        if (bias := self._bias.get(time_constant_s)) is None:
+            bias = _gauss_markov_column(self.block_s, time_constant_s, self._correlation)
+            self._bias[time_constant_s] = bias
         return np.stack([self._white, bias, self._walk], axis=1)
 
     def fisher(self, model: SpectralModel) -> FloatArray:
@@ -225,18 +230,20 @@ def _solve(
     the previous step, through the small normal equations (G = L Lᵀ, nnls of Lᵀ x = L⁻¹ r)."""
     a = columns[:, used]
     scale = np.linalg.norm(a, axis=0)
-    a = a / scale
+    # One row per column (the transposed layout halves the time of the products below).
+    rows = np.ascontiguousarray((a / scale).T)
     spectrum = np.full(len(periodogram), float(np.mean(periodogram)))
-    solution = np.zeros(a.shape[1])
+    solution = np.zeros(len(rows))
     for _ in range(_REWEIGHTINGS):
         previous = solution
-        weighted = a / spectrum[:, None]
-        gram = weighted.T @ weighted
+        weighted = rows / spectrum
+        gram = weighted @ weighted.T
         lower = np.linalg.cholesky(gram + np.eye(len(gram)) * _RIDGE * np.trace(gram))
-        solution = nnls(lower.T, np.linalg.solve(lower, weighted.T @ (periodogram / spectrum)))[0]
+        solution = nnls(lower.T, np.linalg.solve(lower, weighted @ (periodogram / spectrum)))[0]
         # A zero solution (a constant series) keeps a floor under the spectrum.
-        spectrum = np.maximum(a @ solution, np.finfo(np.float64).tiny)
-        if np.allclose(solution, previous, rtol=_CONVERGED, atol=0.0):
+        spectrum = np.maximum(solution @ rows, np.finfo(np.float64).tiny)
+        # np.allclose(solution, previous, rtol=_CONVERGED, atol=0.0) without its overhead.
+        if np.all(np.abs(solution - previous) <= _CONVERGED * np.abs(previous)):
             break
     coefficients = np.zeros(columns.shape[1])
     coefficients[used] = solution / scale
