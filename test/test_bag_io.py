@@ -280,6 +280,15 @@ def test_unfinished_bag_is_refused_with_advice_and_recovered(tmp_path: Path, sto
         recover_bag(tmp_path / "out", tmp_path / "again")
 
 
+@pytest.mark.parametrize("size", [0, 8, 9, 12])
+def test_mcap_torn_in_its_header_is_a_clean_error(tmp_path: Path, size: int) -> None:
+    """An MCAP file that ends in or right after its magic (hypothesis found 8 bytes)."""
+    last = unfinished_bag(tmp_path / "bag", "mcap", flushed=4, total=14)
+    last.write_bytes(last.read_bytes()[:size])
+    with pytest.raises(BagError, match="gnss_ins recover"):
+        BagReader(last)
+
+
 @settings(
     max_examples=30, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
 )

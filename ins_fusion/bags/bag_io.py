@@ -15,6 +15,7 @@ from __future__ import annotations
 import heapq
 import os
 import shutil
+import struct
 from collections.abc import Collection, Iterator, Sequence
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
@@ -428,6 +429,11 @@ def storage_files(path: Path) -> list[Path]:
     return [path / PurePath(p).name for p in info["relative_file_paths"]]
 
 
+#: What rosbags' readers raise besides their own errors on a file that ends early (an MCAP
+#: torn right after its magic: ``ord()`` of an empty read; a record cut short).
+_TORN_FILE_ERRORS = (EOFError, TypeError, ValueError, IndexError, struct.error)
+
+
 class BagReader:
     """Reads a rosbag2 bag (directory of MCAP or sqlite3 files, or one storage file).
 
@@ -444,7 +450,7 @@ class BagReader:
         try:
             self._reader = AnyReader(files, default_typestore=default)
             self._reader.open()
-        except (AnyReaderError, ReaderError) as exc:
+        except (AnyReaderError, ReaderError, *_TORN_FILE_ERRORS) as exc:
             raise BagError(
                 f"{self.path}: unreadable ({exc}); if its recording did not finish, run"
                 f" `gnss_ins recover` on its bag directory"
