@@ -236,9 +236,9 @@ class InsEngine:
         return (wx, wy, wz), (fx, fy, fz)
 
     def _advance(self, t: float, inc: FloatArray, gap: Gap | None, flags: int) -> None:
-        """After the intake of a sample (``flags``: core.intake): the detector's and monitor's
-        follow-ups, then levelling and alignment, or the strapdown step (unless the intake did
-        it), the history entry and the pseudo-measurements."""
+        """After the intake of a sample (``flags``: core.intake): a full detector ring grows,
+        then levelling and alignment, or the strapdown step (unless the intake did it), the
+        history entry and the pseudo-measurements."""
         if flags & RING_FULL:
             self._detector.grow()
         if self._filter is None:
