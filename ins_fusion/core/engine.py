@@ -91,10 +91,10 @@ from ins_fusion.core.propagation import ImuDensities, Propagator, bridge
 from ins_fusion.core.smoother import SmootherHooks
 from ins_fusion.core.solution import InsSolution, SolutionBuilder, self_calibration, unpack
 from ins_fusion.core.startup import Startup
-from ins_fusion.core.state import X_SIZE, FilterState, Geometry, LatestInputs
+from ins_fusion.core.state import X_NAV, X_SIZE, FilterState, Geometry, LatestInputs
 from ins_fusion.core.status import MEASUREMENT_NAMES, EngineStatus, new_counters
 from ins_fusion.core.stop_detector import GNSS_SPEED_MAX_AGE_S, StopDetector
-from ins_fusion.core.strapdown import INCREMENT_SIZE, SampleIntegrator, increment
+from ins_fusion.core.strapdown import INCREMENT_SIZE, NAV_SIZE, SampleIntegrator, increment
 from ins_fusion.core.timeline import Checkpoint, Entry, Gap, Record, Timeline
 from ins_fusion.core.units import STANDARD_GRAVITY_M_S2
 from ins_fusion.core.updates import Corrections
@@ -236,9 +236,9 @@ class InsEngine:
         return (wx, wy, wz), (fx, fy, fz)
 
     def _advance(self, t: float, inc: FloatArray, gap: Gap | None, flags: int) -> None:
-        """After the intake of a sample (``flags``: core.intake): the detector's and monitor's
-        follow-ups, then levelling and alignment, or the strapdown step (unless the intake did
-        it), the history entry and the pseudo-measurements."""
+        """After the intake of a sample (``flags``: core.intake): a full detector ring grows,
+        then levelling and alignment, or the strapdown step (unless the intake did it), the
+        history entry and the pseudo-measurements."""
         if flags & RING_FULL:
             self._detector.grow()
         if self._filter is None:
@@ -497,7 +497,10 @@ class InsEngine:
         s, kf = self._state, self._filter
         assert s is not None and kf is not None
         cfg = self.config
-        speed = float(np.linalg.norm(s.nav.vel_ned_m_s))
+        x = s.x  # navigation at X_NAV (core.strapdown.NAV_SIZE): position, velocity, attitude
+        vn, ve, vd = x[X_NAV + 3], x[X_NAV + 4], x[X_NAV + 5]
+        horizontal = math.hypot(vn, ve)
+        speed = math.hypot(horizontal, vd)
         stationary = self._detector.evaluate(t, self._recent_gnss_speed(t), speed)
         buf = self._intake
         mean_rate = buf[S_ZARU_SUM : S_ZARU_SUM + 3] / max(int(buf[S_ZARU_N]), 1)
@@ -509,23 +512,14 @@ class InsEngine:
                 kinds.append(("zupt", None))
             if cfg.use_zaru:
                 kinds.append(("zaru", (mean_rate, span)))
-        elif (
-            cfg.use_nhc
-            and s.heading_known
-            and float(np.hypot(*s.nav.vel_ned_m_s[:2])) > cfg.nhc_min_speed_m_s
-        ):
+        elif cfg.use_nhc and s.heading_known and horizontal > cfg.nhc_min_speed_m_s:
             kinds.append(("nhc", None))
         for kind, payload in kinds:
             record = self._timeline.record(kind, t, payload)
             entry.measurements.append(record)
             self._apply(record, live=True)
         problem = kf.problem()
-        nav = s.nav
-        if problem is None and not (
-            math.isfinite(nav.lat_rad + nav.lon_rad + nav.height_m)
-            and np.isfinite(nav.vel_ned_m_s).all()
-            and np.isfinite(nav.quat_nb).all()
-        ):
+        if problem is None and not np.isfinite(s.x[X_NAV : X_NAV + NAV_SIZE]).all():
             problem = "non-finite navigation state"
         if problem is not None:
             self._reset(problem)
