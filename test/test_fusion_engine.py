@@ -352,3 +352,21 @@ def test_all_white_gnss_noise_runs_without_gnss_error_states(eight_adu5):
     sol = engine.solution()
     assert sol is not None and sol.state == "navigating"
     assert engine.status().measurements["gnss_position"]["used"] > 0
+
+
+def test_a_fast_imu_at_rest_fills_the_detector_window_and_is_seen_stopped():
+    """At 1 kHz the stop detector's window (1 s) holds ~1000 samples, more than its sample ring
+    was first sized for: the compiled intake says so and the ring grows, dropping none; the
+    standstill is detected, and no sample is counted as a gap."""
+    engine = InsEngine(config(**FAST))
+    rng = np.random.default_rng(3)
+    rate_hz, seconds = 1000.0, 2.5
+    for k in range(int(rate_hz * seconds)):
+        force = (rng.normal(0.0, 0.01), rng.normal(0.0, 0.01), 9.81 + rng.normal(0.0, 0.01))
+        engine.add_imu(1000.0 + k / rate_hz, (0.0, 0.0, 0.0), force)
+    window = engine._detector.window()
+    assert len(window) == pytest.approx(rate_hz, abs=2)
+    assert np.all(np.diff(window[:, 0]) > 0.0)  # oldest first, nothing overwritten
+    status = engine.status()
+    assert status.stationary
+    assert status.imu_samples == int(rate_hz * seconds) and status.imu_gaps == 0
