@@ -142,12 +142,11 @@ class ImuNoiseMonitor:
 @jit
 def block_push(
     block: FloatArray, t_s: float, wx: float, wy: float, wz: float, fx: float, fy: float, fz: float
-) -> bool:
+) -> None:
     """ImuNoiseMonitor.push on its ``block`` (B_* layout): add the sample to the open block,
     closing it first when it is τ long; a closed block's mean, with the two before it, gives
     D = ȳ_k - 2ȳ_{k-1} + ȳ_{k-2} and the density τ D²/6 into the running means (module
-    docstring). True when the estimate changed."""
-    changed = False
+    docstring; B_VERSION counts the estimate's changes)."""
     start = block[B_START]
     if math.isnan(start):
         block[B_START] = t_s
@@ -176,7 +175,6 @@ def block_push(
             block[B_ACCEL_N] = push_square(accel_mean, int(block[B_ACCEL_N]), psd[3:], tau, window)
             if block[B_GYRO_N] >= _MIN_COUNT:
                 block[B_VERSION] += 1.0
-                changed = True
             block[B_PREV : B_PREV + 6] = block[B_PREV + 6 : B_PREV + 12]
             block[B_PREV + 6 : B_PREV + 12] = means
     block[B_SUM] += wx
@@ -186,7 +184,6 @@ def block_push(
     block[B_SUM + 4] += fy
     block[B_SUM + 5] += fz
     block[B_N] += 1.0
-    return changed
 
 
 @dataclass(frozen=True)

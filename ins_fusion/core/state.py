@@ -89,8 +89,8 @@ class FilterState:
     ``x`` (X_* layout) is copied, every other field is immutable or never modified in place,
     so a shallow copy of those suffices.
 
-    cov_dt, cov_dth, cov_dv, cov_vel0: IMU interval not yet in the covariance (duration [s],
-    corrected angle and velocity increments in imu FRD, NED velocity at its start).
+    cov_vel0: NED velocity at the start of the IMU interval not yet in the covariance (the
+    interval's duration and increments are read in compiled code, core.propagation).
     """
 
     __slots__ = (
@@ -117,14 +117,8 @@ class FilterState:
     accel_bias = _Vec3Field(X_BA)
     gyro_scale = _Vec3Field(X_SG)
     accel_scale = _Vec3Field(X_SA)
-    rate_b = _Vec3Field(X_RATE_B)
-    rate_i = _Vec3Field(X_RATE_I)
-    accel_n = _Vec3Field(X_ACCEL_N)
     accel_lp = _Vec3Field(X_ACCEL_LP)
     rate_lp = _Vec3Field(X_RATE_LP)
-    cov_dt = _ScalarField(X_COV_DT)
-    cov_dth = _Vec3Field(X_COV_DTH)
-    cov_dv = _Vec3Field(X_COV_DV)
     cov_vel0 = _Vec3Field(X_COV_VEL0)
     t_s = _ScalarField(X_T)
 

@@ -38,7 +38,8 @@ GNSS_SPEED_MAX_AGE_S = 2.0
 #: fills it).
 _RING_RATE_HZ = 400.0
 #: Sample ring layout: row 0 holds (index of the next row to write, rows held, window [s]);
-#: rows 1.. the samples (t [s], ω (3) [rad/s], f (3) [m/s²]; imu FRD), oldest overwritten.
+#: rows 1.. the samples (t [s], ω (3) [rad/s], f (3) [m/s²]; imu FRD), a ring (the detector
+#: grows it when it is full, before a sample would overwrite the oldest).
 _HEAD, _COUNT, _WINDOW = 0, 1, 2
 
 
