@@ -15,7 +15,9 @@ from sim_bags import FIGURE_EIGHT_90_S, shared_bag
 
 from gnss_ins_common.params import validate_all
 from ins_fusion.core import (
+    adaptation,
     eskf,
+    gnss_noise,
     intake,
     measurements,
     propagation,
@@ -110,6 +112,11 @@ _KERNELS = (
     eskf._joseph_update,
     solution._fill_row,
     state.inject_nominal,
+    gnss_noise._position_noise,
+    measurements._position_model,
+    measurements._velocity_model,
+    eskf.projected_variance,
+    adaptation.white_push_fix,
 )
 _REAL = Path(__file__).parent / "fixtures" / "comma2k19" / "comma2k19_ex1_seg40"
 

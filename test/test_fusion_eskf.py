@@ -301,6 +301,12 @@ def test_gnss_velocity_jacobian_and_horizontal_only_when_vertical_unknown():
     _check_jacobian(model3, SIZES)
     bad = GnssVelocityMeasurement(0.0, np.array([math.nan, 1.0, 0.0]), np.eye(3))
     assert gnss_velocity(_prediction(np.zeros(LAYOUT_GNSS.size)), bad, LEVER_B, MAT_BI) is None
+    # A vertical velocity or variance that is not finite leaves the horizontal rows.
+    for vertical, variance in ((math.nan, 0.0025), (0.0, math.nan), (0.0, math.inf)):
+        cov_v = np.diag([0.0025, 0.0025, variance])
+        partial = GnssVelocityMeasurement(0.0, np.array([-8.0, 12.0, vertical]), cov_v)
+        out = gnss_velocity(_prediction(np.zeros(LAYOUT_GNSS.size)), partial, LEVER_B, MAT_BI)
+        assert out is not None and out[0].shape == (2,) and np.isfinite(out[2]).all()
 
 
 def test_nhc_jacobian():

@@ -12,6 +12,9 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
 
 from gnss_ins_common.message_fields import fill_imu, fill_navsatfix, fill_orientation, fill_velocity
 from ins_fusion.adapters import messages_in
@@ -81,6 +84,21 @@ def test_valid_fix_carries_position_and_enu_covariance():
 )
 def test_fix_without_usable_position_is_invalid(status, cov_type, alt, cov):
     assert not messages_in.fix_measurement(_fix(status, cov_type, alt, cov)).valid
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    arrays(np.float64, (3, 3), elements=st.floats(-10.0, 10.0)),
+    st.floats(-3.0, 3.0),
+)
+def test_positive_definite_agrees_with_the_eigenvalues(m, shift):
+    """The closed-form check (leading principal minors) says what the smallest eigenvalue
+    says, for symmetric matrices not within rounding of singular."""
+    cov = m @ m.T + shift * np.eye(3)
+    smallest = np.linalg.eigvalsh(cov).min()
+    assume(abs(smallest) > 1e-6 * max(1.0, float(np.abs(cov).max())))
+    assert messages_in.positive_definite(cov) == (smallest > 0.0)
+    assert not messages_in.positive_definite(cov + np.triu(np.ones((3, 3)), 1))  # asymmetric
 
 
 def test_velocity_takes_linear_block_and_keeps_unknown_vertical():

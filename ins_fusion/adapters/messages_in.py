@@ -52,12 +52,17 @@ def _vec3(v: Any) -> Vec3:
     return (float(v.x), float(v.y), float(v.z))
 
 
-def _positive_definite(cov: np.ndarray) -> bool:
-    """True for a finite, symmetric, positive definite matrix."""
+def positive_definite(cov: np.ndarray) -> bool:
+    """True for a finite, symmetric, positive definite 3x3 matrix."""
     # np.allclose's default tolerances, without its cost per fix.
     if not np.isfinite(cov).all() or (np.abs(cov - cov.T) > 1e-8 + 1e-5 * np.abs(cov.T)).any():
         return False
-    return bool(np.linalg.eigvalsh(cov).min() > 0.0)
+    # Sylvester's criterion on the lower triangle (what np.linalg.eigvalsh reads): the leading
+    # principal minors are positive. Closed form: eigvalsh cost ~100 us per fix of a replay.
+    rows: list[list[float]] = cov.tolist()
+    (a, _, _), (d, b, _), (e, f, c) = rows
+    minor2 = a * b - d * d
+    return a > 0.0 and minor2 > 0.0 and c * minor2 - a * f * f + 2.0 * d * e * f - b * e * e > 0.0
 
 
 def imu_sample(msg: Any) -> ImuSample:
@@ -80,7 +85,7 @@ def fix_measurement(msg: Any) -> GnssFixMeasurement:
         int(msg.status.status) >= NavSatStatus.FIX
         and int(msg.position_covariance_type) != CovarianceType.UNKNOWN
         and all(map(math.isfinite, position))
-        and _positive_definite(cov)
+        and positive_definite(cov)
     )
     return GnssFixMeasurement(stamp_s(msg), *position, cov, valid)
 

@@ -32,12 +32,12 @@ dominate); both report nothing until ``_MIN_COUNT`` differences have been seen.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core.compiled import compilable, jit
+from ins_fusion.core.eskf import projected_variance
 
 #: A squared difference above this many times the running mean is clipped to it.
 _CLIP = 9.0
@@ -73,26 +73,6 @@ def push_square(
         clipped = min(square[k], _CLIP * mean[k])
         mean[k] = mean[k] + (clipped - mean[k]) * gain
     return count
-
-
-@dataclass(frozen=True)
-class _RunningMeanSquare:
-    """Exponentially weighted mean of per-axis squares, with clipping (``push_square``);
-    immutable: ``pushed`` returns the updated mean."""
-
-    window: float
-    count: int = 0
-    mean: FloatArray = field(default_factory=lambda: np.zeros(3))
-
-    def pushed(self, square: FloatArray, weight: float) -> _RunningMeanSquare:
-        """With a per-axis square of ``weight`` (in the units of ``window``) added."""
-        mean = self.mean.copy()
-        count = push_square(mean, self.count, square, weight, self.window)
-        return self if count == self.count else _RunningMeanSquare(self.window, count, mean)
-
-    @property
-    def ready(self) -> bool:
-        return self.count >= _MIN_COUNT
 
 
 class ImuNoiseMonitor:
@@ -186,21 +166,35 @@ def block_push(
     block[B_N] += 1.0
 
 
-@dataclass(frozen=True)
+#: Layout of WhiteNoiseMonitor.values, all the monitor keeps (``white_push`` updates it): the
+#: running mean of the normalised squares (3) and their count (``push_square``); the previous
+#: fix's stamp [s] (NaN: none), its residual [m] (3), H P⁺ Hᵀ diagonal and reported variance
+#: [m²] (3 each); the time constant [epochs] and the longest interval differenced [s].
+W_MEAN, W_COUNT, W_LAST_T, W_RESIDUAL, W_UPDATED, W_REPORTED = 0, 3, 4, 5, 8, 11
+W_WINDOW, W_MAX_INTERVAL, W_SIZE = 14, 15, 16
+
+
 class WhiteNoiseMonitor:
     """White share of a receiver's position variance per NED axis, from consecutive
     innovations (module docstring). Immutable (the engine keeps it in its rolled-back state):
-    ``pushed`` returns the updated monitor.
+    ``pushed`` returns the updated monitor; its numbers are ``values`` (W_* layout).
 
     window_epochs: time constant of the running mean [epochs]; consecutive fixes further apart
     than max_interval_s [s] (an outage, a gap) are not differenced.
     """
 
-    window_epochs: float = 30.0
-    max_interval_s: float = 2.0
-    squares: _RunningMeanSquare | None = None
-    #: The previous fix: stamp, residual, its variance H P⁺ Hᵀ and the reported variance.
-    last: tuple[float, FloatArray, FloatArray, FloatArray] | None = None
+    __slots__ = ("values",)
+
+    def __init__(self, window_epochs: float = 30.0, max_interval_s: float = 2.0) -> None:
+        self.values = np.zeros(W_SIZE)
+        self.values[W_LAST_T] = math.nan
+        self.values[W_WINDOW] = window_epochs
+        self.values[W_MAX_INTERVAL] = max_interval_s
+
+    def _with(self, values: FloatArray) -> WhiteNoiseMonitor:
+        other = WhiteNoiseMonitor.__new__(WhiteNoiseMonitor)
+        other.values = values
+        return other
 
     def pushed(
         self,
@@ -213,31 +207,115 @@ class WhiteNoiseMonitor:
     ) -> WhiteNoiseMonitor:
         """With a fix at t_s [s]: its innovation (measured minus predicted, before the update)
         and residual after the update (the innovation when rejected) [m], the diagonals of
-        H P Hᵀ before and after the update and the receiver's reported variance [m²], NED.
+        H P Hᵀ before and after the update and the receiver's reported variance [m²], NED
+        (``white_push``)."""
+        values = self.values.copy()
+        white_push(
+            values,
+            t_s,
+            innovation_ned_m,
+            residual_ned_m,
+            predicted_var_m2,
+            updated_var_m2,
+            reported_var_m2,
+        )
+        return self._with(values)
 
-        The state's own error growth between the two fixes, H P⁻_k Hᵀ - H P⁺_{k-1} Hᵀ, which
-        the filter predicts, is taken off the squared difference; the rest is divided by the
-        two reported variances, so the share carries over when the fix type changes."""
-        squares = self.squares or _RunningMeanSquare(self.window_epochs)
-        last = self.last
-        if last is not None and 0.0 < t_s - last[0] <= self.max_interval_s:
-            growth = np.maximum(predicted_var_m2 - last[2], 0.0)
-            excess = np.maximum(np.square(innovation_ned_m - last[1]) - growth, 0.0)
-            squares = squares.pushed(excess / np.maximum(reported_var_m2 + last[3], 1e-30), 1.0)
-        last = (t_s, residual_ned_m, updated_var_m2, reported_var_m2)
-        return replace(self, squares=squares, last=last)
+    def pushed_fix(
+        self,
+        t_s: float,
+        innovation_ned_m: FloatArray,
+        H: FloatArray,
+        dx: FloatArray | None,
+        P: FloatArray,
+        predicted_var_m2: FloatArray,
+        reported_var_m2: FloatArray,
+    ) -> WhiteNoiseMonitor:
+        """``pushed`` for a fix's update z ≈ H δx (``dx``: the estimate, None when rejected; P
+        after the update), which give the residual and the variance after it (compiled:
+        ``white_push_fix``)."""
+        values = self.values.copy()
+        accepted = dx is not None
+        white_push_fix(
+            values,
+            t_s,
+            innovation_ned_m,
+            H,
+            dx if dx is not None else innovation_ned_m,
+            accepted,
+            P,
+            predicted_var_m2,
+            reported_var_m2,
+        )
+        return self._with(values)
 
     def restarted(self) -> WhiteNoiseMonitor:
         """The next fix starts a new run (after a state jump); the estimate is kept."""
-        return replace(self, last=None)
+        values = self.values.copy()
+        values[W_LAST_T] = math.nan
+        return self._with(values)
+
+    @property
+    def ready(self) -> bool:
+        """Whether enough epochs were seen for a ``share``."""
+        return bool(self.values[W_COUNT] >= _MIN_COUNT)
 
     @property
     def share(self) -> FloatArray | None:
         """Estimated white share of the reported variance per NED axis (may exceed 1: the
         receiver reports too little); None before enough epochs."""
-        if self.squares is None or not self.squares.ready:
+        if not self.ready:
             return None
-        return self.squares.mean.copy()
+        return self.values[W_MEAN : W_MEAN + 3].copy()
+
+
+@jit
+def white_push_fix(
+    values: FloatArray,
+    t_s: float,
+    innovation: FloatArray,
+    H: FloatArray,
+    dx: FloatArray,
+    accepted: bool,
+    P: FloatArray,
+    predicted: FloatArray,
+    reported: FloatArray,
+) -> None:
+    """``white_push`` of a fix's update z ≈ H δx (``innovation`` z, estimate ``dx`` when
+    ``accepted``; P after it): the residual z - H δx (z when rejected) and diag(H P Hᵀ) are
+    computed here."""
+    residual = innovation - H @ dx if accepted else innovation.copy()
+    white_push(values, t_s, innovation, residual, predicted, projected_variance(H, P), reported)
+
+
+@compilable
+def white_push(
+    values: FloatArray,
+    t_s: float,
+    innovation: FloatArray,
+    residual: FloatArray,
+    predicted: FloatArray,
+    updated: FloatArray,
+    reported: FloatArray,
+) -> None:
+    """WhiteNoiseMonitor.pushed on its ``values`` (W_* layout, in place). The state's own error
+    growth between the two fixes, H P⁻_k Hᵀ - H P⁺_{k-1} Hᵀ, which the filter predicts, is taken
+    off the squared difference; the rest is divided by the two reported variances, so the share
+    carries over when the fix type changes."""
+    dt = t_s - values[W_LAST_T]  # NaN without a previous fix
+    if 0.0 < dt <= values[W_MAX_INTERVAL]:
+        square = np.empty(3)
+        for k in range(3):
+            growth = max(predicted[k] - values[W_UPDATED + k], 0.0)
+            step = innovation[k] - values[W_RESIDUAL + k]
+            excess = max(step * step - growth, 0.0)
+            square[k] = excess / max(reported[k] + values[W_REPORTED + k], 1e-30)
+        mean = values[W_MEAN : W_MEAN + 3]
+        values[W_COUNT] = push_square(mean, int(values[W_COUNT]), square, 1.0, values[W_WINDOW])
+    values[W_LAST_T] = t_s
+    values[W_RESIDUAL : W_RESIDUAL + 3] = residual
+    values[W_UPDATED : W_UPDATED + 3] = updated
+    values[W_REPORTED : W_REPORTED + 3] = reported
 
 
 #: Weight of one normalised innovation in the running NIS mean, and of the mean's log in the

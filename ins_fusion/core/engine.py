@@ -91,7 +91,7 @@ from ins_fusion.core.propagation import ImuDensities, Propagator, bridge
 from ins_fusion.core.smoother import SmootherHooks
 from ins_fusion.core.solution import InsSolution, SolutionBuilder, self_calibration, unpack
 from ins_fusion.core.startup import Startup
-from ins_fusion.core.state import X_NAV, X_SIZE, FilterState, Geometry, LatestInputs
+from ins_fusion.core.state import X_COV_VEL0, X_NAV, X_SIZE, FilterState, Geometry, LatestInputs
 from ins_fusion.core.status import MEASUREMENT_NAMES, EngineStatus, new_counters
 from ins_fusion.core.stop_detector import GNSS_SPEED_MAX_AGE_S, StopDetector
 from ins_fusion.core.strapdown import INCREMENT_SIZE, NAV_SIZE, SampleIntegrator, increment
@@ -477,7 +477,8 @@ class InsEngine:
         assert s is not None and kf is not None
         self._propagator.propagate_covariance(s, kf)
         self._corrections.handlers[kind](s, kf, self._propagator.predict(s, kf, t_m), payload, live)
-        s.cov_vel0 = s.nav.vel_ned_m_s
+        x = s.x  # the covariance interval goes on from the corrected velocity
+        x[X_COV_VEL0 : X_COV_VEL0 + 3] = x[X_NAV + 3 : X_NAV + 6]
 
     def _step(
         self,

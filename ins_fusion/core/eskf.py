@@ -56,6 +56,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 from scipy.special import gammaincinv
@@ -133,8 +134,7 @@ def chi2_threshold(probability: float, dof: int) -> float:
     return float(2.0 * gammaincinv(0.5 * dof, probability))
 
 
-@dataclass(frozen=True)
-class UpdateResult:
+class UpdateResult(NamedTuple):
     """Outcome of one measurement update: accepted or gated, the normalised innovation
     squared, and the error-state estimate to inject (None when gated)."""
 
@@ -301,8 +301,13 @@ class ErrorStateFilter:
 
     def update(self, z: FloatArray, H: FloatArray, R: FloatArray, threshold: float) -> UpdateResult:
         """Gated Joseph-form update with innovation z = measured - predicted, z ≈ H δx + v."""
-        P, z, H, R = (kernel_array(a) for a in (self.P, z, H, R))
-        accepted, nis, dx, P = _joseph_update(P, z, H, R, float(threshold))
+        accepted, nis, dx, P = _joseph_update(
+            kernel_array(self.P),
+            kernel_array(z),
+            kernel_array(H),
+            kernel_array(R),
+            float(threshold),
+        )
         if not accepted:
             return UpdateResult(False, nis, None)
         self.P = P
@@ -423,6 +428,17 @@ def _propagate(
     P_new = phi @ (P + q) @ phi.T
     P_new += q
     return P_new, phi
+
+
+@jit
+def projected_variance(H: FloatArray, P: FloatArray) -> FloatArray:
+    """diag(H P Hᵀ): the variance of each row of H δx."""
+    HP = H @ P
+    out = np.zeros(len(H))
+    for i in range(len(H)):
+        for j in range(H.shape[1]):
+            out[i] += HP[i, j] * H[i, j]
+    return out
 
 
 @jit

@@ -4,9 +4,12 @@ when ``gnss_correlation_time`` > 0), and the restarts of those states. Covarianc
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-from gnss_ins_common.types import FloatArray
+from gnss_ins_common.types import FloatArray, Vec3
+from ins_fusion.core.compiled import jit, kernel_array
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.eskf import POS, ErrorStateFilter, StateLayout
 from ins_fusion.core.measurements import GnssFixMeasurement, ned_cov
@@ -15,6 +18,14 @@ from ins_fusion.core.state import FilterState, restart_block
 
 #: Largest factor by which a fix's covariance grows when its epochs scatter more than reported.
 _MAX_GNSS_INFLATION = 100.0
+#: A change of the receiver's reported variance by more than this factor restarts the
+#: correlated GNSS error states (another fix type).
+_GNSS_NOISE_JUMP = 1.5
+#: What a fix asks of the correlated GNSS error states (``GnssNoise.position_noise``): nothing,
+#: a restart (``GnssNoise.restart_error``), their new variance (``set_correlated_variance``).
+NOISE_KEPT, NOISE_RESTART, NOISE_MOVED = 0, 1, 2
+#: The white share before it is measured (core.adaptation.WhiteNoiseMonitor.share None).
+_NO_SHARE = np.full(3, math.nan)
 
 
 class GnssNoise:
@@ -31,28 +42,38 @@ class GnssNoise:
         return np.diagonal(ned_cov(fix.cov_enu_m2)) * self._scale_sq
 
     def split(self, s: FilterState, fix: GnssFixMeasurement) -> tuple[FloatArray, FloatArray]:
-        """(white covariance NED [m²], correlated variance per NED axis [m²]) of a fix.
+        """(white covariance NED [m²], correlated variance per NED axis [m²]) of a fix
+        (``position_noise``)."""
+        white, correlated, _, _ = self.position_noise(s, fix)
+        return white, correlated
+
+    def position_noise(
+        self, s: FilterState, fix: GnssFixMeasurement
+    ) -> tuple[FloatArray, FloatArray, FloatArray, int]:
+        """(white covariance NED [m²], correlated variance per NED axis [m²], reported variance
+        per NED axis [m²], what the correlated error states need: NOISE_*) of a fix for state
+        ``s``. Compiled (``_position_noise``).
 
         The white part is what the data say (core.adaptation.WhiteNoiseMonitor: consecutive
         innovations), at least ``gnss_noise.white_sigma``² or ``gnss_noise.white_fraction`` of
         the receiver's variance, at most that variance; before the data say anything, the
         floor. The rest is the time-correlated error. A receiver whose epochs scatter more than
         it reports gets its whole covariance scaled up to the measured white part (at most
-        ``_MAX_GNSS_INFLATION`` times). Correlations between axes are kept.
+        ``_MAX_GNSS_INFLATION`` times). Correlations between axes are kept. The correlated
+        states restart when the reported variance moved by more than ``_GNSS_NOISE_JUMP``
+        times since they last did (another fix type), else take the new split's variance.
         """
-        total = ned_cov(fix.cov_enu_m2) * self._scale_sq
-        variance = np.diagonal(total)
         share = s.gnss_white.share
-        measured = None if share is None else share * variance
-        if self._layout.gp is None:  # all white: no correlated error states
-            white = variance
-        else:
-            floor = np.maximum(self._white_var_ned, self._white_fraction * variance)
-            white = np.minimum(variance, floor)
-        if measured is not None:
-            white = np.minimum(np.maximum(white, measured), _MAX_GNSS_INFLATION * variance)
-        scale = np.sqrt(white / np.maximum(variance, 1e-30))
-        return total * np.outer(scale, scale), np.maximum(variance - white, 0.0)
+        return _position_noise(
+            kernel_array(fix.cov_enu_m2),
+            self._scale_sq,
+            self._white_var_ned,
+            self._white_fraction,
+            _NO_SHARE if share is None else share,
+            self._layout.gp is not None,
+            s.gnss_reported,
+            s.gnss_variance,
+        )
 
     def restart_position(
         self, s: FilterState, kf: ErrorStateFilter, fix: GnssFixMeasurement
@@ -117,3 +138,51 @@ class GnssNoise:
         s.gnss_error = (e[0] * shrink[0], e[1] * shrink[1], e[2] * shrink[2])
         if kf.recorder is not None:  # smoother hook: a deterministic transition x -> D x
             kf.recorder.on_transition(P_before, np.diag(factors), kf.P)
+
+
+@jit
+def _position_noise(
+    cov_enu: FloatArray,
+    scale_sq: float,
+    white_var_ned: FloatArray,
+    white_fraction: float,
+    share: FloatArray,
+    correlated_states: bool,
+    reported_before: Vec3,
+    variance_before: Vec3,
+) -> tuple[FloatArray, FloatArray, FloatArray, int]:
+    """``GnssNoise.position_noise`` from the fix's ENU covariance [m²], the configuration
+    (``scale_sq``: gnss_position_noise_scale²; the white floor per NED axis [m²] and fraction),
+    the measured white ``share`` (NaN: none), whether the correlated error states are kept
+    (``correlated_states``) and their reported and stationary variances [m²] at their last
+    (re)start and update."""
+    total = ned_cov(cov_enu) * scale_sq
+    white, correlated, reported = np.empty(3), np.empty(3), np.empty(3)
+    scale = np.empty(3)
+    for k in range(3):
+        variance = total[k, k]
+        reported[k] = variance
+        w = variance  # all white without correlated error states
+        if correlated_states:
+            w = min(variance, max(white_var_ned[k], white_fraction * variance))
+        if not math.isnan(share[k]):
+            w = min(max(w, share[k] * variance), _MAX_GNSS_INFLATION * variance)
+        white[k] = w
+        correlated[k] = max(variance - w, 0.0)
+        scale[k] = math.sqrt(w / max(variance, 1e-30))
+    for i in range(3):
+        for j in range(3):
+            total[i, j] = total[i, j] * (scale[i] * scale[j])
+    action = NOISE_KEPT
+    if correlated_states:
+        moved = False
+        low, high = math.inf, -math.inf
+        for k in range(3):
+            ratio = reported[k] / max(reported_before[k], 1e-12)
+            low, high = min(low, ratio), max(high, ratio)
+            moved = moved or correlated[k] != variance_before[k]
+        if high > _GNSS_NOISE_JUMP or low < 1.0 / _GNSS_NOISE_JUMP:
+            action = NOISE_RESTART
+        elif moved:
+            action = NOISE_MOVED
+    return total, correlated, reported, action

@@ -17,14 +17,17 @@ import numpy as np
 
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core import earth
-from ins_fusion.core.compiled import jit
+from ins_fusion.core.compiled import compilable, jit, kernel_array
 from ins_fusion.core.eskf import ATT, BG, POS, VEL, StateLayout
-from ins_fusion.core.rotation import MAT_ENU_NED, euler_rad, skew, wrap_angle
+from ins_fusion.core.rotation import euler_rad, skew, wrap_angle
 
 #: A variance at or above this marks a component as not measured: GNSS vertical velocity [m²/s²]
 #: (the contract of gnss/vel) and attitude angles [rad²].
 UNKNOWN_VELOCITY_VARIANCE = 1.0e4
 UNKNOWN_ANGLE_VARIANCE = 1.0
+#: ENU <-> NED: the axis each NED axis is read from and its sign (rotation.MAT_ENU_NED).
+_AXIS = (1, 0, 2)
+_SIGN = (1.0, 1.0, -1.0)
 #: FLU <-> FRD sign flips of the (roll, pitch, yaw) errors of a REP-103 orientation covariance.
 _RPY_FLU_TO_FRD = np.diag([1.0, -1.0, -1.0])
 
@@ -96,27 +99,9 @@ class Prediction:
     rate_i: FloatArray
     layout: StateLayout = field(default_factory=StateLayout)
 
-    def ned_offset_m(self, lat_rad: float, lon_rad: float, height_m: float) -> FloatArray:
-        """NED vector [m] from the IMU position to a nearby geodetic point."""
-        r_m, r_n = earth.radii_m(self.lat_rad)
-        return np.array(
-            [
-                (lat_rad - self.lat_rad) * (r_m + self.height_m),
-                (lon_rad - self.lon_rad) * (r_n + self.height_m) * math.cos(self.lat_rad),
-                self.height_m - height_m,
-            ]
-        )
-
     def jacobian(self, rows: int) -> FloatArray:
         """A zero H of ``rows`` rows."""
         return np.zeros((rows, self.layout.size))
-
-    def gyro_error_jacobian(self, mat_bi: FloatArray) -> list[tuple[int, FloatArray]]:
-        """d(ω_b)/d(δb_g, δs_g): blocks (first column, 3x3) of the rate error in base FRD."""
-        blocks = [(BG, -mat_bi)]
-        if self.layout.sg is not None:
-            blocks.append((self.layout.sg, -mat_bi * self.rate_i))
-        return blocks
 
 
 Model = tuple[FloatArray, FloatArray, FloatArray]
@@ -131,9 +116,16 @@ def mounting_skew(mounting_rad: tuple[float, float]) -> FloatArray:
     return skew((0.0, mounting_rad[0], mounting_rad[1]))
 
 
+@compilable
 def ned_cov(cov_enu: FloatArray) -> FloatArray:
-    """ENU covariance -> NED (and back: the axis swap is its own inverse)."""
-    return np.asarray(MAT_ENU_NED @ cov_enu @ MAT_ENU_NED.T, dtype=np.float64)
+    """ENU covariance -> NED (and back: the axis swap is its own inverse), element by element
+    (a product with MAT_ENU_NED would spread a non-finite vertical variance into the
+    horizontal block)."""
+    out = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = _SIGN[i] * _SIGN[j] * cov_enu[_AXIS[i], _AXIS[j]]
+    return out
 
 
 def gnss_position(
@@ -145,39 +137,124 @@ def gnss_position(
 ) -> Model:
     """Antenna position p + C_nb l plus the estimated time-correlated receiver error ε_g (when
     it is a state). H: δp -> I, ψ -> -[(C_nb l)×], δε_g -> I; R: the white part of the
-    receiver's covariance."""
-    arm_n = pred.mat_nb @ lever_b
-    offset = pred.ned_offset_m(
-        math.radians(meas.lat_deg), math.radians(meas.lon_deg), meas.height_m
+    receiver's covariance. Compiled (``_position_model``)."""
+    gp = pred.layout.gp
+    return _position_model(
+        pred.lat_rad,
+        pred.lon_rad,
+        pred.height_m,
+        pred.mat_nb,
+        math.radians(meas.lat_deg),
+        math.radians(meas.lon_deg),
+        meas.height_m,
+        lever_b,
+        white_cov_ned,
+        gnss_error_ned,
+        pred.layout.size,
+        -1 if gp is None else gp,
     )
-    H = pred.jacobian(3)
-    H[:, POS : POS + 3] = np.eye(3)
+
+
+@jit
+def _position_model(
+    lat_rad: float,
+    lon_rad: float,
+    height_m: float,
+    mat_nb: FloatArray,
+    fix_lat_rad: float,
+    fix_lon_rad: float,
+    fix_height_m: float,
+    lever_b: FloatArray,
+    white_cov_ned: FloatArray,
+    gnss_error_ned: tuple[float, float, float],
+    size: int,
+    gp: int,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """``gnss_position``'s model from the predicted IMU position (lat, lon [rad], h [m]) and
+    attitude, the fix's position and the layout's size and GNSS error column (-1: none)."""
+    arm_n = mat_nb @ lever_b
+    r_m, r_n = earth.radii_from_sin(math.sin(lat_rad))
+    offset = (
+        (fix_lat_rad - lat_rad) * (r_m + height_m),
+        (fix_lon_rad - lon_rad) * (r_n + height_m) * math.cos(lat_rad),
+        height_m - fix_height_m,
+    )
+    H = np.zeros((3, size))
+    z = np.empty(3)
+    for k in range(3):
+        H[k, POS + k] = 1.0
+        if gp >= 0:
+            H[k, gp + k] = 1.0
+        z[k] = offset[k] - arm_n[k] - gnss_error_ned[k]
     H[:, ATT : ATT + 3] = -skew(arm_n)
-    if pred.layout.gp is not None:
-        H[:, pred.layout.gp : pred.layout.gp + 3] = np.eye(3)
-    return offset - arm_n - np.array(gnss_error_ned), H, white_cov_ned
+    return z, H, white_cov_ned.copy()
 
 
 def gnss_velocity(
     pred: Prediction, meas: GnssVelocityMeasurement, lever_b: FloatArray, mat_bi: FloatArray
 ) -> Model | None:
     """Antenna velocity v + C_nb (ω_b × l) (the ω_in × C l term, < 2e-4 m/s, is left out);
-    horizontal rows only when the vertical is unknown. None when the horizontal is unusable."""
-    cov = ned_cov(meas.cov_enu_m2_s2)
-    vel = np.asarray(MAT_ENU_NED @ meas.vel_enu_m_s)
-    if not (np.isfinite(vel[:2]).all() and np.isfinite(cov[:2, :2]).all()):
-        return None
-    vertical = math.isfinite(vel[2]) and cov[2, 2] < UNKNOWN_VELOCITY_VARIANCE
+    horizontal rows only when the vertical is unknown (its velocity or variance not finite, or
+    the variance at least UNKNOWN_VELOCITY_VARIANCE). None when the horizontal is unusable.
+    Compiled (``_velocity_model``)."""
+    sg = pred.layout.sg
+    rows, z, H, R = _velocity_model(
+        pred.mat_nb,
+        pred.vel_ned_m_s,
+        pred.rate_b,
+        pred.rate_i,
+        lever_b,
+        mat_bi,
+        kernel_array(meas.vel_enu_m_s),
+        kernel_array(meas.cov_enu_m2_s2),
+        pred.layout.size,
+        -1 if sg is None else sg,
+    )
+    return None if rows == 0 else (z, H, R)
+
+
+@jit
+def _velocity_model(
+    mat_nb: FloatArray,
+    vel: FloatArray,
+    rate_b: FloatArray,
+    rate_i: FloatArray,
+    lever_b: FloatArray,
+    mat_bi: FloatArray,
+    vel_enu: FloatArray,
+    cov_enu: FloatArray,
+    size: int,
+    sg: int,
+) -> tuple[int, FloatArray, FloatArray, FloatArray]:
+    """``gnss_velocity``'s model (rows, z, H, R; 0 rows: unusable) from the prediction's
+    arrays, the measured ENU velocity and covariance, the layout's size and the gyro scale
+    column (-1: not estimated)."""
+    measured = np.array((vel_enu[1], vel_enu[0], -vel_enu[2]))
+    cov = ned_cov(cov_enu)
+    if not np.isfinite(measured[:2]).all() or not np.isfinite(cov[:2, :2]).all():
+        return 0, measured[:0], np.zeros((0, size)), cov[:0, :0].copy()
+    vertical = math.isfinite(measured[2]) and cov[2, 2] < UNKNOWN_VELOCITY_VARIANCE
     rows = 3 if vertical else 2
-    rot_n = pred.mat_nb @ (skew(pred.rate_b) @ lever_b)
-    H = pred.jacobian(3)
-    H[:, VEL : VEL + 3] = np.eye(3)
+    rot_n = mat_nb @ (skew(rate_b) @ lever_b)
+    H = np.zeros((3, size))
+    for k in range(3):
+        H[k, VEL + k] = 1.0
     H[:, ATT : ATT + 3] = -skew(rot_n)
-    arm = pred.mat_nb @ skew(lever_b)
-    for start, d_rate in pred.gyro_error_jacobian(mat_bi):
-        H[:, start : start + 3] = -arm @ d_rate
-    z = vel - pred.vel_ned_m_s - rot_n
-    return z[:rows], H[:rows], cov[:rows, :rows]
+    gyro_error_columns(H, -(mat_nb @ skew(lever_b)), mat_bi, rate_i, sg)
+    z = measured - vel - rot_n
+    return rows, z[:rows].copy(), H[:rows].copy(), cov[:rows, :rows].copy()
+
+
+@compilable
+def gyro_error_columns(
+    H: FloatArray, d_rate: FloatArray, mat_bi: FloatArray, rate_i: FloatArray, sg: int
+) -> None:
+    """H's columns of the gyro bias and scale errors (``sg``: the scale's first column, -1
+    when not estimated) for a measurement that depends on the body rate through ``d_rate``
+    (rows x 3, d(measured)/dω_b, base FRD): dω_b/dδb_g = -R_bi, dω_b/dδs_g = -R_bi diag(ω_i)."""
+    H[:, BG : BG + 3] = d_rate @ -mat_bi
+    if sg >= 0:
+        H[:, sg : sg + 3] = d_rate @ (-mat_bi * rate_i)
 
 
 def euler_jacobian(mat_nb: FloatArray) -> FloatArray:
@@ -274,7 +351,7 @@ def nhc(
     vehicle frame: v_b = C_nbᵀ v + ω_b × r in base_link, turned into the vehicle frame by the
     residual mounting μ = (pitch, yaw) about base_link FRD y and z, C_vb = I - [μ×]:
     lateral v_b,y - μ_z v_b,x, vertical v_b,z + μ_y v_b,x. H: δv -> C_nbᵀ, ψ -> C_nbᵀ [v×],
-    gyro errors -> -[r×] dω_b (``Prediction.gyro_error_jacobian``), δμ_y -> +v_b,x
+    gyro errors -> -[r×] dω_b (``gyro_error_columns``), δμ_y -> +v_b,x
     (vertical), δμ_z -> -v_b,x (lateral) (the mounting's second-order terms in H left out).
     Compiled (``_nhc_model``)."""
     layout = pred.layout
@@ -314,10 +391,7 @@ def _nhc_model(
     H = np.zeros((3, size))
     H[:, VEL : VEL + 3] = c_bn
     H[:, ATT : ATT + 3] = c_bn @ skew(vel)
-    arm = -skew(arm_b)
-    H[:, BG : BG + 3] = arm @ -mat_bi
-    if sg >= 0:
-        H[:, sg : sg + 3] = arm @ (-mat_bi * rate_i)
+    gyro_error_columns(H, -skew(arm_b), mat_bi, rate_i, sg)
     pitch, yaw = mounting_rad
     forward = v_b[0]
     predicted = np.array((v_b[1] - yaw * forward, v_b[2] + pitch * forward))

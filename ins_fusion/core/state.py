@@ -88,9 +88,6 @@ class FilterState:
     """Nominal state and filter bookkeeping at one IMU stamp. Copies are history checkpoints:
     ``x`` (X_* layout) is copied, every other field is immutable or never modified in place,
     so a shallow copy of those suffices.
-
-    cov_vel0: NED velocity at the start of the IMU interval not yet in the covariance (the
-    interval's duration and increments are read in compiled code, core.propagation).
     """
 
     __slots__ = (
@@ -119,7 +116,6 @@ class FilterState:
     accel_scale = _Vec3Field(X_SA)
     accel_lp = _Vec3Field(X_ACCEL_LP)
     rate_lp = _Vec3Field(X_RATE_LP)
-    cov_vel0 = _Vec3Field(X_COV_VEL0)
     t_s = _ScalarField(X_T)
 
     def __init__(self, t_s: float, nav: NavState, gyro_bias: Vec3, heading_known: bool) -> None:

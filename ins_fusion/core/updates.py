@@ -18,8 +18,15 @@ from gnss_ins_common.types import FloatArray
 from ins_fusion.core.adaptation import adapt_process_noise, fading_factor
 from ins_fusion.core.alignment import earth_rate_body_rad_s, unknown_earth_rate_rad_s
 from ins_fusion.core.config import FusionConfig
-from ins_fusion.core.eskf import ATT, POS, VEL, ErrorStateFilter, chi2_threshold
-from ins_fusion.core.gnss_noise import GnssNoise
+from ins_fusion.core.eskf import (
+    ATT,
+    POS,
+    VEL,
+    ErrorStateFilter,
+    chi2_threshold,
+    projected_variance,
+)
+from ins_fusion.core.gnss_noise import NOISE_MOVED, NOISE_RESTART, GnssNoise
 from ins_fusion.core.heading import fast_enough, heading_from_course, set_heading
 from ins_fusion.core.measurements import (
     UNKNOWN_ANGLE_VARIANCE,
@@ -47,9 +54,6 @@ _ADAPTING_KINDS = frozenset({"gnss_position", "gnss_velocity"})
 _RECOVERY_BLOCKS = {"gnss_position": POS, "gnss_velocity": VEL, "attitude": ATT}
 #: While the heading is unknown, GNSS updates are applied only below this speed [m/s].
 _ALIGN_MAX_SPEED_M_S = 1.0
-#: A change of the receiver's reported variance by more than this factor restarts the
-#: correlated GNSS error states (another fix type).
-_GNSS_NOISE_JUMP = 1.5
 #: The time offset is observed only above these rates of the measured quantity: speed [m/s]
 #: for positions, acceleration [m/s²] for velocities (core.measurements for attitude).
 _TIME_OFFSET_MIN_SPEED_M_S = 1.0
@@ -105,7 +109,7 @@ class Corrections:
         runs = s.gated_runs
         recover = self._config.gate_recovery_count
         block = _RECOVERY_BLOCKS.get(kind)
-        if kind == "gnss_position" and s.gnss_white.share is None:
+        if kind == "gnss_position" and not s.gnss_white.ready:
             block = None  # the receiver's noise is not learnt yet: it, not the state, may be off
         if gated and recover and block is not None and runs.get(kind, 0) + 1 >= recover:
             # The filter has rejected this sensor `recover` times running: its state, not the
@@ -158,35 +162,22 @@ class Corrections:
         if not s.heading_known and self._too_fast_to_align(pred, live, "gnss_position"):
             return
         noise = self._gnss_noise
-        white, correlated = noise.split(s, fix)
-        reported = noise.reported_variance(fix)
-        if kf.layout.gp is not None:
-            ratio = reported / np.maximum(s.gnss_reported, 1e-12)
-            if ratio.max() > _GNSS_NOISE_JUMP or ratio.min() < 1.0 / _GNSS_NOISE_JUMP:
-                noise.restart_error(s, kf, fix, correlated)
-            elif not np.array_equal(correlated, s.gnss_variance):
-                noise.set_correlated_variance(s, kf, correlated)  # the white/correlated split moved
+        white, correlated, reported, action = noise.position_noise(s, fix)
+        if action == NOISE_RESTART:
+            noise.restart_error(s, kf, fix, correlated)
+        elif action == NOISE_MOVED:  # the white/correlated split moved
+            noise.set_correlated_variance(s, kf, correlated)
         antenna_b = self._geometry.arms(s)[0]
-        antenna_rate_n = pred.vel_ned_m_s + pred.mat_nb @ (skew(s.rate_lp) @ antenna_b)
-        model = _late_imu(
-            s,
-            kf,
-            gnss_position(pred, fix, antenna_b, white, s.gnss_error),
-            antenna_rate_n,
-            _TIME_OFFSET_MIN_SPEED_M_S,
-            np.array(s.accel_lp),
-        )
+        model = gnss_position(pred, fix, antenna_b, white, s.gnss_error)
+        if kf.layout.td is not None:
+            antenna_rate_n = pred.vel_ned_m_s + pred.mat_nb @ (skew(s.rate_lp) @ antenna_b)
+            model = _late_imu(
+                s, kf, model, antenna_rate_n, _TIME_OFFSET_MIN_SPEED_M_S, np.array(s.accel_lp)
+            )
         z, H, _ = model
-        predicted = ((H @ kf.P) * H).sum(axis=1)  # diag(H P Hᵀ); np.einsum costs 10x more
+        predicted = projected_variance(H, kf.P)
         dx = self.update(s, kf, "gnss_position", model, live)
-        s.gnss_white = s.gnss_white.pushed(
-            fix.t_s,
-            z,
-            z if dx is None else z - H @ dx,
-            predicted,
-            ((H @ kf.P) * H).sum(axis=1),
-            reported,
-        )
+        s.gnss_white = s.gnss_white.pushed_fix(fix.t_s, z, H, dx, kf.P, predicted, reported)
         if dx is not None:
             s.last_position_t_s = max(s.last_position_t_s, fix.t_s)
 
@@ -216,13 +207,9 @@ class Corrections:
         if model is None:
             self._reject("gnss_velocity", live)
             return
-        self.update(
-            s,
-            kf,
-            "gnss_velocity",
-            _late_imu(s, kf, model, np.array(s.accel_lp), _TIME_OFFSET_MIN_ACCEL_M_S2),
-            live,
-        )
+        if kf.layout.td is not None:
+            model = _late_imu(s, kf, model, np.array(s.accel_lp), _TIME_OFFSET_MIN_ACCEL_M_S2)
+        self.update(s, kf, "gnss_velocity", model, live)
 
     def _attitude(
         self,
@@ -303,10 +290,10 @@ def _late_imu(
     rate·t̂_d (+ second·t̂_d²/2 when the second derivative is given) and H gets the rate
     at t + t̂_d on δt_d (rate, second: first and second time derivative of the measured
     quantity, NED). Below ``min_rate`` the offset is frozen (H stays 0): the rate is then
-    mostly noise, and a noisy H would move the estimate without cause."""
+    mostly noise, and a noisy H would move the estimate without cause. Only with the time
+    offset state."""
     td = kf.layout.td
-    if td is None:
-        return model
+    assert td is not None
     z, H, R = model
     rows = len(z)
     offset = s.time_offset

@@ -17,9 +17,17 @@ import numpy as np
 from ins_fusion.core.adaptation import ImuNoiseMonitor
 from ins_fusion.core.calibration import ImuCalibration
 from ins_fusion.core.config import FusionConfig
-from ins_fusion.core.eskf import ErrorStateFilter, StateLayout
+from ins_fusion.core.eskf import ErrorStateFilter, StateLayout, projected_variance
+from ins_fusion.core.gnss_noise import GnssNoise
 from ins_fusion.core.intake import new_intake, record_sample, take_sample
-from ins_fusion.core.measurements import Prediction, nhc
+from ins_fusion.core.measurements import (
+    GnssFixMeasurement,
+    GnssVelocityMeasurement,
+    Prediction,
+    gnss_position,
+    gnss_velocity,
+    nhc,
+)
 from ins_fusion.core.propagation import advance, covariance_interval, predicted_state
 from ins_fusion.core.solution import SolutionBuilder
 from ins_fusion.core.state import X_COV_DT, X_SIZE, FilterState, Geometry, inject_nominal
@@ -63,6 +71,12 @@ def warm_up() -> float:
     inject_nominal(s.x, np.zeros(layout.size), *kf.scale_columns)
     prediction = Prediction(*predicted_state(s.x, 0.015), layout=layout)
     nhc(prediction, np.zeros(3), np.eye(3), 0.1, (0.0, 0.0))
+    fix = GnssFixMeasurement(0.015, 57.0, 10.0, 40.0, np.eye(3))
+    white, _, reported, _ = GnssNoise(config, layout).position_noise(s, fix)
+    z, H, _ = gnss_position(prediction, fix, np.zeros(3), white, zero)
+    predicted = projected_variance(H, kf.P)
+    s.gnss_white.pushed_fix(0.015, z, H, None, kf.P, predicted, reported)
+    gnss_velocity(prediction, GnssVelocityMeasurement(0.015, np.zeros(3), np.eye(3)), z, np.eye(3))
     output = SolutionBuilder(Geometry(config, layout), layout)
     output.row(s, kf, (57.0, 10.0, 40.0), np.zeros(3), "navigating")
     assert s.x.shape == (X_SIZE,)
