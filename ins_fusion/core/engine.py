@@ -520,7 +520,7 @@ class InsEngine:
             entry.measurements.append(record)
             self._apply(record, live=True)
         problem = kf.problem()
-        if problem is None and not np.isfinite(s.x[X_NAV : X_NAV + NAV_SIZE]).all():
+        if problem is None and not all(map(math.isfinite, x[X_NAV : X_NAV + NAV_SIZE].tolist())):
             problem = "non-finite navigation state"
         if problem is not None:
             self._reset(problem)

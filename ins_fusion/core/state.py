@@ -48,12 +48,18 @@ UNKNOWN_YAW_VARIANCE = (math.pi / 2.0) ** 2
 #: scale (imu FRD), the previous corrected increment (body FRD; X_HAS_PREV 1.0 when there is
 #: one), the corrected rate in body and imu FRD, the NED acceleration, the low-passed NED
 #: acceleration and body rate, the covariance interval (duration, imu FRD angle and velocity
-#: increments, NED velocity at its start) and the stamp [s].
+#: increments, NED velocity at its start) and the stamp [s]; then the filter's bookkeeping that
+#: a rollback restores with them (FilterState's fields of the same names): the correlated GNSS
+#: error estimate, its stationary variance and the reported variance at its last restart (NED,
+#: m, m²), the residual mounting (pitch, yaw [rad]), the residual IMU time offset [s], the
+#: running NIS mean and process-noise scale (core.adaptation), the stamp of the last GNSS
+#: position used [s] and 1.0 while the heading is known.
 X_NAV, X_BG, X_BA, X_SG, X_SA = 0, 10, 13, 16, 19
 X_PREV, X_HAS_PREV = 22, 29
 X_RATE_B, X_RATE_I, X_ACCEL_N, X_ACCEL_LP, X_RATE_LP = 30, 33, 36, 39, 42
 X_COV_DT, X_COV_DTH, X_COV_DV, X_COV_VEL0, X_T = 45, 46, 49, 52, 55
-X_SIZE = 56
+X_GNSS_ERROR, X_GNSS_VARIANCE, X_GNSS_REPORTED, X_MOUNTING, X_TIME_OFFSET = 56, 59, 62, 65, 67
+X_NIS_MEAN, X_Q_SCALE, X_LAST_POSITION_T, X_HEADING_KNOWN, X_SIZE = 68, 69, 70, 71, 72
 
 
 class _Vec3Field:
@@ -86,27 +92,11 @@ class _ScalarField:
 
 class FilterState:
     """Nominal state and filter bookkeeping at one IMU stamp. Copies are history checkpoints:
-    ``x`` (X_* layout) is copied, every other field is immutable or never modified in place,
-    so a shallow copy of those suffices.
+    ``x`` (X_* layout, which holds the numbers among the fields) is copied, every other field
+    is immutable or never modified in place, so a shallow copy of those suffices.
     """
 
-    __slots__ = (
-        "_mat_nb",
-        "_nav",
-        "gated_runs",
-        "gnss_error",
-        "gnss_reported",
-        "gnss_variance",
-        "gnss_white",
-        "heading_known",
-        "imu_psd",
-        "last_position_t_s",
-        "mounting",
-        "nis_mean",
-        "q_scale",
-        "time_offset",
-        "x",
-    )
+    __slots__ = ("_mat_nb", "_nav", "gated_runs", "gnss_white", "imu_psd", "x")
 
     _nav: NavState | None
     _mat_nb: FloatArray | None
@@ -117,6 +107,13 @@ class FilterState:
     accel_lp = _Vec3Field(X_ACCEL_LP)
     rate_lp = _Vec3Field(X_RATE_LP)
     t_s = _ScalarField(X_T)
+    gnss_error = _Vec3Field(X_GNSS_ERROR)
+    gnss_variance = _Vec3Field(X_GNSS_VARIANCE)
+    gnss_reported = _Vec3Field(X_GNSS_REPORTED)
+    time_offset = _ScalarField(X_TIME_OFFSET)
+    nis_mean = _ScalarField(X_NIS_MEAN)
+    q_scale = _ScalarField(X_Q_SCALE)
+    last_position_t_s = _ScalarField(X_LAST_POSITION_T)
 
     def __init__(self, t_s: float, nav: NavState, gyro_bias: Vec3, heading_known: bool) -> None:
         zero: Vec3 = (0.0, 0.0, 0.0)
@@ -140,19 +137,29 @@ class FilterState:
         other.x = self.x.copy()
         other._nav = self._nav
         other._mat_nb = self._mat_nb
-        other.gnss_error = self.gnss_error
-        other.gnss_variance = self.gnss_variance
-        other.gnss_reported = self.gnss_reported
         other.gnss_white = self.gnss_white
         other.imu_psd = self.imu_psd
-        other.nis_mean = self.nis_mean
-        other.q_scale = self.q_scale
-        other.mounting = self.mounting
-        other.time_offset = self.time_offset
         other.gated_runs = self.gated_runs
-        other.heading_known = self.heading_known
-        other.last_position_t_s = self.last_position_t_s
         return other
+
+    @property
+    def mounting(self) -> tuple[float, float]:
+        """The residual mounting (pitch, yaw [rad]; core.state.Geometry.arms)."""
+        x = self.x
+        return (float(x[X_MOUNTING]), float(x[X_MOUNTING + 1]))
+
+    @mounting.setter
+    def mounting(self, value: tuple[float, float]) -> None:
+        self.x[X_MOUNTING], self.x[X_MOUNTING + 1] = value
+
+    @property
+    def heading_known(self) -> bool:
+        """Whether the heading is known (else the yaw error is kept out of the filter)."""
+        return bool(self.x[X_HEADING_KNOWN] != 0.0)
+
+    @heading_known.setter
+    def heading_known(self, known: bool) -> None:
+        self.x[X_HEADING_KNOWN] = 1.0 if known else 0.0
 
     @property
     def nav(self) -> NavState:
@@ -283,29 +290,21 @@ def mounting_rpy_from(r_bi: FloatArray, pitch: float, yaw: float) -> Vec3:
 def inject(s: FilterState, kf: ErrorStateFilter, dx: FloatArray) -> None:
     """Closed-loop feedback of an error estimate ``dx`` (layout ``kf.layout``) into the nominal
     state."""
-    layout = kf.layout
     if kf.recorder is not None:  # smoother hook: the correction of this step
         kf.recorder.on_correction(dx)
-    inject_nominal(s.x, dx, *kf.scale_columns)
+    inject_nominal(s.x, dx, kf.layout.columns)
     s.changed()
-    if layout.gp is not None:
-        gp = layout.gp
-        e = s.gnss_error
-        s.gnss_error = (e[0] + dx[gp], e[1] + dx[gp + 1], e[2] + dx[gp + 2])
-    if layout.mt is not None:
-        mt = layout.mt
-        s.mounting = (s.mounting[0] + dx[mt], s.mounting[1] + dx[mt + 1])
-    if layout.td is not None:
-        s.time_offset += dx[layout.td]
     if not s.heading_known:
         decouple_yaw(kf)
 
 
 @jit
-def inject_nominal(x: FloatArray, dx: FloatArray, sg: int, sa: int) -> None:
+def inject_nominal(x: FloatArray, dx: FloatArray, columns: tuple[int, int, int, int, int]) -> None:
     """The part of ``inject`` kept in ``x`` (X_* layout): attitude (the error rotation applied
-    on the NED side), position (a NED offset), velocity, the biases and, where their columns
-    ``sg``/``sa`` are not -1, the scale factors."""
+    on the NED side), position (a NED offset), velocity, the biases and the optional blocks
+    whose ``columns`` (StateLayout.columns: sg, sa, gp, mt, td) are not -1: scale factors,
+    correlated GNSS error, residual mounting and time offset."""
+    sg, sa, gp, mt, td = columns
     q_err = quat_from_rotvec(dx[ATT], dx[ATT + 1], dx[ATT + 2])
     q = quat_normalize(
         quat_multiply(q_err, (x[X_NAV + 6], x[X_NAV + 7], x[X_NAV + 8], x[X_NAV + 9]))
@@ -323,6 +322,13 @@ def inject_nominal(x: FloatArray, dx: FloatArray, sg: int, sa: int) -> None:
             x[X_SG + k] += dx[sg + k]
         if sa >= 0:
             x[X_SA + k] += dx[sa + k]
+        if gp >= 0:
+            x[X_GNSS_ERROR + k] += dx[gp + k]
+    if mt >= 0:
+        x[X_MOUNTING] += dx[mt]
+        x[X_MOUNTING + 1] += dx[mt + 1]
+    if td >= 0:
+        x[X_TIME_OFFSET] += dx[td]
 
 
 def decouple_yaw(kf: ErrorStateFilter, yaw_variance: float = UNKNOWN_YAW_VARIANCE) -> None:

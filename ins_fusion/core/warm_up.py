@@ -68,7 +68,7 @@ def warm_up() -> float:
     s.x[X_COV_DT] = 0.01
     kf.propagate(*covariance_interval(s.x, Geometry(config, layout).mat_bi))
     kf.update(np.zeros(3), np.eye(3, layout.size), np.eye(3), math.inf)
-    inject_nominal(s.x, np.zeros(layout.size), *kf.scale_columns)
+    inject_nominal(s.x, np.zeros(layout.size), layout.columns)
     prediction = Prediction(*predicted_state(s.x, 0.015), layout=layout)
     nhc(prediction, np.zeros(3), np.eye(3), 0.1, (0.0, 0.0))
     fix = GnssFixMeasurement(0.015, 57.0, 10.0, 40.0, np.eye(3))
