@@ -116,6 +116,7 @@ _KERNELS = (
     measurements._position_model,
     measurements._velocity_model,
     eskf.projected_variance,
+    eskf._covariance_problem,
     adaptation.white_push_fix,
 )
 _REAL = Path(__file__).parent / "fixtures" / "comma2k19" / "comma2k19_ex1_seg40"

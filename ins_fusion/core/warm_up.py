@@ -68,6 +68,7 @@ def warm_up() -> float:
     s.x[X_COV_DT] = 0.01
     kf.propagate(*covariance_interval(s.x, Geometry(config, layout).mat_bi))
     kf.update(np.zeros(3), np.eye(3, layout.size), np.eye(3), math.inf)
+    kf.problem()
     inject_nominal(s.x, np.zeros(layout.size), layout.columns)
     prediction = Prediction(*predicted_state(s.x, 0.015), layout=layout)
     nhc(prediction, np.zeros(3), np.eye(3), 0.1, (0.0, 0.0))
