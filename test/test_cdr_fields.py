@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from ins_fusion.adapters import cdr_fields
+from ins_fusion.adapters import cdr_fields, messages_in
 from ins_fusion.adapters.cdr_fields import CdrError
 from ins_fusion.bags.bag_io import jazzy_typestore
 
@@ -142,6 +142,71 @@ def test_whole_fix_and_twist_topics_decode_as_each_message(messages, repeat, sta
     assert _bits(t_s) == _bits([cdr_fields.linear_velocity(d)[0] for d in twists])
     assert _bits(linear) == _bits([cdr_fields.linear_velocity(d)[1] for d in twists])
     assert lla.shape == linear.shape == (len(fixes), 3)
+
+
+covariances = st.lists(
+    st.floats(width=64) | st.sampled_from([0.0, -1.0, float("nan")]), min_size=36, max_size=36
+)
+
+
+@given(
+    st.lists(
+        st.tuples(headers, st.integers(-128, 127), vec3s, covariances, st.integers(0, 3), endians),
+        max_size=5,
+    ),
+    st.integers(0, 30),
+)
+def test_whole_gnss_topics_give_the_measurements_of_each_message(messages, repeat):
+    """fix_columns / twist_columns with messages_in.*_from_fields: the measurements that
+    rosbags' message objects give through messages_in.fix_measurement / velocity_measurement
+    (status, covariance type, every covariance element, to the bit)."""
+    fixes, twists = [], []
+    for header, status, lla, cov, cov_type, little in messages:
+        fix = T[FIX](
+            header=header,
+            status=T["sensor_msgs/msg/NavSatStatus"](status=status, service=1),
+            latitude=lla[0],
+            longitude=lla[1],
+            altitude=lla[2],
+            position_covariance=np.array(cov[:9]),
+            position_covariance_type=cov_type,
+        )
+        fixes.append(bytes(TS.serialize_cdr(fix, FIX, little_endian=little)))
+        twist = T[TWIST](
+            header=header,
+            twist=T["geometry_msgs/msg/TwistWithCovariance"](
+                twist=T["geometry_msgs/msg/Twist"](linear=_vector(lla), angular=_vector(lla)),
+                covariance=np.array(cov),
+            ),
+        )
+        twists.append(bytes(TS.serialize_cdr(twist, TWIST, little_endian=little)))
+    fixes, twists = _topic(fixes, repeat), _topic(twists, repeat)
+    columns = cdr_fields.fix_columns(fixes)
+    for i, data in enumerate(fixes):
+        expected = messages_in.fix_measurement(TS.deserialize_cdr(data, FIX))
+        got = messages_in.fix_from_fields(
+            float(columns.t_s[i]),
+            tuple(columns.lla[i].tolist()),
+            columns.status[i],
+            columns.covariance_type[i],
+            columns.covariance[i].reshape(3, 3),
+        )
+        assert (got.t_s, got.valid) == (expected.t_s, expected.valid)
+        assert _bits((got.lat_deg, got.lon_deg, got.height_m)) == _bits(
+            (expected.lat_deg, expected.lon_deg, expected.height_m)
+        )
+        assert _bits(got.cov_enu_m2) == _bits(expected.cov_enu_m2)
+    columns_v = cdr_fields.twist_columns(twists)
+    for i, data in enumerate(twists):
+        expected_v = messages_in.velocity_measurement(TS.deserialize_cdr(data, TWIST))
+        got_v = messages_in.velocity_from_fields(
+            float(columns_v.t_s[i]),
+            tuple(columns_v.linear[i].tolist()),
+            columns_v.covariance[i].reshape(6, 6),
+        )
+        assert got_v.t_s == expected_v.t_s
+        assert _bits(got_v.vel_enu_m_s) == _bits(expected_v.vel_enu_m_s)
+        assert _bits(got_v.cov_enu_m2_s2) == _bits(expected_v.cov_enu_m2_s2)
 
 
 def test_bad_bytes_are_refused_with_a_message():

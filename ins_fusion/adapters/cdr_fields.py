@@ -5,13 +5,15 @@ Python message (with numpy covariance arrays) in about as long. ins_fusion_node 
 messages per second, and a simulated bag holds 134 IMU and 150 reference messages per second
 for `gnss_ins replay`; all they need is the stamp and a few numbers, which sit at fixed offsets
 after the variable-length frame_id: one struct unpack (~1 µs). Node and replay thus also read
-the IMU through the same code. Messages used in full (GNSS, a few per second) still go through
-rosbags / rclpy. test_cdr_fields.py checks the results against rosbags' deserializer.
+the IMU through the same code. The node takes GNSS messages (a few per second) through rclpy.
+test_cdr_fields.py checks the results against rosbags' deserializer.
 
 The replay decodes whole topics at once (``imu_columns``, ``orientations``, ``positions``,
-``linear_velocities``): messages of one length, byte order and frame_id length share one layout,
+``linear_velocities``, and the GNSS fix and velocity inputs: ``fix_columns``,
+``twist_columns``): messages of one length, byte order and frame_id length share one layout,
 so numpy reads each field of all of them from one array of their bytes (~0.5 µs a message
-instead of ~4), with the same values to the bit.
+instead of ~4; rosbags' full deserialization of a NavSatFix ~60 µs), with the same values to
+the bit.
 
 Layouts (XCDR1: a 4-byte encapsulation header, then the body, aligned relative to its start):
 every message starts with std_msgs/Header = stamp (int32 sec, uint32 nanosec) and frame_id
@@ -43,7 +45,10 @@ _IMU_RATE = 8 * (4 + 9)  # from the aligned start: after the orientation and its
 _IMU_FORCE = _IMU_RATE + 8 * (3 + 9)
 _IMU_SIZE = _IMU_FORCE + 8 * (3 + 9)
 _FIX_SIZE = 8 * (3 + 9) + 1
+_FIX_COVARIANCE = 8 * 3  # position_covariance after latitude, longitude, altitude
+_FIX_COVARIANCE_TYPE = _FIX_COVARIANCE + 8 * 9
 _TWIST_SIZE = 8 * (6 + 36)
+_TWIST_COVARIANCE = 8 * 6  # after linear and angular
 
 
 class CdrError(ValueError):
@@ -228,3 +233,43 @@ def linear_velocities(payloads: Sequence[bytes]) -> tuple[FloatArray, FloatArray
     """Stamps [s] (n,) and twist.twist.linear (n, 3) of many TwistWithCovarianceStamped."""
     t_s, _, (linear,) = _columns(payloads, _TWIST, ((0, 3),))
     return t_s, linear
+
+
+class FixColumns(NamedTuple):
+    """Many sensor_msgs/NavSatFix: stamps [s] (n,) (as ``position``), status.status (n,),
+    (latitude [deg], longitude [deg], altitude [m]) (n, 3), position_covariance (n, 9)
+    row-major ENU [m²] and position_covariance_type (n,)."""
+
+    t_s: FloatArray
+    status: list[int]
+    lla: FloatArray
+    covariance: FloatArray
+    covariance_type: list[int]
+
+
+def fix_columns(payloads: Sequence[bytes]) -> FixColumns:
+    """What the fusion reads of many sensor_msgs/NavSatFix (the status and covariance type,
+    one byte each, message by message; the numbers as columns)."""
+    t_s, _, (lla, cov) = _columns(payloads, _FIX, ((0, 3), (_FIX_COVARIANCE, 9)))
+    status, cov_type = [], []
+    for data in payloads:
+        _, after_frame, _ = _header(data, _FIX.msgtype)
+        byte = data[_ENCAPSULATION + after_frame]
+        status.append(byte - 256 if byte > 127 else byte)  # int8
+        cov_type.append(data[_ENCAPSULATION + _FIX.start(after_frame) + _FIX_COVARIANCE_TYPE])
+    return FixColumns(t_s, status, lla, cov, cov_type)
+
+
+class TwistColumns(NamedTuple):
+    """Many TwistWithCovarianceStamped: stamps [s] (n,), twist.twist.linear (n, 3) and
+    twist.covariance (n, 36) row-major."""
+
+    t_s: FloatArray
+    linear: FloatArray
+    covariance: FloatArray
+
+
+def twist_columns(payloads: Sequence[bytes]) -> TwistColumns:
+    """What the fusion reads of many geometry_msgs/TwistWithCovarianceStamped."""
+    t_s, _, (linear, cov) = _columns(payloads, _TWIST, ((0, 3), (_TWIST_COVARIANCE, 36)))
+    return TwistColumns(t_s, linear, cov)

@@ -71,7 +71,22 @@ def imu_sample(msg: Any) -> ImuSample:
 
 
 def fix_measurement(msg: Any) -> GnssFixMeasurement:
-    """sensor_msgs/NavSatFix -> antenna position with its ENU covariance [m²].
+    """sensor_msgs/NavSatFix -> antenna position with its ENU covariance [m²]
+    (``fix_from_fields``)."""
+    return fix_from_fields(
+        stamp_s(msg),
+        (float(msg.latitude), float(msg.longitude), float(msg.altitude)),
+        int(msg.status.status),
+        int(msg.position_covariance_type),
+        np.asarray(msg.position_covariance, dtype=np.float64).reshape(3, 3),
+    )
+
+
+def fix_from_fields(
+    t_s: float, position: Vec3, status: int, covariance_type: int, cov: np.ndarray
+) -> GnssFixMeasurement:
+    """A NavSatFix's fields -> antenna position: stamp [s], (latitude [deg], longitude [deg],
+    altitude [m]), status.status, position_covariance_type, covariance ENU [m²] (3, 3).
 
     Valid only with a fix (status >= FIX; NO_FIX and UNKNOWN carry no position), finite
     latitude, longitude and altitude (altitude above the WGS-84 ellipsoid, ARCHITECTURE.md),
@@ -79,23 +94,32 @@ def fix_measurement(msg: Any) -> GnssFixMeasurement:
     variance is no accuracy either): a position without an accuracy cannot be weighted. Invalid
     fixes are still handed to the engine, which ignores and counts them.
     """
-    cov = np.asarray(msg.position_covariance, dtype=np.float64).reshape(3, 3)
-    position = (float(msg.latitude), float(msg.longitude), float(msg.altitude))
     valid = (
-        int(msg.status.status) >= NavSatStatus.FIX
-        and int(msg.position_covariance_type) != CovarianceType.UNKNOWN
+        status >= NavSatStatus.FIX
+        and covariance_type != CovarianceType.UNKNOWN
         and all(map(math.isfinite, position))
         and positive_definite(cov)
     )
-    return GnssFixMeasurement(stamp_s(msg), *position, cov, valid)
+    return GnssFixMeasurement(t_s, *position, cov, valid)
 
 
 def velocity_measurement(msg: Any) -> GnssVelocityMeasurement:
-    """geometry_msgs/TwistWithCovarianceStamped (ENU) -> velocity [m/s] and the linear 3x3
-    block of its 6x6 covariance [m²/s²] (a huge vertical variance = vertical not measured)."""
+    """geometry_msgs/TwistWithCovarianceStamped (ENU) -> velocity (``velocity_from_fields``)."""
     twist = msg.twist
-    cov = np.asarray(twist.covariance, dtype=np.float64).reshape(6, 6)[:3, :3]
-    return GnssVelocityMeasurement(stamp_s(msg), np.array(_vec3(twist.twist.linear)), cov)
+    return velocity_from_fields(
+        stamp_s(msg),
+        _vec3(twist.twist.linear),
+        np.asarray(twist.covariance, dtype=np.float64).reshape(6, 6),
+    )
+
+
+def velocity_from_fields(
+    t_s: float, linear: Vec3, covariance: np.ndarray
+) -> GnssVelocityMeasurement:
+    """A TwistWithCovarianceStamped's fields -> antenna velocity: stamp [s], ENU velocity
+    [m/s] and the linear 3x3 block of the 6x6 covariance [m²/s²] (a huge vertical variance =
+    vertical not measured)."""
+    return GnssVelocityMeasurement(t_s, np.array(linear), covariance[:3, :3])
 
 
 def attitude_measurement(msg: Any) -> AttitudeMeasurement:
