@@ -159,3 +159,24 @@ def test_process_noise_grows_while_the_innovations_are_too_large_and_returns_aft
     mean, scale = adapt_process_noise(1.0, 1.0, 1e6)
     assert mean == pytest.approx(1.2) and scale < 1.01
     assert high <= 100.0
+
+
+@pytest.mark.parametrize("accepted", [True, False])
+def test_a_fix_update_pushes_its_residual_and_variance_after_the_update(accepted):
+    """WhiteNoiseMonitor.pushed_fix (compiled) is ``pushed`` with the residual z - H δx (z when
+    rejected) and diag(H P Hᵀ) after the update, over a run of fixes."""
+    rng = np.random.default_rng(4)
+    by_fix, by_arrays = WhiteNoiseMonitor(), WhiteNoiseMonitor()
+    for k in range(30):
+        H = rng.normal(size=(3, 8))
+        root = rng.normal(size=(8, 8))
+        P = root @ root.T
+        z, dx = rng.normal(size=3), rng.normal(size=8)
+        predicted, reported = rng.uniform(1.0, 2.0, 3), rng.uniform(0.5, 1.0, 3)
+        by_fix = by_fix.pushed_fix(0.2 * k, z, H, dx if accepted else None, P, predicted, reported)
+        residual = z - H @ dx if accepted else z
+        by_arrays = by_arrays.pushed(
+            0.2 * k, z, residual, predicted, np.diagonal(H @ P @ H.T), reported
+        )
+    assert by_fix.ready and by_arrays.ready
+    np.testing.assert_allclose(by_fix.values, by_arrays.values, rtol=1e-12)
