@@ -37,22 +37,13 @@ class GnssNoise:
         self._white_fraction = config.gnss_white_fraction
         self._white_var_ned = np.square(MAT_ENU_NED @ config.gnss_white_sigma_enu_m)
 
-    def reported_variance(self, fix: GnssFixMeasurement) -> FloatArray:
-        """The receiver's position variance per NED axis, times gnss_position_noise_scale²."""
-        return np.diagonal(ned_cov(fix.cov_enu_m2)) * self._scale_sq
-
-    def split(self, s: FilterState, fix: GnssFixMeasurement) -> tuple[FloatArray, FloatArray]:
-        """(white covariance NED [m²], correlated variance per NED axis [m²]) of a fix
-        (``position_noise``)."""
-        white, correlated, _, _ = self.position_noise(s, fix)
-        return white, correlated
-
     def position_noise(
         self, s: FilterState, fix: GnssFixMeasurement
     ) -> tuple[FloatArray, FloatArray, FloatArray, int]:
         """(white covariance NED [m²], correlated variance per NED axis [m²], reported variance
-        per NED axis [m²], what the correlated error states need: NOISE_*) of a fix for state
-        ``s``. Compiled (``_position_noise``).
+        per NED axis (the receiver's, times gnss_position_noise_scale²) [m²], what the
+        correlated error states need: NOISE_*) of a fix for state ``s``. Compiled
+        (``_position_noise``).
 
         The white part is what the data say (core.adaptation.WhiteNoiseMonitor: consecutive
         innovations), at least ``gnss_noise.white_sigma``² or ``gnss_noise.white_fraction`` of
@@ -80,29 +71,29 @@ class GnssNoise:
     ) -> None:
         """Position error (and correlated GNSS error) as after taking the position from a fix:
         δp = -(white + correlated error of the fix)."""
-        white, correlated = self.split(s, fix)
+        white, correlated, reported, _ = self.position_noise(s, fix)
         P = kf.P.copy()
         restart_block(P, POS, white + np.diag(correlated))
         kf.P = P
         gp = self._layout.gp
         if gp is not None:
-            self.restart_error(s, kf, fix, correlated)
+            self.restart_error(s, kf, correlated, reported)
             P = kf.P.copy()
             P[POS : POS + 3, gp : gp + 3] = P[gp : gp + 3, POS : POS + 3] = -np.diag(correlated)
             kf.P = P
 
     def restart_error(
-        self, s: FilterState, kf: ErrorStateFilter, fix: GnssFixMeasurement, correlated: FloatArray
+        self, s: FilterState, kf: ErrorStateFilter, correlated: FloatArray, reported: FloatArray
     ) -> None:
         """A new correlated GNSS error process (start, or the receiver's σ jumped: another fix
-        type, e.g. RTK float after an outage): uncorrelated, at its stationary variance."""
+        type, e.g. RTK float after an outage): uncorrelated, at its stationary variance
+        ``correlated``; ``reported``: the fix's reported variance (``position_noise``)."""
         gp = self._layout.gp
         assert gp is not None
         P_before = kf.P
         P = kf.P.copy()
         restart_block(P, gp, np.diag(correlated))
         kf.P = P
-        reported = self.reported_variance(fix)
         s.gnss_reported = (float(reported[0]), float(reported[1]), float(reported[2]))
         s.gnss_error = (0.0, 0.0, 0.0)
         self.set_correlated_variance(s, kf, correlated)

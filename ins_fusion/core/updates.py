@@ -164,7 +164,7 @@ class Corrections:
         noise = self._gnss_noise
         white, correlated, reported, action = noise.position_noise(s, fix)
         if action == NOISE_RESTART:
-            noise.restart_error(s, kf, fix, correlated)
+            noise.restart_error(s, kf, correlated, reported)
         elif action == NOISE_MOVED:  # the white/correlated split moved
             noise.set_correlated_variance(s, kf, correlated)
         antenna_b = self._geometry.arms(s)[0]
