@@ -21,6 +21,12 @@ evaluation against the truth, report) and ``KF-GINS CONFIG`` (reading its text i
 filter, writing its outputs), after one untimed run of each, in alternating order, CPU seconds
 (user + system) of the child from resource.getrusage. Prints each run, the medians, the ratio
 and both horizontal RMS errors against the truth (a check that both filters ran sensibly).
+
+With a second, shorter bag of the same drive (``--short-bag``; by default, with the simulated
+bag, the same simulation 150 s long, which has the same standstill and alignment in its first
+64 s) both are timed on it too, and the difference of the medians over the difference of the
+IMU samples gives each one's cost per IMU sample beyond its fixed start-up (imports, kernel
+load): the ratio a long bag tends to.
 """
 
 from __future__ import annotations
@@ -36,7 +42,7 @@ import subprocess
 import tempfile
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import pymap3d
@@ -204,6 +210,12 @@ def main() -> None:
     parser.add_argument("--bag", type=Path, help="bag to replay (default: bench/speed_bag.py)")
     parser.add_argument("--pairs", type=int, default=3, help="timed pairs (default 3)")
     parser.add_argument("--workdir", type=Path, help="keep the bag and files here")
+    parser.add_argument(
+        "--short-bag",
+        type=Path,
+        help="a shorter bag of the same drive for the cost per sample (default with the"
+        " simulated bag: the same simulation 150 s long; none with --bag)",
+    )
     args = parser.parse_args()
     binary = args.kfgins or (Path(os.environ["KFGINS_BIN"]) if "KFGINS_BIN" in os.environ else None)
     if binary is None or not binary.is_file():
@@ -213,10 +225,36 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="vs_kfgins_") as temporary:
         workdir = args.workdir or Path(temporary)
         workdir.mkdir(parents=True, exist_ok=True)
-        run(binary.resolve(), args.bag or simulated_bag(workdir), workdir, args.pairs)
+        bag = args.bag or simulated_bag(workdir)
+        short = args.short_bag or (None if args.bag else simulated_bag(workdir, 150))
+        long_run = run(binary.resolve(), bag, workdir, args.pairs)
+        if short is not None:
+            print()
+            short_run = run(binary.resolve(), short, workdir, args.pairs)
+            marginal(long_run, short_run)
 
 
-def run(binary: Path, bag: Path, workdir: Path, pairs: int) -> None:
+def marginal(long_run: Timed, short_run: Timed) -> None:
+    """Cost per IMU sample beyond the fixed start-up of each, from two bags of one drive."""
+    samples = long_run.samples - short_run.samples
+    per_sample = {
+        name: (long_run.medians[name] - short_run.medians[name]) / samples
+        for name in long_run.medians
+    }
+    for name, value in per_sample.items():
+        fixed = short_run.medians[name] - value * short_run.samples
+        print(f"{name:<16} {value * 1e6:6.1f} µs per IMU sample beyond {fixed:5.2f} s fixed")
+    print(f"ratio per IMU sample: {per_sample['gnss_ins replay'] / per_sample['KF-GINS']:.2f}")
+
+
+class Timed(NamedTuple):
+    """Median CPU seconds per command and the bag's IMU samples."""
+
+    medians: dict[str, float]
+    samples: int
+
+
+def run(binary: Path, bag: Path, workdir: Path, pairs: int) -> Timed:
     inputs = load_bag(bag)
     kf_dir = workdir / "kfgins"
     shutil.rmtree(kf_dir, ignore_errors=True)
@@ -249,11 +287,14 @@ def run(binary: Path, bag: Path, workdir: Path, pairs: int) -> None:
     ratio = medians["gnss_ins replay"] / medians["KF-GINS"]
     print(f"ratio replay / KF-GINS: {ratio:.2f}")
     replay_rms = json.loads(report.read_text())["position_error_m"]["horizontal_rms"]
+    if replay_rms is None:  # never navigating: no evaluation
+        raise SystemExit(f"{bag}: the replay did not navigate (see {report})")
     kf_rms = kfgins_horizontal_rms(kf_dir, inputs, week_start, node_parameters()["imu_lever_arm"])
     print(
         f"horizontal RMS against the truth: replay {replay_rms:.3f} m (base_link),"
         f" KF-GINS {kf_rms:.3f} m (IMU, position updates only)"
     )
+    return Timed(medians, samples)
 
 
 if __name__ == "__main__":

@@ -23,11 +23,13 @@ def gnss_ins_command() -> list[str]:
     return [str(script)] if script.exists() else [sys.executable, "-m", "ins_fusion.tools.cli"]
 
 
-def simulated_bag(directory: Path) -> Path:
-    """The benchmark bag in ``directory`` (simulated on first use, ~15 s)."""
-    path = directory / "speed437"
+def simulated_bag(directory: Path, duration_s: int = 437) -> Path:
+    """The benchmark bag in ``directory`` (simulated on first use, ~15 s); another
+    ``duration_s`` gives the same drive, shorter or longer."""
+    path = directory / f"speed{duration_s}"
     if not path.exists():
-        command = [*gnss_ins_command(), "simulate", *SIMULATE_ARGS, f"--output={path}"]
-        print("simulating:", " ".join(["gnss_ins", *command[-len(SIMULATE_ARGS) - 2 :]]))
+        arguments = (f"--duration={duration_s}", *SIMULATE_ARGS[1:])
+        command = [*gnss_ins_command(), "simulate", *arguments, f"--output={path}"]
+        print("simulating:", " ".join(["gnss_ins", *command[-len(arguments) - 2 :]]))
         subprocess.run(command, check=True, stdout=subprocess.DEVNULL)
     return path
