@@ -138,7 +138,6 @@ def gnss_position(
     """Antenna position p + C_nb l plus the estimated time-correlated receiver error ε_g (when
     it is a state). H: δp -> I, ψ -> -[(C_nb l)×], δε_g -> I; R: the white part of the
     receiver's covariance. Compiled (``_position_model``)."""
-    gp = pred.layout.gp
     return _position_model(
         pred.lat_rad,
         pred.lon_rad,
@@ -151,7 +150,7 @@ def gnss_position(
         white_cov_ned,
         gnss_error_ned,
         pred.layout.size,
-        -1 if gp is None else gp,
+        pred.layout.columns[2],
     )
 
 
@@ -197,7 +196,6 @@ def gnss_velocity(
     horizontal rows only when the vertical is unknown (its velocity or variance not finite, or
     the variance at least UNKNOWN_VELOCITY_VARIANCE). None when the horizontal is unusable.
     Compiled (``_velocity_model``)."""
-    sg = pred.layout.sg
     rows, z, H, R = _velocity_model(
         pred.mat_nb,
         pred.vel_ned_m_s,
@@ -208,7 +206,7 @@ def gnss_velocity(
         kernel_array(meas.vel_enu_m_s),
         kernel_array(meas.cov_enu_m2_s2),
         pred.layout.size,
-        -1 if sg is None else sg,
+        pred.layout.columns[0],
     )
     return None if rows == 0 else (z, H, R)
 
@@ -365,8 +363,8 @@ def nhc(
         sigma_m_s,
         mounting_rad,
         layout.size,
-        -1 if layout.sg is None else layout.sg,
-        -1 if layout.mt is None else layout.mt,
+        layout.columns[0],
+        layout.columns[3],
     )
 
 
