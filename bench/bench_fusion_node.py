@@ -16,8 +16,10 @@ threads, ...); the load average beside it (the machine is shared).
 profiler's overhead. ``--tree DIR`` runs the node from another source tree (an A/B in one
 session: ``git worktree add DIR COMMIT``; its numba cache is compiled before the measurement).
 ``--floor`` runs, instead of the node, an rclpy node that takes the fusion node's inputs
-(serialized, the same QoS, executor and spin loop) and drops them: what rclpy and DDS cost at
-134 Hz before any work (no Odometry, so no latency).
+(serialized, the same QoS, executor and spin loop) and drops them, and publishes its four outputs
+(Odometry, NavSatFix, Imu, /tf: serialized templates) at about the output rate: what rclpy and
+DDS cost for the node's inputs and outputs before any work (its Odometry is unstamped: no
+latency).
 """
 
 from __future__ import annotations
@@ -39,6 +41,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu
 
+from gnss_ins_common.rates import IMU400CC_RATE_HZ
 from gnss_ins_common.ros_node_main import EXECUTOR_ENV
 from ins_fusion.bags.topics import GNSS_ATTITUDE, GNSS_FIX, GNSS_VEL, IMU_DATA
 from ins_fusion.sim.drive import SimulationConfig
@@ -55,22 +58,42 @@ profile.dump_stats({!r})
 """
 
 
-# A node that takes what ins_fusion_node subscribes to and drops it (serialized, same QoS).
+# A node that takes what ins_fusion_node subscribes to and drops it (serialized, same QoS), and
+# publishes what the node publishes (serialized templates, the same topics and QoS: odometry,
+# fix, imu, /tf) once every `every` IMU messages.
 _FLOOR = """
 import rclpy
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from sensor_msgs.msg import Imu, NavSatFix
+from rclpy.serialization import serialize_message
 from geometry_msgs.msg import TwistWithCovarianceStamped
+from nav_msgs.msg import Odometry
+from sensor_msgs.msg import Imu, NavSatFix, Temperature
+from tf2_msgs.msg import TFMessage
 from gnss_ins_common.ros_endpoints import Endpoints
 from gnss_ins_common.ros_node_main import make_executor, spin_guarded
+from ins_fusion.ros_tf import transform_template
 rclpy.init()
 node = rclpy.create_node("ins_fusion_floor")
 endpoints = Endpoints(node)
 sensor_qos = QoSProfile(depth=200, reliability=ReliabilityPolicy.BEST_EFFORT)
-endpoints.subscription(Imu, "imu/data_raw", lambda data: None, sensor_qos, raw=True)
+outputs = [
+    (endpoints.publisher(Odometry, "ins/odometry", 50), bytes(serialize_message(Odometry()))),
+    (endpoints.publisher(NavSatFix, "ins/fix", 50), bytes(serialize_message(NavSatFix()))),
+    (endpoints.publisher(Imu, "ins/imu", 50), bytes(serialize_message(Imu()))),
+    (node.create_publisher(TFMessage, "/tf", 100), transform_template("map", "base_link")),
+]
+count = 0
+def on_imu(data):
+    global count
+    count += 1
+    if count % {every} == 0:
+        for publisher, message in outputs:
+            publisher.publish(message)
+endpoints.subscription(Imu, "imu/data_raw", on_imu, sensor_qos, raw=True)
 endpoints.subscription(NavSatFix, "gnss/fix", lambda data: None, 20, raw=True)
 endpoints.subscription(TwistWithCovarianceStamped, "gnss/vel", lambda data: None, 20, raw=True)
 endpoints.subscription(Imu, "gnss/attitude", lambda data: None, 20, raw=True)
+endpoints.subscription(Temperature, "imu/temperature", lambda data: None, 10, raw=True)
 executor = make_executor()
 executor.add_node(node)
 spin_guarded(executor, node, rclpy.ok)
@@ -142,7 +165,8 @@ def main() -> None:
         if args.profile:
             command = [sys.executable, "-c", _PROFILED.format(str(args.profile)), *node_args]
         if args.floor:
-            command = [sys.executable, "-c", _FLOOR]
+            every = max(1, round(IMU400CC_RATE_HZ / args.output_rate))
+            command = [sys.executable, "-c", _FLOOR.format(every=every)]
         node = subprocess.Popen(
             command,
             stderr=subprocess.DEVNULL,
@@ -182,7 +206,7 @@ def main() -> None:
     print(
         f"ins_fusion_node, {args.duration:.0f} s bag played in real time, "
         f"output_rate {args.output_rate:g} Hz, {args.executor} executor"
-        + (", floor (inputs taken and dropped)" if args.floor else "")
+        + (", floor (inputs dropped, outputs from templates)" if args.floor else "")
     )
     print(f"  Imu messages received {len(imu_rx)}, Odometry {len(odom_rx)}, matched {len(common)}")
     if len(latency_ms):

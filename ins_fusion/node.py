@@ -30,13 +30,13 @@ from gnss_ins_common.rates import IMU400CC_RATE_HZ as NOMINAL_RATE_HZ
 from gnss_ins_common.ros_endpoints import Endpoints
 from gnss_ins_common.ros_node_main import run_node
 from gnss_ins_common.ros_params import declare_parameters
+from gnss_ins_common.types import FloatArray
 from ins_fusion.adapters import cdr_fields, messages_in, tf_frames
 from ins_fusion.adapters.cdr_fields import CdrError
 from ins_fusion.adapters.cdr_out import OutputWriter
-from ins_fusion.adapters.solution_out import publishable
 from ins_fusion.adapters.status_log import WARN, StatusLog
 from ins_fusion.core.config import FusionConfig
-from ins_fusion.core.engine import InsEngine, InsSolution
+from ins_fusion.core.engine import InsEngine
 from ins_fusion.core.params import PARAMETERS as FUSION_PARAMETERS
 from ins_fusion.ros_tf import TfBroadcaster, transform_template
 
@@ -117,10 +117,10 @@ class InsFusionNode(Node):
             self._last_output_s = -math.inf  # has reset; start the output clock anew
         # Build the solution (not free) only when an output is due by the sample's stamp.
         if sample.t_s - self._last_output_s >= self._output_period_s:
-            solution = self.engine.solution()
-            if solution is not None:
+            row = self.engine.solution_row()
+            if row is not None:
                 self._last_output_s = sample.t_s
-                self._publish(solution)
+                self._publish(row)
 
     def _on_fix(self, msg: NavSatFix) -> None:
         self.engine.add_gnss_fix(messages_in.fix_measurement(msg))
@@ -149,8 +149,10 @@ class InsFusionNode(Node):
         self._temperature_c = msg.temperature
 
     # ---- outputs ------------------------------------------------------------------------------
-    def _publish(self, solution: InsSolution) -> None:
-        if not publishable(solution):  # a non-finite value or covariance: counted, not sent
+    def _publish(self, row: FloatArray) -> None:
+        # Serialized once and rewritten in place (adapters.cdr_out): no Python message to convert.
+        outputs = self._outputs.write(row)
+        if outputs is None:  # a non-finite value or covariance: counted, not sent
             self._invalid_outputs += 1
             self.get_logger().error(
                 "solution with a non-finite value or a covariance that is not positive"
@@ -158,8 +160,6 @@ class InsFusionNode(Node):
                 throttle_duration_sec=10.0,
             )
             return
-        # Serialized once and rewritten in place (adapters.cdr_out): no Python message to convert.
-        outputs = self._outputs.write(solution)
         self._odom_pub.publish(outputs.odometry)
         self._tf.send(outputs.transform)
         self._fix_pub.publish(outputs.fix)

@@ -16,6 +16,7 @@ from gnss_ins_common.message_fields import fill_orientation, stamp_ns
 from ins_fusion.adapters.cdr_out import SerializedMessage
 from ins_fusion.adapters.solution_out import fill_fused_fix, fill_odometry
 from ins_fusion.core.engine import InsSolution
+from ins_fusion.core.solution_rows import COV_VEL, LAT, pack
 from ins_fusion.node import output_writer
 
 RATE_VARIANCE = 3.3e-6
@@ -76,13 +77,25 @@ def test_serialized_outputs_equal_the_filled_messages(map_frame):
     stamps = (1_717_236_000.123456789, 1_717_236_000.99999999995, 12.5, 0.0)
     for i, t_s in enumerate(stamps):
         solution = _solution(rng, t_s, "aligning" if i % 2 else "navigating")
-        outputs = writer.write(solution)
+        outputs = writer.write(pack(solution))
+        assert outputs is not None
         odometry = fill_odometry(Odometry(), solution, map_frame, "base_link", RATE_VARIANCE)
         assert deserialize_message(outputs.odometry, Odometry) == odometry
         fix = fill_fused_fix(NavSatFix(), solution, "base_link")
         assert deserialize_message(outputs.fix, NavSatFix) == fix
         assert deserialize_message(outputs.imu, Imu) == _expected_imu(solution, odometry)
         assert deserialize_message(outputs.transform, TFMessage) == _expected_transform(odometry)
+
+
+@pytest.mark.parametrize(
+    ("column", "value"), [(LAT, np.nan), (COV_VEL.start, -1.0), (COV_VEL.start + 1, 1.0)]
+)
+def test_a_row_that_is_not_publishable_gives_no_messages(column, value):
+    writer = output_writer("map", "base_link", RATE_VARIANCE)
+    row = pack(_solution(np.random.default_rng(3), 5.0, "navigating"))
+    assert writer.write(row) is not None
+    row[column] = value  # NaN latitude, negative variance, asymmetric covariance
+    assert writer.write(row) is None
 
 
 def test_a_big_endian_template_is_rewritten_big_endian():

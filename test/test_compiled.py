@@ -20,6 +20,7 @@ from ins_fusion.core import (
     gnss_noise,
     intake,
     measurements,
+    output_numbers,
     propagation,
     solution,
     state,
@@ -118,6 +119,7 @@ _KERNELS = (
     eskf.projected_variance,
     eskf._covariance_problem,
     adaptation.white_push_fix,
+    output_numbers.output_numbers,
 )
 _REAL = Path(__file__).parent / "fixtures" / "comma2k19" / "comma2k19_ex1_seg40"
 

@@ -7,7 +7,7 @@ serialized bytes. The node therefore serializes one message per output once, wit
 fixed-size run of float64 at the end of the message, where every number it publishes sits:
 
 - nav_msgs/Odometry: position, orientation, pose covariance, linear and angular velocity, twist
-  covariance (85 float64, ``solution_out.odometry_arrays``);
+  covariance (85 float64, ``core.output_numbers``);
 - sensor_msgs/NavSatFix: status (int8 just after frame_id), then latitude, longitude, altitude
   and the covariance (12 float64) before position_covariance_type (uint8, the last byte);
 - sensor_msgs/Imu of ins/imu: orientation, its covariance, angular_velocity, its covariance,
@@ -30,8 +30,8 @@ import numpy as np
 from gnss_ins_common.message_fields import stamp_ns
 from gnss_ins_common.navsat import NavSatStatus
 from gnss_ins_common.types import FloatArray
-from ins_fusion.adapters.solution_out import odometry_arrays
-from ins_fusion.core.engine import InsSolution
+from ins_fusion.core.output_numbers import FIX, IMU, NUMBERS, ODOMETRY, TRANSFORM, output_numbers
+from ins_fusion.core.solution import STATE, STATES, T
 
 _ENCAPSULATION = 4
 _NS_PER_S = 1_000_000_000
@@ -73,8 +73,8 @@ class Outputs(NamedTuple):
 
 
 class OutputWriter:
-    """Serialized ins/odometry, ins/fix, ins/imu and /tf of a solution, from one template each
-    (serialized by the node with the frame ids and constant fields set:
+    """Serialized ins/odometry, ins/fix, ins/imu and /tf of a solution row, from one template
+    each (serialized by the node with the frame ids and constant fields set:
     ``status.service`` and ``position_covariance_type`` of the fix)."""
 
     def __init__(
@@ -94,38 +94,22 @@ class OutputWriter:
         (length,) = struct.unpack_from("<I" if fix[1] == 1 else ">I", fix, _ENCAPSULATION + 8)
         self._fix_status_at = _ENCAPSULATION + 12 + length
         self._rate_variance = rate_variance_rad2_s2
-        self._imu_values = np.zeros(_IMU_DOUBLES)
-        self._imu_values[28] = -1.0  # linear_acceleration_covariance[0]: no acceleration
-        self._imu_values[16:25] = np.eye(3).ravel() * rate_variance_rad2_s2
+        self._numbers = np.empty(NUMBERS)
 
-    def write(self, solution: InsSolution) -> Outputs:
-        """The four messages of ``solution``, stamped at its IMU stamp."""
-        time_ns = stamp_ns(solution.t_s)
-        arrays = odometry_arrays(solution, self._rate_variance)
-        odometry = np.concatenate(
-            (
-                arrays.position_enu_m,
-                arrays.orientation_xyzw,
-                arrays.pose_covariance,
-                arrays.linear_velocity_flu_m_s,
-                arrays.angular_velocity_flu_rad_s,
-                arrays.twist_covariance,
-            )
-        )
-        fix = np.empty(_FIX_DOUBLES)
-        fix[:3] = (solution.lat_deg, solution.lon_deg, solution.height_m)
-        fix[3:] = solution.cov_pos_enu_m2.ravel()
-        aligning = solution.state == "aligning"
+    def write(self, row: FloatArray) -> Outputs | None:
+        """The four messages of a solution row (core.solution), stamped at its IMU stamp; None
+        if the row is not publishable (a non-finite number or covariance not PSD)."""
+        numbers = self._numbers
+        if not output_numbers(row, self._rate_variance, numbers):
+            return None
+        time_ns = stamp_ns(float(row[T]))
+        aligning = STATES[int(row[STATE])] == "aligning"
         self._fix.buffer[self._fix_status_at] = (
             NavSatStatus.NO_FIX if aligning else NavSatStatus.FIX
         ) & 0xFF
-        imu = self._imu_values
-        imu[:4] = arrays.orientation_xyzw
-        imu[4:13] = solution.cov_att_enu_rad2.ravel()
-        imu[13:16] = arrays.angular_velocity_flu_rad_s
         return Outputs(
-            self._odometry.write(time_ns, odometry),
-            self._fix.write(time_ns, fix),
-            self._imu.write(time_ns, imu),
-            self._transform.write(time_ns, odometry[:7]),
+            self._odometry.write(time_ns, numbers[ODOMETRY]),
+            self._fix.write(time_ns, numbers[FIX]),
+            self._imu.write(time_ns, numbers[IMU]),
+            self._transform.write(time_ns, numbers[TRANSFORM]),
         )

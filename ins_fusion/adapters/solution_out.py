@@ -21,7 +21,8 @@ from gnss_ins_common.message_fields import fill_navsatfix, set_header, stamp_ns
 from gnss_ins_common.navsat import SERVICE_GPS, CovarianceType, NavSatStatus
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core.engine import InsSolution
-from ins_fusion.core.rotation import mat_from_quat
+from ins_fusion.core.output_numbers import NUMBERS, ODOMETRY, output_numbers
+from ins_fusion.core.solution_rows import pack
 
 
 @dataclass(frozen=True)
@@ -36,55 +37,33 @@ class OdometryArrays:
     twist_covariance: FloatArray  # 36, row-major
 
 
-#: Relative tolerance on negative covariance eigenvalues (rounding in a PSD matrix).
-_PSD_TOLERANCE = 1e-9
-
-
-def _psd(covs: FloatArray) -> bool:
-    """True for a stack of finite, symmetric, positive semi-definite matrices (up to rounding),
-    shape (k, n, n); one batched eigen-decomposition for all."""
-    if not np.isfinite(covs).all():
-        return False
-    transposed = covs.transpose(0, 2, 1)
-    if (np.abs(covs - transposed) > 1e-9 * np.abs(transposed)).any():
-        return False
-    eigenvalues = np.linalg.eigvalsh(covs)
-    tolerance = _PSD_TOLERANCE * np.maximum(1.0, eigenvalues.max(axis=1))
-    return bool((eigenvalues.min(axis=1) >= -tolerance).all())
+def _numbers(solution: InsSolution, rate_variance_rad2_s2: float) -> FloatArray | None:
+    """The outputs' numbers of ``solution`` (core.output_numbers), None if not publishable."""
+    numbers = np.empty(NUMBERS)
+    valid = output_numbers(pack(solution), rate_variance_rad2_s2, numbers)
+    return numbers if valid else None
 
 
 def publishable(solution: InsSolution) -> bool:
     """True if every number of ``solution`` that the outputs carry is finite and every
     covariance positive semi-definite (ARCHITECTURE.md: valid or not published)."""
-    vectors = (
-        [solution.lat_deg, solution.lon_deg, solution.height_m],
-        solution.pos_enu_m,
-        solution.vel_enu_m_s,
-        solution.quat_enu_flu_xyzw,
-        solution.rate_flu_rad_s,
-    )
-    if not all(np.isfinite(v).all() for v in vectors):
-        return False
-    covariances = (solution.cov_pos_enu_m2, solution.cov_vel_enu, solution.cov_att_enu_rad2)
-    return _psd(np.array(covariances, dtype=np.float64))
+    return _numbers(solution, 0.0) is not None
 
 
 def odometry_arrays(solution: InsSolution, rate_variance_rad2_s2: float) -> OdometryArrays:
-    """Odometry numbers of ``solution``; ``rate_variance_rad2_s2``: variance of each rate axis."""
-    mat_enu_flu = mat_from_quat(*solution.quat_enu_flu_xyzw.tolist())  # FLU -> ENU
-    pose_cov = np.zeros((6, 6))
-    pose_cov[:3, :3] = solution.cov_pos_enu_m2
-    pose_cov[3:, 3:] = solution.cov_att_enu_rad2
-    twist_cov = np.zeros((6, 6))
-    twist_cov[:3, :3] = mat_enu_flu.T @ solution.cov_vel_enu @ mat_enu_flu
-    twist_cov[3:, 3:] = np.eye(3) * rate_variance_rad2_s2
+    """Odometry numbers of ``solution``; ``rate_variance_rad2_s2``: variance of each rate axis.
+    ValueError for a solution that is not ``publishable``."""
+    numbers = _numbers(solution, rate_variance_rad2_s2)
+    if numbers is None:
+        raise ValueError("solution with a non-finite value or a covariance that is not PSD")
+    odometry = numbers[ODOMETRY]
     return OdometryArrays(
-        position_enu_m=np.asarray(solution.pos_enu_m, dtype=float),
-        orientation_xyzw=np.asarray(solution.quat_enu_flu_xyzw, dtype=float),
-        pose_covariance=pose_cov.ravel(),
-        linear_velocity_flu_m_s=mat_enu_flu.T @ solution.vel_enu_m_s,
-        angular_velocity_flu_rad_s=np.asarray(solution.rate_flu_rad_s, dtype=float),
-        twist_covariance=twist_cov.ravel(),
+        position_enu_m=odometry[0:3],
+        orientation_xyzw=odometry[3:7],
+        pose_covariance=odometry[7:43],
+        linear_velocity_flu_m_s=odometry[43:46],
+        angular_velocity_flu_rad_s=odometry[46:49],
+        twist_covariance=odometry[49:85],
     )
 
 

@@ -28,6 +28,7 @@ from ins_fusion.core.measurements import (
     gnss_velocity,
     nhc,
 )
+from ins_fusion.core.output_numbers import NUMBERS, output_numbers
 from ins_fusion.core.propagation import advance, covariance_interval, predicted_state
 from ins_fusion.core.solution import SolutionBuilder
 from ins_fusion.core.state import X_COV_DT, X_SIZE, FilterState, Geometry, inject_nominal
@@ -79,7 +80,8 @@ def warm_up() -> float:
     s.gnss_white.pushed_fix(0.015, z, H, None, kf.P, predicted, reported)
     gnss_velocity(prediction, GnssVelocityMeasurement(0.015, np.zeros(3), np.eye(3)), z, np.eye(3))
     output = SolutionBuilder(Geometry(config, layout), layout)
-    output.row(s, kf, (57.0, 10.0, 40.0), np.zeros(3), "navigating")
+    row = output.row(s, kf, (57.0, 10.0, 40.0), np.zeros(3), "navigating")
+    output_numbers(row, 1e-5, np.empty(NUMBERS))
     assert s.x.shape == (X_SIZE,)
     _ready = True
     return time.perf_counter() - start
