@@ -22,6 +22,7 @@ from ins_fusion.core import (
     measurements,
     output_numbers,
     propagation,
+    sample_runs,
     solution,
     state,
     stop_detector,
@@ -120,6 +121,7 @@ _KERNELS = (
     eskf._covariance_problem,
     adaptation.white_push_fix,
     output_numbers.output_numbers,
+    sample_runs.take_run,
 )
 _REAL = Path(__file__).parent / "fixtures" / "comma2k19" / "comma2k19_ex1_seg40"
 

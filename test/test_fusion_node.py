@@ -33,6 +33,7 @@ from tf2_msgs.msg import TFMessage
 from gnss_ins_common.params import ParameterValueError
 from gnss_ins_common.ros_node_main import EXECUTOR_ENV
 from ins_fusion.bags.bag_io import BagReader
+from ins_fusion.core.solution import COV_VEL, QUAT, WIDTH
 from ins_fusion.node import InsFusionNode
 from ins_fusion.sim.drive import SimulationConfig
 from ins_fusion.tools.simulate import write_bag
@@ -193,6 +194,26 @@ def test_bad_parameters_are_rejected():
     with pytest.raises(ParameterValueError, match="gnss_lever_arm"):
         InsFusionNode(parameter_overrides=overrides(gnss_lever_arm=[0.0, 1.0]))
     assert_executable_refuses("ins_fusion_node", "output_rate", "-5.0")
+
+
+def test_a_solution_that_is_not_publishable_is_counted_and_not_sent():
+    node = InsFusionNode(parameter_overrides=overrides())
+    collector = Collector({"/ins/odometry": Odometry})
+    try:
+        good = np.zeros(WIDTH)
+        good[QUAT.start + 3] = 1.0  # identity orientation, zero covariances (PSD)
+        bad = good.copy()
+        bad[COV_VEL.start] = -1.0  # a negative variance
+        with spinning(node, collector.node):
+            assert wait_for(lambda: node._odom_pub.get_subscription_count() > 0, 10.0)
+            node._publish(bad)
+            node._publish(good)
+            assert wait_for(lambda: collector.get("/ins/odometry"), 10.0)
+        assert (node._published, node._invalid_outputs) == (1, 1)
+        assert len(collector.get("/ins/odometry")) == 1
+    finally:
+        node.destroy_node()
+        collector.node.destroy_node()
 
 
 def test_imu_temperature_outside_the_calibration_range_is_reported():

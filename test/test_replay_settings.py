@@ -82,6 +82,10 @@ class _RecordingEngine:
     def add_imu(self, t_s, rate, force):
         self.fed.append(("imu", t_s))
 
+    def add_imu_series(self, t_s, rate, force, ticks, span, rows):
+        for k in range(*span):
+            self.add_imu(float(t_s[k]), rate[k], force[k])
+
     def add_gnss_fix(self, fix):
         self.fed.append(("fix", fix.t_s))
 

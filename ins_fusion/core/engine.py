@@ -50,7 +50,7 @@ from typing import Any
 
 import numpy as np
 
-from gnss_ins_common.types import FloatArray, Vec3
+from gnss_ins_common.types import BoolArray, FloatArray, Vec3
 from ins_fusion.core.calibration import T_SIZE as CALIBRATION_SIZE
 from ins_fusion.core.calibration import ImuCalibration
 from ins_fusion.core.config import FusionConfig
@@ -88,10 +88,20 @@ from ins_fusion.core.measurements import (
     GnssVelocityMeasurement,
 )
 from ins_fusion.core.propagation import ImuDensities, Propagator, bridge
+from ins_fusion.core.sample_runs import RUN_DONE, take_run
 from ins_fusion.core.smoother import SmootherHooks
-from ins_fusion.core.solution import InsSolution, SolutionBuilder, self_calibration, unpack
+from ins_fusion.core.solution import WIDTH, InsSolution, SolutionBuilder, self_calibration, unpack
+from ins_fusion.core.solution_rows import RowBuffer
 from ins_fusion.core.startup import Startup
-from ins_fusion.core.state import X_COV_VEL0, X_NAV, X_SIZE, FilterState, Geometry, LatestInputs
+from ins_fusion.core.state import (
+    X_COV_VEL0,
+    X_NAV,
+    X_SIZE,
+    X_T,
+    FilterState,
+    Geometry,
+    LatestInputs,
+)
 from ins_fusion.core.status import MEASUREMENT_NAMES, EngineStatus, new_counters
 from ins_fusion.core.stop_detector import GNSS_SPEED_MAX_AGE_S, StopDetector
 from ins_fusion.core.strapdown import INCREMENT_SIZE, NAV_SIZE, SampleIntegrator, increment
@@ -203,10 +213,105 @@ class InsEngine:
             float(force_flu_m_s2[2]),
             ready,
         )
+        self._finish_sample(t, inc, code)
+
+    def _finish_sample(self, t: float, inc: FloatArray, code: int) -> None:
+        """What follows the intake of a sample at ``t`` with its result ``code``."""
         if code >= PUSHED:
             self._advance(t, inc, None, code)
         elif code != REJECTED:
             self._take_exception(t, code)
+
+    def add_imu_series(
+        self,
+        t_s: FloatArray,
+        rate_flu_rad_s: FloatArray,
+        force_flu_m_s2: FloatArray,
+        ticks: BoolArray,
+        span: tuple[int, int],
+        rows: RowBuffer,
+    ) -> None:
+        """Samples ``span`` = (start, stop) of arrays (stamps [s] (n,), rates and forces (n, 3)
+        as ``add_imu`` takes them), each as ``add_imu``, and after each sample with ``ticks``
+        set its ``solution_row`` (when there is one) appended to ``rows``: what a replay does
+        sample by sample, with runs of ordinary samples compiled (core.sample_runs)."""
+        k, stop = span
+        samples = (t_s, rate_flu_rad_s, force_flu_m_s2, ticks)
+        while k < stop:
+            if (
+                self._filter is None
+                or self.datum is None
+                or self._recorder is not None
+                or self._timeline.replay_from is not None
+            ):
+                self.add_imu(t_s[k], rate_flu_rad_s[k], force_flu_m_s2[k])
+                k += 1
+                if ticks[k - 1] and (row := self.solution_row()) is not None:
+                    rows.append(row)
+                continue
+            k = self._take_run(samples, k, stop, rows)
+
+    def _take_run(
+        self,
+        samples: tuple[FloatArray, FloatArray, FloatArray, BoolArray],
+        start: int,
+        stop: int,
+        rows: RowBuffer,
+    ) -> int:
+        """One compiled run from sample ``start`` (the filter runs, no re-propagation due);
+        returns the next sample's index."""
+        s, kf, timeline = self._state, self._filter, self._timeline
+        assert s is not None and kf is not None and self.datum is not None
+        n = stop - start
+        incs, xs, out = np.empty((n, INCREMENT_SIZE)), np.empty((n, X_SIZE)), np.empty((n, WIDTH))
+        noise = self._densities.current()
+        model, mounting, origin = self._output.model(s, kf, self.datum)
+        limits = (
+            self.config.imu_time_offset_s,
+            timeline.due_stamp(),
+            self._next_pseudo_t_s,
+            self.config.covariance_interval_s,
+            self.config.degraded_after_s,
+        )
+        stores = (
+            self._intake,
+            self._calibration_table,
+            self._integrator.buffer,
+            self._detector.ring,
+            self._densities.monitor.block,
+            s.x,
+        )
+        k, code, m, r = take_run(
+            stores,
+            self._geometry.r_bi,
+            samples,
+            start,
+            stop,
+            limits,
+            incs,
+            xs,
+            out,
+            model,
+            mounting,
+            origin,
+        )
+        if m:  # what Propagator.advanced and _checkpoint did after each ordinary sample
+            s.imu_psd = noise
+            s.changed()
+            P = kf.P
+            for j in range(m):
+                timeline.append(
+                    Entry(float(xs[j, X_T]), incs[j], None, noise, (s.with_x(xs[j]), P))
+                )
+        for j in range(r):
+            rows.append(out[j])
+        if code != RUN_DONE:
+            self._finish_sample(
+                float(samples[0][k - 1]) - self.config.imu_time_offset_s, incs[m], code
+            )
+            if samples[3][k - 1] and (row := self.solution_row()) is not None:
+                rows.append(row)
+        return k
 
     def _take_exception(self, t: float, code: int) -> None:
         """A sample that starts or restarts the stream, or ends a gap (core.intake codes)."""

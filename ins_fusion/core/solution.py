@@ -138,29 +138,50 @@ class SolutionBuilder:
         """The solution row (``WIDTH``) of state ``s`` with covariance ``kf.P``; ``rate_i``: the
         latest raw sample's rate (imu FRD [rad/s]); ``datum_deg``: the ENU plane's origin (lat,
         lon [deg], height [m])."""
+        (J, P, states, arm_b, arm_bi, mat_enu_ecef), mounting, origin = self.model(s, kf, datum_deg)
+        out = np.empty(WIDTH)
+        _fill_row(
+            out,
+            J,
+            s.x,
+            P,
+            states,
+            arm_b,
+            self._geometry.r_bi,
+            arm_bi,
+            rate_i,
+            mounting,
+            origin,
+            mat_enu_ecef,
+        )
+        out[STATE] = STATES.index(state_name)
+        return out
+
+    def model(
+        self, s: FilterState, kf: ErrorStateFilter, datum_deg: tuple[float, float, float]
+    ) -> tuple[
+        tuple[FloatArray, FloatArray, IntArray, FloatArray, FloatArray, FloatArray],
+        tuple[float, float],
+        Vec3,
+    ]:
+        """What ``_fill_row`` takes besides the state and the rate, for ``s`` and ``kf.P``: (J,
+        P, the solution states, base_link lever arm, arm_bi, the ENU plane's rotation), the
+        residual mounting (zero when not estimated) and the plane's ECEF origin."""
         geometry = self._geometry
         if self._plane is None or self._datum_deg != datum_deg:
             lat0, lon0, h0 = datum_deg
             self._plane = earth.TangentPlane(math.radians(lat0), math.radians(lon0), h0)
             self._datum_deg = datum_deg
-        out = np.empty(WIDTH)
-        mounting = s.mounting if self._mt is not None else None
-        _fill_row(
-            out,
+        mounting = s.mounting if self._mt is not None else (0.0, 0.0)
+        arrays = (
             self._jacobian,
-            s.x,
             kernel_array(kf.P),
             self._solution_states,
             geometry.arms(s)[1],
-            self._geometry.r_bi,
             geometry.arm_bi,
-            rate_i,
-            (0.0, 0.0) if mounting is None else mounting,
-            self._plane.origin,
             self._plane.mat_enu_ecef,
         )
-        out[STATE] = STATES.index(state_name)
-        return out
+        return arrays, mounting, self._plane.origin
 
 
 @jit

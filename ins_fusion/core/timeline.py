@@ -140,6 +140,11 @@ class Timeline:
         pending = self._pending
         return bool(pending) and pending[0][0] < t_s
 
+    def due_stamp(self) -> float:
+        """Stamp of the first pending measurement [s] (inf: none): ``due_by(t)`` is this < t."""
+        pending = self._pending
+        return pending[0][0] if pending else math.inf
+
     def due(self, t_s: float) -> list[Record]:
         """Take the pending measurements stamped before ``t_s`` (stamp order)."""
         pending = self._pending

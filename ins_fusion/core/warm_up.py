@@ -30,7 +30,8 @@ from ins_fusion.core.measurements import (
 )
 from ins_fusion.core.output_numbers import NUMBERS, output_numbers
 from ins_fusion.core.propagation import advance, covariance_interval, predicted_state
-from ins_fusion.core.solution import SolutionBuilder
+from ins_fusion.core.sample_runs import take_run
+from ins_fusion.core.solution import WIDTH, SolutionBuilder
 from ins_fusion.core.state import X_COV_DT, X_SIZE, FilterState, Geometry, inject_nominal
 from ins_fusion.core.stop_detector import StopDetector, window_statistics
 from ins_fusion.core.strapdown import INCREMENT_SIZE, NavState, SampleIntegrator, increment
@@ -82,6 +83,23 @@ def warm_up() -> float:
     output = SolutionBuilder(Geometry(config, layout), layout)
     row = output.row(s, kf, (57.0, 10.0, 40.0), np.zeros(3), "navigating")
     output_numbers(row, 1e-5, np.empty(NUMBERS))
+    model, mounting, origin = output.model(s, kf, (57.0, 10.0, 40.0))
+    series = (np.zeros(1), np.zeros((1, 3)), np.zeros((1, 3)), np.zeros(1, dtype=np.bool_))
+    limits = (0.0, math.inf, math.inf, 0.01, 1.0)
+    take_run(
+        stores[:6],
+        r_bi,
+        series,
+        0,
+        0,
+        limits,
+        np.empty((1, INCREMENT_SIZE)),
+        np.empty((1, X_SIZE)),
+        np.empty((1, WIDTH)),
+        model,
+        mounting,
+        origin,
+    )
     assert s.x.shape == (X_SIZE,)
     _ready = True
     return time.perf_counter() - start

@@ -20,6 +20,7 @@ import numpy as np
 
 from gnss_ins_common.types import BoolArray, FloatArray
 from ins_fusion.core import solution_rows
+from ins_fusion.core.compiled import kernel_array
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.engine import EngineStatus, InsEngine, InsSolution
 from ins_fusion.core.measurements import GnssFixMeasurement
@@ -30,6 +31,8 @@ from ins_fusion.replay.outages import Outage, in_any
 #: A stamp this close before an output tick (in output periods) counts as at it: stamps are
 #: float seconds since 1970 (about 0.24 µs apart), so k / rate after the first one is not exact.
 _TICK_TOLERANCE = 1e-3
+#: IMU samples between two calls of a replay's progress callback.
+_PROGRESS = 2048
 
 
 @dataclass(frozen=True)
@@ -110,6 +113,19 @@ class FusionRun:
     smoothing_time_s: float = 0.0
 
 
+def output_ticks(t_s: FloatArray, t0_s: float, rate_hz: float) -> BoolArray:
+    """Whether a solution is recorded after each IMU sample (stamps ``t_s`` [s]): at the first
+    sample at or past each output tick (``rate_hz`` from ``t0_s``), one per tick."""
+    ticks = np.zeros(len(t_s), dtype=np.bool_)
+    next_tick = 0.0  # output ticks since t0; the next one is recorded
+    for k, t in enumerate(t_s.tolist()):
+        tick = (t - t0_s) * rate_hz + _TICK_TOLERANCE
+        if tick >= next_tick:
+            ticks[k] = True
+            next_tick = math.floor(tick) + 1.0
+    return ticks
+
+
 def run_fusion(
     inputs: ReplayInputs,
     parameters: Mapping[str, Any],
@@ -140,22 +156,20 @@ def run_fusion(
         "vel": engine.add_gnss_velocity,
         "attitude": engine.add_attitude,
     }
-    rate_hz = config.output_rate_hz
-    next_tick = 0.0  # output ticks since t0; the next one is recorded
+    imu = inputs.imu
+    t_s, rate, force = (kernel_array(v) for v in (imu.t_s, imu.rate_flu_rad_s, imu.force_flu_m_s2))
+    ticks = output_ticks(t_s, t0, config.output_rate_hz)
     solutions = solution_rows.RowBuffer()
-    j, n_kept, total = 0, len(kept), len(inputs.imu)
-    for k, (t, rate, force) in enumerate(inputs.imu.samples()):
+    j, n_kept, total = 0, len(kept), len(imu)
+    k = 0
+    while k < total:  # the samples up to the next measurement's arrival in one call
         while j < n_kept and kept[j][0] <= k:
             feed[kept[j][1]](kept[j][2])
             j += 1
-        engine.add_imu(t, rate, force)
-        ticks = (t - t0) * rate_hz + _TICK_TOLERANCE
-        if ticks >= next_tick:
-            row = engine.solution_row()
-            if row is not None:
-                solutions.append(row)
-            next_tick = math.floor(ticks) + 1.0
-        if progress is not None and k % 2048 == 0:
+        stop = min(kept[j][0] if j < n_kept else total, (k // _PROGRESS + 1) * _PROGRESS)
+        engine.add_imu_series(t_s, rate, force, ticks, (k, stop), solutions)
+        k = stop
+        if progress is not None and k % _PROGRESS == 0:
             progress(k, total)
     for _, role, measurement in kept[j:]:
         feed[role](measurement)

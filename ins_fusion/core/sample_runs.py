@@ -1,0 +1,109 @@
+"""Runs of ordinary IMU samples in one compiled call (core.compiled): the replay's fast path.
+
+An ordinary sample, once the filter runs, needs only the intake with its strapdown step
+(core.intake.take_sample), a history entry with its checkpoint and, at an output tick, the
+solution row (core.solution). ``take_run`` takes samples from arrays until one needs Python:
+any code of take_sample but an ordinary step (a gap, a restart, a full detector ring, a sample
+kept from the step because a measurement is due before it), a change of the measured IMU noise,
+a covariance interval that is due, a pseudo-measurement epoch. It leaves that sample taken for
+the engine to finish as InsEngine.add_imu would, and hands back the ordinary samples'
+increments and states (each a checkpoint) and the rows of their output ticks, computed with
+the same kernels in the same order: the same numbers to the bit.
+"""
+
+from __future__ import annotations
+
+from gnss_ins_common.types import BoolArray, FloatArray, IntArray
+from ins_fusion.core.adaptation import B_VERSION
+from ins_fusion.core.compiled import jit
+from ins_fusion.core.intake import PUSHED, REJECTED, S_LAST_RATE, STEPPED, take_sample
+from ins_fusion.core.solution import STATE, _fill_row
+from ins_fusion.core.state import X_COV_DT, X_HEADING_KNOWN, X_LAST_POSITION_T, X_T
+
+#: ``take_run``'s code when the run ended without a sample for the engine to finish.
+RUN_DONE = -1
+#: Row STATE values (core.solution.STATES).
+_NAVIGATING, _DEGRADED, _ALIGNING = 1.0, 2.0, 0.0
+
+
+@jit
+def take_run(
+    stores: tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray],
+    r_bi: FloatArray,
+    samples: tuple[FloatArray, FloatArray, FloatArray, BoolArray],
+    start: int,
+    stop: int,
+    limits: tuple[float, float, float, float, float],
+    incs: FloatArray,
+    xs: FloatArray,
+    rows: FloatArray,
+    row_model: tuple[FloatArray, FloatArray, IntArray, FloatArray, FloatArray, FloatArray],
+    mounting: tuple[float, float],
+    origin: tuple[float, float, float],
+) -> tuple[int, int, int, int]:
+    """Take samples ``start`` .. ``stop`` - 1 of ``samples`` (stamps [s], rates [rad/s] and
+    forces [m/s²] (n, 3) imu_link FLU, output tick after each sample) until one needs the
+    engine (module docstring).
+
+    ``stores``: the intake array, calibration table, sample integrator, detector ring, noise
+    monitor block and nominal state x (take_sample's arguments); ``limits``: the IMU time
+    offset [s] taken off each stamp, the stamp of the first pending measurement (inf: none),
+    of the next pseudo-measurement epoch, the covariance interval [s], degraded_after [s].
+    Out: ``incs`` / ``xs`` the increment and state after each ordinary sample (rows 0 .. m-1;
+    row m the increment of the sample left to the engine), ``rows`` the solution rows of the
+    ticks (``row_model``: J, P, the solution states, base_link lever arm, arm_bi and the ENU
+    plane's rotation, with ``mounting`` and ``origin`` as SolutionBuilder.row gives them).
+    Returns (next sample index, code of the sample left to the engine or RUN_DONE, m, rows
+    written)."""
+    buf, table, integrator, ring, block, x = stores
+    t_s, rate, force, ticks = samples
+    offset_s, due_t, pseudo_t, interval_s, degraded_after_s = limits
+    J, P, states, arm_b, arm_bi, mat_enu_ecef = row_model
+    version = block[B_VERSION]
+    m = 0
+    r = 0
+    for i in range(start, stop):
+        t = t_s[i] - offset_s
+        code = take_sample(
+            buf,
+            table,
+            integrator,
+            ring,
+            block,
+            x,
+            r_bi,
+            incs[m],
+            t,
+            rate[i, 0],
+            rate[i, 1],
+            rate[i, 2],
+            force[i, 0],
+            force[i, 1],
+            force[i, 2],
+            not due_t < t,
+        )
+        if code != REJECTED:
+            plain = (
+                code == PUSHED + STEPPED
+                and block[B_VERSION] == version
+                and x[X_COV_DT] < interval_s
+                and t < pseudo_t
+            )
+            if not plain:
+                return i + 1, code, m, r
+            xs[m, :] = x
+            m += 1
+        if ticks[i]:
+            row = rows[r]
+            rate_i = buf[S_LAST_RATE : S_LAST_RATE + 3]
+            _fill_row(
+                row, J, x, P, states, arm_b, r_bi, arm_bi, rate_i, mounting, origin, mat_enu_ecef
+            )
+            if x[X_HEADING_KNOWN] == 0.0:
+                row[STATE] = _ALIGNING
+            elif x[X_T] - x[X_LAST_POSITION_T] > degraded_after_s:
+                row[STATE] = _DEGRADED
+            else:
+                row[STATE] = _NAVIGATING
+            r += 1
+    return stop, RUN_DONE, m, r
