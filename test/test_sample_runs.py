@@ -10,6 +10,7 @@ import dataclasses
 import numpy as np
 import pytest
 from sim_bags import FIGURE_EIGHT_90_S, shared_bag
+from test_compiled import PARAMETER_SETS
 
 from gnss_ins_common.params import validate_all
 from ins_fusion.core.config import FusionConfig
@@ -20,15 +21,10 @@ from ins_fusion.replay.inputs import ImuSeries, ReplayInputs, load_bag
 from ins_fusion.replay.run import output_ticks, run_fusion
 from ins_fusion.replay.topics import TopicMap
 
+#: test_compiled's parameter sets, the second also with an IMU time offset taken off its stamps.
 _SETS: dict[str, dict[str, object]] = {
-    "defaults": {},
-    "all_states": {
-        "self_calibration.mounting": True,
-        "self_calibration.time_offset": True,
-        "imu_noise.gyro_scale_sigma": 0.001,
-        "imu_noise.accel_scale_sigma": 0.001,
-        "imu_time_offset": 0.004,
-    },
+    "defaults": PARAMETER_SETS["defaults"],
+    "all_states": {**PARAMETER_SETS["all_states"], "imu_time_offset": 0.004},
 }
 
 
