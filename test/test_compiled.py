@@ -122,6 +122,7 @@ _KERNELS = (
     adaptation.white_push_fix,
     output_numbers.output_numbers,
     sample_runs.take_run,
+    sample_runs.advance_run,
 )
 _REAL = Path(__file__).parent / "fixtures" / "comma2k19" / "comma2k19_ex1_seg40"
 

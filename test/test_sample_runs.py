@@ -1,5 +1,6 @@
-"""core.sample_runs via InsEngine.add_imu_series (what a replay runs): the same rows and
-counters, to the bit, as feeding the engine sample by sample with add_imu and solution_row, on
+"""core.sample_runs via InsEngine.add_imu_series (what a replay runs) and the re-propagation
+runs after late measurements: the same rows and counters, to the bit, as feeding the engine
+sample by sample with add_imu and solution_row and re-propagating entry by entry, on
 a drive with late GNSS data and with damaged IMU data (corrupt samples, a gap, a duplicate
 stamp, a stamp out of order, a clock that goes back)."""
 
@@ -21,10 +22,18 @@ from ins_fusion.replay.inputs import ImuSeries, ReplayInputs, load_bag
 from ins_fusion.replay.run import output_ticks, run_fusion
 from ins_fusion.replay.topics import TopicMap
 
-#: test_compiled's parameter sets, the second also with an IMU time offset taken off its stamps.
+#: test_compiled's parameter sets, the second also with an IMU time offset taken off its stamps,
+#: and one without pseudo-measurements.
 _SETS: dict[str, dict[str, object]] = {
     "defaults": PARAMETER_SETS["defaults"],
     "all_states": {**PARAMETER_SETS["all_states"], "imu_time_offset": 0.004},
+    # no pseudo-measurement epoch, a short covariance interval: re-propagations reach it
+    "no_pseudo": {
+        "use_nhc": False,
+        "use_zupt": False,
+        "use_zaru": False,
+        "covariance_interval": 0.02,
+    },
 }
 
 
@@ -59,9 +68,18 @@ def _damaged(inputs: ReplayInputs) -> ReplayInputs:
 
 
 def _sample_by_sample(inputs: ReplayInputs, parameters: dict[str, object], smooth: bool):
-    """The replay's loop before the compiled runs: add_imu per sample, a row at each tick."""
+    """The replay's loop before the compiled runs: add_imu per sample, a row at each tick, the
+    re-propagations entry by entry."""
     config = FusionConfig.from_parameters(parameters)
     engine = InsEngine(config)
+
+    def one_entry(entries, start):  # re-propagation entry by entry, as before the runs
+        entry = entries[start]
+        engine._step(entry.inc, entry.gap, entry.t_s, entry.noise)
+        entry.checkpoint = engine._checkpoint()
+        return start + 1
+
+    engine._repropagate_run = one_entry
     if smooth:
         attach_recorder(engine)
     feed = {

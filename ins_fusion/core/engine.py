@@ -88,12 +88,13 @@ from ins_fusion.core.measurements import (
     GnssVelocityMeasurement,
 )
 from ins_fusion.core.propagation import ImuDensities, Propagator, bridge
-from ins_fusion.core.sample_runs import RUN_DONE, take_run
+from ins_fusion.core.sample_runs import RUN_DONE, advance_run, take_run
 from ins_fusion.core.smoother import SmootherHooks
 from ins_fusion.core.solution import WIDTH, InsSolution, SolutionBuilder, self_calibration, unpack
 from ins_fusion.core.solution_rows import RowBuffer
 from ins_fusion.core.startup import Startup
 from ins_fusion.core.state import (
+    X_COV_DT,
     X_COV_VEL0,
     X_NAV,
     X_SIZE,
@@ -564,11 +565,49 @@ class InsEngine:
         entry = history[k]
         self._restore(entry.checkpoint)
         self._apply_entry(entry)
-        for later in history[k + 1 :]:
-            self._step(later.inc, later.gap, later.t_s, later.noise)
-            later.checkpoint = self._checkpoint()
-            self._apply_entry(later)
-        self._replayed_samples += len(history) - k - 1
+        later = history[k + 1 :]
+        i = 0
+        while i < len(later):
+            entry = later[i]
+            if self._recorder is None and entry.gap is None and not entry.measurements:
+                i = self._repropagate_run(later, i)
+                continue
+            self._step(entry.inc, entry.gap, entry.t_s, entry.noise)
+            entry.checkpoint = self._checkpoint()
+            self._apply_entry(entry)
+            i += 1
+        self._replayed_samples += len(later)
+
+    def _repropagate_run(self, entries: list[Entry], start: int) -> int:
+        """Re-propagate ``entries[start:]`` while they have no gap, no measurement and the same
+        noise, in one compiled call (core.sample_runs.advance_run), as ``_step`` and
+        ``_checkpoint`` would one by one; returns the index of the next entry."""
+        s, kf = self._state, self._filter
+        assert s is not None and kf is not None
+        noise = entries[start].noise
+        stop = start + 1
+        while stop < len(entries):
+            entry = entries[stop]
+            if entry.gap is not None or entry.measurements or entry.noise is not noise:
+                break
+            stop += 1
+        run = entries[start:stop]
+        xs = np.empty((len(run), X_SIZE))
+        interval_s = self.config.covariance_interval_s
+        incs = np.array([e.inc for e in run])
+        count = advance_run(
+            s.x, incs, np.array([e.t_s for e in run]), self._geometry.r_bi, interval_s, xs
+        )
+        s.imu_psd = noise  # what Propagator.advanced does after each step
+        s.changed()
+        due = bool(s.x[X_COV_DT] >= interval_s)
+        P = kf.P
+        for j in range(count - 1 if due else count):
+            run[j].checkpoint = (s.with_x(xs[j]), P)
+        if due:
+            self._propagator.propagate_covariance(s, kf)
+            run[count - 1].checkpoint = self._checkpoint()
+        return start + count
 
     def _apply_entry(self, entry: Entry) -> None:
         """Apply an entry's measurements in stamp order; new ones are counted."""

@@ -8,7 +8,8 @@ kept from the step because a measurement is due before it), a change of the meas
 a covariance interval that is due, a pseudo-measurement epoch. It leaves that sample taken for
 the engine to finish as InsEngine.add_imu would, and hands back the ordinary samples'
 increments and states (each a checkpoint) and the rows of their output ticks, computed with
-the same kernels in the same order: the same numbers to the bit.
+the same kernels in the same order: the same numbers to the bit. ``advance_run`` does the same
+for the history entries a re-propagation after a late measurement steps through.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from gnss_ins_common.types import BoolArray, FloatArray, IntArray
 from ins_fusion.core.adaptation import B_VERSION
 from ins_fusion.core.compiled import jit
 from ins_fusion.core.intake import PUSHED, REJECTED, S_LAST_RATE, STEPPED, take_sample
+from ins_fusion.core.propagation import advance
 from ins_fusion.core.solution import STATE, _fill_row
 from ins_fusion.core.state import X_COV_DT, X_HEADING_KNOWN, X_LAST_POSITION_T, X_T
 
@@ -107,3 +109,23 @@ def take_run(
                 row[STATE] = _NAVIGATING
             r += 1
     return stop, RUN_DONE, m, r
+
+
+@jit
+def advance_run(
+    x: FloatArray,
+    incs: FloatArray,
+    t_s: FloatArray,
+    r_bi: FloatArray,
+    interval_s: float,
+    xs: FloatArray,
+) -> int:
+    """Advance the nominal state ``x`` over the increments ``incs`` (n, INCREMENT_SIZE; no gap)
+    stamped ``t_s`` (core.propagation.advance), its state after each into ``xs``, until the
+    covariance interval ``interval_s`` [s] is due; returns the increments taken."""
+    for i in range(len(t_s)):
+        advance(x, incs[i], r_bi, False, t_s[i])
+        xs[i, :] = x
+        if x[X_COV_DT] >= interval_s:
+            return i + 1
+    return len(t_s)

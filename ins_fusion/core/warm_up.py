@@ -30,7 +30,7 @@ from ins_fusion.core.measurements import (
 )
 from ins_fusion.core.output_numbers import NUMBERS, output_numbers
 from ins_fusion.core.propagation import advance, covariance_interval, predicted_state
-from ins_fusion.core.sample_runs import take_run
+from ins_fusion.core.sample_runs import advance_run, take_run
 from ins_fusion.core.solution import WIDTH, SolutionBuilder
 from ins_fusion.core.state import X_COV_DT, X_SIZE, FilterState, Geometry, inject_nominal
 from ins_fusion.core.stop_detector import StopDetector, window_statistics
@@ -86,6 +86,7 @@ def warm_up() -> float:
     model, mounting, origin = output.model(s, kf, (57.0, 10.0, 40.0))
     series = (np.zeros(1), np.zeros((1, 3)), np.zeros((1, 3)), np.zeros(1, dtype=np.bool_))
     limits = (0.0, math.inf, math.inf, 0.01, 1.0)
+    advance_run(s.x, np.zeros((0, INCREMENT_SIZE)), np.zeros(0), r_bi, 0.01, np.empty((0, X_SIZE)))
     take_run(
         stores[:6],
         r_bi,
