@@ -88,17 +88,15 @@ from ins_fusion.core.measurements import (
     GnssVelocityMeasurement,
 )
 from ins_fusion.core.propagation import ImuDensities, Propagator, bridge
-from ins_fusion.core.sample_runs import RUN_DONE, advance_run, take_run
+from ins_fusion.core.sample_runs import RUN_DONE, CompiledRuns
 from ins_fusion.core.smoother import SmootherHooks
-from ins_fusion.core.solution import WIDTH, InsSolution, SolutionBuilder, self_calibration, unpack
+from ins_fusion.core.solution import InsSolution, SolutionBuilder, self_calibration, unpack
 from ins_fusion.core.solution_rows import RowBuffer
 from ins_fusion.core.startup import Startup
 from ins_fusion.core.state import (
-    X_COV_DT,
     X_COV_VEL0,
     X_NAV,
     X_SIZE,
-    X_T,
     FilterState,
     Geometry,
     LatestInputs,
@@ -179,6 +177,13 @@ class InsEngine:
         self._detector = StopDetector(config.stop_detector, geometry.mat_bi)
         self._integrator = SampleIntegrator()
         self._recorder: SmootherHooks | None = None
+        self._runs = CompiledRuns(
+            config,
+            geometry,
+            (self._intake, self._calibration_table),
+            (self._integrator, self._detector, self._densities),
+            (self._propagator, self._output, self._timeline),
+        )
         self._clear()
 
     # ----------------------------------------------------------------------------- inputs
@@ -259,57 +264,14 @@ class InsEngine:
         stop: int,
         rows: RowBuffer,
     ) -> int:
-        """One compiled run from sample ``start`` (the filter runs, no re-propagation due);
-        returns the next sample's index."""
-        s, kf, timeline = self._state, self._filter, self._timeline
+        """One compiled run from sample ``start`` (the filter runs, no re-propagation due), the
+        sample that ended it finished here; returns the next sample's index."""
+        s, kf = self._state, self._filter
         assert s is not None and kf is not None and self.datum is not None
-        n = stop - start
-        incs, xs, out = np.empty((n, INCREMENT_SIZE)), np.empty((n, X_SIZE)), np.empty((n, WIDTH))
-        noise = self._densities.current()
-        model, mounting, origin = self._output.model(s, kf, self.datum)
-        limits = (
-            self.config.imu_time_offset_s,
-            timeline.due_stamp(),
-            self._next_pseudo_t_s,
-            self.config.covariance_interval_s,
-            self.config.degraded_after_s,
-        )
-        stores = (
-            self._intake,
-            self._calibration_table,
-            self._integrator.buffer,
-            self._detector.ring,
-            self._densities.monitor.block,
-            s.x,
-        )
-        k, code, m, r = take_run(
-            stores,
-            self._geometry.r_bi,
-            samples,
-            start,
-            stop,
-            limits,
-            incs,
-            xs,
-            out,
-            model,
-            mounting,
-            origin,
-        )
-        if m:  # what Propagator.advanced and _checkpoint did after each ordinary sample
-            s.imu_psd = noise
-            s.changed()
-            P = kf.P
-            for j in range(m):
-                timeline.append(
-                    Entry(float(xs[j, X_T]), incs[j], None, noise, (s.with_x(xs[j]), P))
-                )
-        for j in range(r):
-            rows.append(out[j])
+        self._runs.next_pseudo_t_s = self._next_pseudo_t_s
+        k, code, inc = self._runs.take(s, kf, self.datum, samples, (start, stop), rows)
         if code != RUN_DONE:
-            self._finish_sample(
-                float(samples[0][k - 1]) - self.config.imu_time_offset_s, incs[m], code
-            )
+            self._finish_sample(float(samples[0][k - 1]) - self.config.imu_time_offset_s, inc, code)
             if samples[3][k - 1] and (row := self.solution_row()) is not None:
                 rows.append(row)
         return k
@@ -570,44 +532,15 @@ class InsEngine:
         while i < len(later):
             entry = later[i]
             if self._recorder is None and entry.gap is None and not entry.measurements:
-                i = self._repropagate_run(later, i)
+                s, kf = self._state, self._filter
+                assert s is not None and kf is not None
+                i = self._runs.repropagate(s, kf, later, i)
                 continue
             self._step(entry.inc, entry.gap, entry.t_s, entry.noise)
             entry.checkpoint = self._checkpoint()
             self._apply_entry(entry)
             i += 1
         self._replayed_samples += len(later)
-
-    def _repropagate_run(self, entries: list[Entry], start: int) -> int:
-        """Re-propagate ``entries[start:]`` while they have no gap, no measurement and the same
-        noise, in one compiled call (core.sample_runs.advance_run), as ``_step`` and
-        ``_checkpoint`` would one by one; returns the index of the next entry."""
-        s, kf = self._state, self._filter
-        assert s is not None and kf is not None
-        noise = entries[start].noise
-        stop = start + 1
-        while stop < len(entries):
-            entry = entries[stop]
-            if entry.gap is not None or entry.measurements or entry.noise is not noise:
-                break
-            stop += 1
-        run = entries[start:stop]
-        xs = np.empty((len(run), X_SIZE))
-        interval_s = self.config.covariance_interval_s
-        incs = np.array([e.inc for e in run])
-        count = advance_run(
-            s.x, incs, np.array([e.t_s for e in run]), self._geometry.r_bi, interval_s, xs
-        )
-        s.imu_psd = noise  # what Propagator.advanced does after each step
-        s.changed()
-        due = bool(s.x[X_COV_DT] >= interval_s)
-        P = kf.P
-        for j in range(count - 1 if due else count):
-            run[j].checkpoint = (s.with_x(xs[j]), P)
-        if due:
-            self._propagator.propagate_covariance(s, kf)
-            run[count - 1].checkpoint = self._checkpoint()
-        return start + count
 
     def _apply_entry(self, entry: Entry) -> None:
         """Apply an entry's measurements in stamp order; new ones are counted."""

@@ -14,13 +14,31 @@ for the history entries a re-propagation after a late measurement steps through.
 
 from __future__ import annotations
 
+import math
+
+import numpy as np
+
 from gnss_ins_common.types import BoolArray, FloatArray, IntArray
 from ins_fusion.core.adaptation import B_VERSION
 from ins_fusion.core.compiled import jit
+from ins_fusion.core.config import FusionConfig
+from ins_fusion.core.eskf import ErrorStateFilter
 from ins_fusion.core.intake import PUSHED, REJECTED, S_LAST_RATE, STEPPED, take_sample
-from ins_fusion.core.propagation import advance
-from ins_fusion.core.solution import STATE, _fill_row
-from ins_fusion.core.state import X_COV_DT, X_HEADING_KNOWN, X_LAST_POSITION_T, X_T
+from ins_fusion.core.propagation import ImuDensities, Propagator, advance
+from ins_fusion.core.solution import STATE, WIDTH, SolutionBuilder, _fill_row
+from ins_fusion.core.solution_rows import RowBuffer
+from ins_fusion.core.state import (
+    X_COV_DT,
+    X_HEADING_KNOWN,
+    X_LAST_POSITION_T,
+    X_SIZE,
+    X_T,
+    FilterState,
+    Geometry,
+)
+from ins_fusion.core.stop_detector import StopDetector
+from ins_fusion.core.strapdown import INCREMENT_SIZE, SampleIntegrator
+from ins_fusion.core.timeline import Entry, Timeline
 
 #: ``take_run``'s code when the run ended without a sample for the engine to finish.
 RUN_DONE = -1
@@ -129,3 +147,102 @@ def advance_run(
         if x[X_COV_DT] >= interval_s:
             return i + 1
     return len(t_s)
+
+
+class CompiledRuns:
+    """The engine's side of the two kernels: their arguments from the engine's stores, and the
+    history entries, checkpoints and rows they return (InsEngine owns one; module docstring)."""
+
+    def __init__(
+        self,
+        config: FusionConfig,
+        geometry: Geometry,
+        arrays: tuple[FloatArray, FloatArray],
+        sensors: tuple[SampleIntegrator, StopDetector, ImuDensities],
+        filtering: tuple[Propagator, SolutionBuilder, Timeline],
+    ) -> None:
+        """``arrays``: the intake (core.intake S_* layout) and calibration table."""
+        self._config = config
+        self._r_bi = geometry.r_bi
+        self._intake, self._table = arrays
+        self._integrator, self._detector, self._densities = sensors
+        self._propagator, self._output, self._timeline = filtering
+        #: Stamp of the engine's next pseudo-measurement epoch [s] (set before ``take``).
+        self.next_pseudo_t_s = math.inf
+
+    def take(
+        self,
+        s: FilterState,
+        kf: ErrorStateFilter,
+        datum_deg: tuple[float, float, float],
+        samples: tuple[FloatArray, FloatArray, FloatArray, BoolArray],
+        span: tuple[int, int],
+        rows: RowBuffer,
+    ) -> tuple[int, int, FloatArray]:
+        """``take_run`` over ``span`` of ``samples`` (the filter runs, no re-propagation due):
+        the ordinary samples' history entries appended to the timeline, their rows to ``rows``.
+        Returns (next sample index, code of the sample left to the engine or RUN_DONE, that
+        sample's increment)."""
+        start, stop = span
+        n = stop - start
+        incs, xs, out = np.empty((n, INCREMENT_SIZE)), np.empty((n, X_SIZE)), np.empty((n, WIDTH))
+        noise = self._densities.current()
+        model, mounting, origin = self._output.model(s, kf, datum_deg)
+        config = self._config
+        limits = (
+            config.imu_time_offset_s,
+            self._timeline.due_stamp(),
+            self.next_pseudo_t_s,
+            config.covariance_interval_s,
+            config.degraded_after_s,
+        )
+        stores = (
+            self._intake,
+            self._table,
+            self._integrator.buffer,
+            self._detector.ring,
+            self._densities.monitor.block,
+            s.x,
+        )
+        k, code, m, r = take_run(
+            stores, self._r_bi, samples, start, stop, limits, incs, xs, out, model, mounting, origin
+        )
+        if m:  # what Propagator.advanced and InsEngine._checkpoint did after each sample
+            s.imu_psd = noise
+            s.changed()
+            P = kf.P
+            for j in range(m):
+                checkpoint = (s.with_x(xs[j]), P)
+                self._timeline.append(Entry(float(xs[j, X_T]), incs[j], None, noise, checkpoint))
+        for j in range(r):
+            rows.append(out[j])
+        return k, code, incs[m] if code != RUN_DONE else incs[0]
+
+    def repropagate(
+        self, s: FilterState, kf: ErrorStateFilter, entries: list[Entry], start: int
+    ) -> int:
+        """Re-propagate ``entries[start:]`` while they have no gap, no measurement and the same
+        noise (``advance_run``), as InsEngine._step and _checkpoint would one by one (no
+        smoother attached); returns the index of the next entry."""
+        noise = entries[start].noise
+        stop = start + 1
+        while stop < len(entries):
+            entry = entries[stop]
+            if entry.gap is not None or entry.measurements or entry.noise is not noise:
+                break
+            stop += 1
+        run = entries[start:stop]
+        xs = np.empty((len(run), X_SIZE))
+        interval_s = self._config.covariance_interval_s
+        incs = np.array([e.inc for e in run])
+        count = advance_run(s.x, incs, np.array([e.t_s for e in run]), self._r_bi, interval_s, xs)
+        s.imu_psd = noise  # what Propagator.advanced does after each step
+        s.changed()
+        due = bool(s.x[X_COV_DT] >= interval_s)
+        P = kf.P
+        for j in range(count - 1 if due else count):
+            run[j].checkpoint = (s.with_x(xs[j]), P)
+        if due:
+            self._propagator.propagate_covariance(s, kf)
+            run[count - 1].checkpoint = (s.copy(), kf.P)
+        return start + count
