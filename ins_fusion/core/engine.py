@@ -268,8 +268,8 @@ class InsEngine:
         sample that ended it finished here; returns the next sample's index."""
         s, kf = self._state, self._filter
         assert s is not None and kf is not None and self.datum is not None
-        self._runs.next_pseudo_t_s = self._next_pseudo_t_s
-        k, code, inc = self._runs.take(s, kf, self.datum, samples, (start, stop), rows)
+        pseudo_t = self._next_pseudo_t_s
+        k, code, inc = self._runs.take(s, kf, self.datum, pseudo_t, samples, (start, stop), rows)
         if code != RUN_DONE:
             self._finish_sample(float(samples[0][k - 1]) - self.config.imu_time_offset_s, inc, code)
             if samples[3][k - 1] and (row := self.solution_row()) is not None:

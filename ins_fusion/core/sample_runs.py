@@ -14,8 +14,6 @@ for the history entries a re-propagation after a late measurement steps through.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from gnss_ins_common.types import BoolArray, FloatArray, IntArray
@@ -167,20 +165,20 @@ class CompiledRuns:
         self._intake, self._table = arrays
         self._integrator, self._detector, self._densities = sensors
         self._propagator, self._output, self._timeline = filtering
-        #: Stamp of the engine's next pseudo-measurement epoch [s] (set before ``take``).
-        self.next_pseudo_t_s = math.inf
 
     def take(
         self,
         s: FilterState,
         kf: ErrorStateFilter,
         datum_deg: tuple[float, float, float],
+        pseudo_t_s: float,
         samples: tuple[FloatArray, FloatArray, FloatArray, BoolArray],
         span: tuple[int, int],
         rows: RowBuffer,
     ) -> tuple[int, int, FloatArray]:
-        """``take_run`` over ``span`` of ``samples`` (the filter runs, no re-propagation due):
-        the ordinary samples' history entries appended to the timeline, their rows to ``rows``.
+        """``take_run`` over ``span`` of ``samples`` (the filter runs, no re-propagation due;
+        ``pseudo_t_s``: stamp of the next pseudo-measurement epoch [s]): the ordinary samples'
+        history entries appended to the timeline, their rows to ``rows``.
         Returns (next sample index, code of the sample left to the engine or RUN_DONE, that
         sample's increment)."""
         start, stop = span
@@ -192,7 +190,7 @@ class CompiledRuns:
         limits = (
             config.imu_time_offset_s,
             self._timeline.due_stamp(),
-            self.next_pseudo_t_s,
+            pseudo_t_s,
             config.covariance_interval_s,
             config.degraded_after_s,
         )
