@@ -251,9 +251,8 @@ class InsEngine:
                 or self._timeline.replay_from is not None
             ):
                 self.add_imu(t_s[k], rate_flu_rad_s[k], force_flu_m_s2[k])
+                self._record_tick(bool(ticks[k]), rows)
                 k += 1
-                if ticks[k - 1] and (row := self.solution_row()) is not None:
-                    rows.append(row)
                 continue
             k = self._take_run(samples, k, stop, rows)
 
@@ -272,9 +271,13 @@ class InsEngine:
         k, code, inc = self._runs.take(s, kf, self.datum, pseudo_t, samples, (start, stop), rows)
         if code != RUN_DONE:
             self._finish_sample(float(samples[0][k - 1]) - self.config.imu_time_offset_s, inc, code)
-            if samples[3][k - 1] and (row := self.solution_row()) is not None:
-                rows.append(row)
+            self._record_tick(bool(samples[3][k - 1]), rows)
         return k
+
+    def _record_tick(self, tick: bool, rows: RowBuffer) -> None:
+        """After a sample taken in Python: its solution row into ``rows`` at an output tick."""
+        if tick and (row := self.solution_row()) is not None:
+            rows.append(row)
 
     def _take_exception(self, t: float, code: int) -> None:
         """A sample that starts or restarts the stream, or ends a gap (core.intake codes)."""
