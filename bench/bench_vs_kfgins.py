@@ -8,7 +8,8 @@ is built from its public source outside this repository (``--help`` and a missin
 how); nothing of it is copied here.
 
 The bag (bench/speed_bag.py: 437 s test pattern, imu400cc at 200 Hz, GNSS fix + velocity at
-5 Hz, truth at 50 Hz; or ``--bag``) is converted to KF-GINS's inputs: the IMU as angle and
+5 Hz, truth at 50 Hz; ``--duration`` another length of the same drive, the pattern repeated;
+or ``--bag``) is converted to KF-GINS's inputs: the IMU as angle and
 velocity increments (rate and specific force times the sample interval, imu_link FLU turned
 into KF-GINS's forward-right-down), the valid fixes with their σ (north, east, down), and its
 YAML with the replay's own noise (config/ins_fusion.yaml: ARW, VRW, bias instabilities and
@@ -19,14 +20,17 @@ the truth at the first IMU stamp (moved from base_link to the IMU).
 Timed: ``gnss_ins replay BAG --report FILE`` (the whole command: start-up, reading, fusion,
 evaluation against the truth, report) and ``KF-GINS CONFIG`` (reading its text inputs, the
 filter, writing its outputs), after one untimed run of each, in alternating order, CPU seconds
-(user + system) of the child from resource.getrusage. Prints each run, the medians, the ratio
-and both horizontal RMS errors against the truth (a check that both filters ran sensibly).
+(user + system) of the child from resource.getrusage. Prints each run, the medians, their
+ratio and each pair's (the two runs of a pair saw about the same load on a shared machine), and
+both horizontal RMS errors against the truth (a check that both filters ran sensibly).
 
 With a second, shorter bag of the same drive (``--short-bag``; by default, with the simulated
 bag, the same simulation 150 s long, which has the same standstill and alignment in its first
 64 s) both are timed on it too, and the difference of the medians over the difference of the
 IMU samples gives each one's cost per IMU sample beyond its fixed start-up (imports, kernel
-load): the ratio a long bag tends to.
+load): the ratio a long bag tends to. The difference of two medians is noisy on a shared
+machine (±10 µs a sample between runs); a long bag (``--duration 1800``) measures the same
+more firmly.
 """
 
 from __future__ import annotations
@@ -211,6 +215,13 @@ def main() -> None:
     parser.add_argument("--pairs", type=int, default=3, help="timed pairs (default 3)")
     parser.add_argument("--workdir", type=Path, help="keep the bag and files here")
     parser.add_argument(
+        "--duration",
+        type=int,
+        default=437,
+        help="length of the simulated bag [s] (default 437; e.g. 1800: the fixed start-up"
+        " weighs less)",
+    )
+    parser.add_argument(
         "--short-bag",
         type=Path,
         help="a shorter bag of the same drive for the cost per sample (default with the"
@@ -225,7 +236,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="vs_kfgins_") as temporary:
         workdir = args.workdir or Path(temporary)
         workdir.mkdir(parents=True, exist_ok=True)
-        bag = args.bag or simulated_bag(workdir)
+        bag = args.bag or simulated_bag(workdir, args.duration)
         short = args.short_bag or (None if args.bag else simulated_bag(workdir, 150))
         long_run = run(binary.resolve(), bag, workdir, args.pairs)
         if short is not None:
@@ -285,7 +296,11 @@ def run(binary: Path, bag: Path, workdir: Path, pairs: int) -> Timed:
     for name, value in medians.items():
         print(f"{name:<16} median CPU {value:6.2f} s = {value / samples * 1e6:6.1f} µs per sample")
     ratio = medians["gnss_ins replay"] / medians["KF-GINS"]
-    print(f"ratio replay / KF-GINS: {ratio:.2f}")
+    pair_ratios = [a / b for a, b in zip(cpu["gnss_ins replay"], cpu["KF-GINS"], strict=True)]
+    print(
+        f"ratio replay / KF-GINS: {ratio:.2f} (per pair: "
+        f"{' '.join(f'{r:.2f}' for r in pair_ratios)}, median {statistics.median(pair_ratios):.2f})"
+    )
     replay_rms = json.loads(report.read_text())["position_error_m"]["horizontal_rms"]
     if replay_rms is None:  # never navigating: no evaluation
         raise SystemExit(f"{bag}: the replay did not navigate (see {report})")

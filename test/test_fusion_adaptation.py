@@ -11,6 +11,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ins_fusion.core.adaptation import (
+    B_MEAN,
+    B_VERSION,
     ImuNoiseMonitor,
     WhiteNoiseMonitor,
     adapt_process_noise,
@@ -66,6 +68,26 @@ def test_nothing_is_reported_before_enough_blocks_and_a_reset_keeps_the_estimate
     assert psd is not None and not psd[0].any()
     monitor.reset()
     assert monitor.psd is psd
+
+
+def test_an_adopted_snapshot_is_read_until_the_estimate_changes_again():
+    """``adopt`` (what a compiled run saw at a version) gives the same numbers as reading
+    ``psd`` then, and ``psd`` keeps it until the block's version moves on."""
+    monitor = ImuNoiseMonitor()
+    rng = np.random.default_rng(3)
+    t = np.arange(0.0, 1.0, 1.0 / RATE_HZ)
+    _feed(monitor, t, rng.normal(size=(len(t), 3)), rng.normal(size=(len(t), 3)))
+    read = monitor.psd
+    assert read is not None
+    version, means = monitor.block[B_VERSION], monitor.block[B_MEAN : B_MEAN + 6].copy()
+    _feed(monitor, t + 1.0, rng.normal(size=(len(t), 3)), rng.normal(size=(len(t), 3)))
+    adopted = monitor.adopt(version, means)
+    np.testing.assert_array_equal(np.concatenate(adopted), np.concatenate(read))
+    assert not adopted[0].flags.writeable and not adopted[1].flags.writeable
+    monitor.block[B_VERSION] = version  # the block still at that version: the snapshot stays
+    assert monitor.psd is adopted
+    monitor.block[B_VERSION] = version + 1.0
+    assert monitor.psd is not adopted
 
 
 @settings(max_examples=40, deadline=None)

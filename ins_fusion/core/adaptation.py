@@ -111,11 +111,18 @@ class ImuNoiseMonitor:
         (read-only) objects until the estimate changes."""
         block = self.block
         if block[B_VERSION] != self._version:
-            self._version = block[B_VERSION]
-            gyro = block[B_MEAN : B_MEAN + 3].copy()
-            accel = block[B_MEAN + 3 : B_MEAN + 6].copy()
-            gyro.flags.writeable = accel.flags.writeable = False
-            self._psd = (gyro, accel)
+            return self.adopt(block[B_VERSION], block[B_MEAN : B_MEAN + 6])
+        return self._psd
+
+    def adopt(self, version: float, means: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """``psd`` as read when ``block`` was at ``version`` with ``means`` (6: its B_MEAN
+        numbers); later reads give it until the version changes (core.sample_runs snapshots
+        the estimates a compiled run went through)."""
+        gyro = means[:3].copy()
+        accel = means[3:6].copy()
+        gyro.flags.writeable = accel.flags.writeable = False
+        self._version = version
+        self._psd = (gyro, accel)
         return self._psd
 
 

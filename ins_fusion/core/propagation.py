@@ -62,8 +62,17 @@ class ImuDensities:
     def current(self) -> tuple[FloatArray, FloatArray] | None:
         """The densities in force; None before a measurement (then the floor applies)."""
         measured = self.monitor.psd
-        if measured is None:
-            return None
+        return None if measured is None else self._effective_of(measured)
+
+    def adopt(self, version: float, means: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """The densities in force when the monitor was at ``version`` with ``means``
+        (ImuNoiseMonitor.adopt); ``current`` gives them until the version changes."""
+        return self._effective_of(self.monitor.adopt(version, means))
+
+    def _effective_of(
+        self, measured: tuple[FloatArray, FloatArray]
+    ) -> tuple[FloatArray, FloatArray]:
+        """The floor, raised where ``measured`` (the monitor's psd) is above it."""
         if measured is not self._measured:
             self._measured = measured
             self._effective = (

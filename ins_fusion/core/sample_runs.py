@@ -1,14 +1,16 @@
 """Runs of ordinary IMU samples in one compiled call (core.compiled): the replay's fast path.
 
 An ordinary sample, once the filter runs, needs only the intake with its strapdown step
-(core.intake.take_sample), a history entry with its checkpoint and, at an output tick, the
-solution row (core.solution). ``take_run`` takes samples from arrays until one needs Python:
-any code of take_sample but an ordinary step (a gap, a restart, a full detector ring, a sample
-kept from the step because a measurement is due before it), a change of the measured IMU noise,
-a covariance interval that is due, a pseudo-measurement epoch. It leaves that sample taken for
+(core.intake.take_sample), a history entry with its checkpoint and the IMU noise densities in
+force and, at an output tick, the solution row (core.solution). ``take_run`` takes samples from
+arrays until one needs Python: any code of take_sample but an ordinary step (a gap, a restart,
+a full detector ring, a sample kept from the step because a measurement is due before it), a
+covariance interval that is due, a pseudo-measurement epoch. It leaves that sample taken for
 the engine to finish as InsEngine.add_imu would, and hands back the ordinary samples'
-increments and states (each a checkpoint) and the rows of their output ticks, computed with
-the same kernels in the same order: the same numbers to the bit. ``advance_run`` does the same
+increments and states (each a checkpoint), a snapshot of the measured IMU noise at each of its
+changes (core.adaptation.ImuNoiseMonitor.adopt) with the snapshot each sample saw, and the rows
+of their output ticks, computed with the same kernels in the same order: the same numbers to
+the bit. ``advance_run`` does the same
 for the history entries a re-propagation after a late measurement steps through.
 """
 
@@ -17,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from gnss_ins_common.types import BoolArray, FloatArray, IntArray
-from ins_fusion.core.adaptation import B_VERSION
+from ins_fusion.core.adaptation import B_MEAN, B_VERSION
 from ins_fusion.core.compiled import jit
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.eskf import ErrorStateFilter
@@ -52,13 +54,11 @@ def take_run(
     start: int,
     stop: int,
     limits: tuple[float, float, float, float, float],
-    incs: FloatArray,
-    xs: FloatArray,
-    rows: FloatArray,
+    outs: tuple[FloatArray, FloatArray, FloatArray, IntArray, FloatArray],
     row_model: tuple[FloatArray, FloatArray, IntArray, FloatArray, FloatArray, FloatArray],
     mounting: tuple[float, float],
     origin: tuple[float, float, float],
-) -> tuple[int, int, int, int]:
+) -> tuple[int, int, int, int, int]:
     """Take samples ``start`` .. ``stop`` - 1 of ``samples`` (stamps [s], rates [rad/s] and
     forces [m/s²] (n, 3) imu_link FLU, output tick after each sample) until one needs the
     engine (module docstring).
@@ -67,19 +67,23 @@ def take_run(
     monitor block and nominal state x (take_sample's arguments); ``limits``: the IMU time
     offset [s] taken off each stamp, the stamp of the first pending measurement (inf: none),
     of the next pseudo-measurement epoch, the covariance interval [s], degraded_after [s].
-    Out: ``incs`` / ``xs`` the increment and state after each ordinary sample (rows 0 .. m-1;
-    row m the increment of the sample left to the engine), ``rows`` the solution rows of the
-    ticks (``row_model``: J, P, the solution states, base_link lever arm, arm_bi and the ENU
-    plane's rotation, with ``mounting`` and ``origin`` as SolutionBuilder.row gives them).
+    ``outs``: ``incs`` / ``xs`` the increment and state after each ordinary sample (rows 0 ..
+    m-1; row m the increment of the sample left to the engine), ``rows`` the solution rows of
+    the ticks (``row_model``: J, P, the solution states, base_link lever arm, arm_bi and the
+    ENU plane's rotation, with ``mounting`` and ``origin`` as SolutionBuilder.row gives them),
+    ``seen`` the noise snapshot each ordinary sample saw (-1: the one in force at the start),
+    ``snapshots`` the noise monitor's version and B_MEAN numbers at each change.
     Returns (next sample index, code of the sample left to the engine or RUN_DONE, m, rows
-    written)."""
+    written, snapshots written)."""
     buf, table, integrator, ring, block, x = stores
     t_s, rate, force, ticks = samples
     offset_s, due_t, pseudo_t, interval_s, degraded_after_s = limits
+    incs, xs, rows, seen, snapshots = outs
     J, P, states, arm_b, arm_bi, mat_enu_ecef = row_model
     version = block[B_VERSION]
     m = 0
     r = 0
+    v = 0
     for i in range(start, stop):
         t = t_s[i] - offset_s
         code = take_sample(
@@ -101,14 +105,15 @@ def take_run(
             not due_t < t,
         )
         if code != REJECTED:
-            plain = (
-                code == PUSHED + STEPPED
-                and block[B_VERSION] == version
-                and x[X_COV_DT] < interval_s
-                and t < pseudo_t
-            )
+            plain = code == PUSHED + STEPPED and x[X_COV_DT] < interval_s and t < pseudo_t
             if not plain:
-                return i + 1, code, m, r
+                return i + 1, code, m, r, v
+            if block[B_VERSION] != version:
+                version = block[B_VERSION]
+                snapshots[v, 0] = version
+                snapshots[v, 1:] = block[B_MEAN : B_MEAN + 6]
+                v += 1
+            seen[m] = v - 1
             xs[m, :] = x
             m += 1
         if ticks[i]:
@@ -124,7 +129,7 @@ def take_run(
             else:
                 row[STATE] = _NAVIGATING
             r += 1
-    return stop, RUN_DONE, m, r
+    return stop, RUN_DONE, m, r, v
 
 
 @jit
@@ -184,7 +189,9 @@ class CompiledRuns:
         start, stop = span
         n = stop - start
         incs, xs, out = np.empty((n, INCREMENT_SIZE)), np.empty((n, X_SIZE)), np.empty((n, WIDTH))
-        noise = self._densities.current()
+        seen, snapshots = np.empty(n, dtype=np.int64), np.empty((n, 7))
+        densities = self._densities
+        noise = densities.current()
         model, mounting, origin = self._output.model(s, kf, datum_deg)
         config = self._config
         limits = (
@@ -202,16 +209,26 @@ class CompiledRuns:
             self._densities.monitor.block,
             s.x,
         )
-        k, code, m, r = take_run(
-            stores, self._r_bi, samples, start, stop, limits, incs, xs, out, model, mounting, origin
+        outs = (incs, xs, out, seen, snapshots)
+        k, code, m, r, v = take_run(
+            stores, self._r_bi, samples, start, stop, limits, outs, model, mounting, origin
         )
-        if m:  # what Propagator.advanced and InsEngine._checkpoint did after each sample
-            s.imu_psd = noise
+        # What ImuDensities.current read, Propagator.advanced and InsEngine._checkpoint did
+        # after each sample.
+        noises: list[tuple[FloatArray, FloatArray] | None] = [
+            densities.adopt(snapshot[0], snapshot[1:]) for snapshot in snapshots[:v]
+        ]
+        if m:
+            noises.append(noise)  # [-1]: the densities at the start
             s.changed()
             P = kf.P
+            entries = []
             for j in range(m):
-                checkpoint = (s.with_x(xs[j]), P)
-                self._timeline.append(Entry(float(xs[j, X_T]), incs[j], None, noise, checkpoint))
+                noise = noises[seen[j]]
+                checkpoint = (s.with_x(xs[j], noise), P)
+                entries.append(Entry(float(xs[j, X_T]), incs[j], None, noise, checkpoint))
+            self._timeline.extend(entries)
+            s.imu_psd = noise
         for j in range(r):
             rows.append(out[j])
         return k, code, incs[m] if code != RUN_DONE else incs[0]
@@ -239,7 +256,7 @@ class CompiledRuns:
         due = bool(s.x[X_COV_DT] >= interval_s)
         P = kf.P
         for j in range(count - 1 if due else count):
-            run[j].checkpoint = (s.with_x(xs[j]), P)
+            run[j].checkpoint = (s.with_x(xs[j], noise), P)
         if due:
             self._propagator.propagate_covariance(s, kf)
             run[count - 1].checkpoint = (s.copy(), kf.P)

@@ -142,15 +142,16 @@ class FilterState:
         other.gated_runs = self.gated_runs
         return other
 
-    def with_x(self, x: FloatArray) -> FilterState:
-        """A state of array ``x`` (taken, not copied) and this one's other members: what
-        ``copy`` gives after ``x`` was advanced to those numbers (core.sample_runs)."""
+    def with_x(self, x: FloatArray, imu_psd: tuple[FloatArray, FloatArray] | None) -> FilterState:
+        """A state of array ``x`` (taken, not copied), densities ``imu_psd`` and this one's
+        other members: what ``copy`` gives after ``x`` was advanced to those numbers with
+        those densities (core.sample_runs)."""
         other = FilterState.__new__(FilterState)
         other.x = x
         other._nav = None
         other._mat_nb = None
         other.gnss_white = self.gnss_white
-        other.imu_psd = self.imu_psd
+        other.imu_psd = imu_psd
         other.gated_runs = self.gated_runs
         return other
 

@@ -102,6 +102,18 @@ class Timeline:
             del self.history[:keep]
             del self._history_t[:keep]
 
+    def extend(self, entries: list[Entry]) -> None:
+        """``append`` of each of ``entries`` (in stamp order), in one call."""
+        history_t = self._history_t
+        self.history.extend(entries)
+        history_t.extend([entry.t_s for entry in entries])
+        for entry in entries:  # append's pruning after each entry
+            t = entry.t_s
+            if history_t[0] < t - self._history_s - 1.0:
+                keep = bisect.bisect_left(history_t, t - self._history_s)
+                del self.history[:keep]
+                del history_t[:keep]
+
     def record(self, kind: str, t_m: float, payload: Any) -> Record:
         """A new record of a measurement."""
         return (t_m, _RANK[kind], next(self._sequence), kind, payload)
