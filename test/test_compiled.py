@@ -17,6 +17,7 @@ from gnss_ins_common.params import validate_all
 from ins_fusion.core import (
     adaptation,
     eskf,
+    fused_nhc,
     gnss_noise,
     intake,
     measurements,
@@ -106,12 +107,11 @@ _KERNELS = (
     intake.record_sample,
     stop_detector.ring_push,
     stop_detector.window_statistics,
-    measurements._nhc_model,
+    measurements.nhc_model,
     propagation.advance,
-    propagation.covariance_interval,
+    propagation.covariance_step,
     propagation.predicted_state,
-    eskf._propagate,
-    eskf._joseph_update,
+    eskf.joseph_update,
     solution._fill_row,
     state.inject_nominal,
     gnss_noise._position_noise,
@@ -123,6 +123,7 @@ _KERNELS = (
     output_numbers.output_numbers,
     sample_runs.take_run,
     sample_runs.advance_run,
+    fused_nhc.nhc_apply,
 )
 _REAL = Path(__file__).parent / "fixtures" / "comma2k19" / "comma2k19_ex1_seg40"
 

@@ -2,7 +2,9 @@
 runs after late measurements: the same rows and counters, to the bit, as feeding the engine
 sample by sample with add_imu and solution_row and re-propagating entry by entry, on
 a drive with late GNSS data and with damaged IMU data (corrupt samples, a gap, a duplicate
-stamp, a stamp out of order, a clock that goes back)."""
+stamp, a stamp out of order, a clock that goes back). With the fused NHC (core.fused_nhc) as
+well, against the engine with the smoother's recorder attached, which takes every sample and
+every update the general way."""
 
 from __future__ import annotations
 
@@ -122,5 +124,20 @@ def test_with_the_smoother_attached_the_engine_goes_sample_by_sample(inputs: Rep
     parameters = validate_all(PARAMETERS, {})
     expected_rows, expected_status = _sample_by_sample(inputs, parameters, smooth=True)
     run = run_fusion(inputs, parameters, smooth=True)
+    np.testing.assert_array_equal(run.track.rows, expected_rows)
+    assert repr(run.status) == repr(expected_status)
+
+
+@pytest.mark.parametrize("damage", [False, True], ids=["clean", "damaged"])
+@pytest.mark.parametrize("name", ["defaults", "all_states"])
+def test_the_fast_paths_equal_the_general_path(inputs: ReplayInputs, name: str, damage: bool):
+    """Compiled runs and the fused NHC (no smoother) against sample by sample with the
+    recorder attached (no run, every NHC the general way; the recorder only listens)."""
+    if damage:
+        inputs = _damaged(inputs)
+    parameters = validate_all(PARAMETERS, _SETS[name])
+    expected_rows, expected_status = _sample_by_sample(inputs, parameters, smooth=True)
+    run = run_fusion(inputs, parameters)
+    assert run.status.measurements["nhc"]["used"] > 300
     np.testing.assert_array_equal(run.track.rows, expected_rows)
     assert repr(run.status) == repr(expected_status)

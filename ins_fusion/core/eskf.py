@@ -142,6 +142,13 @@ def chi2_threshold(probability: float, dof: int) -> float:
     return float(2.0 * gammaincinv(0.5 * dof, probability))
 
 
+#: ErrorStateFilter.process_model: F and Q buffers, gyro white noise, gyro misalignment noise,
+#: accelerometer white noise, Gauss-Markov indices and densities.
+ProcessModel = tuple[
+    FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, IntArray, FloatArray
+]
+
+
 class UpdateResult(NamedTuple):
     """Outcome of one measurement update: accepted or gated, the normalised innovation
     squared, and the error-state estimate to inject (None when gated)."""
@@ -264,13 +271,27 @@ class ErrorStateFilter:
         """Propagate P over an interval of dt_s [s] (one or a few IMU samples); arguments as
         for ``dynamics`` (mean force and rate over the interval, state at its end)."""
         inputs = (mat_ni, force_n, force_i, rate_i, lat_rad, height_m, vel_ned_m_s)
-        self.P, self.phi = _propagate(
+        self.P, self.phi = propagate_kernel(
             kernel_array(self.P),
             self._F,
             self._Q,
             dt_s,
             *inputs,
             *self.scale_columns,
+            self._gyro_psd,
+            self._gyro_misalignment_q,
+            self._accel_psd,
+            self._markov_idx,
+            self._markov_q,
+        )
+
+    def process_model(self) -> ProcessModel:
+        """What ``propagate`` hands its kernel besides P and the interval: the F and Q buffers
+        (filled in place), the white-noise densities in force, the gyro misalignment's noise
+        and the Gauss-Markov states' indices and densities (core.fused_nhc)."""
+        return (
+            self._F,
+            self._Q,
             self._gyro_psd,
             self._gyro_misalignment_q,
             self._accel_psd,
@@ -306,7 +327,7 @@ class ErrorStateFilter:
 
     def update(self, z: FloatArray, H: FloatArray, R: FloatArray, threshold: float) -> UpdateResult:
         """Gated Joseph-form update with innovation z = measured - predicted, z ≈ H δx + v."""
-        accepted, nis, dx, P = _joseph_update(
+        accepted, nis, dx, P = joseph_update(
             kernel_array(self.P),
             kernel_array(z),
             kernel_array(H),
@@ -403,7 +424,7 @@ def _fill_noise(
 
 
 @jit
-def _propagate(
+def propagate_kernel(
     P: FloatArray,
     F: FloatArray,
     Q: FloatArray,
@@ -461,7 +482,7 @@ def projected_variance(H: FloatArray, P: FloatArray) -> FloatArray:
 
 
 @jit
-def _joseph_update(
+def joseph_update(
     P: FloatArray, z: FloatArray, H: FloatArray, R: FloatArray, threshold: float
 ) -> tuple[bool, float, FloatArray, FloatArray]:
     """(accepted, NIS, δx, new P) of ErrorStateFilter.update; a singular S gives NIS inf."""

@@ -351,9 +351,9 @@ def nhc(
     lateral v_b,y - μ_z v_b,x, vertical v_b,z + μ_y v_b,x. H: δv -> C_nbᵀ, ψ -> C_nbᵀ [v×],
     gyro errors -> -[r×] dω_b (``gyro_error_columns``), δμ_y -> +v_b,x
     (vertical), δμ_z -> -v_b,x (lateral) (the mounting's second-order terms in H left out).
-    Compiled (``_nhc_model``)."""
+    Compiled (``nhc_model``)."""
     layout = pred.layout
-    return _nhc_model(
+    return nhc_model(
         pred.mat_nb,
         pred.vel_ned_m_s,
         pred.rate_b,
@@ -369,7 +369,7 @@ def nhc(
 
 
 @jit
-def _nhc_model(
+def nhc_model(
     mat_nb: FloatArray,
     vel: FloatArray,
     rate_b: FloatArray,

@@ -15,9 +15,9 @@ import numpy as np
 from gnss_ins_common.types import FloatArray, Vec3
 from ins_fusion.core import earth
 from ins_fusion.core.adaptation import ImuNoiseMonitor
-from ins_fusion.core.compiled import jit
+from ins_fusion.core.compiled import jit, kernel_array
 from ins_fusion.core.config import FusionConfig
-from ins_fusion.core.eskf import ATT, VEL, ErrorStateFilter
+from ins_fusion.core.eskf import ATT, VEL, ErrorStateFilter, ProcessModel, propagate_kernel
 from ins_fusion.core.measurements import Prediction
 from ins_fusion.core.rotation import mat_from_quat
 from ins_fusion.core.state import (
@@ -29,6 +29,7 @@ from ins_fusion.core.state import (
     X_COV_DTH,
     X_COV_DV,
     X_COV_VEL0,
+    X_GNSS_ERROR,
     X_HAS_PREV,
     X_NAV,
     X_PREV,
@@ -184,6 +185,49 @@ def covariance_interval(
     return dt, mat_nb @ mat_bi, force_n, force_i, rate_i, lat, height, velocity
 
 
+@jit
+def covariance_step(
+    P: FloatArray,
+    x: FloatArray,
+    mat_bi: FloatArray,
+    process: ProcessModel,
+    columns: tuple[int, int, int, int, int],
+    correlation_time_s: float,
+) -> tuple[FloatArray, FloatArray]:
+    """(P, Φ) over the interval accumulated in ``x`` (``covariance_interval``, which restarts
+    it; ``process``: ErrorStateFilter.process_model), and the estimate of the correlated GNSS
+    error in ``x`` decayed over it when ``columns`` (StateLayout.columns) hold that block
+    (``correlation_time_s``: its correlation time [s])."""
+    F, Q, gyro_psd, misalignment_q, accel_psd, markov_idx, markov_q = process
+    sg, sa, gp, _, _ = columns
+    dt, mat_ni, force_n, force_i, rate_i, lat, height, vel = covariance_interval(x, mat_bi)
+    P_new, phi = propagate_kernel(
+        P,
+        F,
+        Q,
+        dt,
+        mat_ni,
+        force_n,
+        force_i,
+        rate_i,
+        lat,
+        height,
+        vel,
+        sg,
+        sa,
+        gyro_psd,
+        misalignment_q,
+        accel_psd,
+        markov_idx,
+        markov_q,
+    )
+    if gp >= 0:
+        decay = math.exp(-dt / correlation_time_s)
+        for k in range(3):
+            x[X_GNSS_ERROR + k] = x[X_GNSS_ERROR + k] * decay
+    return P_new, phi
+
+
 class Propagator:
     """Strapdown and covariance propagation of the nominal state (see the module docstring)."""
 
@@ -234,19 +278,26 @@ class Propagator:
         velocity change; Coriolis, < 3e-3 m/s², left out of F)."""
         if s.x[X_COV_DT] <= 0.0:
             return
-        gyro_psd, accel_psd = s.imu_psd or self._densities.floor
-        kf.set_white_noise(gyro_psd * s.q_scale, accel_psd * s.q_scale)
+        kf.set_white_noise(*self.white_noise(s))
         P_before = kf.P
-        interval = covariance_interval(s.x, self._geometry.mat_bi)
-        kf.propagate(*interval)
+        kf.P, kf.phi = covariance_step(
+            kernel_array(kf.P),
+            s.x,
+            self._geometry.mat_bi,
+            kf.process_model(),
+            kf.layout.columns,
+            self._gnss_correlation_time_s,
+        )
         if kf.recorder is not None:  # smoother hook: a covariance step
             kf.recorder.on_transition(P_before, kf.phi, kf.P)
-        if kf.layout.gp is not None:  # the estimate of a Gauss-Markov error decays
-            decay = math.exp(-interval[0] / self._gnss_correlation_time_s)
-            e = s.gnss_error
-            s.gnss_error = (e[0] * decay, e[1] * decay, e[2] * decay)
         if not s.heading_known:
             decouple_yaw(kf)
+
+    def white_noise(self, s: FilterState) -> tuple[FloatArray, FloatArray]:
+        """The IMU white-noise densities of a covariance step from ``s`` (gyro [rad²/s],
+        accelerometer [m²/s³] per imu axis): those in force times the process-noise scale."""
+        gyro_psd, accel_psd = s.imu_psd or self._densities.floor
+        return gyro_psd * s.q_scale, accel_psd * s.q_scale
 
     @staticmethod
     def predict(s: FilterState, kf: ErrorStateFilter, t_m: float) -> Prediction:

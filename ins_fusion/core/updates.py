@@ -131,18 +131,34 @@ class Corrections:
             gated = False
             if live:
                 self._counters[kind]["recoveries"] += 1
+        self._count(s, kind, gated, result.accepted, live)
+        if result.dx is not None:
+            inject(s, kf, result.dx)
+        return result.dx
+
+    def gate(self, dof: int) -> float:
+        """The gate on the NIS of a measurement of ``dof`` rows."""
+        return self._gates[dof]
+
+    def book(self, s: FilterState, kind: str, accepted: bool, nis: float, live: bool) -> None:
+        """The books of an update of ``kind`` made elsewhere (core.fused_nhc) without a gate
+        recovery: its NIS and, as ``update`` keeps them, its runs of gated updates and its
+        counters."""
+        self.nis[kind] = nis
+        self._count(s, kind, not accepted and math.isfinite(nis), accepted, live)
+
+    def _count(self, s: FilterState, kind: str, gated: bool, accepted: bool, live: bool) -> None:
+        """The runs of gated updates of ``kind`` in ``s`` and (``live``) its counters."""
+        runs = s.gated_runs
         if gated or runs.get(kind, 0):
             s.gated_runs = {**runs, kind: runs.get(kind, 0) + 1 if gated else 0}
         if live:
             counters = self._counters[kind]
-            if result.accepted:
+            if accepted:
                 counters["used"] += 1
             else:
                 counters["rejected"] += 1
                 counters["gated"] += 1
-        if result.dx is not None:
-            inject(s, kf, result.dx)
-        return result.dx
 
     def _reject(self, kind: str, live: bool) -> None:
         if live:

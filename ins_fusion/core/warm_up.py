@@ -18,6 +18,7 @@ from ins_fusion.core.adaptation import ImuNoiseMonitor
 from ins_fusion.core.calibration import ImuCalibration
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.eskf import ErrorStateFilter, StateLayout, projected_variance
+from ins_fusion.core.fused_nhc import nhc_apply
 from ins_fusion.core.gnss_noise import GnssNoise
 from ins_fusion.core.intake import new_intake, record_sample, take_sample
 from ins_fusion.core.measurements import (
@@ -29,7 +30,7 @@ from ins_fusion.core.measurements import (
     nhc,
 )
 from ins_fusion.core.output_numbers import NUMBERS, output_numbers
-from ins_fusion.core.propagation import advance, covariance_interval, predicted_state
+from ins_fusion.core.propagation import advance, covariance_step, predicted_state
 from ins_fusion.core.sample_runs import advance_run, take_run
 from ins_fusion.core.solution import WIDTH, SolutionBuilder
 from ins_fusion.core.state import X_COV_DT, X_SIZE, FilterState, Geometry, inject_nominal
@@ -68,8 +69,15 @@ def warm_up() -> float:
     kf = ErrorStateFilter(layout, config.imu_noise, config.gnss_correlation_time_s or 60.0)
     kf.P = np.eye(layout.size) * 1e-2
     s.x[X_COV_DT] = 0.01
-    kf.propagate(*covariance_interval(s.x, Geometry(config, layout).mat_bi))
+    mat_bi = Geometry(config, layout).mat_bi
+    kf.P, kf.phi = covariance_step(kf.P, s.x, mat_bi, kf.process_model(), layout.columns, 60.0)
     kf.update(np.zeros(3), np.eye(3, layout.size), np.eye(3), math.inf)
+    s.x[X_COV_DT] = 0.01
+    gyro_psd, accel_psd = config.imu_noise.gyro_psd * 1.0, config.imu_noise.accel_psd * 1.0
+    kf.set_white_noise(gyro_psd, accel_psd)
+    constants = (60.0, 0.1, math.inf, layout.size)
+    geometry = (mat_bi, np.zeros(3))
+    nhc_apply(kf.P, s.x, 0.015, kf.process_model(), geometry, layout.columns, constants)
     kf.problem()
     inject_nominal(s.x, np.zeros(layout.size), layout.columns)
     prediction = Prediction(*predicted_state(s.x, 0.015), layout=layout)

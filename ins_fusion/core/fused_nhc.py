@@ -1,0 +1,115 @@
+"""The non-holonomic constraint (NHC) with the covariance step before it in one compiled call.
+
+The NHC is the engine's most frequent update (every pseudo-measurement epoch while driving,
+again in every re-propagation through it). Applied the general way (InsEngine._apply) it is
+five kernels with Python between them: the covariance step to the epoch
+(Propagator.propagate_covariance), the prediction (Propagator.predict), the model
+(measurements.nhc), the gated Joseph update (ErrorStateFilter.update) and the injection
+(state.inject). ``nhc_apply`` runs the same kernels in the same order in one call, so the numbers
+are the same to the bit; ``FusedNhc`` gives it its arguments and keeps the books
+(Corrections.book). While the heading is known (the NHC is filed only then) and without the
+smoother (its recorder is told of the steps in between); else the general way.
+"""
+
+from __future__ import annotations
+
+from gnss_ins_common.types import FloatArray
+from ins_fusion.core.compiled import jit, kernel_array
+from ins_fusion.core.config import FusionConfig
+from ins_fusion.core.eskf import ErrorStateFilter, ProcessModel, joseph_update
+from ins_fusion.core.measurements import nhc_model
+from ins_fusion.core.propagation import Propagator, covariance_step, predicted_state
+from ins_fusion.core.state import (
+    X_COV_DT,
+    X_COV_VEL0,
+    X_MOUNTING,
+    X_NAV,
+    FilterState,
+    Geometry,
+    inject_nominal,
+)
+from ins_fusion.core.updates import Corrections
+
+
+@jit
+def nhc_apply(
+    P: FloatArray,
+    x: FloatArray,
+    t_m: float,
+    process: ProcessModel,
+    geometry: tuple[FloatArray, FloatArray],
+    columns: tuple[int, int, int, int, int],
+    constants: tuple[float, float, float, int],
+) -> tuple[bool, FloatArray, bool, float, FloatArray]:
+    """The NHC at stamp ``t_m`` [s] on the error covariance ``P`` and the nominal state ``x``
+    (core.state X_* layout, changed in place; heading known): the covariance step over the
+    interval accumulated in ``x`` when there is one (``covariance_step``; ``process``:
+    ErrorStateFilter.process_model), the prediction to t_m, the model of the base_link origin
+    (``geometry``: rotation imu -> body, lever arm from the IMU [m], body FRD), the gated
+    update and, when accepted, the injection (``columns``: StateLayout.columns); the
+    covariance interval then goes on from the corrected velocity. ``constants``: GNSS
+    correlation time [s], NHC σ [m/s], gate, state size.
+    Returns (stepped, Φ of the step (P when none), accepted, NIS, the new P)."""
+    mat_bi, arm_b = geometry
+    sg, _, _, mt, _ = columns
+    correlation_time_s, sigma_m_s, threshold, size = constants
+    stepped = not x[X_COV_DT] <= 0.0  # as Propagator.propagate_covariance decides
+    phi = P
+    if stepped:
+        P, phi = covariance_step(P, x, mat_bi, process, columns, correlation_time_s)
+    _, _, _, vel_m, mat_nb, rate_b, rate_i_m = predicted_state(x, t_m)
+    mounting = (x[X_MOUNTING], x[X_MOUNTING + 1])
+    z, H, R = nhc_model(
+        mat_nb, vel_m, rate_b, rate_i_m, arm_b, mat_bi, sigma_m_s, mounting, size, sg, mt
+    )
+    accepted, nis, dx, P_new = joseph_update(P, z, H, R, threshold)
+    if accepted:
+        inject_nominal(x, dx, columns)
+    for k in range(3):
+        x[X_COV_VEL0 + k] = x[X_NAV + 3 + k]
+    return stepped, phi, accepted, nis, P_new
+
+
+class FusedNhc:
+    """The engine's side of ``nhc_apply`` (InsEngine._apply uses it while no smoother is
+    attached)."""
+
+    def __init__(
+        self,
+        config: FusionConfig,
+        geometry: Geometry,
+        propagator: Propagator,
+        corrections: Corrections,
+    ) -> None:
+        self._geometry = geometry
+        self._propagator = propagator
+        self._corrections = corrections
+        self._correlation_time_s = config.gnss_correlation_time_s
+        self._sigma_m_s = config.nhc_sigma_m_s
+
+    def apply(self, s: FilterState, kf: ErrorStateFilter, t_m: float, live: bool) -> None:
+        """What InsEngine._apply does for an NHC record at ``t_m`` while the heading is known
+        (``live``: counted)."""
+        if not s.x[X_COV_DT] <= 0.0:  # the step's densities, as propagate_covariance sets them
+            kf.set_white_noise(*self._propagator.white_noise(s))
+        geometry = self._geometry
+        stepped, phi, accepted, nis, P = nhc_apply(
+            kernel_array(kf.P),
+            s.x,
+            t_m,
+            kf.process_model(),
+            (geometry.mat_bi, kernel_array(geometry.arms(s)[1])),
+            kf.layout.columns,
+            (
+                self._correlation_time_s,
+                self._sigma_m_s,
+                self._corrections.gate(2),
+                kf.layout.size,
+            ),
+        )
+        if stepped:
+            kf.phi = phi
+        kf.P = P
+        if accepted:
+            s.changed()
+        self._corrections.book(s, "nhc", accepted, nis, live)
