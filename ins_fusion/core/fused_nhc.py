@@ -90,8 +90,7 @@ class FusedNhc:
     def apply(self, s: FilterState, kf: ErrorStateFilter, t_m: float, live: bool) -> None:
         """What InsEngine._apply does for an NHC record at ``t_m`` while the heading is known
         (``live``: counted)."""
-        if not s.x[X_COV_DT] <= 0.0:  # the step's densities, as propagate_covariance sets them
-            kf.set_white_noise(*self._propagator.white_noise(s))
+        kf.set_white_noise(*self._propagator.white_noise(s))  # read only by a step
         geometry = self._geometry
         stepped, phi, accepted, nis, P = nhc_apply(
             kernel_array(kf.P),
