@@ -72,9 +72,6 @@ def warm_up() -> float:
     mat_bi = Geometry(config, layout).mat_bi
     kf.P, kf.phi = covariance_step(kf.P, s.x, mat_bi, kf.process_model(), layout.columns, 60.0)
     kf.update(np.zeros(3), np.eye(3, layout.size), np.eye(3), math.inf)
-    s.x[X_COV_DT] = 0.01
-    gyro_psd, accel_psd = config.imu_noise.gyro_psd * 1.0, config.imu_noise.accel_psd * 1.0
-    kf.set_white_noise(gyro_psd, accel_psd)
     constants = (60.0, 0.1, math.inf, layout.size)
     geometry = (mat_bi, np.zeros(3))
     nhc_apply(kf.P, s.x, 0.015, kf.process_model(), geometry, layout.columns, constants)
