@@ -288,7 +288,7 @@ class ErrorStateFilter:
     def process_model(self) -> ProcessModel:
         """What ``propagate`` hands its kernel besides P and the interval: the F and Q buffers
         (filled in place), the white-noise densities in force, the gyro misalignment's noise
-        and the Gauss-Markov states' indices and densities (core.fused_nhc)."""
+        and the Gauss-Markov states' indices and densities (propagation.covariance_step)."""
         return (
             self._F,
             self._Q,

@@ -10,8 +10,8 @@ the engine to finish as InsEngine.add_imu would, and hands back the ordinary sam
 increments and states (each a checkpoint), a snapshot of the measured IMU noise at each of its
 changes (core.adaptation.ImuNoiseMonitor.adopt) with the snapshot each sample saw, and the rows
 of their output ticks, computed with the same kernels in the same order: the same numbers to
-the bit. ``advance_run`` does the same
-for the history entries a re-propagation after a late measurement steps through.
+the bit. ``advance_run`` does the same for the history entries a re-propagation after a late
+measurement steps through.
 """
 
 from __future__ import annotations
