@@ -6,13 +6,20 @@ whole wait set in Python for every message (ins_fusion_node at 134 Hz: about hal
 docs/benchmarks.md). It is spun ``spin_until_future_complete`` with a time-out in a loop: its
 ``spin()`` busy-waits in rclpy 7.1 (a full core). ``GNSS_INS_EXECUTOR=single`` in the
 environment selects SingleThreadedExecutor instead.
+
+Ctrl-C and SIGTERM are a stop request that the spin loop reads between its waits (``StopSignals``),
+not rclpy's own handlers: those shut the context down from their own thread at once, so a
+callback running at that moment failed to publish ("publisher's context is invalid") and the
+interrupt was raised inside it. The node stops in order instead: executor, node, context.
 """
 
 from __future__ import annotations
 
 import os
 import re
+import signal
 import sys
+import threading
 import traceback
 from collections.abc import Callable, Sequence
 
@@ -20,6 +27,7 @@ import rclpy
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 
 from gnss_ins_common.params import ParameterValueError, check_parameter_files
@@ -46,16 +54,22 @@ def make_executor() -> Executor:
 
 
 def spin_guarded(
-    executor: Executor, node: Node, keep_going: Callable[[], bool], period_s: float = 0.1
+    executor: Executor,
+    node: Node,
+    keep_going: Callable[[], bool],
+    period_s: float = 0.1,
+    waits: Callable[[], Future] = Future,
 ) -> None:
     """Spin ``executor`` while ``keep_going()`` (asked every ``period_s``, every callback run in
-    between); an exception from a callback is counted and logged in ``node``'s
-    ``callback_errors`` (ros_diagnostics) instead of ending the node."""
+    between, and whenever the future from ``waits()`` it waits on is done); an exception from a
+    callback is counted and logged in ``node``'s ``callback_errors`` (ros_diagnostics) instead
+    of ending the node."""
     while keep_going():
         try:
-            # A future never done, new each time (its done callbacks do not pile up): all the
-            # events of period_s in one call, not one Python loop per message.
-            executor.spin_until_future_complete(Future(), timeout_sec=period_s)
+            # A future new each time (its done callbacks do not pile up): all the events of
+            # period_s in one call, not one Python loop per message. EventsExecutor's time-out
+            # is not reached while callbacks keep it busy; the future ends the wait then.
+            executor.spin_until_future_complete(waits(), timeout_sec=period_s)
         except (KeyboardInterrupt, ExternalShutdownException):
             raise
         except Exception as exc:
@@ -71,12 +85,55 @@ def _callback_name(exc: BaseException) -> str:
     return frames[after].name if 0 <= after < len(frames) else "callback"
 
 
+class StopSignals:
+    """SIGINT and SIGTERM as a stop request while installed (a context manager): ``requested``
+    turns True, the future of the latest ``wait()`` is completed (the executor's spin returns)
+    and the interrupted code goes on; before ``spinning`` is set (the node is being built) they
+    raise KeyboardInterrupt, as Python's default SIGINT handler does."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self) -> None:
+        self.requested = False
+        self.spinning = False
+        self._previous: list[tuple[signal.Signals, object]] = []
+        self._wait = Future()
+
+    def wait(self) -> Future:
+        """A new future for the executor to spin on; done at a stop request."""
+        self._wait = Future()
+        if self.requested:
+            self._wait.set_result(None)
+        return self._wait
+
+    def __enter__(self) -> StopSignals:
+        self._previous = [(signum, signal.signal(signum, self._handle)) for signum in self.SIGNALS]
+        return self
+
+    def __exit__(self, *_: object) -> None:
+        for signum, handler in self._previous:
+            signal.signal(signum, handler)  # type: ignore[arg-type]
+
+    def _handle(self, signum: int, _frame: object) -> None:
+        self.requested = True
+        if not self.spinning:
+            raise KeyboardInterrupt(signal.Signals(signum).name)
+        # From another thread: the interrupted code may hold the future's (non-reentrant) lock.
+        threading.Thread(target=self._end_wait, daemon=True).start()
+
+    def _end_wait(self) -> None:
+        wait = self._wait
+        if not wait.done():
+            wait.set_result(None)
+
+
 def _init(args: list[str]) -> None:
-    """``rclpy.init`` with the parameter files checked first; ParameterValueError if they or
-    the other ROS arguments are refused (rcl's message without its source locations)."""
+    """``rclpy.init`` without rclpy's signal handlers (module docstring), the parameter files
+    checked first; ParameterValueError if they or the other ROS arguments are refused (rcl's
+    message without its source locations)."""
     check_parameter_files(args)
     try:
-        rclpy.init(args=args)
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     except RCLError as exc:
         raise ParameterValueError(re.sub(r", at /\S+:\d+", "", str(exc))) from exc
 
@@ -91,11 +148,14 @@ def run_node(factory: Callable[[], Node], args: Sequence[str] | None = None) -> 
         return 2
     node: Node | None = None
     executor: Executor | None = None
+    stop = StopSignals()
     try:
-        node = factory()
-        executor = make_executor()
-        executor.add_node(node)
-        spin_guarded(executor, node, rclpy.ok)
+        with stop:
+            node = factory()
+            executor = make_executor()
+            executor.add_node(node)
+            stop.spinning = True
+            spin_guarded(executor, node, lambda: rclpy.ok() and not stop.requested, waits=stop.wait)
     except ParameterValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -1,0 +1,88 @@
+"""The nodes' stop on Ctrl-C/SIGTERM (gnss_ins_common.ros_node_main.run_node): a request the
+spin loop reads, not an interrupt inside a callback or a context shut down under it.
+
+The node here keeps its executor busy all the time (a 1 kHz timer whose callback computes for
+3 ms and publishes), so the signal always lands inside a callback: with rclpy's own handlers
+the context went away under the publish ("publisher's context is invalid", logged FATAL) on
+every stop, and EventsExecutor's time-out is never reached while it is this busy."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from gnss_ins_common.ros_node_main import StopSignals
+
+pytestmark = pytest.mark.ros
+
+BUSY_NODE = """
+import sys, time
+from rclpy.node import Node
+from std_msgs.msg import String
+from gnss_ins_common.ros_node_main import run_node
+
+class Busy(Node):
+    def __init__(self):
+        super().__init__("busy")
+        self.pub = self.create_publisher(String, "busy", 10)
+        self.create_timer(0.001, self.tick)
+        self.ticks = 0
+
+    def tick(self):
+        end = time.perf_counter() + 0.003
+        while time.perf_counter() < end:
+            pass
+        self.ticks += 1
+        if self.ticks == 20:
+            print("spinning", flush=True)
+        self.pub.publish(String(data=str(self.ticks)))
+
+sys.exit(run_node(Busy, sys.argv))
+"""
+
+
+def _busy_node() -> subprocess.Popen[str]:
+    process = subprocess.Popen(
+        [sys.executable, "-c", BUSY_NODE],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
+    assert process.stdout is not None
+    assert process.stdout.readline().strip() == "spinning"
+    return process
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_a_busy_node_stops_in_order_on_a_signal(signum: int) -> None:
+    process = _busy_node()
+    time.sleep(0.5)
+    process.send_signal(signum)
+    try:
+        output, _ = process.communicate(timeout=20)
+    finally:
+        process.kill()  # if the signal did not end it (then the time-out fails the test)
+    assert process.returncode == 0, output
+    for noise in ("context is invalid", "FATAL", "Traceback", "callback error"):
+        assert noise not in output, output
+
+
+def test_a_signal_is_a_request_while_spinning_and_an_interrupt_before() -> None:
+    with StopSignals() as stop:
+        with pytest.raises(KeyboardInterrupt):
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(1.0)  # the handler runs at the next bytecode; never this long
+        stop.spinning = True
+        wait = stop.wait()
+        os.kill(os.getpid(), signal.SIGINT)  # no exception now
+        deadline = time.monotonic() + 5.0
+        while not wait.done() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert stop.requested and wait.done()
+        assert stop.wait().done()  # a wait after the request ends at once
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
