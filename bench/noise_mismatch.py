@@ -49,7 +49,7 @@ from ins_fusion.sim.gnss_model import GnssErrorModel, GnssSchedule
 from ins_fusion.sim.imu_model import PROFILES as IMU_PROFILES
 from ins_fusion.sim.imu_model import ImuErrorModel, ImuProfile
 from ins_fusion.sim.scenarios import SCENARIOS, SURVEY_CAR
-from ins_fusion.sim.vehicle import VehicleTruth
+from ins_fusion.sim.vehicle import TruthCache, VehicleTruth
 from ins_fusion.sim.vibration import (
     PROFILES as VIBRATION_PROFILES,
 )
@@ -210,7 +210,10 @@ def build_streams(
     velocities: list[VelocityFix] = []
     if gnss == "rtk":
         model = GnssErrorModel(
-            truth.gnss_truth, GNSS_PROFILES["leica_rtk"], GnssSchedule(outages), seed=seed
+            TruthCache(truth.gnss_truths, truth.gnss_truth),
+            GNSS_PROFILES["leica_rtk"],
+            GnssSchedule(outages),
+            seed=seed,
         )
         for fix in model.fixes(0.0, duration_s):
             fixes.append(

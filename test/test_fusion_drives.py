@@ -39,7 +39,7 @@ from ins_fusion.sim.gnss_model import GnssErrorModel, GnssFix, GnssSchedule
 from ins_fusion.sim.imu_model import PROFILES as IMU_PROFILES
 from ins_fusion.sim.imu_model import ImuErrorModel
 from ins_fusion.sim.scenarios import SCENARIOS, SURVEY_CAR
-from ins_fusion.sim.vehicle import VehicleTruth
+from ins_fusion.sim.vehicle import TruthCache, VehicleTruth
 
 REPO = Path(__file__).resolve().parents[1]
 CALIBRATION = REPO / "config" / "imu400cc_calibration.yaml"
@@ -99,13 +99,14 @@ def simulate(
         t, imu.rate_flu_rad_s, imu.specific_force_flu_m_s2
     )
     events: list[tuple[float, Measurement]] = []
+    gnss_truth = TruthCache(truth.gnss_truths, truth.gnss_truth)
     rtk = GnssErrorModel(
-        truth.gnss_truth, GNSS_PROFILES["leica_rtk"], GnssSchedule(tuple(outages)), seed=seed
+        gnss_truth, GNSS_PROFILES["leica_rtk"], GnssSchedule(tuple(outages)), seed=seed
     )
     for fix in rtk.fixes(0.0, duration_s):
         events += [(fix.arrival_t_s, m) for m in _from_fix(fix)]
     if with_attitude:
-        adu5 = GnssErrorModel(truth.gnss_truth, GNSS_PROFILES["adu5"], seed=seed + 1000)
+        adu5 = GnssErrorModel(gnss_truth, GNSS_PROFILES["adu5"], seed=seed + 1000)
         for fix in adu5.fixes(0.0, duration_s):
             assert fix.quat_enu_flu is not None and fix.attitude_sigma_rpy_rad is not None
             cov = np.diag(np.square(fix.attitude_sigma_rpy_rad))

@@ -23,7 +23,7 @@ from ins_fusion.sim.imu_model import PROFILES as IMU_PROFILES
 from ins_fusion.sim.imu_model import ImuErrorModel
 from ins_fusion.sim.scenarios import SCENARIOS
 from ins_fusion.sim.trajectory import Mounting
-from ins_fusion.sim.vehicle import VehicleSetup, VehicleTruth
+from ins_fusion.sim.vehicle import TruthCache, VehicleSetup, VehicleTruth
 
 #: The IMU's true mounting in base_link (REP-103 roll, pitch, yaw [deg]) and how much later
 #: than the GNSS its samples are stamped [s]; the filter is told neither.
@@ -53,7 +53,8 @@ def mounted_drive(
     rate, force = ImuErrorModel(profile, seed).apply(
         t, imu.rate_flu_rad_s, imu.specific_force_flu_m_s2
     )
-    rtk = GnssErrorModel(truth.gnss_truth, GNSS_PROFILES["leica_rtk"], GnssSchedule(), seed=seed)
+    gnss_truth = TruthCache(truth.gnss_truths, truth.gnss_truth)
+    rtk = GnssErrorModel(gnss_truth, GNSS_PROFILES["leica_rtk"], GnssSchedule(), seed=seed)
     events = [
         (fix.arrival_t_s, dataclasses.replace(m, t_s=m.t_s - imu_late_s))
         for fix in rtk.fixes(0.0, duration_s)

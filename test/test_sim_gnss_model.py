@@ -21,7 +21,7 @@ from ins_fusion.sim.gnss_model import (
     GnssSchedule,
 )
 from ins_fusion.sim.scenarios import SURVEY_CAR, seed_test_pattern
-from ins_fusion.sim.vehicle import TruthCache, VehicleTruth
+from ins_fusion.sim.vehicle import GnssTruth, TruthCache, VehicleTruth
 
 TRUTH = VehicleTruth(seed_test_pattern(), SURVEY_CAR)
 #: TRUTH.gnss_truth answered from 10 s batches on a 0.1 s grid (every epoch of the receivers
@@ -47,6 +47,22 @@ def _errors_ned(fixes: list[GnssFix]) -> np.ndarray:
             ]
         )
     return np.array(out)
+
+
+def test_a_truth_cache_is_filled_with_the_epochs_times_in_one_batch():
+    batches: list[int] = []
+
+    def batch(t_s: np.ndarray) -> list[GnssTruth]:
+        batches.append(len(t_s))
+        return TRUTH.gnss_truths(t_s)
+
+    def single(t_s: float) -> GnssTruth:
+        raise AssertionError(f"truth evaluated on its own at {t_s} s")
+
+    model = GnssErrorModel(TruthCache(batch, single), PROFILES["leica_rtk"], seed=1)
+    assert len(list(model.fixes(0.0, 20.0))) == 20
+    assert len(list(model.fixes(20.0, 30.0))) == 10
+    assert batches == [20, 10]
 
 
 def test_rtk_fixes_have_centimetre_noise_and_no_vertical_velocity():

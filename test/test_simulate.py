@@ -267,7 +267,7 @@ def test_gnss_messages_are_what_gnss_node_publishes():
     events = Simulation(config).gnss_events(0.0, 6.0)
     simulation = Simulation(config)
     node_messages: list[tuple[str, Any]] = []
-    for receiver, model, _ in simulation.receivers:
+    for receiver, model in simulation.receivers:
         stub, published = _node_stub(
             GnssNode,
             _frame_id="gnss_link",

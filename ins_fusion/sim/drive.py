@@ -162,7 +162,7 @@ class Simulation:
     ``events(t_start_s, t_end_s)`` produces the messages of a time span (call in time order);
     ``stream()`` all of them in receive order. Also the source of the live emulators: ``vehicle``,
     ``imu_model``, ``vibration_profile`` and ``vibration_seed`` (``Vibration`` of the IMU's
-    rate), ``receivers`` (receiver, its error model, the truth cache feeding it) and
+    rate), ``receivers`` (receiver, its error model fed by a truth cache) and
     ``truth_events``.
     """
 
@@ -188,7 +188,7 @@ class Simulation:
         receivers = [(config.gnss, Receiver.LEICA, gnss_seed)] if config.gnss else []
         if config.adu5:
             receivers.append(("adu5", Receiver.ADU5, adu5_seed))
-        self.receivers: list[tuple[ReceiverModel, GnssErrorModel, TruthCache[Any]]] = []
+        self.receivers: list[tuple[ReceiverModel, GnssErrorModel]] = []
         for profile, receiver, seed in receivers:
             truth = TruthCache(self.vehicle.gnss_truths, self.vehicle.gnss_truth)
             rate_hz = None if receiver is Receiver.ADU5 else config.gnss_rate_hz
@@ -200,7 +200,7 @@ class Simulation:
                 config.start_ns / 1e9,
                 config.gnss_noise_scale,
             )
-            self.receivers.append((ReceiverModel(receiver), model, truth))
+            self.receivers.append((ReceiverModel(receiver), model))
 
     def _zone(self, spec: SkyZoneSpec) -> SkyZone:
         if not 0.0 <= spec.t_s <= self.config.duration_s:
@@ -282,8 +282,7 @@ class Simulation:
     def gnss_events(self, t_start_s: float, t_end_s: float) -> list[Event]:
         """gnss_node's messages of each receiver's epochs in [t_start_s, t_end_s)."""
         events: list[Event] = []
-        for receiver, model, truth in self.receivers:
-            truth.fill(model.epoch_times(t_start_s, t_end_s))
+        for receiver, model in self.receivers:
             for epoch in model.epochs(t_start_s, t_end_s):
                 stamp, log = (
                     self.config.start_ns + round(t * 1e9) for t in (epoch.t_s, epoch.arrival_t_s)

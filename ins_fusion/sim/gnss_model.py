@@ -43,7 +43,7 @@ from ins_fusion.core.rotation import (
     quat_nb_from_enu_flu,
 )
 from ins_fusion.sim.noise import GaussMarkov
-from ins_fusion.sim.vehicle import GnssTruth
+from ins_fusion.sim.vehicle import GnssTruth, TruthCache
 
 #: Tolerance of epoch times against whole multiples of the period [s].
 _TIME_TOLERANCE_S = 1e-6
@@ -333,7 +333,10 @@ class GnssErrorModel:
                 yield epoch.fix
 
     def epochs(self, t_start_s: float, t_end_s: float) -> Iterator[GnssEpoch]:
-        """Every epoch in [t_start_s, t_end_s), with its fix or None."""
+        """Every epoch in [t_start_s, t_end_s), with its fix or None; a TruthCache truth is
+        filled with their times first (one batch, not one evaluation per epoch)."""
+        if isinstance(self.truth, TruthCache):
+            self.truth.fill(self.epoch_times(t_start_s, t_end_s))
         period = 1.0 / self.profile.rate_hz
         for epoch in range(*self._epoch_range(t_start_s, t_end_s)):
             dt = period * (epoch - self._next_epoch + 1) if self._next_epoch else period

@@ -368,7 +368,7 @@ def run_live(
         )
         ports = [("imu", imu.path)]
         gnss_devices: list[GnssEmulator] = []
-        for receiver, model, _ in simulation.receivers:
+        for receiver, model in simulation.receivers:
             source = LiveGnss(model, receiver.config, start_s, config.duration_s)
             source.device = device = GnssEmulator(source, receiver.config)
             stack.enter_context(device)
