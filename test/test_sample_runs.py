@@ -16,10 +16,13 @@ from sim_bags import FIGURE_EIGHT_90_S, shared_bag
 from test_compiled import PARAMETER_SETS
 
 from gnss_ins_common.params import validate_all
+from ins_fusion.core import sample_runs
+from ins_fusion.core.compiled import kernel_array
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.engine import InsEngine
 from ins_fusion.core.params import PARAMETERS
 from ins_fusion.core.smoothed_solution import attach_recorder
+from ins_fusion.core.solution_rows import RowBuffer
 from ins_fusion.replay.inputs import ImuSeries, ReplayInputs, load_bag
 from ins_fusion.replay.run import output_ticks, run_fusion
 from ins_fusion.replay.topics import TopicMap
@@ -81,7 +84,7 @@ def _sample_by_sample(inputs: ReplayInputs, parameters: dict[str, object], smoot
         entry.checkpoint = engine._checkpoint()
         return start + 1
 
-    engine._repropagate_run = one_entry
+    engine._runs.repropagate = lambda _s, _kf, entries, start: one_entry(entries, start)
     if smooth:
         attach_recorder(engine)
     feed = {
@@ -130,14 +133,90 @@ def test_with_the_smoother_attached_the_engine_goes_sample_by_sample(inputs: Rep
 
 @pytest.mark.parametrize("damage", [False, True], ids=["clean", "damaged"])
 @pytest.mark.parametrize("name", ["defaults", "all_states"])
-def test_the_fast_paths_equal_the_general_path(inputs: ReplayInputs, name: str, damage: bool):
+def test_the_fast_paths_equal_the_general_path(
+    inputs: ReplayInputs, name: str, damage: bool, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """Compiled runs and the fused NHC (no smoother) against sample by sample with the
     recorder attached (no run, every NHC the general way; the recorder only listens)."""
     if damage:
         inputs = _damaged(inputs)
     parameters = validate_all(PARAMETERS, _SETS[name])
     expected_rows, expected_status = _sample_by_sample(inputs, parameters, smooth=True)
+    taken = _count_runs(monkeypatch)
     run = run_fusion(inputs, parameters)
     assert run.status.measurements["nhc"]["used"] > 300
+    # The runs took pseudo-measurement epochs with their NHC and covariance steps.
+    assert taken["nhc"] > 300 and taken["covariances"] > taken["nhc"] + 100
     np.testing.assert_array_equal(run.track.rows, expected_rows)
     assert repr(run.status) == repr(expected_status)
+
+
+def _count_runs(monkeypatch: pytest.MonkeyPatch) -> dict[str, int]:
+    """Totals of what take_run returns from now on: covariances handed back, NHC updates,
+    runs ended by an unusable filter."""
+    taken = {"covariances": 0, "nhc": 0, "problems": 0}
+    take_run = sample_runs.take_run
+
+    def counted(*args):  # type: ignore[no-untyped-def]
+        result = take_run(*args)
+        taken["covariances"] += result[5]
+        taken["nhc"] += result[6]
+        taken["problems"] += result[1] == sample_runs.RUN_PROBLEM
+        return result
+
+    monkeypatch.setattr(sample_runs, "take_run", counted)
+    return taken
+
+
+def _poisoned(inputs: ReplayInputs, series: bool, at: int):  # type: ignore[no-untyped-def]
+    """Rows and status of an engine (defaults) fed ``inputs`` sample by sample (``series``
+    False) or in runs between the measurements' arrivals, as the replay feeds it, whose
+    covariance turns non-finite after sample ``at``."""
+    config = FusionConfig.from_parameters(validate_all(PARAMETERS, {}))
+    engine = InsEngine(config)
+    feed = {"fix": engine.add_gnss_fix, "vel": engine.add_gnss_velocity}
+    imu = inputs.imu
+    t_s, rate, force = (kernel_array(a) for a in (imu.t_s, imu.rate_flu_rad_s, imu.force_flu_m_s2))
+    ticks = output_ticks(t_s, inputs.t0_s, config.output_rate_hz)
+    rows = RowBuffer()
+    kept = [m for m in inputs.measurements if m[1] in feed]
+    k = j = 0
+    for stop in sorted({m[0] for m in kept} | {at + 1, len(t_s)}):
+        while j < len(kept) and kept[j][0] <= k:
+            feed[kept[j][1]](kept[j][2])
+            j += 1
+        if stop <= k:
+            continue
+        if series:
+            engine.add_imu_series(t_s, rate, force, ticks, (k, stop), rows)
+        else:
+            for i in range(k, stop):
+                engine.add_imu(float(t_s[i]), rate[i], force[i])
+                if ticks[i] and (row := engine.solution_row()) is not None:
+                    rows.append(row)
+        k = stop
+        if k == at + 1:
+            P = engine._filter.P.copy()
+            P[0, 0] = np.nan
+            engine._filter.P = P
+    return rows.rows(), engine.status()
+
+
+def test_a_run_hands_an_unusable_filter_to_the_engine(
+    inputs: ReplayInputs, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A covariance gone non-finite inside a run: the run stops after the pseudo-measurement
+    epoch that finds it and the engine resets, as sample by sample."""
+    # Just before the stamp of a fix that arrives later: its re-propagation (and every later
+    # one) starts after the damage instead of undoing it.
+    fix = next(
+        m for _, role, m in inputs.measurements[len(inputs.measurements) // 2 :] if role == "fix"
+    )
+    at = int(np.searchsorted(inputs.imu.t_s, fix.t_s)) - 2
+    expected_rows, expected_status = _poisoned(inputs, False, at)
+    taken = _count_runs(monkeypatch)
+    rows, status = _poisoned(inputs, True, at)
+    assert taken["problems"] == 1
+    assert status.resets == 1 and status.last_reset_reason == "non-finite covariance"
+    np.testing.assert_array_equal(rows, expected_rows)
+    assert repr(status) == repr(expected_status)

@@ -89,7 +89,7 @@ from ins_fusion.core.measurements import (
     GnssVelocityMeasurement,
 )
 from ins_fusion.core.propagation import ImuDensities, Propagator, bridge
-from ins_fusion.core.sample_runs import RUN_DONE, CompiledRuns
+from ins_fusion.core.sample_runs import RUN_DONE, RUN_PROBLEM, CompiledRuns
 from ins_fusion.core.smoother import SmootherHooks
 from ins_fusion.core.solution import InsSolution, SolutionBuilder, self_calibration, unpack
 from ins_fusion.core.solution_rows import RowBuffer
@@ -184,7 +184,7 @@ class InsEngine:
             geometry,
             (self._intake, self._calibration_table),
             (self._integrator, self._detector, self._densities),
-            (self._propagator, self._output, self._timeline),
+            (self._propagator, self._output, self._timeline, self._corrections),
         )
         self._clear()
 
@@ -270,8 +270,15 @@ class InsEngine:
         s, kf = self._state, self._filter
         assert s is not None and kf is not None and self.datum is not None
         pseudo_t = self._next_pseudo_t_s
-        k, code, inc = self._runs.take(s, kf, self.datum, pseudo_t, samples, (start, stop), rows)
-        if code != RUN_DONE:
+        k, code, inc, epoch = self._runs.take(
+            s, kf, self.datum, pseudo_t, samples, (start, stop), rows
+        )
+        if epoch is not None:  # what _start_pseudo_interval did at the run's epochs
+            self._next_pseudo_t_s, self._zaru_start_s = epoch
+        if code == RUN_PROBLEM:
+            self._check_health()
+            self._record_tick(bool(samples[3][k - 1]), rows)
+        elif code != RUN_DONE:
             self._finish_sample(float(samples[0][k - 1]) - self.config.imu_time_offset_s, inc, code)
             self._record_tick(bool(samples[3][k - 1]), rows)
         return k
@@ -604,8 +611,15 @@ class InsEngine:
             record = self._timeline.record(kind, t, payload)
             entry.measurements.append(record)
             self._apply(record, live=True)
+        self._check_health()
+
+    def _check_health(self) -> None:
+        """After a pseudo-measurement epoch: reset when the filter is unusable."""
+        s, kf = self._state, self._filter
+        assert s is not None and kf is not None
         problem = kf.problem()
-        if problem is None and not all(map(math.isfinite, x[X_NAV : X_NAV + NAV_SIZE].tolist())):
+        nav = s.x[X_NAV : X_NAV + NAV_SIZE].tolist()
+        if problem is None and not all(map(math.isfinite, nav)):
             problem = "non-finite navigation state"
         if problem is not None:
             self._reset(problem)

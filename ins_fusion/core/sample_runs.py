@@ -16,32 +16,51 @@ measurement steps through.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from gnss_ins_common.types import BoolArray, FloatArray, IntArray
 from ins_fusion.core.adaptation import B_MEAN, B_VERSION
 from ins_fusion.core.compiled import jit
 from ins_fusion.core.config import FusionConfig
-from ins_fusion.core.eskf import ErrorStateFilter
-from ins_fusion.core.intake import PUSHED, REJECTED, S_LAST_RATE, STEPPED, take_sample
-from ins_fusion.core.propagation import ImuDensities, Propagator, advance
+from ins_fusion.core.eskf import ErrorStateFilter, ProcessModel, _covariance_problem
+from ins_fusion.core.fused_nhc import nhc_apply
+from ins_fusion.core.intake import (
+    PUSHED,
+    REJECTED,
+    S_LAST_RATE,
+    S_ZARU_N,
+    S_ZARU_SUM,
+    STEPPED,
+    take_sample,
+)
+from ins_fusion.core.propagation import ImuDensities, Propagator, advance, covariance_step
 from ins_fusion.core.solution import STATE, WIDTH, SolutionBuilder, _fill_row
 from ins_fusion.core.solution_rows import RowBuffer
 from ins_fusion.core.state import (
     X_COV_DT,
     X_HEADING_KNOWN,
     X_LAST_POSITION_T,
+    X_MOUNTING,
+    X_NAV,
+    X_Q_SCALE,
     X_SIZE,
     X_T,
     FilterState,
     Geometry,
+    turned_arm,
 )
 from ins_fusion.core.stop_detector import StopDetector
-from ins_fusion.core.strapdown import INCREMENT_SIZE, SampleIntegrator
+from ins_fusion.core.strapdown import INCREMENT_SIZE, NAV_SIZE, SampleIntegrator
 from ins_fusion.core.timeline import Entry, Timeline
+from ins_fusion.core.updates import Corrections
 
-#: ``take_run``'s code when the run ended without a sample for the engine to finish.
-RUN_DONE = -1
+#: ``take_run``'s codes when the run ended without a sample for the engine to finish, and
+#: after a pseudo-measurement epoch that left the filter unusable (the engine resets it).
+RUN_DONE, RUN_PROBLEM = -1, -2
+#: Most covariances one run hands back (covariance steps and NHC updates).
+STEPS_PER_RUN = 8
 #: Row STATE values (core.solution.STATES).
 _NAVIGATING, _DEGRADED, _ALIGNING = 1.0, 2.0, 0.0
 
@@ -51,15 +70,17 @@ def take_run(
     stores: tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray],
     r_bi: FloatArray,
     samples: tuple[FloatArray, FloatArray, FloatArray, BoolArray],
-    start: int,
-    stop: int,
+    span: tuple[int, int],
     limits: tuple[float, float, float, float, float],
     outs: tuple[FloatArray, FloatArray, FloatArray, IntArray, FloatArray],
     row_model: tuple[FloatArray, FloatArray, IntArray, FloatArray, FloatArray, FloatArray],
-    mounting: tuple[float, float],
     origin: tuple[float, float, float],
-) -> tuple[int, int, int, int, int]:
-    """Take samples ``start`` .. ``stop`` - 1 of ``samples`` (stamps [s], rates [rad/s] and
+    filtering: tuple[FloatArray, ProcessModel, tuple[FloatArray, FloatArray]],
+    constants: tuple[tuple[int, int, int, int, int], float, float, float, int],
+    epochs: tuple[float, float, float, bool, bool],
+    steps: tuple[IntArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray],
+) -> tuple[int, int, int, int, int, int, int]:
+    """Take samples ``span`` = (start, stop) of ``samples`` (stamps [s], rates [rad/s] and
     forces [m/s²] (n, 3) imu_link FLU, output tick after each sample) until one needs the
     engine (module docstring).
 
@@ -70,20 +91,35 @@ def take_run(
     ``outs``: ``incs`` / ``xs`` the increment and state after each ordinary sample (rows 0 ..
     m-1; row m the increment of the sample left to the engine), ``rows`` the solution rows of
     the ticks (``row_model``: J, P, the solution states, base_link lever arm, arm_bi and the
-    ENU plane's rotation, with ``mounting`` and ``origin`` as SolutionBuilder.row gives them),
-    ``seen`` the noise snapshot each ordinary sample saw (-1: the one in force at the start),
-    ``snapshots`` the noise monitor's version and B_MEAN numbers at each change.
-    Returns (next sample index, code of the sample left to the engine or RUN_DONE, m, rows
-    written, snapshots written)."""
+    ENU plane's rotation; ``origin`` as SolutionBuilder.row gives it), ``seen`` the noise
+    snapshot each ordinary sample saw (-1: the one in force at the start), ``snapshots`` the
+    noise monitor's version and B_MEAN numbers at each change.
+    ``filtering``: mat_bi, the filter's process model (ErrorStateFilter.process_model) and
+    the user's white-noise densities (ImuDensities.floor); ``constants``: StateLayout.columns,
+    the GNSS error's correlation time [s], NHC σ [m/s], the NHC's gate, the state size;
+    ``epochs``: the pseudo-measurement period [s], the stop detector's speed threshold [m/s],
+    nhc_min_speed [m/s], use_nhc, whether the detector is idle (no stop, no candidate).
+    ``steps`` receives the covariance each ordinary sample's checkpoint holds (-1: that of
+    ``row_model``), the covariance after each change (STEPS_PER_RUN, n, n), the last
+    transition (n, n) and white-noise densities (2, 3), the NHC of each epoch (rows: sample,
+    accepted, NIS) and (next epoch's stamp, start of its ZARU interval) [s].
+    Returns (next sample index, code of the sample left to the engine, RUN_DONE or
+    RUN_PROBLEM, m, rows written, snapshots written, covariances written, epochs taken)."""
     buf, table, integrator, ring, block, x = stores
     t_s, rate, force, ticks = samples
+    start, stop = span
     offset_s, due_t, pseudo_t, interval_s, degraded_after_s = limits
     incs, xs, rows, seen, snapshots = outs
-    J, P, states, arm_b, arm_bi, mat_enu_ecef = row_model
+    J, P, states, base_arm_b, arm_bi, mat_enu_ecef = row_model
+    mat_bi, process, floor = filtering
+    columns, correlation_time_s, sigma_m_s, gate, size = constants
+    period_s, stop_speed_m_s, nhc_min_speed_m_s, use_nhc, detector_idle = epochs
+    held, covs, phi_out, white_out, nhcs, pseudo_out = steps
+    F, Q, _, misalignment_q, _, markov_idx, markov_q = process
+    has_mounting = columns[3] >= 0
+    arm_b = _base_arm(base_arm_b, x, has_mounting)
     version = block[B_VERSION]
-    m = 0
-    r = 0
-    v = 0
+    m = r = v = c = e = 0
     for i in range(start, stop):
         t = t_s[i] - offset_s
         code = take_sample(
@@ -105,20 +141,65 @@ def take_run(
             not due_t < t,
         )
         if code != REJECTED:
-            plain = code == PUSHED + STEPPED and x[X_COV_DT] < interval_s and t < pseudo_t
-            if not plain:
-                return i + 1, code, m, r, v
+            due = x[X_COV_DT] >= interval_s
+            epoch = t >= pseudo_t
+            if (
+                code != PUSHED + STEPPED
+                or c + 2 > len(covs)
+                or (due and x[X_HEADING_KNOWN] == 0.0)
+                or (epoch and not _moving_epoch(x, detector_idle, stop_speed_m_s))
+            ):
+                return i + 1, code, m, r, v, c, e
             if block[B_VERSION] != version:
                 version = block[B_VERSION]
                 snapshots[v, 0] = version
                 snapshots[v, 1:] = block[B_MEAN : B_MEAN + 6]
                 v += 1
             seen[m] = v - 1
+            if due:  # Propagator.advanced with the heading known
+                gyro, accel = _white_noise(block, floor, x[X_Q_SCALE])
+                model = (F, Q, gyro, misalignment_q, accel, markov_idx, markov_q)
+                P, phi = covariance_step(P, x, mat_bi, model, columns, correlation_time_s)
+                phi_out[:, :] = phi
+                white_out[0, :], white_out[1, :] = gyro, accel
+                covs[c] = P
+                c += 1
+            held[m] = c - 1
             xs[m, :] = x
             m += 1
+            if epoch:  # InsEngine._pseudo_epoch, moving (the detector decides no stop)
+                pseudo_t = (math.floor(t / period_s) + 1.0) * period_s
+                buf[S_ZARU_SUM : S_ZARU_N + 1] = 0.0
+                pseudo_out[0], pseudo_out[1] = pseudo_t, t
+                horizontal = math.hypot(x[X_NAV + 3], x[X_NAV + 4])
+                if use_nhc and horizontal > nhc_min_speed_m_s:  # FusedNhc.apply
+                    gyro, accel = _white_noise(block, floor, x[X_Q_SCALE])
+                    stepped, phi, accepted, nis, P = nhc_apply(
+                        P,
+                        x,
+                        t,
+                        (F, Q, gyro, misalignment_q, accel, markov_idx, markov_q),
+                        (mat_bi, arm_b),
+                        columns,
+                        (correlation_time_s, sigma_m_s, gate, size),
+                    )
+                    if stepped:
+                        phi_out[:, :] = phi
+                    white_out[0, :], white_out[1, :] = gyro, accel
+                    covs[c] = P
+                    c += 1
+                    nhcs[e, 0], nhcs[e, 1], nhcs[e, 2] = m - 1, accepted, nis
+                    e += 1
+                    arm_b = _base_arm(base_arm_b, x, has_mounting)
+                if (
+                    _covariance_problem(P) != -1
+                    or not np.isfinite(x[X_NAV : X_NAV + NAV_SIZE]).all()
+                ):
+                    return i + 1, RUN_PROBLEM, m, r, v, c, e
         if ticks[i]:
             row = rows[r]
             rate_i = buf[S_LAST_RATE : S_LAST_RATE + 3]
+            mounting = (x[X_MOUNTING], x[X_MOUNTING + 1]) if has_mounting else (0.0, 0.0)
             _fill_row(
                 row, J, x, P, states, arm_b, r_bi, arm_bi, rate_i, mounting, origin, mat_enu_ecef
             )
@@ -129,7 +210,41 @@ def take_run(
             else:
                 row[STATE] = _NAVIGATING
             r += 1
-    return stop, RUN_DONE, m, r, v
+    return stop, RUN_DONE, m, r, v, c, e
+
+
+@jit
+def _moving_epoch(x: FloatArray, detector_idle: bool, stop_speed_m_s: float) -> bool:
+    """Whether a pseudo-measurement epoch at state ``x`` can stay in the run: the heading is
+    known and StopDetector.evaluate would decide no stop without looking at the IMU (it is
+    idle and the filter's speed vetoes a stop: at or above ``stop_speed_m_s`` [m/s])."""
+    speed = math.hypot(math.hypot(x[X_NAV + 3], x[X_NAV + 4]), x[X_NAV + 5])
+    return x[X_HEADING_KNOWN] != 0.0 and detector_idle and speed >= stop_speed_m_s
+
+
+@jit
+def _base_arm(base_arm_b: FloatArray, x: FloatArray, has_mounting: bool) -> FloatArray:
+    """Geometry.arms(s)[1]: the base_link lever arm turned by the residual mounting in ``x``."""
+    pitch, yaw = x[X_MOUNTING], x[X_MOUNTING + 1]
+    if not has_mounting or (pitch == 0.0 and yaw == 0.0):
+        return base_arm_b
+    return turned_arm(base_arm_b, pitch, yaw)
+
+
+@jit
+def _white_noise(
+    block: FloatArray, floor: tuple[FloatArray, FloatArray], q_scale: float
+) -> tuple[FloatArray, FloatArray]:
+    """Propagator.white_noise of the densities in force (ImuDensities.current: the floor
+    raised to the noise monitor's estimate in ``block``, none before its first) [rad²/s,
+    m²/s³]."""
+    gyro = floor[0].copy()
+    accel = floor[1].copy()
+    if block[B_VERSION] != 0.0:
+        for k in range(3):
+            gyro[k] = np.maximum(gyro[k], block[B_MEAN + k])
+            accel[k] = np.maximum(accel[k], block[B_MEAN + 3 + k])
+    return gyro * q_scale, accel * q_scale
 
 
 @jit
@@ -154,7 +269,8 @@ def advance_run(
 
 class CompiledRuns:
     """The engine's side of the two kernels: their arguments from the engine's stores, and the
-    history entries, checkpoints and rows they return (InsEngine owns one; module docstring)."""
+    history entries, checkpoints, NHC books and rows they return (InsEngine owns one; module
+    docstring)."""
 
     def __init__(
         self,
@@ -162,14 +278,20 @@ class CompiledRuns:
         geometry: Geometry,
         arrays: tuple[FloatArray, FloatArray],
         sensors: tuple[SampleIntegrator, StopDetector, ImuDensities],
-        filtering: tuple[Propagator, SolutionBuilder, Timeline],
+        filtering: tuple[Propagator, SolutionBuilder, Timeline, Corrections],
     ) -> None:
         """``arrays``: the intake (core.intake S_* layout) and calibration table."""
         self._config = config
-        self._r_bi = geometry.r_bi
+        self._geometry = geometry
         self._intake, self._table = arrays
         self._integrator, self._detector, self._densities = sensors
-        self._propagator, self._output, self._timeline = filtering
+        self._propagator, self._output, self._timeline, self._corrections = filtering
+        self._epochs = (
+            1.0 / config.pseudo_measurement_rate_hz,
+            config.stop_detector.speed_m_s,
+            config.nhc_min_speed_m_s,
+            config.use_nhc,
+        )
 
     def take(
         self,
@@ -180,20 +302,24 @@ class CompiledRuns:
         samples: tuple[FloatArray, FloatArray, FloatArray, BoolArray],
         span: tuple[int, int],
         rows: RowBuffer,
-    ) -> tuple[int, int, FloatArray]:
+    ) -> tuple[int, int, FloatArray, tuple[float, float] | None]:
         """``take_run`` over ``span`` of ``samples`` (the filter runs, no re-propagation due;
         ``pseudo_t_s``: stamp of the next pseudo-measurement epoch [s]): the ordinary samples'
-        history entries appended to the timeline, their rows to ``rows``.
-        Returns (next sample index, code of the sample left to the engine or RUN_DONE, that
-        sample's increment)."""
+        history entries appended to the timeline, the NHC of their epochs booked, their rows
+        to ``rows``. Returns (next sample index, code of the sample left to the engine,
+        RUN_DONE or RUN_PROBLEM, that sample's increment, (next pseudo-measurement epoch,
+        start of its ZARU interval) [s] when the run took an epoch)."""
         start, stop = span
         n = stop - start
         incs, xs, out = np.empty((n, INCREMENT_SIZE)), np.empty((n, X_SIZE)), np.empty((n, WIDTH))
         seen, snapshots = np.empty(n, dtype=np.int64), np.empty((n, 7))
+        held, covs = np.empty(n, dtype=np.int64), np.empty((STEPS_PER_RUN, *kf.P.shape))
+        phi, white, nhcs = np.empty(kf.P.shape), np.empty((2, 3)), np.empty((n, 3))
+        pseudo = np.array([pseudo_t_s, math.nan])
         densities = self._densities
         noise = densities.current()
-        model, mounting, origin = self._output.model(s, kf, datum_deg)
-        config = self._config
+        (J, P, states, _, arm_bi, plane), _, origin = self._output.model(s, kf, datum_deg)
+        geometry, config = self._geometry, self._config
         limits = (
             config.imu_time_offset_s,
             self._timeline.due_stamp(),
@@ -206,32 +332,61 @@ class CompiledRuns:
             self._table,
             self._integrator.buffer,
             self._detector.ring,
-            self._densities.monitor.block,
+            densities.monitor.block,
             s.x,
         )
-        outs = (incs, xs, out, seen, snapshots)
-        k, code, m, r, v = take_run(
-            stores, self._r_bi, samples, start, stop, limits, outs, model, mounting, origin
+        k, code, m, r, v, c, e = take_run(
+            stores,
+            geometry.r_bi,
+            samples,
+            span,
+            limits,
+            (incs, xs, out, seen, snapshots),
+            (J, P, states, geometry.base_arm_b, arm_bi, plane),
+            origin,
+            (geometry.mat_bi, kf.process_model(), densities.floor),
+            (
+                kf.layout.columns,
+                config.gnss_correlation_time_s,
+                config.nhc_sigma_m_s,
+                self._corrections.gate(2),
+                kf.layout.size,
+            ),
+            (*self._epochs, self._detector.idle),
+            (held, covs, phi, white, nhcs, pseudo),
         )
-        # What ImuDensities.current read, Propagator.advanced and InsEngine._checkpoint did
-        # after each sample.
+        # What ImuDensities.current read, Propagator.advanced, InsEngine._checkpoint and the
+        # NHC's books (FusedNhc.apply) did after each sample.
         noises: list[tuple[FloatArray, FloatArray] | None] = [
             densities.adopt(snapshot[0], snapshot[1:]) for snapshot in snapshots[:v]
         ]
         if m:
             noises.append(noise)  # [-1]: the densities at the start
+            covariances = [*covs[:c], kf.P]  # [-1]: the covariance at the start
             s.changed()
-            P = kf.P
+            timeline, corrections = self._timeline, self._corrections
             entries = []
+            booked = 0
             for j in range(m):
                 noise = noises[seen[j]]
-                checkpoint = (s.with_x(xs[j], noise), P)
-                entries.append(Entry(float(xs[j, X_T]), incs[j], None, noise, checkpoint))
-            self._timeline.extend(entries)
+                checkpoint = (s.with_x(xs[j], noise), covariances[held[j]])
+                entry = Entry(float(xs[j, X_T]), incs[j], None, noise, checkpoint)
+                entries.append(entry)
+                if booked < e and nhcs[booked, 0] == j:
+                    record = timeline.record("nhc", entry.t_s, None)
+                    entry.measurements.append(record)
+                    accepted, nis = bool(nhcs[booked, 1]), float(nhcs[booked, 2])
+                    corrections.book(s, "nhc", accepted, nis, True)
+                    booked += 1
+            timeline.extend(entries)
             s.imu_psd = noise
+            if c:  # what the last step left in the filter
+                kf.P, kf.phi = covariances[c - 1], phi
+                kf.set_white_noise(white[0], white[1])
         for j in range(r):
             rows.append(out[j])
-        return k, code, incs[m] if code != RUN_DONE else incs[0]
+        epoch = None if math.isnan(pseudo[1]) else (float(pseudo[0]), float(pseudo[1]))
+        return k, code, incs[m] if code != RUN_DONE else incs[0], epoch
 
     def repropagate(
         self, s: FilterState, kf: ErrorStateFilter, entries: list[Entry], start: int
@@ -250,7 +405,9 @@ class CompiledRuns:
         xs = np.empty((len(run), X_SIZE))
         interval_s = self._config.covariance_interval_s
         incs = np.array([e.inc for e in run])
-        count = advance_run(s.x, incs, np.array([e.t_s for e in run]), self._r_bi, interval_s, xs)
+        count = advance_run(
+            s.x, incs, np.array([e.t_s for e in run]), self._geometry.r_bi, interval_s, xs
+        )
         s.imu_psd = noise  # what Propagator.advanced does after each step
         s.changed()
         due = bool(s.x[X_COV_DT] >= interval_s)

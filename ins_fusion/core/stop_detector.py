@@ -59,6 +59,12 @@ class StopDetector:
         self.gyro_variance = float("nan")
         self.accel_change = float("nan")
 
+    @property
+    def idle(self) -> bool:
+        """No stop and no stop candidate: ``evaluate`` then leaves the detector as it is when
+        a speed vetoes a stop (core.sample_runs relies on it)."""
+        return not self.stationary and self._candidate_since is None and self._stop_force is None
+
     def reset(self) -> None:
         """Forget the window and the decision."""
         self.ring[0, _HEAD] = self.ring[0, _COUNT] = 0.0

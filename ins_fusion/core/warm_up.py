@@ -31,7 +31,7 @@ from ins_fusion.core.measurements import (
 )
 from ins_fusion.core.output_numbers import NUMBERS, output_numbers
 from ins_fusion.core.propagation import advance, covariance_step, predicted_state
-from ins_fusion.core.sample_runs import advance_run, take_run
+from ins_fusion.core.sample_runs import STEPS_PER_RUN, advance_run, take_run
 from ins_fusion.core.solution import WIDTH, SolutionBuilder
 from ins_fusion.core.state import X_COV_DT, X_SIZE, FilterState, Geometry, inject_nominal
 from ins_fusion.core.stop_detector import StopDetector, window_statistics
@@ -88,16 +88,16 @@ def warm_up() -> float:
     output = SolutionBuilder(Geometry(config, layout), layout)
     row = output.row(s, kf, (57.0, 10.0, 40.0), np.zeros(3), "navigating")
     output_numbers(row, 1e-5, np.empty(NUMBERS))
-    model, mounting, origin = output.model(s, kf, (57.0, 10.0, 40.0))
+    model = output.model(s, kf, (57.0, 10.0, 40.0))
     series = (np.zeros(1), np.zeros((1, 3)), np.zeros((1, 3)), np.zeros(1, dtype=np.bool_))
     limits = (0.0, math.inf, math.inf, 0.01, 1.0)
     advance_run(s.x, np.zeros((0, INCREMENT_SIZE)), np.zeros(0), r_bi, 0.01, np.empty((0, X_SIZE)))
+    (J, P, states, arm_b, arm_bi, plane), _, origin = model
     take_run(
         stores[:6],
         r_bi,
         series,
-        0,
-        0,
+        (0, 0),
         limits,
         (
             np.empty((1, INCREMENT_SIZE)),
@@ -106,9 +106,19 @@ def warm_up() -> float:
             np.empty(1, dtype=np.int64),
             np.empty((1, 7)),
         ),
-        model,
-        mounting,
+        (J, P, states, arm_b, arm_bi, plane),
         origin,
+        (mat_bi, kf.process_model(), (config.imu_noise.gyro_psd, config.imu_noise.accel_psd)),
+        (layout.columns, 60.0, 0.1, math.inf, layout.size),
+        (0.1, 0.5, 1.0, True, True),
+        (
+            np.empty(1, dtype=np.int64),
+            np.empty((STEPS_PER_RUN, *kf.P.shape)),
+            np.empty(kf.P.shape),
+            np.empty((2, 3)),
+            np.empty((1, 3)),
+            np.array([math.inf, math.nan]),
+        ),
     )
     assert s.x.shape == (X_SIZE,)
     _ready = True
