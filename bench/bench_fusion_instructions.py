@@ -67,9 +67,10 @@ def count(tree: Path, bag: Path, workdir: Path) -> tuple[int, int]:
         _WORKER,
         str(bag),
     ]
+    # Run in the tree: ``python -c`` puts the working directory before PYTHONPATH.
     env = {**os.environ, "PYTHONPATH": str(tree)}
     worker = subprocess.Popen(
-        command, env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True
+        command, cwd=tree, env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True
     )
     assert worker.stdin is not None and worker.stdout is not None
     ready = worker.stdout.readline().split()
@@ -107,8 +108,8 @@ def main() -> None:
         return
     trees = [tree.resolve() for tree in args.tree or [Path(__file__).resolve().parents[1]]]
     with tempfile.TemporaryDirectory(prefix="instructions_") as temporary:
-        workdir = args.workdir or Path(temporary)
-        bag = args.bag or simulated_bag(workdir)
+        workdir = (args.workdir or Path(temporary)).resolve()
+        bag = (args.bag or simulated_bag(workdir)).resolve()
         for tree in trees:
             instructions, samples = count(tree, bag, workdir)
             print(

@@ -366,18 +366,18 @@ class CompiledRuns:
             s.changed()
             timeline, corrections = self._timeline, self._corrections
             entries = []
-            booked = 0
-            for j in range(m):
-                noise = noises[seen[j]]
-                checkpoint = (s.with_x(xs[j], noise), covariances[held[j]])
-                entry = Entry(float(xs[j, X_T]), incs[j], None, noise, checkpoint)
+            updates = iter(nhcs[:e].tolist())  # (sample, accepted, NIS) in sample order
+            at, accepted, nis = next(updates, (-1.0, 0.0, 0.0))
+            stamps, seen_by, held_by = xs[:m, X_T].tolist(), seen[:m].tolist(), held[:m].tolist()
+            per_sample = zip(list(xs[:m]), list(incs[:m]), stamps, seen_by, held_by, strict=True)
+            for j, (x, inc, t, snapshot, held_j) in enumerate(per_sample):
+                noise = noises[snapshot]
+                entry = Entry(t, inc, None, noise, (s.with_x(x, noise), covariances[held_j]))
                 entries.append(entry)
-                if booked < e and nhcs[booked, 0] == j:
-                    record = timeline.record("nhc", entry.t_s, None)
-                    entry.measurements.append(record)
-                    accepted, nis = bool(nhcs[booked, 1]), float(nhcs[booked, 2])
-                    corrections.book(s, "nhc", accepted, nis, True)
-                    booked += 1
+                if j == at:
+                    entry.measurements.append(timeline.record("nhc", t, None))
+                    corrections.book(s, "nhc", bool(accepted), nis, True)
+                    at, accepted, nis = next(updates, (-1.0, 0.0, 0.0))
             timeline.extend(entries)
             s.imu_psd = noise
             if c:  # what the last step left in the filter
