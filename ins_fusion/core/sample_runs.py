@@ -2,16 +2,22 @@
 
 An ordinary sample, once the filter runs, needs only the intake with its strapdown step
 (core.intake.take_sample), a history entry with its checkpoint and the IMU noise densities in
-force and, at an output tick, the solution row (core.solution). ``take_run`` takes samples from
-arrays until one needs Python: any code of take_sample but an ordinary step (a gap, a restart,
-a full detector ring, a sample kept from the step because a measurement is due before it), a
-covariance interval that is due, a pseudo-measurement epoch. It leaves that sample taken for
-the engine to finish as InsEngine.add_imu would, and hands back the ordinary samples'
-increments and states (each a checkpoint), a snapshot of the measured IMU noise at each of its
-changes (core.adaptation.ImuNoiseMonitor.adopt) with the snapshot each sample saw, and the rows
-of their output ticks, computed with the same kernels in the same order: the same numbers to
-the bit. ``advance_run`` does the same for the history entries a re-propagation after a late
-measurement steps through.
+force and, at an output tick, the solution row (core.solution); now and then a covariance step
+(Propagator.advanced) and a pseudo-measurement epoch. ``take_run`` takes samples from arrays
+until one needs Python: any code of take_sample but an ordinary step (a gap, a restart, a full
+detector ring, a sample kept from the step because a measurement is due before it), a
+covariance step while the heading is unknown, a pseudo-measurement epoch unless the vehicle is
+moving (the heading known, the stop detector idle and the filter's speed vetoing a stop: then
+the kernel runs the epoch, its NHC through core.fused_nhc.nhc_apply and the health check). It
+leaves that sample taken for the engine to finish as InsEngine.add_imu would, and hands back
+the ordinary samples' increments and states (each a checkpoint), a snapshot of the measured IMU
+noise at each of its changes (core.adaptation.ImuNoiseMonitor.adopt) with the snapshot each
+sample saw, the covariance after each step or NHC with the one each checkpoint holds, the NHC
+updates to book, and the rows of their output ticks, computed with the same kernels in the
+same order: the same numbers to the bit. A filter found unusable at an epoch ends the run
+(RUN_PROBLEM) for the engine's reset. ``advance_run`` does the same as ``take_run`` for the
+history entries a re-propagation after a late measurement steps through, up to the next
+covariance step.
 """
 
 from __future__ import annotations
