@@ -110,7 +110,7 @@ def take_run(
     transition (n, n) and white-noise densities (2, 3), the NHC of each epoch (rows: sample,
     accepted, NIS) and (next epoch's stamp, start of its ZARU interval) [s].
     Returns (next sample index, code of the sample left to the engine, RUN_DONE or
-    RUN_PROBLEM, m, rows written, snapshots written, covariances written, epochs taken)."""
+    RUN_PROBLEM, m, rows written, snapshots written, covariances written, NHC updates)."""
     buf, table, integrator, ring, block, x = stores
     t_s, rate, force, ticks = samples
     start, stop = span
@@ -320,7 +320,8 @@ class CompiledRuns:
         incs, xs, out = np.empty((n, INCREMENT_SIZE)), np.empty((n, X_SIZE)), np.empty((n, WIDTH))
         seen, snapshots = np.empty(n, dtype=np.int64), np.empty((n, 7))
         held, covs = np.empty(n, dtype=np.int64), np.empty((STEPS_PER_RUN, *kf.P.shape))
-        phi, white, nhcs = np.empty(kf.P.shape), np.empty((2, 3)), np.empty((n, 3))
+        # The filter's transition stays as it is unless a covariance step replaces it.
+        phi, white, nhcs = np.array(kf.phi), np.empty((2, 3)), np.empty((n, 3))
         pseudo = np.array([pseudo_t_s, math.nan])
         densities = self._densities
         noise = densities.current()
