@@ -1,16 +1,20 @@
 """ins_fusion.bags.columns: the columns of a bag's topics hold exactly the messages, log
 times and receive order that bag_io's message-by-message reader gives, for MCAP (read from its
-message indexes: several chunks, split files, equal log times across topics) and sqlite3."""
+message indexes: several chunks, split files, equal log times across topics, chunk checksums)
+and sqlite3."""
 
 from __future__ import annotations
 
+import struct
+import zlib
 from pathlib import Path
 
 import numpy as np
 import pytest
+from rosbags.rosbag2.storage_mcap import McapReader
 
 from ins_fusion.bags import columns as bag_columns
-from ins_fusion.bags.bag_io import BagReader, BagWriter, jazzy_typestore
+from ins_fusion.bags.bag_io import BagError, BagReader, BagWriter, jazzy_typestore
 from ins_fusion.bags.columns import read_topics
 
 TS = jazzy_typestore()
@@ -94,7 +98,7 @@ def test_columns_are_the_messages_in_receive_order(tmp_path, storage, max_file_b
         assert column.msgtype == TOPICS[topic]
         assert column.log_time_ns.tolist() == times
         assert column.order.tolist() == order
-        assert column.payloads == payloads
+        assert list(column.payloads) == payloads
     assert len(columns["/fix"].payloads) == 125
 
 
@@ -108,3 +112,41 @@ def test_mcap_is_read_from_its_indexes_in_chunks_and_files(tmp_path):
     parts = bag_columns._indexed_mcap(files, {"/imu", "/fix"}, None)
     assert parts is not None
     assert len({(p.file, p.chunk_offset) for p in parts}) > len(files)
+
+
+def _with_chunk_checksums(path: Path) -> list[tuple[int, int]]:
+    """Write each chunk's CRC-32 of its records into an MCAP file (rosbags writes 0: none;
+    ``ros2 bag record`` writes them); returns each chunk's (records offset, size)."""
+    data = bytearray(path.read_bytes())
+    records = []
+    storage = McapReader(path)
+    storage.open()
+    for chunk in storage.chunks:
+        start = chunk.chunk_start_offset + bag_columns._CHUNK_HEADER
+        end = start + chunk.uncompressed_size
+        crc = zlib.crc32(data[start:end])
+        struct.pack_into("<I", data, chunk.chunk_start_offset + bag_columns._CHUNK_CRC_AT, crc)
+        records.append((start, chunk.uncompressed_size))
+    storage.close()
+    path.write_bytes(bytes(data))
+    return records
+
+
+def test_chunk_checksums_are_checked(tmp_path):
+    """Chunks with a CRC read as before; a damaged byte in one is a BagError naming the
+    checksum, not wrong numbers."""
+    path = tmp_path / "bag"
+    _write(path, "mcap")
+    (file,) = path.glob("*.mcap")
+    records = _with_chunk_checksums(file)
+    topics = ["/imu", "/fix"]
+    with BagReader(path) as reader:
+        columns = read_topics(reader, topics)
+        expected = _expected(reader, topics)  # rosbags checks the CRCs too
+    assert [list(columns[t].payloads) for t in topics] == [expected[t][2] for t in topics]
+    data = bytearray(file.read_bytes())
+    start, size = records[-1]
+    data[start + size // 2] ^= 0xFF
+    file.write_bytes(bytes(data))
+    with BagReader(path) as reader, pytest.raises(BagError, match="checksum mismatch"):
+        read_topics(reader, topics)

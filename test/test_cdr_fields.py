@@ -182,15 +182,15 @@ def test_whole_gnss_topics_give_the_measurements_of_each_message(messages, repea
         twists.append(bytes(TS.serialize_cdr(twist, TWIST, little_endian=little)))
     fixes, twists = _topic(fixes, repeat), _topic(twists, repeat)
     columns = cdr_fields.fix_columns(fixes)
-    for i, data in enumerate(fixes):
+    measurements = messages_in.fixes_from_fields(
+        columns.t_s,
+        columns.lla,
+        columns.status,
+        columns.covariance_type,
+        columns.covariance.reshape(-1, 3, 3),
+    )
+    for data, got in zip(fixes, measurements, strict=True):
         expected = messages_in.fix_measurement(TS.deserialize_cdr(data, FIX))
-        got = messages_in.fix_from_fields(
-            float(columns.t_s[i]),
-            tuple(columns.lla[i].tolist()),
-            columns.status[i],
-            columns.covariance_type[i],
-            columns.covariance[i].reshape(3, 3),
-        )
         assert (got.t_s, got.valid) == (expected.t_s, expected.valid)
         assert _bits((got.lat_deg, got.lon_deg, got.height_m)) == _bits(
             (expected.lat_deg, expected.lon_deg, expected.height_m)

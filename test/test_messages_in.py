@@ -97,8 +97,13 @@ def test_positive_definite_agrees_with_the_eigenvalues(m, shift):
     cov = m @ m.T + shift * np.eye(3)
     smallest = np.linalg.eigvalsh(cov).min()
     assume(abs(smallest) > 1e-6 * max(1.0, float(np.abs(cov).max())))
+    asymmetric = cov + np.triu(np.ones((3, 3)), 1)
     assert messages_in.positive_definite(cov) == (smallest > 0.0)
-    assert not messages_in.positive_definite(cov + np.triu(np.ones((3, 3)), 1))  # asymmetric
+    assert not messages_in.positive_definite(asymmetric)
+    # Many at once: each as on its own.
+    many = np.stack([cov, asymmetric, np.full((3, 3), np.nan), cov])
+    expected = [smallest > 0.0, False, False, smallest > 0.0]
+    assert messages_in.positive_definite(many).tolist() == expected
 
 
 def test_velocity_takes_linear_block_and_keeps_unknown_vertical():

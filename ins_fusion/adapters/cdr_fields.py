@@ -37,6 +37,7 @@ from numpy.typing import NDArray
 
 from gnss_ins_common.types import FloatArray, IntArray
 from ins_fusion.adapters.messages_in import ImuSample
+from ins_fusion.adapters.payloads import Payloads
 
 _ENCAPSULATION = 4  # 0x00, 0x00 (big-endian) or 0x01 (little-endian), two option bytes
 _LITTLE = (struct.Struct("<iiI"), struct.Struct("<3d"), struct.Struct("<4d"))
@@ -159,8 +160,8 @@ def _columns(
     t_s = np.empty(n)
     stamp_ns = np.empty(n, dtype=np.int64)
     values = [np.empty((n, count)) for _, count in fields]
-    for rows, raw in _groups(payloads):
-        first = payloads[rows[0]]
+    for rows, raw in _groups(Payloads.of(payloads)):
+        first = raw[0].tobytes()
         _, at, _ = _body(first, layout)  # the checks hold for the whole group
         order = "<" if first[1] == 1 else ">"
         sec = _read(raw, _ENCAPSULATION, np.dtype(order + "i4"), 1)[:, 0]
@@ -176,23 +177,29 @@ def _columns(
 _LAYOUT_BYTES = [0, 1, 12, 13, 14, 15]
 
 
-def _groups(payloads: Sequence[bytes]) -> list[tuple[list[int], NDArray[np.uint8]]]:
-    """Messages of one layout (the same length, encapsulation and frame_id length): per group
-    their indices and their bytes (m, length)."""
-    lengths = set(map(len, payloads))
-    # The usual topic: one length, and its layout bytes compared for all messages at once.
-    if len(lengths) == 1 and min(lengths) > max(_LAYOUT_BYTES):
-        raw = np.frombuffer(b"".join(payloads), np.uint8).reshape(len(payloads), -1)
-        if np.all(raw[:, _LAYOUT_BYTES] == raw[0, _LAYOUT_BYTES]):
-            return [(list(range(len(payloads))), raw)]
-    groups: dict[tuple[int, bytes], list[int]] = {}
-    for i, data in enumerate(payloads):
-        groups.setdefault((len(data), data[:2] + data[12:16]), []).append(i)
-    joined = [b"".join([payloads[i] for i in rows]) for rows in groups.values()]
-    return [
-        (rows, np.frombuffer(data, np.uint8).reshape(len(rows), -1))
-        for rows, data in zip(groups.values(), joined, strict=True)
-    ]
+def _groups(payloads: Payloads) -> list[tuple[IntArray, NDArray[np.uint8]]]:
+    """Messages of one layout (the same length, encapsulation and frame_id length), in the
+    order of their first message: per group their indices and their bytes (m, length)."""
+    groups: list[tuple[IntArray, NDArray[np.uint8]]] = []
+    lengths = payloads.lengths
+    distinct, first = np.unique(lengths, return_index=True)
+    for size in distinct[np.argsort(first)].tolist():  # the usual topic: one length
+        rows = np.flatnonzero(lengths == size)
+        raw = payloads.rows(rows, size)  # each message copied once
+        if size <= max(_LAYOUT_BYTES):  # too short to hold a header: each on its own
+            groups.extend((rows[i : i + 1], raw[i : i + 1]) for i in range(len(rows)))
+            continue
+        keys = raw[:, _LAYOUT_BYTES]
+        if np.all(keys == keys[0]):
+            groups.append((rows, raw))
+            continue
+        _, group_of = np.unique(keys, axis=0, return_inverse=True)
+        group_of = group_of.ravel()
+        by_group = np.argsort(group_of, kind="stable")
+        cuts = np.flatnonzero(np.diff(group_of[by_group])) + 1
+        groups.extend((rows[part], raw[part]) for part in np.split(by_group, cuts))
+    groups.sort(key=lambda group: int(group[0][0]))
+    return groups
 
 
 def _read(raw: NDArray[np.uint8], start: int, dtype: np.dtype[Any], count: int) -> NDArray[Any]:

@@ -20,12 +20,13 @@ element is -1 marks a quantity the message does not carry.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any, NamedTuple
 
 import numpy as np
 
 from gnss_ins_common.navsat import CovarianceType, NavSatStatus
-from gnss_ins_common.types import Vec3
+from gnss_ins_common.types import BoolArray, FloatArray, Vec3
 from ins_fusion.core.measurements import (
     AttitudeMeasurement,
     GnssFixMeasurement,
@@ -52,17 +53,22 @@ def _vec3(v: Any) -> Vec3:
     return (float(v.x), float(v.y), float(v.z))
 
 
-def positive_definite(cov: np.ndarray) -> bool:
-    """True for a finite, symmetric, positive definite 3x3 matrix."""
-    # np.allclose's default tolerances, without its cost per fix.
-    if not np.isfinite(cov).all() or (np.abs(cov - cov.T) > 1e-8 + 1e-5 * np.abs(cov.T)).any():
-        return False
-    # Sylvester's criterion on the lower triangle (what np.linalg.eigvalsh reads): the leading
-    # principal minors are positive. Closed form: eigvalsh cost ~100 us per fix of a replay.
-    rows: list[list[float]] = cov.tolist()
-    (a, _, _), (d, b, _), (e, f, c) = rows
-    minor2 = a * b - d * d
-    return a > 0.0 and minor2 > 0.0 and c * minor2 - a * f * f + 2.0 * d * e * f - b * e * e > 0.0
+def positive_definite(cov: FloatArray) -> BoolArray:
+    """Whether each 3x3 matrix of ``cov`` (..., 3, 3) is finite, symmetric and positive
+    definite (...)."""
+    turned = np.swapaxes(cov, -1, -2)
+    with np.errstate(invalid="ignore", over="ignore"):  # a non-finite matrix is refused anyway
+        # np.allclose's default tolerances, without its cost per matrix.
+        asymmetric = (np.abs(cov - turned) > 1e-8 + 1e-5 * np.abs(turned)).any(axis=(-2, -1))
+        # Sylvester's criterion on the lower triangle (what np.linalg.eigvalsh reads): the
+        # leading principal minors are positive. Closed form: eigvalsh costs ~100 µs a matrix.
+        a, d, b = cov[..., 0, 0], cov[..., 1, 0], cov[..., 1, 1]
+        e, f, c = cov[..., 2, 0], cov[..., 2, 1], cov[..., 2, 2]
+        minor2 = a * b - d * d
+        minor3 = c * minor2 - a * f * f + 2.0 * d * e * f - b * e * e
+        positive = (a > 0.0) & (minor2 > 0.0) & (minor3 > 0.0)
+    result: BoolArray = np.isfinite(cov).all(axis=(-2, -1)) & ~asymmetric & positive
+    return result
 
 
 def imu_sample(msg: Any) -> ImuSample:
@@ -72,21 +78,27 @@ def imu_sample(msg: Any) -> ImuSample:
 
 def fix_measurement(msg: Any) -> GnssFixMeasurement:
     """sensor_msgs/NavSatFix -> antenna position with its ENU covariance [m²]
-    (``fix_from_fields``)."""
-    return fix_from_fields(
-        stamp_s(msg),
-        (float(msg.latitude), float(msg.longitude), float(msg.altitude)),
-        int(msg.status.status),
-        int(msg.position_covariance_type),
-        np.asarray(msg.position_covariance, dtype=np.float64).reshape(3, 3),
+    (``fixes_from_fields``)."""
+    (fix,) = fixes_from_fields(
+        np.array([stamp_s(msg)]),
+        np.array([[msg.latitude, msg.longitude, msg.altitude]], dtype=np.float64),
+        [int(msg.status.status)],
+        [int(msg.position_covariance_type)],
+        np.asarray(msg.position_covariance, dtype=np.float64).reshape(1, 3, 3),
     )
+    return fix
 
 
-def fix_from_fields(
-    t_s: float, position: Vec3, status: int, covariance_type: int, cov: np.ndarray
-) -> GnssFixMeasurement:
-    """A NavSatFix's fields -> antenna position: stamp [s], (latitude [deg], longitude [deg],
-    altitude [m]), status.status, position_covariance_type, covariance ENU [m²] (3, 3).
+def fixes_from_fields(
+    t_s: FloatArray,
+    lla: FloatArray,
+    status: Sequence[int],
+    covariance_type: Sequence[int],
+    cov: FloatArray,
+) -> list[GnssFixMeasurement]:
+    """The fields of n NavSatFix messages -> antenna positions: stamps [s] (n,), (latitude
+    [deg], longitude [deg], altitude [m]) (n, 3), status.status (n), position_covariance_type
+    (n), covariances ENU [m²] (n, 3, 3).
 
     Valid only with a fix (status >= FIX; NO_FIX and UNKNOWN carry no position), finite
     latitude, longitude and altitude (altitude above the WGS-84 ellipsoid, ARCHITECTURE.md),
@@ -95,12 +107,17 @@ def fix_from_fields(
     fixes are still handed to the engine, which ignores and counts them.
     """
     valid = (
-        status >= NavSatStatus.FIX
-        and covariance_type != CovarianceType.UNKNOWN
-        and all(map(math.isfinite, position))
-        and positive_definite(cov)
+        (np.asarray(status, dtype=np.int64) >= NavSatStatus.FIX)
+        & (np.asarray(covariance_type, dtype=np.int64) != CovarianceType.UNKNOWN)
+        & np.isfinite(lla).all(axis=1)
+        & positive_definite(cov)
     )
-    return GnssFixMeasurement(t_s, *position, cov, valid)
+    return [
+        GnssFixMeasurement(t, lat, lon, alt, matrix, ok)
+        for t, (lat, lon, alt), matrix, ok in zip(
+            t_s.tolist(), lla.tolist(), cov, valid.tolist(), strict=True
+        )
+    ]
 
 
 def velocity_measurement(msg: Any) -> GnssVelocityMeasurement:

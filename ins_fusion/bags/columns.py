@@ -6,9 +6,9 @@ each (a record parsed through BytesIO, a generator merge per chunk and per file,
 tuple). Indexed MCAP files (what rosbags, hence ``gnss_ins record`` / ``simulate``, and ``ros2
 bag record`` write) are read here a chunk at a time instead: the chunk's records in one read,
 the log time and offset of each message of a topic from its message index (one numpy array per
-chunk and channel), the payload lengths gathered by numpy, and the payloads sliced out (~0.5 µs
-a message). Other bags (sqlite3, file-compressed, unindexed MCAP) are read message by message
-through ins_fusion.bags.bag_io.
+chunk and channel) and the payload lengths gathered by numpy; the payloads stay in the chunk's
+bytes (adapters.payloads: no object per message). Other bags (sqlite3, file-compressed,
+unindexed MCAP) are read message by message through ins_fusion.bags.bag_io.
 
 Receive order: by log time, ties in file order (file, then chunk, then position in the chunk),
 as rosbags' reader yields a bag. MCAP layout: https://mcap.dev/spec (Chunk, Message Index and
@@ -17,7 +17,9 @@ Message records); the chunk index and channels come from rosbags' own MCAP reade
 
 from __future__ import annotations
 
+import mmap
 import struct
+import zlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,6 +31,7 @@ from rosbags.rosbag2 import ReaderError
 from rosbags.rosbag2.storage_mcap import ChunkInfo, McapReader, decompress
 
 from gnss_ins_common.types import IntArray
+from ins_fusion.adapters.payloads import Buffer, Payloads
 from ins_fusion.bags.bag_io import BagError, BagReader, storage_files
 
 _MESSAGE_OP, _MESSAGE_INDEX_OP = 0x05, 0x07
@@ -52,7 +55,7 @@ class TopicColumns:
     msgtype: str
     log_time_ns: IntArray
     order: IntArray
-    payloads: list[bytes]
+    payloads: Payloads
 
 
 @dataclass
@@ -65,7 +68,7 @@ class _Part:
     file: int
     chunk_offset: int
     offset: IntArray
-    payloads: list[bytes]
+    payloads: Payloads
 
 
 def read_topics(
@@ -107,10 +110,10 @@ def _columns(parts: list[_Part], types: dict[str, str]) -> dict[str, TopicColumn
         mine = [i for i, p in enumerate(parts) if p.topic == topic]
         positions = joined([order[bounds[i] : bounds[i + 1]] for i in mine])
         sort = np.argsort(positions, kind="stable")
-        payloads = [b for i in mine for b in parts[i].payloads]
+        payloads = Payloads.joined([parts[i].payloads for i in mine])
         log_times = joined([parts[i].log_time_ns for i in mine])
         columns[topic] = TopicColumns(
-            msgtype, log_times[sort], positions[sort], [payloads[i] for i in sort.tolist()]
+            msgtype, log_times[sort], positions[sort], payloads.take(sort)
         )
     return columns
 
@@ -128,8 +131,10 @@ def _message_by_message(
         if progress is not None and index % 4096 == 0:
             progress(index)
     return [
-        _Part(topic, np.array(times, np.int64), 0, 0, np.array(indices, np.int64), payloads)
-        for topic, (times, indices, payloads) in found.items()
+        _Part(
+            topic, np.array(times, np.int64), 0, 0, np.array(indices, np.int64), Payloads.of(data)
+        )
+        for topic, (times, indices, data) in found.items()
     ]
 
 
@@ -146,7 +151,9 @@ def _indexed_mcap(
         storage = McapReader(path)
         try:
             storage.open()
-        except ReaderError as exc:
+            with path.open("rb") as handle:  # the chunks' records, read where they lie
+                whole = mmap.mmap(handle.fileno(), 0, access=mmap.ACCESS_READ)
+        except (ReaderError, ValueError) as exc:
             raise BagError(f"{path}: unreadable MCAP ({exc})") from exc
         try:
             channels = {cid: c.topic for cid, c in storage.channels.items() if c.topic in topics}
@@ -159,7 +166,7 @@ def _indexed_mcap(
                 return None
             assert storage.bio is not None
             for chunk in chunks:
-                parts.extend(_chunk_parts(storage.bio, chunk, channels, number, path))
+                parts.extend(_chunk_parts(storage.bio, whole, chunk, channels, (number, path)))
                 done += sum(chunk.channel_count.get(i, 0) for i in channels)
                 if progress is not None:
                     progress(done)
@@ -169,16 +176,31 @@ def _indexed_mcap(
 
 
 def _chunk_parts(
-    bio: BinaryIO, chunk: ChunkInfo, channels: dict[int, str], file: int, path: Path
+    bio: BinaryIO,
+    whole: mmap.mmap,
+    chunk: ChunkInfo,
+    channels: dict[int, str],
+    file: tuple[int, Path],
 ) -> list[_Part]:
-    """The messages of the wanted channels in one chunk, from its message indexes."""
+    """The messages of the wanted channels in one chunk, from its message indexes (``whole``:
+    the file mapped; ``file``: its number in the bag and its path)."""
+    number, path = file
     bio.seek(chunk.chunk_start_offset + _CHUNK_CRC_AT)
     (crc,) = struct.unpack("<I", bio.read(4))
-    bio.seek(chunk.chunk_start_offset + _CHUNK_HEADER + len(chunk.compression))
-    records = decompress(
-        bio.read(chunk.compressed_size), chunk.compression, chunk.uncompressed_size, crc
-    )
-    raw = np.frombuffer(records, dtype=np.uint8)
+    at = chunk.chunk_start_offset + _CHUNK_HEADER + len(chunk.compression)
+    size = chunk.uncompressed_size
+    records: Buffer
+    if chunk.compression:
+        bio.seek(at)
+        records, base = decompress(bio.read(chunk.compressed_size), chunk.compression, size, crc), 0
+    else:  # stored as they are: the mapped file holds them
+        if at + size > len(whole) or size != chunk.compressed_size:
+            raise BagError(f"{path}: the chunk at byte {chunk.chunk_start_offset} is cut short")
+        with memoryview(whole)[at : at + size] as stored:
+            if crc and zlib.crc32(stored) != crc:
+                raise BagError(f"{path}: checksum mismatch of the chunk at byte {at}")
+        records, base = whole, at
+    raw = np.frombuffer(records, dtype=np.uint8, count=size, offset=base)
     parts = []
     for cid, topic in channels.items():
         if not chunk.channel_count.get(cid):
@@ -199,8 +221,10 @@ def _chunk_parts(
         ends = offset + 9 + lengths.astype(np.int64)
         if len(ends) and ends.max() > len(raw):
             raise BagError(f"{path}: a message of channel {cid} runs past its chunk")
-        payloads = [records[a:b] for a, b in zip(starts.tolist(), ends.tolist(), strict=True)]
-        parts.append(_Part(topic, log_time, file, chunk.chunk_start_offset, offset, payloads))
+        payloads = Payloads(
+            [records], np.zeros(len(starts), np.int64), base + starts, ends - starts
+        )
+        parts.append(_Part(topic, log_time, number, chunk.chunk_start_offset, offset, payloads))
     return parts
 
 

@@ -215,19 +215,14 @@ _CONVERTERS: dict[str, Callable[[Any], Measurement]] = {
 }
 
 
-def _fixes(payloads: list[bytes]) -> list[Measurement]:
+def _fixes(payloads: Sequence[bytes]) -> list[Measurement]:
     """The measurements of a whole NavSatFix topic from its serialized messages (the fields
     read as columns: cdr_fields.fix_columns), as ``messages_in.fix_measurement`` gives them."""
     t_s, status, lla, cov, cov_type = cdr_fields.fix_columns(payloads)
-    return [
-        messages_in.fix_from_fields(t, (lat, lon, alt), code, kind, row.reshape(3, 3))
-        for t, code, (lat, lon, alt), kind, row in zip(
-            t_s.tolist(), status, lla.tolist(), cov_type, cov, strict=True
-        )
-    ]
+    return list(messages_in.fixes_from_fields(t_s, lla, status, cov_type, cov.reshape(-1, 3, 3)))
 
 
-def _velocities(payloads: list[bytes]) -> list[Measurement]:
+def _velocities(payloads: Sequence[bytes]) -> list[Measurement]:
     """``messages_in.velocity_measurement`` of a whole TwistWithCovarianceStamped topic."""
     t_s, linear, cov = cdr_fields.twist_columns(payloads)
     return [
@@ -238,7 +233,7 @@ def _velocities(payloads: list[bytes]) -> list[Measurement]:
 
 #: Roles whose whole topic is decoded from the bytes (rosbags deserializes ~60 µs a message),
 #: for messages of the expected type; another type goes through rosbags and _CONVERTERS.
-_FIELD_DECODERS: dict[str, Callable[[list[bytes]], list[Measurement]]] = {
+_FIELD_DECODERS: dict[str, Callable[[Sequence[bytes]], list[Measurement]]] = {
     "fix": _fixes,
     "vel": _velocities,
 }
@@ -249,7 +244,7 @@ _FIELD_TYPES = {
 
 #: Reference stamps and values of a whole topic from the serialized messages: position
 #: (lat_deg, lon_deg, height_m), orientation (x, y, z, w of FLU in ENU), ENU velocity [m/s].
-_REFERENCE_DECODERS: dict[str, Callable[[list[bytes]], tuple[FloatArray, FloatArray]]] = {
+_REFERENCE_DECODERS: dict[str, Callable[[Sequence[bytes]], tuple[FloatArray, FloatArray]]] = {
     "fix": cdr_fields.positions,
     "attitude": cdr_fields.orientations,
     "vel": cdr_fields.linear_velocities,
