@@ -1,5 +1,6 @@
-"""core.timeline: ``extend`` (a compiled run's entries in one call) keeps the same history as
-appending the entries one by one, whatever the batches and the history length."""
+"""core.timeline: ``extend_run`` (a compiled run's entries in one call) keeps the same history
+as appending the entries one by one, whatever the batches and the history length, and the
+entries it gives back are the run's."""
 
 from __future__ import annotations
 
@@ -7,14 +8,37 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from ins_fusion.core.adaptation import WhiteNoiseMonitor
+from ins_fusion.core.state import X_SIZE, X_T
 from ins_fusion.core.status import new_counters
-from ins_fusion.core.timeline import Entry, Timeline
+from ins_fusion.core.timeline import Entry, RunEntries, Timeline
 
 _INC = np.zeros(7)
+_WHITE = WhiteNoiseMonitor()
 
 
 def _entry(t_s: float) -> Entry:
     return Entry(t_s, _INC, None, None, None)  # type: ignore[arg-type]
+
+
+def _run(stamps: list[float]) -> RunEntries:
+    """A run of entries at ``stamps``: increment j filled with j, two noises, two covariances
+    and a change of the gated-update runs half-way, a measurement at its first entry."""
+    m = len(stamps)
+    incs = np.arange(m, dtype=float)[:, None] * np.ones(7)
+    xs = np.zeros((m, X_SIZE))
+    xs[:, X_T] = stamps
+    noises = [(np.ones(3), np.ones(3)), None]
+    covariances = [np.eye(2), 2.0 * np.eye(2)]
+    gated = [(0, {}), (m // 2, {"nhc": 1})]
+    return RunEntries(
+        stamps,
+        (incs, xs),
+        (noises, [j % 2 for j in range(m)]),
+        (covariances, [1 - j % 2 for j in range(m)]),
+        (_WHITE, gated),
+        {0: [(stamps[0], 0, 0, "nhc", None)]},
+    )
 
 
 @settings(max_examples=80, deadline=None)
@@ -28,17 +52,41 @@ def test_extend_keeps_the_history_of_appending_one_by_one(history_s, batches):
     batched.start(_entry(0.0))
     t = 0.0
     for dt, count in batches:
-        entries = []
+        stamps = []
         for _ in range(count):
             t += dt
-            entries.append(_entry(t))
-        for entry in entries:
-            one_by_one.append(entry)
-        batched.extend(entries)
-        assert [e.t_s for e in batched.history] == [e.t_s for e in one_by_one.history]
+            stamps.append(t)
+            one_by_one.append(_entry(t))
+        batched.extend_run(_run(stamps))
+        assert len(batched) == len(one_by_one)
+        assert [e.t_s for e in batched.entries_from(0)] == [
+            e.t_s for e in one_by_one.entries_from(0)
+        ]
     # The oldest entry decides what is too old: the same answer from both.
-    oldest = one_by_one.history[0].t_s
+    oldest = one_by_one.entry(0).t_s
     for timeline in (one_by_one, batched):
         counters = new_counters()
         assert timeline.add("gnss_position", oldest - 1e-6, None, counters, True) is None
         assert counters["gnss_position"]["too_old"] == 1
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(1, 30), st.integers(0, 29))
+def test_a_run_gives_back_its_entries(m, j):
+    j %= m
+    stamps = [0.01 * (i + 1) for i in range(m)]
+    run = _run(stamps)
+    timeline = Timeline(10.0)
+    timeline.start(_entry(0.0))
+    timeline.extend_run(run)
+    entry = timeline.entry(j + 1)
+    assert timeline.entry(j + 1) is entry  # built once, then kept
+    state, covariance = entry.checkpoint
+    assert entry.t_s == stamps[j] == state.t_s
+    assert entry.inc.tolist() == [float(j)] * 7
+    assert entry.gap is None
+    assert entry.noise is run.noises[j % 2] and state.imu_psd is entry.noise
+    assert covariance is run.covariances[1 - j % 2]
+    assert state.gnss_white is _WHITE
+    assert state.gated_runs == ({"nhc": 1} if j >= m // 2 else {})
+    assert entry.measurements == ([(stamps[0], 0, 0, "nhc", None)] if j == 0 else [])

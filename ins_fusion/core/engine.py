@@ -535,11 +535,10 @@ class InsEngine:
             return
         timeline.replay_from = None
         self._rollbacks += 1
-        history = timeline.history
-        entry = history[k]
+        entry = timeline.entry(k)
         self._restore(entry.checkpoint)
         self._apply_entry(entry)
-        later = history[k + 1 :]
+        later = timeline.entries_from(k + 1)
         i = 0
         while i < len(later):
             entry = later[i]

@@ -59,7 +59,7 @@ from ins_fusion.core.state import (
 )
 from ins_fusion.core.stop_detector import StopDetector
 from ins_fusion.core.strapdown import INCREMENT_SIZE, NAV_SIZE, SampleIntegrator
-from ins_fusion.core.timeline import Entry, Timeline
+from ins_fusion.core.timeline import Entry, Record, RunEntries, Timeline
 from ins_fusion.core.updates import Corrections
 
 #: ``take_run``'s codes when the run ended without a sample for the engine to finish, and
@@ -372,21 +372,27 @@ class CompiledRuns:
             covariances = [*covs[:c], kf.P]  # [-1]: the covariance at the start
             s.changed()
             timeline, corrections = self._timeline, self._corrections
-            entries = []
-            updates = iter(nhcs[:e].tolist())  # (sample, accepted, NIS) in sample order
-            at, accepted, nis = next(updates, (-1.0, 0.0, 0.0))
-            stamps, seen_by, held_by = xs[:m, X_T].tolist(), seen[:m].tolist(), held[:m].tolist()
-            per_sample = zip(list(xs[:m]), list(incs[:m]), stamps, seen_by, held_by, strict=True)
-            for j, (x, inc, t, snapshot, held_j) in enumerate(per_sample):
-                noise = noises[snapshot]
-                entry = Entry(t, inc, None, noise, (s.with_x(x, noise), covariances[held_j]))
-                entries.append(entry)
-                if j == at:
-                    entry.measurements.append(timeline.record("nhc", t, None))
-                    corrections.book(s, "nhc", bool(accepted), nis, True)
-                    at, accepted, nis = next(updates, (-1.0, 0.0, 0.0))
-            timeline.extend(entries)
-            s.imu_psd = noise
+            records: dict[int, list[Record]] = {}
+            gated = [(0, s.gated_runs)]
+            stamps = xs[:m, X_T].tolist()
+            for at, accepted, nis in nhcs[:e].tolist():  # (sample, accepted, NIS) in order
+                j = int(at)
+                records[j] = [timeline.record("nhc", stamps[j], None)]
+                corrections.book(s, "nhc", bool(accepted), nis, True)
+                if s.gated_runs is not gated[-1][1]:  # from the next entry on
+                    gated.append((j + 1, s.gated_runs))
+            seen_by = seen[:m].tolist()
+            timeline.extend_run(
+                RunEntries(
+                    stamps,
+                    (incs, xs),
+                    (noises, seen_by),
+                    (covariances, held[:m].tolist()),
+                    (s.gnss_white, gated),
+                    records,
+                )
+            )
+            s.imu_psd = noises[seen_by[-1]]  # the densities of the last entry
             if c:  # what the last step left in the filter
                 kf.P, kf.phi = covariances[c - 1], phi
                 kf.set_white_noise(white[0], white[1])
@@ -419,8 +425,9 @@ class CompiledRuns:
         s.changed()
         due = bool(s.x[X_COV_DT] >= interval_s)
         P = kf.P
+        white, gated = s.gnss_white, s.gated_runs
         for j in range(count - 1 if due else count):
-            run[j].checkpoint = (s.with_x(xs[j], noise), P)
+            run[j].checkpoint = (FilterState.checkpoint_of(xs[j], noise, white, gated), P)
         if due:
             self._propagator.propagate_covariance(s, kf)
             run[count - 1].checkpoint = (s.copy(), kf.P)

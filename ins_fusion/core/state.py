@@ -141,17 +141,22 @@ class FilterState:
         other.gated_runs = self.gated_runs
         return other
 
-    def with_x(self, x: FloatArray, imu_psd: tuple[FloatArray, FloatArray] | None) -> FilterState:
-        """A state of array ``x`` (taken, not copied), densities ``imu_psd`` and this one's
-        other members: what ``copy`` gives after ``x`` was advanced to those numbers with
-        those densities (core.sample_runs)."""
+    @staticmethod
+    def checkpoint_of(
+        x: FloatArray,
+        imu_psd: tuple[FloatArray, FloatArray] | None,
+        gnss_white: WhiteNoiseMonitor,
+        gated_runs: dict[str, int],
+    ) -> FilterState:
+        """A state of array ``x`` (taken, not copied) and those members: what ``copy`` gives
+        of a state advanced to those numbers with densities ``imu_psd`` (core.sample_runs)."""
         other = FilterState.__new__(FilterState)
         other.x = x
         other._nav = None
         other._mat_nb = None
-        other.gnss_white = self.gnss_white
+        other.gnss_white = gnss_white
         other.imu_psd = imu_psd
-        other.gated_runs = self.gated_runs
+        other.gated_runs = gated_runs
         return other
 
     @property

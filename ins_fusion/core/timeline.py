@@ -6,7 +6,9 @@ newest entry it is applied at once; filed earlier, the engine rolls back to that
 checkpoint and re-propagates the later samples with their measurements (``replay_from`` says
 from where; InsEngine._catch_up does it). Measurements newer than the newest sample wait in a
 heap (at most ``MAX_PENDING``). Duplicates (same kind and stamp) are counted and dropped;
-measurements older than the history are counted ``too_old`` and rejected.
+measurements older than the history are counted ``too_old`` and rejected. The samples of a
+compiled run (core.sample_runs) are filed as one ``RunEntries``, their entries built only where
+the timeline is read.
 """
 
 from __future__ import annotations
@@ -15,10 +17,12 @@ import bisect
 import heapq
 import itertools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
 from gnss_ins_common.types import FloatArray
+from ins_fusion.core.adaptation import WhiteNoiseMonitor
 from ins_fusion.core.state import FilterState
 from ins_fusion.core.status import MEASUREMENT_NAMES, Counters
 
@@ -67,10 +71,65 @@ class Entry:
         self.measurements: list[Record] = []
 
 
-class Timeline:
-    """History entries (oldest first) and pending measurements (see the module docstring)."""
+class RunEntries:
+    """The history entries of a compiled run (core.sample_runs), kept as its arrays and built
+    one by one only where the timeline is read (a late measurement filed there, a rollback):
+    most samples are never read. Entry j: stamp ``t_s[j]``, increment ``incs[j]``, no gap,
+    densities ``noises[seen[j]]``, checkpoint (state of ``xs[j]`` with those densities, the
+    run's ``gnss_white`` and the gated-update runs in force at j; ``covariances[held[j]]``),
+    measurements ``records.get(j)``."""
 
-    history: list[Entry]
+    __slots__ = (
+        "covariances",
+        "first",
+        "gated",
+        "gnss_white",
+        "held",
+        "incs",
+        "noises",
+        "records",
+        "seen",
+        "t_s",
+        "xs",
+    )
+
+    def __init__(
+        self,
+        t_s: list[float],
+        arrays: tuple[FloatArray, FloatArray],
+        noises: tuple[list[tuple[FloatArray, FloatArray] | None], list[int]],
+        covariances: tuple[Sequence[FloatArray], list[int]],
+        books: tuple[WhiteNoiseMonitor, list[tuple[int, dict[str, int]]]],
+        records: dict[int, list[Record]],
+    ) -> None:
+        """``arrays``: increments and state arrays (m, ...); ``noises``: the densities and
+        each entry's index in them; ``covariances``: likewise; ``books``: the white-noise
+        monitor and (first entry, gated-update runs) from each change on; ``records``: the
+        measurements of entries that have some."""
+        self.t_s = t_s
+        self.incs, self.xs = arrays
+        self.noises, self.seen = noises
+        self.covariances, self.held = covariances
+        self.gnss_white, self.gated = books
+        self.records = records
+        self.first = 0  # the first entry's number in the timeline (Timeline.extend_run)
+
+    def entry(self, j: int) -> Entry:
+        """Entry ``j`` of the run (a new object: the timeline keeps it in place of the run)."""
+        noise = self.noises[self.seen[j]]
+        at = bisect.bisect_right(self.gated, j, key=lambda change: change[0]) - 1
+        state = FilterState.checkpoint_of(self.xs[j], noise, self.gnss_white, self.gated[at][1])
+        entry = Entry(
+            self.t_s[j], self.incs[j], None, noise, (state, self.covariances[self.held[j]])
+        )
+        entry.measurements.extend(self.records.get(j, ()))
+        return entry
+
+
+class Timeline:
+    """History entries (oldest first; ``entry``) and pending measurements (see the module
+    docstring)."""
+
     replay_from: int | None
 
     def __init__(self, history_s: float) -> None:
@@ -80,8 +139,9 @@ class Timeline:
 
     def clear(self) -> None:
         """Forget every entry and measurement (start, reset)."""
-        self.history = []
+        self._history: list[Entry | RunEntries] = []
         self._history_t: list[float] = []
+        self._dropped = 0  # entries pruned since the start: numbers of the entries in a run
         self._pending: list[Record] = []
         self.replay_from = None
         self._fresh: set[int] = set()
@@ -89,30 +149,54 @@ class Timeline:
 
     def start(self, entry: Entry) -> None:
         """The first entry of a running filter."""
-        self.history = [entry]
+        self._history = [entry]
         self._history_t = [entry.t_s]
+        self._dropped = 0
+
+    def __len__(self) -> int:
+        """Number of entries in the history."""
+        return len(self._history)
+
+    def entry(self, k: int) -> Entry:
+        """History entry ``k`` (oldest first), built from its run when it is in one."""
+        entry = self._history[k]
+        if isinstance(entry, RunEntries):
+            k %= len(self._history)
+            entry = self._history[k] = entry.entry(k + self._dropped - entry.first)
+        return entry
+
+    def entries_from(self, k: int) -> list[Entry]:
+        """History entries ``k`` to the newest."""
+        return [self.entry(i) for i in range(k, len(self._history))]
 
     def append(self, entry: Entry) -> None:
         """A new IMU sample; entries older than ``history_s`` go (in batches of 1 s)."""
-        self.history.append(entry)
+        self._history.append(entry)
         self._history_t.append(entry.t_s)
-        t = entry.t_s
-        if self._history_t[0] < t - self._history_s - 1.0:
-            keep = bisect.bisect_left(self._history_t, t - self._history_s)
-            del self.history[:keep]
-            del self._history_t[:keep]
+        self._prune(len(self._history_t) - 1)
 
-    def extend(self, entries: list[Entry]) -> None:
-        """``append`` of each of ``entries`` (in stamp order), in one call."""
-        history_t = self._history_t
-        self.history.extend(entries)
-        history_t.extend([entry.t_s for entry in entries])
-        for entry in entries:  # append's pruning after each entry
-            t = entry.t_s
-            if history_t[0] < t - self._history_s - 1.0:
-                keep = bisect.bisect_left(history_t, t - self._history_s)
-                del self.history[:keep]
-                del history_t[:keep]
+    def extend_run(self, run: RunEntries) -> None:
+        """``append`` of each entry of a compiled run (in stamp order), in one call."""
+        run.first = self._dropped + len(self._history)
+        start = len(self._history_t)
+        self._history.extend(itertools.repeat(run, len(run.t_s)))
+        self._history_t.extend(run.t_s)
+        self._prune(start)
+
+    def _prune(self, start: int) -> None:
+        """``append``'s pruning after each of the entries from ``start`` to the newest."""
+        history_t, history_s = self._history_t, self._history_s
+        # While one of them prunes (the newest does when any does: the test is monotonic in t)
+        while start < len(history_t) and history_t[0] < history_t[-1] - history_s - 1.0:
+            # the first that does: oldest < t - history_s - 1.0, computed as append did
+            k = bisect.bisect_right(
+                history_t, history_t[0], start, key=lambda t: t - history_s - 1.0
+            )
+            keep = bisect.bisect_left(history_t, history_t[k] - history_s)
+            del self._history[:keep]
+            del history_t[:keep]
+            self._dropped += keep
+            start = k + 1 - keep
 
     def record(self, kind: str, t_m: float, payload: Any) -> Record:
         """A new record of a measurement."""
@@ -170,9 +254,9 @@ class Timeline:
         the newest at the newest entry, to be applied now; else re-propagation from that
         entry is due (``replay_from``)."""
         k = bisect.bisect_right(self._history_t, record[0]) - 1
-        entry = self.history[k]
+        entry = self.entry(k)
         newest = not entry.measurements or entry.measurements[-1] < record
-        if self.replay_from is None and k == len(self.history) - 1 and newest:
+        if self.replay_from is None and k == len(self._history) - 1 and newest:
             entry.measurements.append(record)
             return True
         bisect.insort(entry.measurements, record)
