@@ -16,7 +16,7 @@ from sim_bags import FIGURE_EIGHT_90_S, shared_bag
 from test_compiled import PARAMETER_SETS
 
 from gnss_ins_common.params import validate_all
-from ins_fusion.core import sample_runs
+from ins_fusion.core import fused_velocity, sample_runs
 from ins_fusion.core.compiled import kernel_array
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.engine import InsEngine
@@ -136,17 +136,25 @@ def test_with_the_smoother_attached_the_engine_goes_sample_by_sample(inputs: Rep
 def test_the_fast_paths_equal_the_general_path(
     inputs: ReplayInputs, name: str, damage: bool, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """Compiled runs and the fused NHC (no smoother) against sample by sample with the
-    recorder attached (no run, every NHC the general way; the recorder only listens)."""
+    """Compiled runs, the fused NHC and GNSS velocity (no smoother) against sample by sample
+    with the recorder attached (no run, every NHC and velocity the general way; the recorder
+    only listens)."""
     if damage:
         inputs = _damaged(inputs)
     parameters = validate_all(PARAMETERS, _SETS[name])
     expected_rows, expected_status = _sample_by_sample(inputs, parameters, smooth=True)
     taken = _count_runs(monkeypatch)
+    fused = []
+    apply = fused_velocity.FusedVelocity.apply
+    monkeypatch.setattr(
+        fused_velocity.FusedVelocity, "apply", lambda *a: fused.append(1) or apply(*a)
+    )
     run = run_fusion(inputs, parameters)
     assert run.status.measurements["nhc"]["used"] > 300
     # The runs took pseudo-measurement epochs with their NHC and covariance steps.
     assert taken["nhc"] > 300 and taken["covariances"] > taken["nhc"] + 100
+    # The velocities went through the fused update, but with the time-offset state.
+    assert (len(fused) > 50) == (name == "defaults")
     np.testing.assert_array_equal(run.track.rows, expected_rows)
     assert repr(run.status) == repr(expected_status)
 

@@ -56,6 +56,7 @@ from ins_fusion.core.calibration import ImuCalibration
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.eskf import ErrorStateFilter, StateLayout
 from ins_fusion.core.fused_nhc import FusedNhc
+from ins_fusion.core.fused_velocity import FusedVelocity
 from ins_fusion.core.gnss_noise import GnssNoise
 from ins_fusion.core.intake import (
     BACK_RUN_RESET,
@@ -156,6 +157,7 @@ class InsEngine:
         self._propagator = Propagator(config, geometry, self._densities)
         self._corrections = Corrections(config, geometry, gnss_noise, self._counters, self._latest)
         self._nhc = FusedNhc(config, geometry, self._propagator, self._corrections)
+        self._velocity = FusedVelocity(config, geometry, self._propagator, self._corrections)
         self._startup = Startup(
             config, calibration, geometry, gnss_noise, self.layout, self._counters, self._latest
         )
@@ -565,6 +567,9 @@ class InsEngine:
         assert s is not None and kf is not None
         if kind == "nhc" and kf.recorder is None and s.heading_known:  # in one kernel
             self._nhc.apply(s, kf, t_m, live)
+            return
+        if kind == "gnss_velocity" and self._velocity.usable(s, kf):  # in one kernel
+            self._velocity.apply(s, kf, payload, live)
             return
         self._propagator.propagate_covariance(s, kf)
         self._corrections.handlers[kind](s, kf, self._propagator.predict(s, kf, t_m), payload, live)

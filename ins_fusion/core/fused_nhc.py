@@ -32,6 +32,49 @@ from ins_fusion.core.updates import Corrections
 
 
 @jit
+def step_to(
+    P: FloatArray,
+    x: FloatArray,
+    t_m: float,
+    process: ProcessModel,
+    mat_bi: FloatArray,
+    columns: tuple[int, int, int, int, int],
+    correlation_time_s: float,
+) -> tuple[bool, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+    """What InsEngine._apply does before a model (heading known, no smoother): the covariance
+    step over the interval accumulated in ``x`` when there is one (``covariance_step``) and
+    the prediction to ``t_m`` [s] (its position left out: neither model reads it). Returns
+    (stepped, Φ of the step (P when none), the new P, predicted NED velocity, C_nb, rate in
+    body and imu FRD)."""
+    stepped = not x[X_COV_DT] <= 0.0  # as Propagator.propagate_covariance decides
+    phi = P
+    if stepped:
+        P, phi = covariance_step(P, x, mat_bi, process, columns, correlation_time_s)
+    _, _, _, vel_m, mat_nb, rate_b, rate_i_m = predicted_state(x, t_m)
+    return stepped, phi, P, vel_m, mat_nb, rate_b, rate_i_m
+
+
+@jit
+def update_and_restart(
+    P: FloatArray,
+    x: FloatArray,
+    model: tuple[FloatArray, FloatArray, FloatArray],
+    threshold: float,
+    columns: tuple[int, int, int, int, int],
+) -> tuple[bool, float, FloatArray]:
+    """The gated Joseph update of ``model`` (z, H, R), the injection into ``x`` when accepted
+    and the covariance interval going on from the corrected velocity (what Corrections.update
+    and InsEngine._apply do after the model; heading known). Returns (accepted, NIS, new P)."""
+    z, H, R = model
+    accepted, nis, dx, P_new = joseph_update(P, z, H, R, threshold)
+    if accepted:
+        inject_nominal(x, dx, columns)
+    for k in range(3):
+        x[X_COV_VEL0 + k] = x[X_NAV + 3 + k]
+    return accepted, nis, P_new
+
+
+@jit
 def nhc_apply(
     P: FloatArray,
     x: FloatArray,
@@ -42,31 +85,23 @@ def nhc_apply(
     constants: tuple[float, float, float, int],
 ) -> tuple[bool, FloatArray, bool, float, FloatArray]:
     """The NHC at stamp ``t_m`` [s] on the error covariance ``P`` and the nominal state ``x``
-    (core.state X_* layout, changed in place; heading known): the covariance step over the
-    interval accumulated in ``x`` when there is one (``covariance_step``; ``process``:
-    ErrorStateFilter.process_model), the prediction to t_m, the model of the base_link origin
-    (``geometry``: rotation imu -> body, lever arm from the IMU [m], body FRD), the gated
-    update and, when accepted, the injection (``columns``: StateLayout.columns); the
-    covariance interval then goes on from the corrected velocity. ``constants``: GNSS
+    (core.state X_* layout, changed in place; heading known): ``step_to`` the stamp
+    (``process``: ErrorStateFilter.process_model), the model of the base_link origin
+    (``geometry``: rotation imu -> body, lever arm from the IMU [m], body FRD) and
+    ``update_and_restart`` (``columns``: StateLayout.columns). ``constants``: GNSS
     correlation time [s], NHC σ [m/s], gate, state size.
     Returns (stepped, Φ of the step (P when none), accepted, NIS, the new P)."""
     mat_bi, arm_b = geometry
     sg, _, _, mt, _ = columns
     correlation_time_s, sigma_m_s, threshold, size = constants
-    stepped = not x[X_COV_DT] <= 0.0  # as Propagator.propagate_covariance decides
-    phi = P
-    if stepped:
-        P, phi = covariance_step(P, x, mat_bi, process, columns, correlation_time_s)
-    _, _, _, vel_m, mat_nb, rate_b, rate_i_m = predicted_state(x, t_m)
+    stepped, phi, P, vel_m, mat_nb, rate_b, rate_i_m = step_to(
+        P, x, t_m, process, mat_bi, columns, correlation_time_s
+    )
     mounting = (x[X_MOUNTING], x[X_MOUNTING + 1])
-    z, H, R = nhc_model(
+    model = nhc_model(
         mat_nb, vel_m, rate_b, rate_i_m, arm_b, mat_bi, sigma_m_s, mounting, size, sg, mt
     )
-    accepted, nis, dx, P_new = joseph_update(P, z, H, R, threshold)
-    if accepted:
-        inject_nominal(x, dx, columns)
-    for k in range(3):
-        x[X_COV_VEL0 + k] = x[X_NAV + 3 + k]
+    accepted, nis, P_new = update_and_restart(P, x, model, threshold, columns)
     return stepped, phi, accepted, nis, P_new
 
 

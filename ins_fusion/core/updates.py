@@ -160,7 +160,8 @@ class Corrections:
                 counters["rejected"] += 1
                 counters["gated"] += 1
 
-    def _reject(self, kind: str, live: bool) -> None:
+    def reject(self, kind: str, live: bool) -> None:
+        """A measurement of ``kind`` not used: counted rejected when ``live``."""
         if live:
             self._counters[kind]["rejected"] += 1
 
@@ -173,7 +174,7 @@ class Corrections:
         live: bool,
     ) -> None:
         if not (fix.valid and np.isfinite(fix.cov_enu_m2).all()):
-            self._reject("gnss_position", live)
+            self.reject("gnss_position", live)
             return
         if not s.heading_known and self._too_fast_to_align(pred, live, "gnss_position"):
             return
@@ -221,7 +222,7 @@ class Corrections:
         geometry = self._geometry
         model = gnss_velocity(pred, vel, geometry.arms(s)[0], geometry.mat_bi)
         if model is None:
-            self._reject("gnss_velocity", live)
+            self.reject("gnss_velocity", live)
             return
         if kf.layout.td is not None:
             model = _late_imu(s, kf, model, np.array(s.accel_lp), _TIME_OFFSET_MIN_ACCEL_M_S2)
@@ -245,7 +246,7 @@ class Corrections:
             return
         model = attitude(pred, mat_nb, att.cov_rpy_rad2, s.time_offset, s.mounting)
         if model is None:
-            self._reject("attitude", live)
+            self.reject("attitude", live)
             return
         self.update(s, kf, "attitude", model, live)
 
@@ -289,7 +290,7 @@ class Corrections:
         """Heading unknown and moving: GNSS updates would need the yaw; count them rejected."""
         if float(np.hypot(pred.vel_ned_m_s[0], pred.vel_ned_m_s[1])) < _ALIGN_MAX_SPEED_M_S:
             return False
-        self._reject(kind, live)
+        self.reject(kind, live)
         return True
 
 

@@ -1,0 +1,125 @@
+"""The GNSS velocity update with the covariance step before it in one compiled call.
+
+Every fix comes with a velocity, and both arrive late: each is applied once when it arrives
+and again in every re-propagation through its stamp. The general way (InsEngine._apply:
+Propagator.propagate_covariance and predict, Corrections._gnss_velocity with the model
+``measurements._velocity_model``, Corrections.update with the Joseph update and the injection)
+is five kernels with Python between them; ``velocity_apply`` runs the same kernels in the same
+order in one call (the NHC's ``step_to`` and ``update_and_restart``), so the numbers are the
+same to the bit, and ``FusedVelocity`` keeps the books (NIS, process-noise adaptation, gated
+runs, counters). Taken only where the general way would do nothing else: the heading known,
+velocity updates on, no time-offset state (its terms), no smoother (its recorder hears each
+step), and no gate recovery possible (fewer gated updates in a row than the recovery needs).
+"""
+
+from __future__ import annotations
+
+import math
+
+from gnss_ins_common.types import FloatArray
+from ins_fusion.core.adaptation import adapt_process_noise
+from ins_fusion.core.compiled import jit, kernel_array
+from ins_fusion.core.config import FusionConfig
+from ins_fusion.core.eskf import ErrorStateFilter, ProcessModel
+from ins_fusion.core.fused_nhc import step_to, update_and_restart
+from ins_fusion.core.measurements import GnssVelocityMeasurement, _velocity_model
+from ins_fusion.core.propagation import Propagator
+from ins_fusion.core.state import X_COV_VEL0, X_NAV, FilterState, Geometry
+from ins_fusion.core.updates import Corrections
+
+_KIND = "gnss_velocity"
+
+
+@jit
+def velocity_apply(
+    P: FloatArray,
+    x: FloatArray,
+    measured: tuple[float, FloatArray, FloatArray],
+    process: ProcessModel,
+    geometry: tuple[FloatArray, FloatArray],
+    columns: tuple[int, int, int, int, int],
+    constants: tuple[float, float, float, int],
+) -> tuple[bool, FloatArray, int, bool, float, FloatArray]:
+    """The GNSS velocity ``measured`` = (stamp [s], ENU velocity [m/s], its covariance
+    [m²/s²]) on the error covariance ``P`` and the nominal state ``x`` (X_* layout, changed in
+    place; heading known): ``step_to`` the stamp, the model of the antenna (``geometry``:
+    rotation imu -> body, lever arm of the antenna from the IMU [m], body FRD) and, when it
+    has rows, ``update_and_restart``. ``constants``: GNSS correlation time [s], the gates of
+    2 and 3 rows, state size. Returns (stepped, Φ of the step (P when none), rows of the model
+    (0: unusable), accepted, NIS, the new P)."""
+    t_m, vel_enu, cov_enu = measured
+    mat_bi, arm_b = geometry
+    correlation_time_s, gate2, gate3, size = constants
+    stepped, phi, P, vel_m, mat_nb, rate_b, rate_i_m = step_to(
+        P, x, t_m, process, mat_bi, columns, correlation_time_s
+    )
+    rows, z, H, R = _velocity_model(
+        mat_nb, vel_m, rate_b, rate_i_m, arm_b, mat_bi, vel_enu, cov_enu, size, columns[0]
+    )
+    if rows == 0:  # the covariance interval goes on from the velocity all the same
+        for k in range(3):
+            x[X_COV_VEL0 + k] = x[X_NAV + 3 + k]
+        return stepped, phi, 0, False, math.nan, P
+    threshold = gate2 if rows == 2 else gate3
+    accepted, nis, P_new = update_and_restart(P, x, (z, H, R), threshold, columns)
+    return stepped, phi, rows, accepted, nis, P_new
+
+
+class FusedVelocity:
+    """The engine's side of ``velocity_apply`` (InsEngine._apply uses it where ``usable``)."""
+
+    def __init__(
+        self,
+        config: FusionConfig,
+        geometry: Geometry,
+        propagator: Propagator,
+        corrections: Corrections,
+    ) -> None:
+        self._geometry = geometry
+        self._propagator = propagator
+        self._corrections = corrections
+        self._on = config.use_gnss_velocity
+        self._recovery_count = config.gate_recovery_count
+        self._correlation_time_s = config.gnss_correlation_time_s
+
+    def usable(self, s: FilterState, kf: ErrorStateFilter) -> bool:
+        """Whether the general way would do just what ``apply`` does."""
+        if not self._on or kf.recorder is not None or kf.layout.td is not None:
+            return False
+        if not s.heading_known:
+            return False
+        recover = self._recovery_count
+        return not recover or s.gated_runs.get(_KIND, 0) + 1 < recover
+
+    def apply(
+        self, s: FilterState, kf: ErrorStateFilter, vel: GnssVelocityMeasurement, live: bool
+    ) -> None:
+        """What InsEngine._apply does for a GNSS velocity record where ``usable`` (``live``:
+        counted)."""
+        kf.set_white_noise(*self._propagator.white_noise(s))  # read only by a step
+        geometry, corrections = self._geometry, self._corrections
+        stepped, phi, rows, accepted, nis, P = velocity_apply(
+            kernel_array(kf.P),
+            s.x,
+            (vel.t_s, kernel_array(vel.vel_enu_m_s), kernel_array(vel.cov_enu_m2_s2)),
+            kf.process_model(),
+            (geometry.mat_bi, kernel_array(geometry.arms(s)[0])),
+            kf.layout.columns,
+            (
+                self._correlation_time_s,
+                corrections.gate(2),
+                corrections.gate(3),
+                kf.layout.size,
+            ),
+        )
+        if stepped:
+            kf.phi = phi
+        kf.P = P
+        if rows == 0:
+            corrections.reject(_KIND, live)
+            return
+        if math.isfinite(nis):
+            s.nis_mean, s.q_scale = adapt_process_noise(s.nis_mean, s.q_scale, nis / rows)
+        if accepted:
+            s.changed()
+        corrections.book(s, _KIND, accepted, nis, live)
