@@ -105,9 +105,9 @@ def nhc_apply(
     return stepped, phi, accepted, nis, P_new
 
 
-class FusedNhc:
-    """The engine's side of ``nhc_apply`` (InsEngine._apply uses it while no smoother is
-    attached)."""
+class FusedUpdate:
+    """What the engine's side of a fused update reads: the configuration, the geometry, the
+    propagator (its white-noise densities) and the corrections (gates, books)."""
 
     def __init__(
         self,
@@ -116,11 +116,16 @@ class FusedNhc:
         propagator: Propagator,
         corrections: Corrections,
     ) -> None:
+        self._config = config
         self._geometry = geometry
         self._propagator = propagator
         self._corrections = corrections
         self._correlation_time_s = config.gnss_correlation_time_s
-        self._sigma_m_s = config.nhc_sigma_m_s
+
+
+class FusedNhc(FusedUpdate):
+    """The engine's side of ``nhc_apply`` (InsEngine._apply uses it while no smoother is
+    attached)."""
 
     def apply(self, s: FilterState, kf: ErrorStateFilter, t_m: float, live: bool) -> None:
         """What InsEngine._apply does for an NHC record at ``t_m`` while the heading is known
@@ -136,7 +141,7 @@ class FusedNhc:
             kf.layout.columns,
             (
                 self._correlation_time_s,
-                self._sigma_m_s,
+                self._config.nhc_sigma_m_s,
                 self._corrections.gate(2),
                 kf.layout.size,
             ),

@@ -19,13 +19,10 @@ import math
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core.adaptation import adapt_process_noise
 from ins_fusion.core.compiled import jit, kernel_array
-from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.eskf import ErrorStateFilter, ProcessModel
-from ins_fusion.core.fused_nhc import step_to, update_and_restart
+from ins_fusion.core.fused_nhc import FusedUpdate, step_to, update_and_restart
 from ins_fusion.core.measurements import GnssVelocityMeasurement, _velocity_model
-from ins_fusion.core.propagation import Propagator
-from ins_fusion.core.state import X_COV_VEL0, X_NAV, FilterState, Geometry
-from ins_fusion.core.updates import Corrections
+from ins_fusion.core.state import X_COV_VEL0, X_NAV, FilterState
 
 _KIND = "gnss_velocity"
 
@@ -65,30 +62,17 @@ def velocity_apply(
     return stepped, phi, rows, accepted, nis, P_new
 
 
-class FusedVelocity:
+class FusedVelocity(FusedUpdate):
     """The engine's side of ``velocity_apply`` (InsEngine._apply uses it where ``usable``)."""
-
-    def __init__(
-        self,
-        config: FusionConfig,
-        geometry: Geometry,
-        propagator: Propagator,
-        corrections: Corrections,
-    ) -> None:
-        self._geometry = geometry
-        self._propagator = propagator
-        self._corrections = corrections
-        self._on = config.use_gnss_velocity
-        self._recovery_count = config.gate_recovery_count
-        self._correlation_time_s = config.gnss_correlation_time_s
 
     def usable(self, s: FilterState, kf: ErrorStateFilter) -> bool:
         """Whether the general way would do just what ``apply`` does."""
-        if not self._on or kf.recorder is not None or kf.layout.td is not None:
+        config = self._config
+        if not config.use_gnss_velocity or kf.recorder is not None or kf.layout.td is not None:
             return False
         if not s.heading_known:
             return False
-        recover = self._recovery_count
+        recover = config.gate_recovery_count
         return not recover or s.gated_runs.get(_KIND, 0) + 1 < recover
 
     def apply(
