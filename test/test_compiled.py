@@ -18,6 +18,7 @@ from ins_fusion.core import (
     adaptation,
     eskf,
     fused_nhc,
+    fused_position,
     fused_velocity,
     gnss_noise,
     intake,
@@ -126,6 +127,7 @@ _KERNELS = (
     sample_runs.advance_run,
     fused_nhc.nhc_apply,
     fused_velocity.velocity_apply,
+    fused_position.position_apply,
 )
 _REAL = Path(__file__).parent / "fixtures" / "comma2k19" / "comma2k19_ex1_seg40"
 

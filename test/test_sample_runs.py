@@ -16,10 +16,12 @@ from sim_bags import FIGURE_EIGHT_90_S, shared_bag
 from test_compiled import PARAMETER_SETS
 
 from gnss_ins_common.params import validate_all
-from ins_fusion.core import fused_velocity, sample_runs
+from ins_fusion.core import sample_runs
 from ins_fusion.core.compiled import kernel_array
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.engine import InsEngine
+from ins_fusion.core.fused_position import FusedPosition
+from ins_fusion.core.fused_velocity import FusedVelocity
 from ins_fusion.core.params import PARAMETERS
 from ins_fusion.core.smoothed_solution import attach_recorder
 from ins_fusion.core.solution_rows import RowBuffer
@@ -136,25 +138,30 @@ def test_with_the_smoother_attached_the_engine_goes_sample_by_sample(inputs: Rep
 def test_the_fast_paths_equal_the_general_path(
     inputs: ReplayInputs, name: str, damage: bool, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """Compiled runs, the fused NHC and GNSS velocity (no smoother) against sample by sample
-    with the recorder attached (no run, every NHC and velocity the general way; the recorder
+    """Compiled runs, the fused NHC, GNSS velocity and position (no smoother) against sample by
+    sample with the recorder attached (no run, every update the general way; the recorder
     only listens)."""
     if damage:
         inputs = _damaged(inputs)
     parameters = validate_all(PARAMETERS, _SETS[name])
     expected_rows, expected_status = _sample_by_sample(inputs, parameters, smooth=True)
     taken = _count_runs(monkeypatch)
-    fused = []
-    apply = fused_velocity.FusedVelocity.apply
-    monkeypatch.setattr(
-        fused_velocity.FusedVelocity, "apply", lambda *a: fused.append(1) or apply(*a)
-    )
+    fused = {"velocity": 0, "position": 0}
+    for kind, update in (("velocity", FusedVelocity), ("position", FusedPosition)):
+        apply = update.apply
+
+        def counted(*args, kind=kind, apply=apply):  # type: ignore[no-untyped-def]
+            done = apply(*args)
+            fused[kind] += done is not False  # the position's False: only the step was made
+            return done
+
+        monkeypatch.setattr(update, "apply", counted)
     run = run_fusion(inputs, parameters)
     assert run.status.measurements["nhc"]["used"] > 300
     # The runs took pseudo-measurement epochs with their NHC and covariance steps.
     assert taken["nhc"] > 300 and taken["covariances"] > taken["nhc"] + 100
-    # The velocities went through the fused update, but with the time-offset state.
-    assert (len(fused) > 50) == (name == "defaults")
+    # The GNSS updates went through the fused ones, but with the time-offset state.
+    assert (min(fused.values()) > 50) == (name == "defaults"), fused
     np.testing.assert_array_equal(run.track.rows, expected_rows)
     assert repr(run.status) == repr(expected_status)
 

@@ -198,7 +198,8 @@ class WhiteNoiseMonitor:
         self.values[W_WINDOW] = window_epochs
         self.values[W_MAX_INTERVAL] = max_interval_s
 
-    def _with(self, values: FloatArray) -> WhiteNoiseMonitor:
+    def with_values(self, values: FloatArray) -> WhiteNoiseMonitor:
+        """A monitor of ``values`` (W_* layout; taken, not copied)."""
         other = WhiteNoiseMonitor.__new__(WhiteNoiseMonitor)
         other.values = values
         return other
@@ -226,7 +227,7 @@ class WhiteNoiseMonitor:
             updated_var_m2,
             reported_var_m2,
         )
-        return self._with(values)
+        return self.with_values(values)
 
     def pushed_fix(
         self,
@@ -254,13 +255,13 @@ class WhiteNoiseMonitor:
             predicted_var_m2,
             reported_var_m2,
         )
-        return self._with(values)
+        return self.with_values(values)
 
     def restarted(self) -> WhiteNoiseMonitor:
         """The next fix starts a new run (after a state jump); the estimate is kept."""
         values = self.values.copy()
         values[W_LAST_T] = math.nan
-        return self._with(values)
+        return self.with_values(values)
 
     @property
     def ready(self) -> bool:

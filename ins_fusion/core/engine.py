@@ -56,6 +56,7 @@ from ins_fusion.core.calibration import ImuCalibration
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.eskf import ErrorStateFilter, StateLayout
 from ins_fusion.core.fused_nhc import FusedNhc
+from ins_fusion.core.fused_position import FusedPosition
 from ins_fusion.core.fused_velocity import FusedVelocity
 from ins_fusion.core.gnss_noise import GnssNoise
 from ins_fusion.core.intake import (
@@ -158,6 +159,9 @@ class InsEngine:
         self._corrections = Corrections(config, geometry, gnss_noise, self._counters, self._latest)
         self._nhc = FusedNhc(config, geometry, self._propagator, self._corrections)
         self._velocity = FusedVelocity(config, geometry, self._propagator, self._corrections)
+        self._position = FusedPosition(
+            config, geometry, (self._propagator, self._corrections, gnss_noise)
+        )
         self._startup = Startup(
             config, calibration, geometry, gnss_noise, self.layout, self._counters, self._latest
         )
@@ -570,6 +574,14 @@ class InsEngine:
             return
         if kind == "gnss_velocity" and self._velocity.usable(s, kf):  # in one kernel
             self._velocity.apply(s, kf, payload, live)
+            return
+        # In one kernel, unless it stepped the covariance only: the general way goes on then.
+        position = self._position
+        if (
+            kind == "gnss_position"
+            and position.usable(s, kf, payload)
+            and position.apply(s, kf, payload, live)
+        ):
             return
         self._propagator.propagate_covariance(s, kf)
         self._corrections.handlers[kind](s, kf, self._propagator.predict(s, kf, t_m), payload, live)

@@ -30,6 +30,10 @@ from ins_fusion.core.state import (
 )
 from ins_fusion.core.updates import Corrections
 
+#: What ``predicted_state`` gives: latitude, longitude [rad], height [m], NED velocity [m/s],
+#: C_nb, corrected rate in body and imu FRD [rad/s].
+Predicted = tuple[float, float, float, FloatArray, FloatArray, FloatArray, FloatArray]
+
 
 @jit
 def step_to(
@@ -40,18 +44,16 @@ def step_to(
     mat_bi: FloatArray,
     columns: tuple[int, int, int, int, int],
     correlation_time_s: float,
-) -> tuple[bool, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+) -> tuple[bool, FloatArray, FloatArray, Predicted]:
     """What InsEngine._apply does before a model (heading known, no smoother): the covariance
     step over the interval accumulated in ``x`` when there is one (``covariance_step``) and
-    the prediction to ``t_m`` [s] (its position left out: neither model reads it). Returns
-    (stepped, Φ of the step (P when none), the new P, predicted NED velocity, C_nb, rate in
-    body and imu FRD)."""
+    the prediction to ``t_m`` [s]. Returns (stepped, Φ of the step (P when none), the new P,
+    the prediction)."""
     stepped = not x[X_COV_DT] <= 0.0  # as Propagator.propagate_covariance decides
     phi = P
     if stepped:
         P, phi = covariance_step(P, x, mat_bi, process, columns, correlation_time_s)
-    _, _, _, vel_m, mat_nb, rate_b, rate_i_m = predicted_state(x, t_m)
-    return stepped, phi, P, vel_m, mat_nb, rate_b, rate_i_m
+    return stepped, phi, P, predicted_state(x, t_m)
 
 
 @jit
@@ -61,17 +63,18 @@ def update_and_restart(
     model: tuple[FloatArray, FloatArray, FloatArray],
     threshold: float,
     columns: tuple[int, int, int, int, int],
-) -> tuple[bool, float, FloatArray]:
+) -> tuple[bool, float, FloatArray, FloatArray]:
     """The gated Joseph update of ``model`` (z, H, R), the injection into ``x`` when accepted
     and the covariance interval going on from the corrected velocity (what Corrections.update
-    and InsEngine._apply do after the model; heading known). Returns (accepted, NIS, new P)."""
+    and InsEngine._apply do after the model; heading known). Returns (accepted, NIS, δx (z
+    when rejected), new P (P when rejected))."""
     z, H, R = model
     accepted, nis, dx, P_new = joseph_update(P, z, H, R, threshold)
     if accepted:
         inject_nominal(x, dx, columns)
     for k in range(3):
         x[X_COV_VEL0 + k] = x[X_NAV + 3 + k]
-    return accepted, nis, P_new
+    return accepted, nis, dx, P_new
 
 
 @jit
@@ -94,14 +97,13 @@ def nhc_apply(
     mat_bi, arm_b = geometry
     sg, _, _, mt, _ = columns
     correlation_time_s, sigma_m_s, threshold, size = constants
-    stepped, phi, P, vel_m, mat_nb, rate_b, rate_i_m = step_to(
-        P, x, t_m, process, mat_bi, columns, correlation_time_s
-    )
+    stepped, phi, P, prediction = step_to(P, x, t_m, process, mat_bi, columns, correlation_time_s)
+    _, _, _, vel_m, mat_nb, rate_b, rate_i_m = prediction
     mounting = (x[X_MOUNTING], x[X_MOUNTING + 1])
     model = nhc_model(
         mat_nb, vel_m, rate_b, rate_i_m, arm_b, mat_bi, sigma_m_s, mounting, size, sg, mt
     )
-    accepted, nis, P_new = update_and_restart(P, x, model, threshold, columns)
+    accepted, nis, _, P_new = update_and_restart(P, x, model, threshold, columns)
     return stepped, phi, accepted, nis, P_new
 
 

@@ -47,9 +47,8 @@ def velocity_apply(
     t_m, vel_enu, cov_enu = measured
     mat_bi, arm_b = geometry
     correlation_time_s, gate2, gate3, size = constants
-    stepped, phi, P, vel_m, mat_nb, rate_b, rate_i_m = step_to(
-        P, x, t_m, process, mat_bi, columns, correlation_time_s
-    )
+    stepped, phi, P, prediction = step_to(P, x, t_m, process, mat_bi, columns, correlation_time_s)
+    _, _, _, vel_m, mat_nb, rate_b, rate_i_m = prediction
     rows, z, H, R = _velocity_model(
         mat_nb, vel_m, rate_b, rate_i_m, arm_b, mat_bi, vel_enu, cov_enu, size, columns[0]
     )
@@ -58,7 +57,7 @@ def velocity_apply(
             x[X_COV_VEL0 + k] = x[X_NAV + 3 + k]
         return stepped, phi, 0, False, math.nan, P
     threshold = gate2 if rows == 2 else gate3
-    accepted, nis, P_new = update_and_restart(P, x, (z, H, R), threshold, columns)
+    accepted, nis, _, P_new = update_and_restart(P, x, (z, H, R), threshold, columns)
     return stepped, phi, rows, accepted, nis, P_new
 
 

@@ -54,16 +54,24 @@ class GnssNoise:
         states restart when the reported variance moved by more than ``_GNSS_NOISE_JUMP``
         times since they last did (another fix type), else take the new split's variance.
         """
-        share = s.gnss_white.share
         return _position_noise(
             kernel_array(fix.cov_enu_m2),
+            *self.settings(s),
+            self._layout.gp is not None,
+            s.gnss_reported,
+            s.gnss_variance,
+        )
+
+    def settings(self, s: FilterState) -> tuple[float, FloatArray, float, FloatArray]:
+        """What ``_position_noise`` reads of the configuration and of ``s``: the scale², the
+        white floor per NED axis [m²], the white fraction and the measured white share (NaN:
+        none)."""
+        share = s.gnss_white.share
+        return (
             self._scale_sq,
             self._white_var_ned,
             self._white_fraction,
             _NO_SHARE if share is None else share,
-            self._layout.gp is not None,
-            s.gnss_reported,
-            s.gnss_variance,
         )
 
     def restart_position(

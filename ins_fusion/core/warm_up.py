@@ -19,6 +19,7 @@ from ins_fusion.core.calibration import ImuCalibration
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.eskf import ErrorStateFilter, StateLayout, projected_variance
 from ins_fusion.core.fused_nhc import nhc_apply
+from ins_fusion.core.fused_position import position_apply
 from ins_fusion.core.fused_velocity import velocity_apply
 from ins_fusion.core.gnss_noise import GnssNoise
 from ins_fusion.core.intake import new_intake, record_sample, take_sample
@@ -79,6 +80,18 @@ def warm_up() -> float:
     measured = (0.015, np.zeros(3), np.eye(3))
     gates = (60.0, 1.0, 1.0, layout.size)
     velocity_apply(kf.P, s.x, measured, kf.process_model(), geometry, layout.columns, gates)
+    gnss_noise = GnssNoise(config, layout)
+    position_apply(
+        kf.P,
+        s.x,
+        s.gnss_white.values.copy(),
+        (0.015, 1.0, 0.2, 40.0, np.eye(3)),
+        kf.process_model(),
+        geometry,
+        layout.columns,
+        gnss_noise.settings(s),
+        (60.0, 1.0, layout.size),
+    )
     kf.problem()
     inject_nominal(s.x, np.zeros(layout.size), layout.columns)
     prediction = Prediction(*predicted_state(s.x, 0.015), layout=layout)
