@@ -117,6 +117,7 @@ _KERNELS = (
     solution._fill_row,
     state.inject_nominal,
     gnss_noise._position_noise,
+    gnss_noise.shrink_correlated,
     measurements._position_model,
     measurements._velocity_model,
     eskf.projected_variance,

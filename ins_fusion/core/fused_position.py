@@ -10,8 +10,8 @@ runs the same kernels in the same order in one call, so the numbers are the same
 and ``FusedPosition`` keeps the books (NIS, process-noise adaptation, gated runs, counters, the
 last fix used). Taken only where the general way would do nothing else: a valid fix, the
 heading known, no time-offset state, no smoother, no gate recovery possible; and when the
-split asks the correlated error states for a restart or a new variance, the kernel stops after
-the covariance step and the general way goes on from there.
+split asks for a restart of the correlated error states, the kernel stops after the covariance
+step and the general way goes on from there (a new variance of theirs it sets itself).
 """
 
 from __future__ import annotations
@@ -26,7 +26,13 @@ from ins_fusion.core.compiled import jit, kernel_array
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.eskf import ErrorStateFilter, ProcessModel, projected_variance
 from ins_fusion.core.fused_nhc import FusedUpdate, step_to, update_and_restart
-from ins_fusion.core.gnss_noise import NOISE_KEPT, GnssNoise, _position_noise
+from ins_fusion.core.gnss_noise import (
+    NOISE_MOVED,
+    NOISE_RESTART,
+    GnssNoise,
+    _position_noise,
+    shrink_correlated,
+)
 from ins_fusion.core.measurements import GnssFixMeasurement, _position_model
 from ins_fusion.core.propagation import Propagator
 from ins_fusion.core.state import (
@@ -52,16 +58,17 @@ def position_apply(
     columns: tuple[int, int, int, int, int],
     noise: tuple[float, FloatArray, float, FloatArray],
     constants: tuple[float, float, int],
-) -> tuple[bool, FloatArray, bool, FloatArray, bool, float]:
+) -> tuple[bool, FloatArray, int, FloatArray, bool, float]:
     """The fix ``measured`` = (stamp [s], latitude, longitude [rad], height [m], ENU
     covariance [m²]) on the error covariance ``P`` and the nominal state ``x`` (X_* layout,
     changed in place; heading known): ``step_to`` the stamp, the white/correlated split
-    (``noise``: GnssNoise.settings), the model of the antenna (``geometry``: rotation imu ->
+    (``noise``: GnssNoise.settings) with the new variance of the correlated error states when
+    it moved (``shrink_correlated``), the model of the antenna (``geometry``: rotation imu ->
     body, lever arm of the antenna from the IMU [m], body FRD), diag(H P Hᵀ),
     ``update_and_restart`` and the push of the white-noise monitor's values ``white`` (in
     place). ``constants``: GNSS correlation time [s], the gate of 3 rows, state size.
-    Returns (stepped, Φ of the step (P when none), done, the new P, accepted, NIS); not done:
-    the split asks the correlated error states for a restart or a new variance, and nothing
+    Returns (stepped, Φ of the step (P when none), what the split asked of the correlated
+    error states (gnss_noise.NOISE_*), the new P, accepted, NIS); NOISE_RESTART: nothing
     after the covariance step was made."""
     t_m, fix_lat, fix_lon, fix_height, cov_enu = measured
     mat_bi, arm_b = geometry
@@ -70,7 +77,7 @@ def position_apply(
     stepped, phi, P, prediction = step_to(P, x, t_m, process, mat_bi, columns, correlation_time_s)
     lat, lon, height, _, mat_nb, _, _ = prediction
     gp = columns[2]
-    R, _, reported, action = _position_noise(
+    R, correlated, reported, action = _position_noise(
         cov_enu,
         scale_sq,
         white_var_ned,
@@ -80,8 +87,10 @@ def position_apply(
         (x[X_GNSS_REPORTED], x[X_GNSS_REPORTED + 1], x[X_GNSS_REPORTED + 2]),
         (x[X_GNSS_VARIANCE], x[X_GNSS_VARIANCE + 1], x[X_GNSS_VARIANCE + 2]),
     )
-    if action != NOISE_KEPT:
-        return stepped, phi, False, P, False, math.nan
+    if action == NOISE_RESTART:
+        return stepped, phi, action, P, False, math.nan
+    if action == NOISE_MOVED:
+        _, P, _ = shrink_correlated(P, x, correlated, gp)
     error = (x[X_GNSS_ERROR], x[X_GNSS_ERROR + 1], x[X_GNSS_ERROR + 2])
     z, H, R = _position_model(
         lat, lon, height, mat_nb, fix_lat, fix_lon, fix_height, arm_b, R, error, size, gp
@@ -89,7 +98,7 @@ def position_apply(
     predicted = projected_variance(H, P)
     accepted, nis, dx, P_new = update_and_restart(P, x, (z, H, R), threshold, columns)
     white_push_fix(white, t_m, z, H, dx, accepted, P_new, predicted, reported)
-    return stepped, phi, True, P_new, accepted, nis
+    return stepped, phi, action, P_new, accepted, nis
 
 
 class FusedPosition(FusedUpdate):
@@ -122,7 +131,7 @@ class FusedPosition(FusedUpdate):
         kf.set_white_noise(*self._propagator.white_noise(s))  # read only by a step
         geometry, corrections = self._geometry, self._corrections
         white = s.gnss_white.values.copy()
-        stepped, phi, done, P, accepted, nis = position_apply(
+        stepped, phi, action, P, accepted, nis = position_apply(
             kernel_array(kf.P),
             s.x,
             white,
@@ -142,8 +151,10 @@ class FusedPosition(FusedUpdate):
         if stepped:
             kf.phi = phi
         kf.P = P
-        if not done:
+        if action == NOISE_RESTART:
             return False
+        if action == NOISE_MOVED:  # the kernel set it in the state (set_correlated_variance)
+            kf.gnss_variance = s.gnss_variance
         if math.isfinite(nis):
             s.nis_mean, s.q_scale = adapt_process_noise(s.nis_mean, s.q_scale, nis / 3.0)
         if accepted:

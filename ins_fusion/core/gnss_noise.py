@@ -14,7 +14,7 @@ from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.eskf import POS, ErrorStateFilter, StateLayout
 from ins_fusion.core.measurements import GnssFixMeasurement, ned_cov
 from ins_fusion.core.rotation import MAT_ENU_NED
-from ins_fusion.core.state import FilterState, restart_block
+from ins_fusion.core.state import X_GNSS_ERROR, X_GNSS_VARIANCE, FilterState, restart_block
 
 #: Largest factor by which a fix's covariance grows when its epochs scatter more than reported.
 _MAX_GNSS_INFLATION = 100.0
@@ -120,23 +120,41 @@ class GnssNoise:
         P -> D P D). Left at the old variance it would take the navigation error as the
         receiver's: a white receiver's first fixes, split by the prior as mostly correlated,
         held the position 2 m off for a minute (docs/accuracy.md)."""
-        s.gnss_variance = (float(correlated[0]), float(correlated[1]), float(correlated[2]))
-        kf.gnss_variance = s.gnss_variance
         gp = kf.layout.gp
-        if gp is None:
-            return
-        variance = np.diagonal(kf.P)[gp : gp + 3]
-        shrink = np.sqrt(np.minimum(1.0, correlated / np.maximum(variance, 1e-300)))
-        if shrink.min() >= 1.0:
-            return
-        factors = np.ones(kf.layout.size)
-        factors[gp : gp + 3] = shrink
         P_before = kf.P
-        kf.P = kf.P * np.outer(factors, factors)
-        e = s.gnss_error
-        s.gnss_error = (e[0] * shrink[0], e[1] * shrink[1], e[2] * shrink[2])
-        if kf.recorder is not None:  # smoother hook: a deterministic transition x -> D x
+        shrunk, kf.P, factors = shrink_correlated(
+            kernel_array(kf.P), s.x, kernel_array(correlated), -1 if gp is None else gp
+        )
+        kf.gnss_variance = s.gnss_variance
+        if shrunk and kf.recorder is not None:  # smoother hook: a transition x -> D x
             kf.recorder.on_transition(P_before, np.diag(factors), kf.P)
+
+
+@jit
+def shrink_correlated(
+    P: FloatArray, x: FloatArray, correlated: FloatArray, gp: int
+) -> tuple[bool, FloatArray, FloatArray]:
+    """``GnssNoise.set_correlated_variance`` on P and the state array ``x`` (X_* layout, its
+    stationary variance set, its correlated error estimate shrunk in place); ``gp``: the
+    error states' first column (-1: none). Returns (shrunk, P (a new array when shrunk), the
+    factors D on the states)."""
+    size = P.shape[0]
+    factors = np.ones(size)
+    for k in range(3):
+        x[X_GNSS_VARIANCE + k] = correlated[k]
+    if gp < 0:
+        return False, P, factors
+    stays = True
+    for k in range(3):
+        variance = P[gp + k, gp + k]
+        ratio = correlated[k] / (variance if not variance < 1e-300 else 1e-300)
+        factors[gp + k] = np.sqrt(ratio if not ratio > 1.0 else 1.0)  # NaN stays NaN
+        stays = stays and factors[gp + k] >= 1.0
+    if stays:
+        return False, P, factors
+    for k in range(3):
+        x[X_GNSS_ERROR + k] = x[X_GNSS_ERROR + k] * factors[gp + k]
+    return True, P * np.outer(factors, factors), factors
 
 
 @jit

@@ -81,6 +81,7 @@ def warm_up() -> float:
     gates = (60.0, 1.0, 1.0, layout.size)
     velocity_apply(kf.P, s.x, measured, kf.process_model(), geometry, layout.columns, gates)
     gnss_noise = GnssNoise(config, layout)
+    gnss_noise.set_correlated_variance(s, kf, np.ones(3))
     position_apply(
         kf.P,
         s.x,
