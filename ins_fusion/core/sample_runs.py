@@ -396,8 +396,7 @@ class CompiledRuns:
             if c:  # what the last step left in the filter
                 kf.P, kf.phi = covariances[c - 1], phi
                 kf.set_white_noise(white[0], white[1])
-        for j in range(r):
-            rows.append(out[j])
+        rows.append(out[:r])
         epoch = None if math.isnan(pseudo[1]) else (float(pseudo[0]), float(pseudo[1]))
         return k, code, incs[m] if code != RUN_DONE else incs[0], epoch
 

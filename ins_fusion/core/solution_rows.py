@@ -83,13 +83,14 @@ def pack(solution: InsSolution) -> FloatArray:
 
 
 class RowBuffer:
-    """Rows appended one at a time, 8 bytes a number (``array``), as an (n, WIDTH) array."""
+    """Rows appended as they come, 8 bytes a number (``array``), as an (n, WIDTH) array."""
 
     def __init__(self) -> None:
         self._data = array("d")
 
-    def append(self, row: FloatArray) -> None:
-        self._data.frombytes(np.ascontiguousarray(row, dtype=np.float64).tobytes())
+    def append(self, rows: FloatArray) -> None:
+        """A row (WIDTH,) or rows (m, WIDTH), in order."""
+        self._data.frombytes(np.ascontiguousarray(rows, dtype=np.float64).tobytes())
 
     def rows(self) -> FloatArray:
         """The rows so far (a view of the buffer: append no more after taking it)."""
