@@ -59,8 +59,8 @@ def test_extend_keeps_the_history_of_appending_one_by_one(history_s, batches):
             one_by_one.append(_entry(t))
         batched.extend_run(_run(stamps))
         assert len(batched) == len(one_by_one)
-        assert [e.t_s for e in batched.entries_from(0)] == [
-            e.t_s for e in one_by_one.entries_from(0)
+        assert [batched.entry(i).t_s for i in range(len(batched))] == [
+            one_by_one.entry(i).t_s for i in range(len(one_by_one))
         ]
     # The oldest entry decides what is too old: the same answer from both.
     oldest = one_by_one.entry(0).t_s
@@ -90,3 +90,32 @@ def test_a_run_gives_back_its_entries(m, j):
     assert state.gnss_white is _WHITE
     assert state.gated_runs == ({"nhc": 1} if j >= m // 2 else {})
     assert entry.measurements == ([(stamps[0], 0, 0, "nhc", None)] if j == 0 else [])
+
+
+def test_plain_entries_are_read_and_refiled_without_building_the_others():
+    stamps = [0.01 * (i + 1) for i in range(6)]
+    timeline = Timeline(10.0)
+    timeline.start(_entry(0.0))
+    timeline.extend_run(_run(stamps))
+    assert timeline.plain_from(1) == ([], None)  # its first entry has a measurement
+    incs, noise = timeline.plain_from(2)  # the densities change at the next entry
+    assert [inc.tolist() for inc in incs] == [[1.0] * 7] and noise is None
+    first = timeline.entry(4)  # built: read as it is
+    assert len(timeline.plain_from(4)[0]) == 1
+    xs = np.full((2, X_SIZE), 7.0)
+    covariance = np.eye(2)
+    refiled = RunEntries(
+        timeline.stamps(4, 6),
+        (np.zeros((2, 7)), xs),
+        ([None], [0, 0]),
+        ([covariance], [0, 0]),
+        (_WHITE, [(0, {})]),
+        {},
+    )
+    last = (first.checkpoint[0], 3.0 * np.eye(2))
+    timeline.refile(4, refiled, last)
+    assert timeline.entry(4) is not first
+    assert timeline.entry(4).checkpoint[0].x.tolist() == [7.0] * X_SIZE
+    assert timeline.entry(4).checkpoint[1] is covariance
+    assert timeline.entry(5).checkpoint == last and timeline.entry(5).t_s == stamps[4]
+    assert timeline.entry(3).t_s == stamps[2] and timeline.entry(6).t_s == stamps[5]

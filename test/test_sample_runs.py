@@ -80,13 +80,8 @@ def _sample_by_sample(inputs: ReplayInputs, parameters: dict[str, object], smoot
     config = FusionConfig.from_parameters(parameters)
     engine = InsEngine(config)
 
-    def one_entry(entries, start):  # re-propagation entry by entry, as before the runs
-        entry = entries[start]
-        engine._step(entry.inc, entry.gap, entry.t_s, entry.noise)
-        entry.checkpoint = engine._checkpoint()
-        return start + 1
-
-    engine._runs.repropagate = lambda _s, _kf, entries, start: one_entry(entries, start)
+    # Re-propagation entry by entry, as before the runs: no entry is taken in a run.
+    engine._runs.repropagate = lambda _s, _kf, k: k
     if smooth:
         attach_recorder(engine)
     feed = {

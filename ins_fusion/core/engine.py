@@ -544,20 +544,19 @@ class InsEngine:
         entry = timeline.entry(k)
         self._restore(entry.checkpoint)
         self._apply_entry(entry)
-        later = timeline.entries_from(k + 1)
-        i = 0
-        while i < len(later):
-            entry = later[i]
-            if self._recorder is None and entry.gap is None and not entry.measurements:
-                s, kf = self._state, self._filter
-                assert s is not None and kf is not None
-                i = self._runs.repropagate(s, kf, later, i)
+        s, kf = self._state, self._filter
+        assert s is not None and kf is not None
+        i, stop = k + 1, len(timeline)
+        while i < stop:
+            if self._recorder is None and (after := self._runs.repropagate(s, kf, i)) > i:
+                i = after  # a run of entries without gap or measurement
                 continue
+            entry = timeline.entry(i)
             self._step(entry.inc, entry.gap, entry.t_s, entry.noise)
             entry.checkpoint = self._checkpoint()
             self._apply_entry(entry)
             i += 1
-        self._replayed_samples += len(later)
+        self._replayed_samples += stop - k - 1
 
     def _apply_entry(self, entry: Entry) -> None:
         """Apply an entry's measurements in stamp order; new ones are counted."""

@@ -59,7 +59,7 @@ from ins_fusion.core.state import (
 )
 from ins_fusion.core.stop_detector import StopDetector
 from ins_fusion.core.strapdown import INCREMENT_SIZE, NAV_SIZE, SampleIntegrator
-from ins_fusion.core.timeline import Entry, Record, RunEntries, Timeline
+from ins_fusion.core.timeline import Record, RunEntries, Timeline
 from ins_fusion.core.updates import Corrections
 
 #: ``take_run``'s codes when the run ended without a sample for the engine to finish, and
@@ -400,34 +400,30 @@ class CompiledRuns:
         epoch = None if math.isnan(pseudo[1]) else (float(pseudo[0]), float(pseudo[1]))
         return k, code, incs[m] if code != RUN_DONE else incs[0], epoch
 
-    def repropagate(
-        self, s: FilterState, kf: ErrorStateFilter, entries: list[Entry], start: int
-    ) -> int:
-        """Re-propagate ``entries[start:]`` while they have no gap, no measurement and the same
-        noise (``advance_run``), as InsEngine._step and _checkpoint would one by one (no
-        smoother attached); returns the index of the next entry."""
-        noise = entries[start].noise
-        stop = start + 1
-        while stop < len(entries):
-            entry = entries[stop]
-            if entry.gap is not None or entry.measurements or entry.noise is not noise:
-                break
-            stop += 1
-        run = entries[start:stop]
-        xs = np.empty((len(run), X_SIZE))
+    def repropagate(self, s: FilterState, kf: ErrorStateFilter, k: int) -> int:
+        """Re-propagate history entries from ``k`` on while they have no gap, no measurement
+        and the same densities (``Timeline.plain_from``; ``advance_run``), as InsEngine._step
+        and _checkpoint would one by one (no smoother attached), and file them again as one
+        run; returns the index of the next entry (``k`` when entry ``k`` is not such)."""
+        timeline = self._timeline
+        taken, noise = timeline.plain_from(k)
+        if not taken:
+            return k
+        incs = np.array(taken)
+        xs = np.empty((len(taken), X_SIZE))
         interval_s = self._config.covariance_interval_s
-        incs = np.array([e.inc for e in run])
-        count = advance_run(
-            s.x, incs, np.array([e.t_s for e in run]), self._geometry.r_bi, interval_s, xs
-        )
+        t_s = timeline.stamps(k, k + len(taken))
+        count = advance_run(s.x, incs, np.array(t_s), self._geometry.r_bi, interval_s, xs)
         s.imu_psd = noise  # what Propagator.advanced does after each step
         s.changed()
-        due = bool(s.x[X_COV_DT] >= interval_s)
+        last = None
         P = kf.P
-        white, gated = s.gnss_white, s.gated_runs
-        for j in range(count - 1 if due else count):
-            run[j].checkpoint = (FilterState.checkpoint_of(xs[j], noise, white, gated), P)
-        if due:
+        books = (s.gnss_white, [(0, s.gated_runs)])
+        if s.x[X_COV_DT] >= interval_s:  # the last one's checkpoint follows the step
             self._propagator.propagate_covariance(s, kf)
-            run[count - 1].checkpoint = (s.copy(), kf.P)
-        return start + count
+            last = (s.copy(), kf.P)
+        run = RunEntries(
+            t_s[:count], (incs, xs), ([noise], [0] * count), ([P], [0] * count), books, {}
+        )
+        timeline.refile(k, run, last)
+        return k + count

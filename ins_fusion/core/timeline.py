@@ -36,6 +36,8 @@ MAX_PENDING = 256
 
 Checkpoint = tuple[FilterState, FloatArray]
 """The nominal state and the error covariance after an IMU sample."""
+Noise = tuple[FloatArray, FloatArray]
+"""IMU white-noise densities (core.propagation.ImuDensities): gyro, accelerometer."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -165,9 +167,43 @@ class Timeline:
             entry = self._history[k] = entry.entry(k + self._dropped - entry.first)
         return entry
 
-    def entries_from(self, k: int) -> list[Entry]:
-        """History entries ``k`` to the newest."""
-        return [self.entry(i) for i in range(k, len(self._history))]
+    def plain_from(self, k: int) -> tuple[list[FloatArray], Noise | None]:
+        """The increments of the entries from ``k`` on with no gap, no measurement and the
+        densities of entry ``k`` (none when it has a gap or measurements), and those
+        densities; read without building the entries."""
+        history, dropped = self._history, self._dropped
+        incs: list[FloatArray] = []
+        noise: Noise | None = None
+        for i in range(k, len(history)):
+            slot = history[i]
+            if isinstance(slot, RunEntries):
+                j = i + dropped - slot.first
+                if j in slot.records:
+                    break
+                this, inc = slot.noises[slot.seen[j]], slot.incs[j]
+            else:
+                if slot.gap is not None or slot.measurements:
+                    break
+                this, inc = slot.noise, slot.inc
+            if incs and this is not noise:
+                break
+            noise = this
+            incs.append(inc)
+        return incs, noise
+
+    def stamps(self, k: int, stop: int) -> list[float]:
+        """Stamps of entries ``k`` to ``stop`` - 1 [s]."""
+        return self._history_t[k:stop]
+
+    def refile(self, k: int, run: RunEntries, last: Checkpoint | None) -> None:
+        """Entries ``k`` on, as many as ``run`` has, replaced by those of ``run`` (the same
+        samples re-propagated); the last one with checkpoint ``last`` when given."""
+        count = len(run.t_s)
+        run.first = self._dropped + k
+        self._history[k : k + count] = itertools.repeat(run, count)
+        if last is not None:
+            entry = self._history[k + count - 1] = run.entry(count - 1)
+            entry.checkpoint = last
 
     def append(self, entry: Entry) -> None:
         """A new IMU sample; entries older than ``history_s`` go (in batches of 1 s)."""
