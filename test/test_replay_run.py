@@ -3,12 +3,16 @@ output tick, also when the IMU samples fall exactly on the ticks."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from ins_fusion.adapters.messages_in import ImuSample
 from ins_fusion.core.measurements import GnssFixMeasurement
 from ins_fusion.replay.inputs import ImuSeries, ReplayInputs
-from ins_fusion.replay.run import run_fusion
+from ins_fusion.replay.run import _TICK_TOLERANCE, output_ticks, run_fusion
 from ins_fusion.replay.topics import TopicMap
 
 T0_S = 1717236000.0  # stamps in seconds since 1970, as in a bag: k / rate is not exact there
@@ -30,3 +34,30 @@ def test_one_solution_per_output_tick_at_200_hz():
     assert np.allclose(np.diff(t), 0.02, atol=1e-6)
     ticks = (t - T0_S) * 50.0
     assert np.allclose(ticks, np.round(ticks), atol=1e-4)  # each at its tick's own sample
+
+
+def _ticks_one_by_one(t_s: list[float], t0_s: float, rate_hz: float) -> list[bool]:
+    """output_ticks's rule sample by sample: recorded at or past the next tick, which then
+    becomes the one after the sample's."""
+    ticks, next_tick = [], 0.0
+    for t in t_s:
+        tick = (t - t0_s) * rate_hz + _TICK_TOLERANCE
+        ticks.append(tick >= next_tick)
+        if ticks[-1]:
+            next_tick = math.floor(tick) + 1.0
+    return ticks
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.lists(st.one_of(st.floats(-0.5, 5.0), st.just(math.nan)), min_size=0, max_size=60),
+    st.sampled_from([1.0, 20.0, 50.0, 134.0]),
+    st.booleans(),
+)
+def test_output_ticks_follow_the_rule_sample_by_sample(steps, rate_hz, sorted_stamps):
+    """Whatever the stamps (going back, repeated, NaN), one sample per output tick."""
+    t0 = 1.7e9
+    stamps = sorted(steps) if sorted_stamps else steps
+    t_s = np.array([t0 + s for s in stamps], dtype=float)
+    expected = _ticks_one_by_one(t_s.tolist(), t0, rate_hz)
+    assert output_ticks(t_s, t0, rate_hz).tolist() == expected

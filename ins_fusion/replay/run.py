@@ -10,7 +10,6 @@ smoothed solution at every covariance step once the forward run is done.
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -116,13 +115,14 @@ class FusionRun:
 def output_ticks(t_s: FloatArray, t0_s: float, rate_hz: float) -> BoolArray:
     """Whether a solution is recorded after each IMU sample (stamps ``t_s`` [s]): at the first
     sample at or past each output tick (``rate_hz`` from ``t0_s``), one per tick."""
-    ticks = np.zeros(len(t_s), dtype=np.bool_)
-    next_tick = 0.0  # output ticks since t0; the next one is recorded
-    for k, t in enumerate(t_s.tolist()):
-        tick = (t - t0_s) * rate_hz + _TICK_TOLERANCE
-        if tick >= next_tick:
-            ticks[k] = True
-            next_tick = math.floor(tick) + 1.0
+    # Sample by sample: recorded when at or past the next tick, which then becomes the one
+    # after the sample's. So a sample is recorded when its tick (whole output periods since
+    # t0_s) is past every earlier sample's (and not before t0_s); stamps that go back or are
+    # not numbers record nothing.
+    periods = np.floor((t_s - t0_s) * rate_hz + _TICK_TOLERANCE)
+    latest = np.fmax.accumulate(np.fmax(periods, -1.0))  # NaN left out
+    before = np.concatenate(([-1.0], latest[:-1]))
+    ticks: BoolArray = periods > before
     return ticks
 
 
