@@ -127,6 +127,24 @@ def test_whole_imu_topics_decode_as_each_message(messages, repeat):
     assert rate.shape == force.shape == (len(payloads), 3) and quat.shape == (len(payloads), 4)
 
 
+def test_blocks_of_a_topic_split_its_layouts_as_a_whole_topic_does(monkeypatch):
+    """Decoded a few messages at a time (cdr_fields._BLOCK), a topic whose layouts (frame_id
+    lengths, byte orders) and lengths alternate decodes as each message."""
+    monkeypatch.setattr(cdr_fields, "_BLOCK", 3)
+    frames = ["imu", "imu_link", "a", "imu"]
+    payloads = []
+    for k in range(23):
+        header = T["std_msgs/msg/Header"](
+            stamp=T["builtin_interfaces/msg/Time"](sec=k, nanosec=7 * k), frame_id=frames[k % 4]
+        )
+        vec = (0.1 * k, -0.2 * k, 9.8)
+        payloads.append(_imu_bytes(header, (0.0, 0.0, 0.0, 1.0), vec, vec, k % 3 != 0))
+    t_s, _, rate, _ = cdr_fields.imu_columns(payloads)
+    samples = [cdr_fields.imu_sample(d) for d in payloads]
+    assert _bits(t_s) == _bits([s.t_s for s in samples])
+    assert _bits(rate) == _bits([s.rate_flu_rad_s for s in samples])
+
+
 @given(
     st.lists(st.tuples(headers, vec3s, vec3s, endians), max_size=5),
     st.integers(0, 30),

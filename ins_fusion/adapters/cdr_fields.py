@@ -29,7 +29,7 @@ every message starts with std_msgs/Header = stamp (int32 sec, uint32 nanosec) an
 from __future__ import annotations
 
 import struct
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -177,29 +177,33 @@ def _columns(
 _LAYOUT_BYTES = [0, 1, 12, 13, 14, 15]
 
 
-def _groups(payloads: Payloads) -> list[tuple[IntArray, NDArray[np.uint8]]]:
-    """Messages of one layout (the same length, encapsulation and frame_id length), in the
-    order of their first message: per group their indices and their bytes (m, length)."""
-    groups: list[tuple[IntArray, NDArray[np.uint8]]] = []
+#: Messages copied out at a time: their bytes stay in the cache, the copy's memory is reused.
+_BLOCK = 4096
+
+
+def _groups(payloads: Payloads) -> Iterator[tuple[IntArray, NDArray[np.uint8]]]:
+    """Messages of one layout (the same length, encapsulation and frame_id length), at most
+    ``_BLOCK`` at a time: their indices and their bytes (m, length)."""
     lengths = payloads.lengths
     distinct, first = np.unique(lengths, return_index=True)
     for size in distinct[np.argsort(first)].tolist():  # the usual topic: one length
-        rows = np.flatnonzero(lengths == size)
-        raw = payloads.rows(rows, size)  # each message copied once
-        if size <= max(_LAYOUT_BYTES):  # too short to hold a header: each on its own
-            groups.extend((rows[i : i + 1], raw[i : i + 1]) for i in range(len(rows)))
-            continue
-        keys = raw[:, _LAYOUT_BYTES]
-        if np.all(keys == keys[0]):
-            groups.append((rows, raw))
-            continue
-        _, group_of = np.unique(keys, axis=0, return_inverse=True)
-        group_of = group_of.ravel()
-        by_group = np.argsort(group_of, kind="stable")
-        cuts = np.flatnonzero(np.diff(group_of[by_group])) + 1
-        groups.extend((rows[part], raw[part]) for part in np.split(by_group, cuts))
-    groups.sort(key=lambda group: int(group[0][0]))
-    return groups
+        same_length = np.flatnonzero(lengths == size)
+        for start in range(0, len(same_length), _BLOCK):
+            rows = same_length[start : start + _BLOCK]
+            raw = payloads.rows(rows, size)  # each message copied once
+            if size <= max(_LAYOUT_BYTES):  # too short to hold a header: each on its own
+                yield from ((rows[i : i + 1], raw[i : i + 1]) for i in range(len(rows)))
+                continue
+            keys = raw[:, _LAYOUT_BYTES]
+            if np.all(keys == keys[0]):
+                yield rows, raw
+                continue
+            _, group_of = np.unique(keys, axis=0, return_inverse=True)
+            group_of = group_of.ravel()
+            by_group = np.argsort(group_of, kind="stable")
+            cuts = np.flatnonzero(np.diff(group_of[by_group])) + 1
+            parts = sorted(np.split(by_group, cuts), key=lambda part: int(part[0]))
+            yield from ((rows[part], raw[part]) for part in parts)
 
 
 def _read(raw: NDArray[np.uint8], start: int, dtype: np.dtype[Any], count: int) -> NDArray[Any]:
