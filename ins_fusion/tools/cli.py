@@ -8,6 +8,8 @@ stays fast and a sub-command that needs rclpy does not slow down one that does n
 from __future__ import annotations
 
 import argparse
+import atexit
+import gc
 import importlib
 import importlib.metadata
 import sys
@@ -87,6 +89,12 @@ def build_parser(command: str | None) -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``gnss_ins`` console script."""
+    # The interpreter's shutdown runs full collections over every object still alive: with
+    # numba's kernels loaded ~0.6 s of CPU at every exit. Frozen (after the exit handlers the
+    # command registers: atexit runs the last registered first) they are skipped; objects
+    # are still released, the standard streams flushed.
+    atexit.unregister(gc.freeze)
+    atexit.register(gc.freeze)
     argv = sys.argv[1:] if argv is None else argv
     command = next((arg for arg in argv if not arg.startswith("-")), None)
     args = build_parser(command).parse_args(argv)
