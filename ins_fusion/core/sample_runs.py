@@ -402,28 +402,39 @@ class CompiledRuns:
 
     def repropagate(self, s: FilterState, kf: ErrorStateFilter, k: int) -> int:
         """Re-propagate history entries from ``k`` on while they have no gap, no measurement
-        and the same densities (``Timeline.plain_from``; ``advance_run``), as InsEngine._step
-        and _checkpoint would one by one (no smoother attached), and file them again as one
-        run; returns the index of the next entry (``k`` when entry ``k`` is not such)."""
+        and the same densities (``Timeline.plain_from``; ``advance_run`` up to each due
+        covariance step), as InsEngine._step and _checkpoint would one by one (no smoother
+        attached), and file them again as runs; returns the index of the next entry (``k``
+        when entry ``k`` is not such)."""
         timeline = self._timeline
         taken, noise = timeline.plain_from(k)
         if not taken:
             return k
         incs = np.array(taken)
-        xs = np.empty((len(taken), X_SIZE))
+        stamps = timeline.stamps(k, k + len(taken))
+        t_s = np.array(stamps)
         interval_s = self._config.covariance_interval_s
-        t_s = timeline.stamps(k, k + len(taken))
-        count = advance_run(s.x, incs, np.array(t_s), self._geometry.r_bi, interval_s, xs)
-        s.imu_psd = noise  # what Propagator.advanced does after each step
-        s.changed()
-        last = None
-        P = kf.P
-        books = (s.gnss_white, [(0, s.gated_runs)])
-        if s.x[X_COV_DT] >= interval_s:  # the last one's checkpoint follows the step
-            self._propagator.propagate_covariance(s, kf)
-            last = (s.copy(), kf.P)
-        run = RunEntries(
-            t_s[:count], (incs, xs), ([noise], [0] * count), ([P], [0] * count), books, {}
-        )
-        timeline.refile(k, run, last)
-        return k + count
+        done = 0
+        while done < len(taken):
+            xs = np.empty((len(taken) - done, X_SIZE))
+            count = advance_run(s.x, incs[done:], t_s[done:], self._geometry.r_bi, interval_s, xs)
+            s.imu_psd = noise  # what Propagator.advanced does after each step
+            s.changed()
+            last = None
+            P = kf.P
+            books = (s.gnss_white, [(0, s.gated_runs)])
+            if s.x[X_COV_DT] >= interval_s:  # the last one's checkpoint follows the step
+                self._propagator.propagate_covariance(s, kf)
+                last = (s.copy(), kf.P)
+            held = ([P], [0] * count)
+            run = RunEntries(
+                stamps[done : done + count],
+                (incs[done:], xs),
+                ([noise], [0] * count),
+                held,
+                books,
+                {},
+            )
+            timeline.refile(k + done, run, last)
+            done += count
+        return k + done
