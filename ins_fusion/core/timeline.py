@@ -62,7 +62,7 @@ class Entry:
         t_s: float,
         inc: FloatArray,
         gap: Gap | None,
-        noise: tuple[FloatArray, FloatArray] | None,
+        noise: Noise | None,
         checkpoint: Checkpoint,
     ) -> None:
         self.t_s = t_s
@@ -99,7 +99,7 @@ class RunEntries:
         self,
         t_s: list[float],
         arrays: tuple[FloatArray, FloatArray],
-        noises: tuple[list[tuple[FloatArray, FloatArray] | None], list[int]],
+        noises: tuple[list[Noise | None], list[int]],
         covariances: tuple[Sequence[FloatArray], list[int]],
         books: tuple[WhiteNoiseMonitor, list[tuple[int, dict[str, int]]]],
         records: dict[int, list[Record]],
