@@ -13,7 +13,10 @@ smoother (its recorder is told of the steps in between); else the general way.
 
 from __future__ import annotations
 
+import math
+
 from gnss_ins_common.types import FloatArray
+from ins_fusion.core.adaptation import adapt_process_noise
 from ins_fusion.core.compiled import jit, kernel_array
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.eskf import ErrorStateFilter, ProcessModel, joseph_update
@@ -72,9 +75,16 @@ def update_and_restart(
     accepted, nis, dx, P_new = joseph_update(P, z, H, R, threshold)
     if accepted:
         inject_nominal(x, dx, columns)
+    restart_interval(x)
+    return accepted, nis, dx, P_new
+
+
+@jit
+def restart_interval(x: FloatArray) -> None:
+    """The covariance interval in ``x`` goes on from the current velocity (after an update,
+    as InsEngine._apply)."""
     for k in range(3):
         x[X_COV_VEL0 + k] = x[X_NAV + 3 + k]
-    return accepted, nis, dx, P_new
 
 
 @jit
@@ -124,6 +134,33 @@ class FusedUpdate:
         self._corrections = corrections
         self._correlation_time_s = config.gnss_correlation_time_s
 
+    @staticmethod
+    def _taken(kf: ErrorStateFilter, stepped: bool, phi: FloatArray, P: FloatArray) -> None:
+        """What the kernel leaves in the filter: Φ of its covariance step (when it made one)
+        and the new P."""
+        if stepped:
+            kf.phi = phi
+        kf.P = P
+
+    def _booked(
+        self,
+        s: FilterState,
+        kind: str,
+        result: tuple[bool, float],
+        live: bool,
+        adapting_rows: int = 0,
+    ) -> None:
+        """The books of an update of ``kind`` a kernel made (``result``: accepted, NIS), as
+        Corrections.update keeps them without a recovery: the process-noise adaptation of a
+        GNSS update of ``adapting_rows`` rows (0: none), the state changed when accepted,
+        Corrections.book."""
+        accepted, nis = result
+        if adapting_rows and math.isfinite(nis):
+            s.nis_mean, s.q_scale = adapt_process_noise(s.nis_mean, s.q_scale, nis / adapting_rows)
+        if accepted:
+            s.changed()
+        self._corrections.book(s, kind, accepted, nis, live)
+
 
 class FusedNhc(FusedUpdate):
     """The engine's side of ``nhc_apply`` (InsEngine._apply uses it while no smoother is
@@ -148,9 +185,5 @@ class FusedNhc(FusedUpdate):
                 kf.layout.size,
             ),
         )
-        if stepped:
-            kf.phi = phi
-        kf.P = P
-        if accepted:
-            s.changed()
-        self._corrections.book(s, "nhc", accepted, nis, live)
+        self._taken(kf, stepped, phi, P)
+        self._booked(s, "nhc", (accepted, nis), live)

@@ -21,7 +21,7 @@ import math
 import numpy as np
 
 from gnss_ins_common.types import FloatArray
-from ins_fusion.core.adaptation import adapt_process_noise, white_push_fix
+from ins_fusion.core.adaptation import white_push_fix
 from ins_fusion.core.compiled import jit, kernel_array
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.eskf import ErrorStateFilter, ProcessModel, projected_variance
@@ -148,18 +148,12 @@ class FusedPosition(FusedUpdate):
             self._noise.settings(s),
             (self._correlation_time_s, corrections.gate(3), kf.layout.size),
         )
-        if stepped:
-            kf.phi = phi
-        kf.P = P
+        self._taken(kf, stepped, phi, P)
         if action == NOISE_RESTART:
             return False
         if action == NOISE_MOVED:  # the kernel set it in the state (set_correlated_variance)
             kf.gnss_variance = s.gnss_variance
-        if math.isfinite(nis):
-            s.nis_mean, s.q_scale = adapt_process_noise(s.nis_mean, s.q_scale, nis / 3.0)
-        if accepted:
-            s.changed()
-        corrections.book(s, _KIND, accepted, nis, live)
+        self._booked(s, _KIND, (accepted, nis), live, 3)
         s.gnss_white = s.gnss_white.with_values(white)
         if accepted:
             s.last_position_t_s = max(s.last_position_t_s, fix.t_s)

@@ -17,12 +17,11 @@ from __future__ import annotations
 import math
 
 from gnss_ins_common.types import FloatArray
-from ins_fusion.core.adaptation import adapt_process_noise
 from ins_fusion.core.compiled import jit, kernel_array
 from ins_fusion.core.eskf import ErrorStateFilter, ProcessModel
-from ins_fusion.core.fused_nhc import FusedUpdate, step_to, update_and_restart
+from ins_fusion.core.fused_nhc import FusedUpdate, restart_interval, step_to, update_and_restart
 from ins_fusion.core.measurements import GnssVelocityMeasurement, _velocity_model
-from ins_fusion.core.state import X_COV_VEL0, X_NAV, FilterState
+from ins_fusion.core.state import FilterState
 
 _KIND = "gnss_velocity"
 
@@ -53,8 +52,7 @@ def velocity_apply(
         mat_nb, vel_m, rate_b, rate_i_m, arm_b, mat_bi, vel_enu, cov_enu, size, columns[0]
     )
     if rows == 0:  # the covariance interval goes on from the velocity all the same
-        for k in range(3):
-            x[X_COV_VEL0 + k] = x[X_NAV + 3 + k]
+        restart_interval(x)
         return stepped, phi, 0, False, math.nan, P
     threshold = gate2 if rows == 2 else gate3
     accepted, nis, _, P_new = update_and_restart(P, x, (z, H, R), threshold, columns)
@@ -95,14 +93,8 @@ class FusedVelocity(FusedUpdate):
                 kf.layout.size,
             ),
         )
-        if stepped:
-            kf.phi = phi
-        kf.P = P
+        self._taken(kf, stepped, phi, P)
         if rows == 0:
             corrections.reject(_KIND, live)
             return
-        if math.isfinite(nis):
-            s.nis_mean, s.q_scale = adapt_process_noise(s.nis_mean, s.q_scale, nis / rows)
-        if accepted:
-            s.changed()
-        corrections.book(s, _KIND, accepted, nis, live)
+        self._booked(s, _KIND, (accepted, nis), live, rows)
