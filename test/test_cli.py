@@ -4,6 +4,7 @@ option's default in its --help."""
 from __future__ import annotations
 
 import argparse
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -76,3 +77,19 @@ def test_imu_demo_runs_the_node_on_an_emulated_device():
     assert result.returncode == 0, result.stderr
     assert "imu/data_raw  t=" in result.stdout and "Imu messages over" in result.stdout
     assert "mean specific force (FLU)" in result.stdout
+
+
+@pytest.mark.parametrize(
+    ("name", "before", "after"),
+    [("replay", None, "1"), ("replay", "2", "2"), ("allan", None, None)],
+)
+def test_replay_runs_blas_single_threaded_unless_the_user_says(name, before, after, monkeypatch):
+    """`gnss_ins replay` sets OPENBLAS_NUM_THREADS=1 before numpy loads, a user's value
+    stands, and other sub-commands leave it alone."""
+    environment = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    if before is not None:
+        environment["OPENBLAS_NUM_THREADS"] = before
+    monkeypatch.setattr(os, "environ", environment)
+    with pytest.raises(SystemExit):
+        main([name, "--help"])
+    assert environment.get("OPENBLAS_NUM_THREADS") == after

@@ -12,6 +12,7 @@ import atexit
 import gc
 import importlib
 import importlib.metadata
+import os
 import sys
 from collections.abc import Callable
 from typing import Any
@@ -35,6 +36,12 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "replay": ("replay", "bag through the fusion core offline: accuracy report, plot, sweeps"),
     "simulate": ("simulate", "simulated drive to a rosbag2 bag, or live on emulated devices"),
 }
+
+#: Sub-commands that run OpenBLAS single-threaded unless the user set OPENBLAS_NUM_THREADS: the
+#: engine's matrices are at most 21 x 21 and a replay's work on whole tracks gains nothing
+#: measurable from more threads, whose start at numpy's import alone costs ~0.07 s of CPU (a
+#: whole replay: ~0.2 s less, docs/benchmarks.md).
+SINGLE_THREAD_BLAS = frozenset({"replay"})
 
 
 def argument_type(parse: Callable[[str], Any]) -> Callable[[str], Any]:
@@ -97,6 +104,8 @@ def main(argv: list[str] | None = None) -> int:
     atexit.register(gc.freeze)
     argv = sys.argv[1:] if argv is None else argv
     command = next((arg for arg in argv if not arg.startswith("-")), None)
+    if command in SINGLE_THREAD_BLAS:  # before the sub-command's module imports numpy
+        os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     args = build_parser(command).parse_args(argv)
     try:
         return int(args._module.run(args))
