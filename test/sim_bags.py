@@ -17,6 +17,9 @@ from ins_fusion.tools.simulate import write_bag
 #: 90 s of the figure-eight scenario (10 s standstill, accelerating to 10 m/s, one lap of two
 #: 40 m circles, braking), imu400cc IMU, Leica RTK at 1 Hz, ADU5 at 5 Hz, truth at 50 Hz.
 FIGURE_EIGHT_90_S = SimulationConfig(scenario="figure_eight", duration_s=90.0, seed=3)
+#: 75 s of the test pattern (60 s standstill, then urban driving), the same receivers: the
+#: filter starts during the standstill and applies ZUPT and ZARU for most of it.
+TEST_PATTERN_75_S = SimulationConfig(scenario="test_pattern", duration_s=75.0, seed=4)
 
 
 def shared_bag(factory: pytest.TempPathFactory, name: str, config: SimulationConfig) -> Path:

@@ -17,8 +17,10 @@ from gnss_ins_common.params import validate_all
 from ins_fusion.core import (
     adaptation,
     eskf,
+    fused_attitude,
     fused_nhc,
     fused_position,
+    fused_stationary,
     fused_velocity,
     gnss_noise,
     intake,
@@ -129,6 +131,12 @@ _KERNELS = (
     fused_nhc.nhc_apply,
     fused_velocity.velocity_apply,
     fused_position.position_apply,
+    fused_attitude.attitude_apply,
+    measurements.attitude_model,
+    fused_stationary.zupt_apply,
+    fused_stationary.zaru_apply,
+    measurements.zupt_model,
+    measurements.zaru_model,
 )
 _REAL = Path(__file__).parent / "fixtures" / "comma2k19" / "comma2k19_ex1_seg40"
 

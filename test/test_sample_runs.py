@@ -12,7 +12,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-from sim_bags import FIGURE_EIGHT_90_S, shared_bag
+from sim_bags import FIGURE_EIGHT_90_S, TEST_PATTERN_75_S, shared_bag
 from test_compiled import PARAMETER_SETS
 
 from gnss_ins_common.params import validate_all
@@ -20,7 +20,9 @@ from ins_fusion.core import sample_runs
 from ins_fusion.core.compiled import kernel_array
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.engine import InsEngine
+from ins_fusion.core.fused_attitude import FusedAttitude
 from ins_fusion.core.fused_position import FusedPosition
+from ins_fusion.core.fused_stationary import FusedStationary
 from ins_fusion.core.fused_velocity import FusedVelocity
 from ins_fusion.core.params import PARAMETERS
 from ins_fusion.core.smoothed_solution import attach_recorder
@@ -48,6 +50,13 @@ _SETS: dict[str, dict[str, object]] = {
 def inputs(tmp_path_factory: pytest.TempPathFactory) -> ReplayInputs:
     return load_bag(
         shared_bag(tmp_path_factory, "figure_eight_90_s", FIGURE_EIGHT_90_S), TopicMap()
+    )
+
+
+@pytest.fixture(scope="module")
+def standstill(tmp_path_factory: pytest.TempPathFactory) -> ReplayInputs:
+    return load_bag(
+        shared_bag(tmp_path_factory, "test_pattern_75_s", TEST_PATTERN_75_S), TopicMap()
     )
 
 
@@ -130,33 +139,51 @@ def test_with_the_smoother_attached_the_engine_goes_sample_by_sample(inputs: Rep
 
 @pytest.mark.parametrize("damage", [False, True], ids=["clean", "damaged"])
 @pytest.mark.parametrize("name", ["defaults", "all_states"])
+@pytest.mark.parametrize("drive", ["inputs", "standstill"])
 def test_the_fast_paths_equal_the_general_path(
-    inputs: ReplayInputs, name: str, damage: bool, monkeypatch: pytest.MonkeyPatch
+    request: pytest.FixtureRequest,
+    drive: str,
+    name: str,
+    damage: bool,
+    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    """Compiled runs, the fused NHC, GNSS velocity and position (no smoother) against sample by
-    sample with the recorder attached (no run, every update the general way; the recorder
-    only listens)."""
+    """Compiled runs, the fused NHC, ZUPT, ZARU, GNSS velocity, attitude and position (no
+    smoother) against sample by sample with the recorder attached (no run, every update the
+    general way; the recorder only listens): on the figure eight (driving) and on the test
+    pattern (mostly at rest)."""
+    inputs = request.getfixturevalue(drive)
     if damage:
         inputs = _damaged(inputs)
     parameters = validate_all(PARAMETERS, _SETS[name])
     expected_rows, expected_status = _sample_by_sample(inputs, parameters, smooth=True)
     taken = _count_runs(monkeypatch)
-    fused = {"velocity": 0, "position": 0}
-    for kind, update in (("velocity", FusedVelocity), ("position", FusedPosition)):
-        apply = update.apply
+    fused = {"velocity": 0, "position": 0, "attitude": 0, "zupt": 0, "zaru": 0}
+    for kind, update, method in (
+        ("velocity", FusedVelocity, "apply"),
+        ("position", FusedPosition, "apply"),
+        ("attitude", FusedAttitude, "apply"),
+        ("zupt", FusedStationary, "zupt"),
+        ("zaru", FusedStationary, "zaru"),
+    ):
+        apply = getattr(update, method)
 
         def counted(*args, kind=kind, apply=apply):  # type: ignore[no-untyped-def]
             done = apply(*args)
             fused[kind] += done is not False  # the position's False: only the step was made
             return done
 
-        monkeypatch.setattr(update, "apply", counted)
+        monkeypatch.setattr(update, method, counted)
     run = run_fusion(inputs, parameters)
-    assert run.status.measurements["nhc"]["used"] > 300
-    # The runs took pseudo-measurement epochs with their NHC and covariance steps.
-    assert taken["nhc"] > 300 and taken["covariances"] > taken["nhc"] + 100
-    # The GNSS updates went through the fused ones, but with the time-offset state.
-    assert (min(fused.values()) > 50) == (name == "defaults"), fused
+    sensors = min(fused[kind] for kind in ("velocity", "position", "attitude"))
+    if drive == "inputs":
+        assert run.status.measurements["nhc"]["used"] > 300
+        # The runs took pseudo-measurement epochs with their NHC and covariance steps.
+        assert taken["nhc"] > 300 and taken["covariances"] > taken["nhc"] + 100
+        # The GNSS and attitude updates went through the fused ones, but with the time-offset
+        # state.
+        assert (sensors > 50) == (name == "defaults"), fused
+    else:  # the updates at rest through the fused ones, also with the time-offset state
+        assert min(fused["zupt"], fused["zaru"]) > 300, fused
     np.testing.assert_array_equal(run.track.rows, expected_rows)
     assert repr(run.status) == repr(expected_status)
 

@@ -55,9 +55,7 @@ from ins_fusion.core.calibration import T_SIZE as CALIBRATION_SIZE
 from ins_fusion.core.calibration import ImuCalibration
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.eskf import ErrorStateFilter, StateLayout
-from ins_fusion.core.fused_nhc import FusedNhc
-from ins_fusion.core.fused_position import FusedPosition
-from ins_fusion.core.fused_velocity import FusedVelocity
+from ins_fusion.core.fused_updates import FusedUpdates
 from ins_fusion.core.gnss_noise import GnssNoise
 from ins_fusion.core.intake import (
     BACK_RUN_RESET,
@@ -157,10 +155,8 @@ class InsEngine:
         self._densities = ImuDensities(noise.gyro_psd, noise.accel_psd)
         self._propagator = Propagator(config, geometry, self._densities)
         self._corrections = Corrections(config, geometry, gnss_noise, self._counters, self._latest)
-        self._nhc = FusedNhc(config, geometry, self._propagator, self._corrections)
-        self._velocity = FusedVelocity(config, geometry, self._propagator, self._corrections)
-        self._position = FusedPosition(
-            config, geometry, (self._propagator, self._corrections, gnss_noise)
+        self._fused = FusedUpdates(
+            config, geometry, self._propagator, self._corrections, gnss_noise
         )
         self._startup = Startup(
             config, calibration, geometry, gnss_noise, self.layout, self._counters, self._latest
@@ -568,19 +564,7 @@ class InsEngine:
         t_m, _, _, kind, payload = record
         s, kf = self._state, self._filter
         assert s is not None and kf is not None
-        if kind == "nhc" and kf.recorder is None and s.heading_known:  # in one kernel
-            self._nhc.apply(s, kf, t_m, live)
-            return
-        if kind == "gnss_velocity" and self._velocity.usable(s, kf):  # in one kernel
-            self._velocity.apply(s, kf, payload, live)
-            return
-        # In one kernel, unless it stepped the covariance only: the general way goes on then.
-        position = self._position
-        if (
-            kind == "gnss_position"
-            and position.usable(s, kf, payload)
-            and position.apply(s, kf, payload, live)
-        ):
+        if self._fused.applied(s, kf, (kind, t_m, payload), live):  # in one kernel
             return
         self._propagator.propagate_covariance(s, kf)
         self._corrections.handlers[kind](s, kf, self._propagator.predict(s, kf, t_m), payload, live)

@@ -14,6 +14,8 @@ smoother (its recorder is told of the steps in between); else the general way.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from typing import Any
 
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core.adaptation import adapt_process_noise
@@ -133,6 +135,58 @@ class FusedUpdate:
         self._propagator = propagator
         self._corrections = corrections
         self._correlation_time_s = config.gnss_correlation_time_s
+        self._gates = (corrections.gate(1), corrections.gate(2), corrections.gate(3))
+
+    def _kernel(
+        self,
+        kernel: Callable[..., Any],
+        state: tuple[FilterState, ErrorStateFilter],
+        measured: Any,
+        geometry: Any,
+        constants: Any,
+    ) -> Any:
+        """``kernel``(P, x, ``measured``, process model, ``geometry``, columns, ``constants``)
+        on the ``state``'s filter (its white noise set first: read only by a step)."""
+        s, kf = state
+        kf.set_white_noise(*self._propagator.white_noise(s))
+        return kernel(
+            kernel_array(kf.P),
+            s.x,
+            measured,
+            kf.process_model(),
+            geometry,
+            kf.layout.columns,
+            constants,
+        )
+
+    def _sensor_usable(self, s: FilterState, kf: ErrorStateFilter, kind: str) -> bool:
+        """Whether the general way would apply a sensor's update of ``kind`` just as its
+        kernel does: the heading known, no smoother (its recorder hears each step), no
+        time-offset state (its terms) and no gate recovery possible (fewer gated updates in a
+        row than the recovery needs)."""
+        if kf.recorder is not None or kf.layout.td is not None or not s.heading_known:
+            return False
+        recover = self._config.gate_recovery_count
+        return not recover or s.gated_runs.get(kind, 0) + 1 < recover
+
+    def _sensor_taken(
+        self,
+        state: tuple[FilterState, ErrorStateFilter],
+        kind: str,
+        result: tuple[bool, FloatArray, int, bool, float, FloatArray],
+        live: bool,
+        adapting: bool,
+    ) -> None:
+        """What a sensor's kernel ``result`` (stepped, Φ, rows (0: unusable), accepted, NIS,
+        new P) leaves in the filter and the books (``adapting``: the process-noise
+        adaptation of a GNSS update)."""
+        s, kf = state
+        stepped, phi, rows, accepted, nis, P = result
+        self._taken(kf, stepped, phi, P)
+        if rows == 0:
+            self._corrections.reject(kind, live)
+            return
+        self._booked(s, kind, (accepted, nis), live, rows if adapting else 0)
 
     @staticmethod
     def _taken(kf: ErrorStateFilter, stepped: bool, phi: FloatArray, P: FloatArray) -> None:
@@ -169,21 +223,13 @@ class FusedNhc(FusedUpdate):
     def apply(self, s: FilterState, kf: ErrorStateFilter, t_m: float, live: bool) -> None:
         """What InsEngine._apply does for an NHC record at ``t_m`` while the heading is known
         (``live``: counted)."""
-        kf.set_white_noise(*self._propagator.white_noise(s))  # read only by a step
         geometry = self._geometry
-        stepped, phi, accepted, nis, P = nhc_apply(
-            kernel_array(kf.P),
-            s.x,
+        stepped, phi, accepted, nis, P = self._kernel(
+            nhc_apply,
+            (s, kf),
             t_m,
-            kf.process_model(),
             (geometry.mat_bi, kernel_array(geometry.arms(s)[1])),
-            kf.layout.columns,
-            (
-                self._correlation_time_s,
-                self._config.nhc_sigma_m_s,
-                self._corrections.gate(2),
-                kf.layout.size,
-            ),
+            (self._correlation_time_s, self._config.nhc_sigma_m_s, self._gates[1], kf.layout.size),
         )
         self._taken(kf, stepped, phi, P)
         self._booked(s, "nhc", (accepted, nis), live)

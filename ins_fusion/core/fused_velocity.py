@@ -64,37 +64,19 @@ class FusedVelocity(FusedUpdate):
 
     def usable(self, s: FilterState, kf: ErrorStateFilter) -> bool:
         """Whether the general way would do just what ``apply`` does."""
-        config = self._config
-        if not config.use_gnss_velocity or kf.recorder is not None or kf.layout.td is not None:
-            return False
-        if not s.heading_known:
-            return False
-        recover = config.gate_recovery_count
-        return not recover or s.gated_runs.get(_KIND, 0) + 1 < recover
+        return self._config.use_gnss_velocity and self._sensor_usable(s, kf, _KIND)
 
     def apply(
         self, s: FilterState, kf: ErrorStateFilter, vel: GnssVelocityMeasurement, live: bool
     ) -> None:
         """What InsEngine._apply does for a GNSS velocity record where ``usable`` (``live``:
         counted)."""
-        kf.set_white_noise(*self._propagator.white_noise(s))  # read only by a step
-        geometry, corrections = self._geometry, self._corrections
-        stepped, phi, rows, accepted, nis, P = velocity_apply(
-            kernel_array(kf.P),
-            s.x,
+        geometry = self._geometry
+        result = self._kernel(
+            velocity_apply,
+            (s, kf),
             (vel.t_s, kernel_array(vel.vel_enu_m_s), kernel_array(vel.cov_enu_m2_s2)),
-            kf.process_model(),
             (geometry.mat_bi, kernel_array(geometry.arms(s)[0])),
-            kf.layout.columns,
-            (
-                self._correlation_time_s,
-                corrections.gate(2),
-                corrections.gate(3),
-                kf.layout.size,
-            ),
+            (self._correlation_time_s, self._gates[1], self._gates[2], kf.layout.size),
         )
-        self._taken(kf, stepped, phi, P)
-        if rows == 0:
-            corrections.reject(_KIND, live)
-            return
-        self._booked(s, _KIND, (accepted, nis), live, rows)
+        self._sensor_taken((s, kf), _KIND, result, live, adapting=True)

@@ -29,7 +29,7 @@ UNKNOWN_ANGLE_VARIANCE = 1.0
 _AXIS = (1, 0, 2)
 _SIGN = (1.0, 1.0, -1.0)
 #: FLU <-> FRD sign flips of the (roll, pitch, yaw) errors of a REP-103 orientation covariance.
-_RPY_FLU_TO_FRD = np.diag([1.0, -1.0, -1.0])
+_RPY_SIGN = (1.0, -1.0, -1.0)
 
 
 def _array(value: object, shape: tuple[int, ...]) -> FloatArray:
@@ -110,6 +110,7 @@ Model = tuple[FloatArray, FloatArray, FloatArray]
 TIME_OFFSET_MIN_TURN_RATE = math.radians(2.0)
 
 
+@compilable
 def mounting_skew(mounting_rad: tuple[float, float]) -> FloatArray:
     """[μ×] of a residual mounting μ = (0, pitch, yaw) about base_link FRD y, z [rad]: the
     vehicle frame v is the engine's body frame b turned by it, C_bv = I + [μ×]."""
@@ -255,6 +256,7 @@ def gyro_error_columns(
         H[:, sg : sg + 3] = d_rate @ (-mat_bi * rate_i)
 
 
+@compilable
 def euler_jacobian(mat_nb: FloatArray) -> FloatArray:
     """d(roll, pitch, yaw)/dψ for C_true = (I + [ψ×]) C (rows roll, pitch, yaw)."""
     c = mat_nb
@@ -262,15 +264,15 @@ def euler_jacobian(mat_nb: FloatArray) -> FloatArray:
     d_yaw = c[0, 0] ** 2 + c[1, 0] ** 2
     cos_pitch = math.sqrt(d_yaw)
     return np.array(
-        [
-            [
+        (
+            (
                 (c[2, 2] * c[1, 1] - c[2, 1] * c[1, 2]) / d_roll,
                 (c[2, 1] * c[0, 2] - c[2, 2] * c[0, 1]) / d_roll,
                 0.0,
-            ],
-            [-c[1, 0] / cos_pitch, c[0, 0] / cos_pitch, 0.0],
-            [-c[0, 0] * c[2, 0] / d_yaw, -c[1, 0] * c[2, 0] / d_yaw, 1.0],
-        ]
+            ),
+            (-c[1, 0] / cos_pitch, c[0, 0] / cos_pitch, 0.0),
+            (-c[0, 0] * c[2, 0] / d_yaw, -c[1, 0] * c[2, 0] / d_yaw, 1.0),
+        )
     )
 
 
@@ -284,57 +286,139 @@ def attitude(
     """Euler angles (roll, pitch, yaw) of base_link; angles marked unknown are dropped.
 
     The REP-103 covariance (errors about the FLU axes) becomes the covariance of the NED Euler
-    angles by the sign flips of pitch and yaw. None when no angle is measured. With a residual
-    IMU time offset state, the measurement is compared with the attitude ``time_offset_s``
-    later on the IMU's timeline: the Euler angles move by their rate J C_nb ω_b (the earth and
-    transport rates, < 1e-4 rad/s, left out) times it, and H gets that rate on δt_d when above
+    angles by the sign flips of pitch and yaw (element by element: a non-finite variance of one
+    angle leaves the others usable). None when no angle is measured. With a residual IMU time
+    offset state, the measurement is compared with the attitude ``time_offset_s`` later on the
+    IMU's timeline: the Euler angles move by their rate J C_nb ω_b (the earth and transport
+    rates, < 1e-4 rad/s, left out) times it, and H gets that rate on δt_d when above
     ``TIME_OFFSET_MIN_TURN_RATE`` (a slower one is mostly gyro noise). The measured frame is
     the vehicle's: C_nb (I + [μ×]) with the residual mounting μ = (0, pitch, yaw), which is
-    ψ = C_nb μ, so H gets J C_nb on (μ_y, μ_z).
+    ψ = C_nb μ, so H gets J C_nb on (μ_y, μ_z). Compiled (``attitude_model``).
     """
-    cov = _RPY_FLU_TO_FRD @ cov_rpy_flu @ _RPY_FLU_TO_FRD
-    diagonal = np.diagonal(cov)
-    keep = np.flatnonzero(np.isfinite(diagonal) & (diagonal < UNKNOWN_ANGLE_VARIANCE))
-    if keep.size == 0:
-        return None
-    mat_nv = pred.mat_nb
-    if mounting_rad != (0.0, 0.0):
-        mat_nv = pred.mat_nb @ (np.eye(3) + mounting_skew(mounting_rad))
+    layout = pred.layout
+    rows, z, H, R = attitude_model(
+        kernel_array(pred.mat_nb),
+        kernel_array(mat_nb_measured),
+        kernel_array(cov_rpy_flu),
+        mounting_rad,
+        (kernel_array(pred.rate_b), time_offset_s),
+        layout.size,
+        layout.columns[3],
+        layout.columns[4],
+    )
+    return None if rows == 0 else (z, H, R)
+
+
+@jit
+def attitude_model(
+    mat_nb: FloatArray,
+    mat_nb_measured: FloatArray,
+    cov_rpy_flu: FloatArray,
+    mounting_rad: tuple[float, float],
+    late: tuple[FloatArray, float],
+    size: int,
+    mt: int,
+    td: int,
+) -> tuple[int, FloatArray, FloatArray, FloatArray]:
+    """``attitude``'s model (rows, z, H, R; 0 rows: no angle measured) from the predicted and
+    the measured body -> NED rotation, the REP-103 covariance [rad²], the residual mounting
+    (pitch, yaw) [rad], ``late`` = (the corrected body rate [rad/s], base FRD, the IMU time
+    offset estimate [s]), the layout's size and its mounting and time-offset columns (-1: not
+    estimated)."""
+    cov = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            cov[i, j] = _RPY_SIGN[i] * _RPY_SIGN[j] * cov_rpy_flu[i, j]
+    keep = np.empty(3, dtype=np.int64)
+    rows = 0
+    for k in range(3):
+        if math.isfinite(cov[k, k]) and cov[k, k] < UNKNOWN_ANGLE_VARIANCE:
+            keep[rows] = k
+            rows += 1
+    if rows == 0:
+        return 0, np.zeros(0), np.zeros((0, size)), np.zeros((0, 0))
+    mat_nv = mat_nb
+    if mounting_rad[0] != 0.0 or mounting_rad[1] != 0.0:
+        mat_nv = mat_nb @ (np.eye(3) + mounting_skew(mounting_rad))
     z = wrap_angle(euler_rad(mat_nb_measured) - euler_rad(mat_nv))
-    H = pred.jacobian(3)
+    H = np.zeros((3, size))
     jacobian = euler_jacobian(mat_nv)
     H[:, ATT : ATT + 3] = jacobian
-    mt = pred.layout.mt
-    if mt is not None:
-        H[:, mt : mt + 2] = (jacobian @ pred.mat_nb)[:, 1:3]
-    td = pred.layout.td
-    if td is not None:
-        euler_rate = jacobian @ (pred.mat_nb @ pred.rate_b)
+    if mt >= 0:
+        H[:, mt : mt + 2] = (jacobian @ mat_nb)[:, 1:3]
+    if td >= 0:
+        rate_b, time_offset_s = late
+        euler_rate = jacobian @ (mat_nb @ rate_b)
         z = z - euler_rate * time_offset_s
-        if float(np.linalg.norm(euler_rate)) >= TIME_OFFSET_MIN_TURN_RATE:
+        if math.sqrt(euler_rate @ euler_rate) >= TIME_OFFSET_MIN_TURN_RATE:
             H[:, td] = euler_rate
-    return z[keep], H[keep], cov[np.ix_(keep, keep)]
+    keep = keep[:rows]
+    R = np.empty((rows, rows))
+    for a in range(rows):
+        for b in range(rows):
+            R[a, b] = cov[keep[a], keep[b]]
+    return rows, z[keep], H[keep], R
 
 
 def zupt(pred: Prediction, sigma_m_s: float) -> Model:
-    """Zero velocity of the IMU point: H: δv -> I."""
-    H = pred.jacobian(3)
-    H[:, VEL : VEL + 3] = np.eye(3)
-    return -pred.vel_ned_m_s, H, np.eye(3) * sigma_m_s**2
+    """Zero velocity of the IMU point: H: δv -> I. Compiled (``zupt_model``)."""
+    return zupt_model(kernel_array(pred.vel_ned_m_s), sigma_m_s, pred.layout.size)
+
+
+@jit
+def zupt_model(
+    vel: FloatArray, sigma_m_s: float, size: int
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """``zupt``'s model from the predicted NED velocity [m/s], σ [m/s] and the state size."""
+    H = np.zeros((3, size))
+    for k in range(3):
+        H[k, VEL + k] = 1.0
+    return -vel, H, np.eye(3) * sigma_m_s**2
 
 
 def zaru(
     pred: Prediction,
-    mean_rate_i: FloatArray,
-    earth_rate_i: FloatArray,
-    gyro_bias_i: FloatArray,
+    rates_i: tuple[FloatArray, FloatArray],
+    mat_bi: FloatArray,
     variance: FloatArray,
+    heading_known: bool,
 ) -> Model:
     """Zero angular rate: the mean calibrated rate (imu FRD) over an interval at rest minus the
-    earth rate and the bias estimate measures the bias error (the scale error times the earth
-    rate, < 1e-7 rad/s, is left out). H: δb_g -> I."""
-    H = pred.jacobian(3)
-    H[:, BG : BG + 3] = np.eye(3)
+    earth rate and the bias estimate (``rates_i``: those two rates [rad/s]) measures the bias
+    error (the scale error times the earth rate, < 1e-7 rad/s, is left out); the earth rate's
+    horizontal part only with the heading known. H: δb_g -> I. Compiled (``zaru_model``)."""
+    mean_rate_i, gyro_bias_i = rates_i
+    return zaru_model(
+        kernel_array(pred.mat_nb),
+        pred.lat_rad,
+        heading_known,
+        (kernel_array(mean_rate_i), kernel_array(gyro_bias_i)),
+        mat_bi,
+        kernel_array(variance),
+        pred.layout.size,
+    )
+
+
+@jit
+def zaru_model(
+    mat_nb: FloatArray,
+    lat_rad: float,
+    heading_known: bool,
+    rates_i: tuple[FloatArray, FloatArray],
+    mat_bi: FloatArray,
+    variance: FloatArray,
+    size: int,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """``zaru``'s model from the predicted body -> NED rotation and latitude [rad], the mean
+    rate and the bias estimate (imu FRD) [rad/s], the rotation imu -> body, the variances
+    [rad²/s²] and the state size."""
+    mean_rate_i, gyro_bias_i = rates_i
+    north = earth.EARTH_RATE_RAD_S * math.cos(lat_rad) if heading_known else 0.0
+    down = -earth.EARTH_RATE_RAD_S * math.sin(lat_rad)
+    earth_rate_i = mat_bi.T @ (mat_nb.T @ np.array((north, 0.0, down)))
+    H = np.zeros((3, size))
+    for k in range(3):
+        H[k, BG + k] = 1.0
     return mean_rate_i - earth_rate_i - gyro_bias_i, H, np.diag(variance)
 
 

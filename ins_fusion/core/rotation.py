@@ -148,17 +148,19 @@ def skew(v: FloatArray | Vec3) -> FloatArray:
     return np.array(((0.0, -z, y), (z, 0.0, -x), (-y, x, 0.0)))
 
 
+@compilable
 def euler_rad(mat_nb: FloatArray) -> FloatArray:
     """(roll, pitch, yaw) [rad] of an FRD -> NED rotation matrix (Aalborg notes (7.16)-(7.18))."""
     return np.array(
-        [
+        (
             math.atan2(mat_nb[2, 1], mat_nb[2, 2]),
             -math.asin(max(-1.0, min(1.0, mat_nb[2, 0]))),
             math.atan2(mat_nb[1, 0], mat_nb[0, 0]),
-        ]
+        )
     )
 
 
+@compilable
 def wrap_angle(angle_rad: FloatArray) -> FloatArray:
     """Angles wrapped to [-π, π)."""
     return np.asarray((angle_rad + math.pi) % (2.0 * math.pi) - math.pi, dtype=np.float64)

@@ -273,9 +273,7 @@ class Geometry:
 
     def measured_mat_nb(self, att: AttitudeMeasurement) -> FloatArray:
         """Base_link FRD -> NED rotation from an attitude measurement and its mounting."""
-        q_enu_base = quat_multiply(as_quat(att.quat_enu_flu_xyzw), self.q_a_base)
-        quat_nb = quat_enu_flu(q_enu_base)  # the map is its own inverse
-        return mat_from_quat(*quat_nb)
+        return base_mat_nb(as_quat(att.quat_enu_flu_xyzw), self.q_a_base)
 
     def mounting_rpy(self, mounting: tuple[float, float]) -> FloatArray:
         """REP-103 roll, pitch, yaw [rad] of imu_link in the base_link of a residual mounting
@@ -286,6 +284,15 @@ class Geometry:
         rpy = np.array(mounting_rpy_from(self.r_bi, mounting[0], mounting[1]))
         self._mounting_cache = (mounting, rpy)
         return rpy
+
+
+@compilable
+def base_mat_nb(quat_enu_flu_a: Quat, q_a_base: Quat) -> FloatArray:
+    """Base_link FRD -> NED rotation from the REP-103 orientation (x, y, z, w) of an attitude
+    receiver's frame a and the rotation of base_link in a (Geometry.q_a_base): q_ea ⊗ q_ab,
+    FLU in ENU -> FRD in NED (the map is its own inverse)."""
+    x, y, z, w = quat_enu_flu(quat_multiply(quat_enu_flu_a, q_a_base))
+    return mat_from_quat(x, y, z, w)
 
 
 @compilable

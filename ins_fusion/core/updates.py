@@ -16,7 +16,7 @@ import numpy as np
 
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core.adaptation import adapt_process_noise, fading_factor
-from ins_fusion.core.alignment import earth_rate_body_rad_s, unknown_earth_rate_rad_s
+from ins_fusion.core.alignment import unknown_earth_rate_rad_s
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.eskf import (
     ATT,
@@ -43,7 +43,7 @@ from ins_fusion.core.measurements import (
     zupt,
 )
 from ins_fusion.core.rotation import euler_rad, skew
-from ins_fusion.core.state import FilterState, Geometry, LatestInputs, inject
+from ins_fusion.core.state import X_BG, FilterState, Geometry, LatestInputs, inject
 from ins_fusion.core.status import MEASUREMENT_NAMES, Counters
 
 #: The measurements whose normalised innovations scale the IMU process noise (adaptation.py).
@@ -264,18 +264,17 @@ class Corrections:
         live: bool,
     ) -> None:
         mean_rate_i, span_s = payload
-        earth_rate_b = earth_rate_body_rad_s(pred.mat_nb, pred.lat_rad, s.heading_known)
-        variance = self._gyro_psd / max(span_s, 1e-3) + self._config.zaru_sigma_rad_s**2
+        variance = self.zaru_variance(span_s)
         if not s.heading_known:
             variance = variance + unknown_earth_rate_rad_s(pred.lat_rad) ** 2
-        model = zaru(
-            pred,
-            mean_rate_i,
-            self._geometry.mat_bi.T @ earth_rate_b,
-            np.array(s.gyro_bias),
-            variance,
-        )
+        rates_i = (mean_rate_i, s.x[X_BG : X_BG + 3])
+        model = zaru(pred, rates_i, self._geometry.mat_bi, variance, s.heading_known)
         self.update(s, kf, "zaru", model, live)
+
+    def zaru_variance(self, span_s: float) -> FloatArray:
+        """The variances [rad²/s²] of a ZARU over ``span_s`` [s] at rest with the heading known:
+        the gyro's white noise averaged over it and the configured σ."""
+        return self._gyro_psd / max(span_s, 1e-3) + self._config.zaru_sigma_rad_s**2
 
     def _nhc(
         self, s: FilterState, kf: ErrorStateFilter, pred: Prediction, _: None, live: bool

@@ -18,8 +18,10 @@ from ins_fusion.core.adaptation import ImuNoiseMonitor
 from ins_fusion.core.calibration import ImuCalibration
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.eskf import ErrorStateFilter, StateLayout, projected_variance
+from ins_fusion.core.fused_attitude import attitude_apply
 from ins_fusion.core.fused_nhc import nhc_apply
 from ins_fusion.core.fused_position import position_apply
+from ins_fusion.core.fused_stationary import zaru_apply, zupt_apply
 from ins_fusion.core.fused_velocity import velocity_apply
 from ins_fusion.core.gnss_noise import GnssNoise
 from ins_fusion.core.intake import new_intake, record_sample, take_sample
@@ -27,9 +29,12 @@ from ins_fusion.core.measurements import (
     GnssFixMeasurement,
     GnssVelocityMeasurement,
     Prediction,
+    attitude,
     gnss_position,
     gnss_velocity,
     nhc,
+    zaru,
+    zupt,
 )
 from ins_fusion.core.output_numbers import NUMBERS, output_numbers
 from ins_fusion.core.propagation import advance, covariance_step, predicted_state
@@ -71,15 +76,28 @@ def warm_up() -> float:
     kf = ErrorStateFilter(layout, config.imu_noise, config.gnss_correlation_time_s or 60.0)
     kf.P = np.eye(layout.size) * 1e-2
     s.x[X_COV_DT] = 0.01
-    mat_bi = Geometry(config, layout).mat_bi
+    geometry_of = Geometry(config, layout)
+    mat_bi = geometry_of.mat_bi
     kf.P, kf.phi = covariance_step(kf.P, s.x, mat_bi, kf.process_model(), layout.columns, 60.0)
     kf.update(np.zeros(3), np.eye(3, layout.size), np.eye(3), math.inf)
     constants = (60.0, 0.1, math.inf, layout.size)
     geometry = (mat_bi, np.zeros(3))
     nhc_apply(kf.P, s.x, 0.015, kf.process_model(), geometry, layout.columns, constants)
+    zupt_apply(kf.P, s.x, 0.015, kf.process_model(), mat_bi, layout.columns, constants)
+    rest, gate = (0.015, np.zeros(3), np.ones(3)), (60.0, 1.0, layout.size)
+    zaru_apply(kf.P, s.x, rest, kf.process_model(), mat_bi, layout.columns, gate)
     measured = (0.015, np.zeros(3), np.eye(3))
     gates = (60.0, 1.0, 1.0, layout.size)
     velocity_apply(kf.P, s.x, measured, kf.process_model(), geometry, layout.columns, gates)
+    attitude_apply(
+        kf.P,
+        s.x,
+        (0.015, (0.0, 0.0, 0.0, 1.0), np.eye(3)),
+        kf.process_model(),
+        (mat_bi, geometry_of.q_a_base),
+        layout.columns,
+        (60.0, (1.0, 1.0, 1.0), layout.size),
+    )
     gnss_noise = GnssNoise(config, layout)
     gnss_noise.set_correlated_variance(s, kf, np.ones(3))
     position_apply(
@@ -97,13 +115,16 @@ def warm_up() -> float:
     inject_nominal(s.x, np.zeros(layout.size), layout.columns)
     prediction = Prediction(*predicted_state(s.x, 0.015), layout=layout)
     nhc(prediction, np.zeros(3), np.eye(3), 0.1, (0.0, 0.0))
+    attitude(prediction, np.eye(3), np.eye(3), 0.0, (0.0, 0.0))
+    zupt(prediction, 0.1)
+    zaru(prediction, (np.zeros(3), s.x[:3]), mat_bi, np.ones(3), True)
     fix = GnssFixMeasurement(0.015, 57.0, 10.0, 40.0, np.eye(3))
     white, _, reported, _ = GnssNoise(config, layout).position_noise(s, fix)
     z, H, _ = gnss_position(prediction, fix, np.zeros(3), white, zero)
     predicted = projected_variance(H, kf.P)
     s.gnss_white.pushed_fix(0.015, z, H, None, kf.P, predicted, reported)
     gnss_velocity(prediction, GnssVelocityMeasurement(0.015, np.zeros(3), np.eye(3)), z, np.eye(3))
-    output = SolutionBuilder(Geometry(config, layout), layout)
+    output = SolutionBuilder(geometry_of, layout)
     row = output.row(s, kf, (57.0, 10.0, 40.0), np.zeros(3), "navigating")
     output_numbers(row, 1e-5, np.empty(NUMBERS))
     model = output.model(s, kf, (57.0, 10.0, 40.0))
