@@ -344,6 +344,37 @@ def test_attitude_model_converts_rep103_covariance_and_drops_unknown_angles():
     z, H, R = heading_only
     assert z.shape == (1,) and H.shape == (1, LAYOUT_GNSS.size)
     assert attitude(pred, measured, np.eye(3) * 1e6) is None
+    # A variance that is not finite drops its angle only (no product spreads it).
+    cov_nan = np.array([[math.nan, 0.0, 0.0], [0.0, 2e-6, 0.0], [0.0, 0.0, 1e-6]])
+    partial = attitude(pred, measured, cov_nan)
+    assert partial is not None and partial[0].shape == (2,)
+    assert np.array_equal(partial[2], np.diag([2e-6, 1e-6]))
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(st.floats(-3.0, 3.0), min_size=3, max_size=3),
+    st.lists(st.sampled_from([1e-6, 4e-4, 1.0, 1e6, math.inf, math.nan]), min_size=3, max_size=3),
+)
+def test_attitude_model_keeps_the_measured_angles_with_their_variances(
+    rotvec: list[float], variances: list[float]
+) -> None:
+    """Any attitude measured as predicted: no innovation, one row per angle with a finite
+    variance below UNKNOWN_ANGLE_VARIANCE, and those variances (sign-flipped FLU -> FRD
+    covariances: the diagonal stays) in R."""
+    pred = _prediction(np.zeros(LAYOUT_GNSS.size))
+    mat = Rotation.from_rotvec(rotvec).as_matrix()
+    pred = replace(pred, mat_nb=mat)
+    model = attitude(pred, mat, np.diag(variances))
+    kept = [v for v in variances if math.isfinite(v) and v < 1.0]
+    if not kept:
+        assert model is None
+        return
+    assert model is not None
+    z, H, R = model
+    assert np.array_equal(np.abs(z), np.zeros(len(kept)))
+    assert H.shape == (len(kept), LAYOUT_GNSS.size)
+    assert np.array_equal(R, np.diag(kept))
 
 
 def test_ned_enu_axis_swap_is_its_own_inverse():
