@@ -4,9 +4,11 @@ A simulated bag (imu400cc, test pattern, Leica RTK + ADU5) is played in real tim
 `gnss_ins play`; the node runs as its own executable with output_rate = 134 Hz (one Odometry
 per IMU sample). A subscriber in this process receives both imu/data_raw and ins/odometry;
 latency = receive time of the Odometry - receive time of the Imu message with the same stamp
-(the node's processing plus one DDS hop). CPU = the node process's user + system time, and per
-thread (/proc/PID/task: the Python thread that spins the executor, Fast DDS's receive and event
-threads, ...); the load average beside it (the machine is shared).
+(the node's processing plus one DDS hop). CPU = the node process's user + system time over the
+playback, again from the first Odometry on (the steady state: the bag's first seconds are a
+standstill that aligns without outputs), and per thread over the playback (/proc/PID/task: the
+Python thread that spins the executor, Fast DDS's receive and event threads, ...); the load
+average beside it (the machine is shared).
 
     .venv/bin/python bench/bench_fusion_node.py [--duration 120] [--executor events|single]
         [--profile FILE] [--tree DIR] [--floor]
@@ -141,6 +143,10 @@ def main() -> None:
         listener = rclpy.create_node("bench_fusion_listener")
         qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 
+        # The node's CPU [s] and the time at the first Odometry: the steady state after it.
+        first_output: dict[str, float] = {}
+        node_pid: list[int] = []
+
         def store(table: dict[int, float]):
             def callback(msg) -> None:
                 now = time.perf_counter()
@@ -149,8 +155,16 @@ def main() -> None:
 
             return callback
 
+        store_odometry = store(odom_rx)
+
+        def on_odometry(msg) -> None:
+            store_odometry(msg)
+            if not first_output and node_pid:
+                first_output["cpu"] = process_cpu_s(node_pid[0])
+                first_output["wall"] = time.monotonic()
+
         listener.create_subscription(Imu, "imu/data_raw", store(imu_rx), qos)
-        listener.create_subscription(Odometry, "ins/odometry", store(odom_rx), qos)
+        listener.create_subscription(Odometry, "ins/odometry", on_odometry, qos)
         executor = SingleThreadedExecutor()
         executor.add_node(listener)
         threading.Thread(target=executor.spin, daemon=True).start()
@@ -174,6 +188,7 @@ def main() -> None:
         )
         time.sleep(3.0)  # discovery
         cpu0, wall0 = process_cpu_s(node.pid), time.monotonic()
+        node_pid.append(node.pid)
         threads0 = thread_cpu_s(node.pid)
         subprocess.run(
             [
@@ -220,6 +235,12 @@ def main() -> None:
         f"  node CPU: {100 * (cpu1 - cpu0) / wall:.1f} % of one core "
         f"(load average {load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f})"
     )
+    if first_output:
+        steady = wall1 - first_output["wall"]
+        print(
+            f"  node CPU from the first Odometry on ({steady:.0f} s): "
+            f"{100 * (cpu1 - first_output['cpu']) / steady:.1f} % of one core"
+        )
     for name in sorted(threads1, key=lambda n: threads0.get(n, 0.0) - threads1[n]):
         share = 100 * (threads1[name] - threads0.get(name, 0.0)) / wall
         if share >= 0.05:
