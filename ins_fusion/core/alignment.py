@@ -18,6 +18,7 @@ import numpy as np
 
 from gnss_ins_common.types import FloatArray, Vec3
 from ins_fusion.core import earth
+from ins_fusion.core.compiled import compilable
 
 
 def level(mean_force_frd_m_s2: FloatArray) -> tuple[float, float]:
@@ -26,11 +27,15 @@ def level(mean_force_frd_m_s2: FloatArray) -> tuple[float, float]:
     return math.atan2(-fy, -fz), math.atan2(fx, math.hypot(fy, fz))
 
 
+@compilable
 def earth_rate_body_rad_s(mat_nb: FloatArray, lat_rad: float, heading_known: bool) -> FloatArray:
-    """Earth rate seen by a resting body (FRD) [rad/s]; only the vertical part without heading."""
-    north, _, down = earth.earth_rate_ned_rad_s(lat_rad)
-    w_ie_n = np.array([north if heading_known else 0.0, 0.0, down])
-    return np.asarray(mat_nb.T @ w_ie_n, dtype=np.float64)
+    """Earth rate seen by a resting body (FRD) [rad/s]: C_nbᵀ Ω (cos φ, 0, -sin φ) (as
+    ``earth.earth_rate_ned_rad_s``); only the vertical part without heading. Also inside the
+    compiled ZARU model (core.measurements.zaru_model)."""
+    north = earth.EARTH_RATE_RAD_S * math.cos(lat_rad) if heading_known else 0.0
+    down = -earth.EARTH_RATE_RAD_S * math.sin(lat_rad)
+    rate_b: FloatArray = mat_nb.T @ np.array((north, 0.0, down))
+    return rate_b
 
 
 def unknown_earth_rate_rad_s(lat_rad: float) -> float:

@@ -17,6 +17,7 @@ import numpy as np
 
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core import earth
+from ins_fusion.core.alignment import earth_rate_body_rad_s
 from ins_fusion.core.compiled import compilable, jit, kernel_array
 from ins_fusion.core.eskf import ATT, BG, POS, VEL, StateLayout
 from ins_fusion.core.rotation import euler_rad, skew, wrap_angle
@@ -98,10 +99,6 @@ class Prediction:
     rate_b: FloatArray
     rate_i: FloatArray
     layout: StateLayout = field(default_factory=StateLayout)
-
-    def jacobian(self, rows: int) -> FloatArray:
-        """A zero H of ``rows`` rows."""
-        return np.zeros((rows, self.layout.size))
 
 
 Model = tuple[FloatArray, FloatArray, FloatArray]
@@ -413,9 +410,7 @@ def zaru_model(
     rate and the bias estimate (imu FRD) [rad/s], the rotation imu -> body, the variances
     [rad²/s²] and the state size."""
     mean_rate_i, gyro_bias_i = rates_i
-    north = earth.EARTH_RATE_RAD_S * math.cos(lat_rad) if heading_known else 0.0
-    down = -earth.EARTH_RATE_RAD_S * math.sin(lat_rad)
-    earth_rate_i = mat_bi.T @ (mat_nb.T @ np.array((north, 0.0, down)))
+    earth_rate_i = mat_bi.T @ earth_rate_body_rad_s(mat_nb, lat_rad, heading_known)
     H = np.zeros((3, size))
     for k in range(3):
         H[k, BG + k] = 1.0
