@@ -29,12 +29,10 @@ def level(mean_force_frd_m_s2: FloatArray) -> tuple[float, float]:
 
 @compilable
 def earth_rate_body_rad_s(mat_nb: FloatArray, lat_rad: float, heading_known: bool) -> FloatArray:
-    """Earth rate seen by a resting body (FRD) [rad/s]: C_nbᵀ Ω (cos φ, 0, -sin φ) (as
-    ``earth.earth_rate_ned_rad_s``); only the vertical part without heading. Also inside the
-    compiled ZARU model (core.measurements.zaru_model)."""
-    north = earth.EARTH_RATE_RAD_S * math.cos(lat_rad) if heading_known else 0.0
-    down = -earth.EARTH_RATE_RAD_S * math.sin(lat_rad)
-    rate_b: FloatArray = mat_nb.T @ np.array((north, 0.0, down))
+    """Earth rate seen by a resting body (FRD) [rad/s]; only the vertical part without heading.
+    Also inside the compiled ZARU model (core.measurements.zaru_model)."""
+    north, _, down = earth.earth_rate_from_sin_cos(math.sin(lat_rad), math.cos(lat_rad))
+    rate_b: FloatArray = mat_nb.T @ np.array((north if heading_known else 0.0, 0.0, down))
     return rate_b
 
 

@@ -103,6 +103,12 @@ def normal_gravity_from_sin_cos(sin_lat: F, cos_lat: F, height_m: F) -> F:
 def earth_rate_ned_rad_s(lat_rad: F) -> tuple[F, F, F]:
     """Earth rotation rate ω_ie in NED [rad/s]: Ω(cos φ, 0, -sin φ) (Aalborg notes §5.3, C-1.10)."""
     sin_lat, cos_lat = _sin_cos(lat_rad)
+    return earth_rate_from_sin_cos(sin_lat, cos_lat)
+
+
+@compilable
+def earth_rate_from_sin_cos(sin_lat: F, cos_lat: F) -> tuple[F, F, F]:
+    """earth_rate_ned_rad_s from sin φ and cos φ."""
     return EARTH_RATE_RAD_S * cos_lat, 0.0 * cos_lat, -EARTH_RATE_RAD_S * sin_lat
 
 
