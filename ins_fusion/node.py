@@ -6,9 +6,13 @@ Subscribes ``imu/data_raw`` (sensor_msgs/Imu), ``gnss/fix`` (NavSatFix), ``gnss/
 ``base_link``), ``ins/fix`` (NavSatFix of base_link), ``ins/imu`` (orientation of base_link with
 bias-corrected rates), ``/diagnostics`` and TF (ins_fusion.adapters.tf_frames: the odometry's
 transform on ``/tf`` per ``tf_mode``, the sensor frames on ``/tf_static``). Outputs are published
-from the IMU callback as soon as the sample is processed, at most at ``output_rate`` (by stamp). All
-callbacks run on one executor thread, so the engine needs no locking; measurements are applied at
-their own stamps by the engine (late GNSS data are rolled back and re-propagated there).
+from the IMU callback of the sample they are due at (``output_rate``, by stamp), as soon as it is
+processed. The IMU samples between two outputs are held and given to the engine together, in their
+order, with the next output's sample, before the next GNSS message or status, or when MAX_HELD
+wait: the engine computes the same numbers, and its code runs once per output instead of once per
+sample after a wake-up, when this machine's caches are cold (docs/benchmarks.md). All callbacks
+run on one executor thread, so the engine needs no locking; measurements are applied at their own
+stamps by the engine (late GNSS data are rolled back and re-propagated there).
 """
 
 from __future__ import annotations
@@ -42,6 +46,8 @@ from ins_fusion.ros_tf import TfBroadcaster, transform_template
 
 #: One table for the node and `gnss_ins replay` (ins_fusion/core/params.py).
 PARAMETERS = FUSION_PARAMETERS
+#: Most IMU samples held between outputs (0.24 s at 134 Hz, for a low output_rate).
+MAX_HELD = 32
 
 
 class InsFusionNode(Node):
@@ -63,6 +69,9 @@ class InsFusionNode(Node):
         self._base_frame = config.base_frame
         self._output_period_s = 1.0 / config.output_rate_hz
         self._last_output_s = -math.inf
+        # IMU samples not yet given to the engine: those between two outputs are taken together
+        # at the next output, GNSS message or status (module docstring).
+        self._held: list[messages_in.ImuSample] = []
         # Variance of one bias-corrected rate sample: white-noise density^2 x the IMU rate.
         gyro_psd = float(config.imu_noise.gyro_psd.mean())
         rate_variance = gyro_psd * NOMINAL_RATE_HZ
@@ -112,23 +121,37 @@ class InsFusionNode(Node):
             self._bad_imu_messages += 1
             self.get_logger().error(str(exc), throttle_duration_sec=10.0)
             return
-        self.engine.add_imu(*sample)
+        held = self._held
+        held.append(sample)
         if sample.t_s < self._last_output_s:  # time jumped back (a bag restarted): the engine
-            self._last_output_s = -math.inf  # has reset; start the output clock anew
+            self._last_output_s = -math.inf  # resets; start the output clock anew
         # Build the solution (not free) only when an output is due by the sample's stamp.
-        if sample.t_s - self._last_output_s >= self._output_period_s:
+        due = sample.t_s - self._last_output_s >= self._output_period_s
+        if due or len(held) >= MAX_HELD:
+            self._take_held()
+        if due:
             row = self.engine.solution_row()
             if row is not None:
                 self._last_output_s = sample.t_s
                 self._publish(row)
 
+    def _take_held(self) -> None:
+        """The IMU samples held since the last output, into the engine in their order."""
+        add_imu = self.engine.add_imu
+        for sample in self._held:
+            add_imu(*sample)
+        self._held.clear()
+
     def _on_fix(self, msg: NavSatFix) -> None:
+        self._take_held()
         self.engine.add_gnss_fix(messages_in.fix_measurement(msg))
 
     def _on_velocity(self, msg: TwistWithCovarianceStamped) -> None:
+        self._take_held()
         self.engine.add_gnss_velocity(messages_in.velocity_measurement(msg))
 
     def _on_attitude(self, msg: Imu) -> None:
+        self._take_held()
         self.engine.add_attitude(messages_in.attitude_measurement(msg))
 
     def _temperature_ok(self, celsius: float) -> bool:
@@ -185,6 +208,7 @@ class InsFusionNode(Node):
         return diag.OK, state
 
     def _publish_diagnostics(self) -> None:
+        self._take_held()
         status = self.engine.status()
         solution = self.engine.solution()
         level, message = self._state_level(status.state, solution.t_s if solution else None)

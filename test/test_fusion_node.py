@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import os
 import signal
 import subprocess
@@ -32,9 +33,12 @@ from tf2_msgs.msg import TFMessage
 
 from gnss_ins_common.params import ParameterValueError
 from gnss_ins_common.ros_node_main import EXECUTOR_ENV
+from ins_fusion.adapters import cdr_fields, messages_in
 from ins_fusion.bags.bag_io import BagReader
+from ins_fusion.core.config import FusionConfig
+from ins_fusion.core.engine import InsEngine
 from ins_fusion.core.solution import COV_VEL, QUAT, WIDTH
-from ins_fusion.node import InsFusionNode
+from ins_fusion.node import MAX_HELD, InsFusionNode
 from ins_fusion.sim.drive import SimulationConfig
 from ins_fusion.tools.simulate import write_bag
 
@@ -186,6 +190,54 @@ def _check_outputs(collector: Collector, drive_bag: Path) -> None:
     # stream is dropped (bridged by the engine and counted as imu_gaps).
     assert int(values["imu_samples"]) > 0.6 * DURATION_S * 134
     assert float(values["adapted.accel_vrw_x_m_s_sqrt_h"]) > 0.0  # the noise in use
+
+
+@pytest.mark.parametrize(("output_rate", "attitude"), [(20.0, True), (0.5, False)])
+def test_samples_held_between_outputs_reach_the_engine_in_order(drive_bag, output_rate, attitude):
+    """The node gives the engine the IMU samples between two outputs together, at the next
+    output, GNSS message or status: its rows equal to the bit those of an engine given each
+    message as it comes (an output at each sample a period past the last one), every sample
+    is taken, and no more than MAX_HELD wait (a low output rate, GNSS at 1 Hz)."""
+    node = InsFusionNode(parameter_overrides=overrides(output_rate=output_rate))
+    published: list[np.ndarray] = []
+    node._publish = published.append  # the rows, not the messages
+    eager = InsEngine(FusionConfig.from_parameters(node.params))
+    expected: list[np.ndarray] = []
+    last_s, most_held = -math.inf, 0
+    eager_calls = {
+        "/gnss/fix": (node._on_fix, eager.add_gnss_fix, messages_in.fix_measurement),
+        "/gnss/vel": (node._on_velocity, eager.add_gnss_velocity, messages_in.velocity_measurement),
+        "/gnss/attitude": (node._on_attitude, eager.add_attitude, messages_in.attitude_measurement),
+    }
+    if not attitude:
+        del eager_calls["/gnss/attitude"]
+    try:
+        with BagReader(drive_bag) as reader:
+            topics = ["/imu/data_raw", *eager_calls]
+            for m in reader.messages(topics, deserialize=True, raw_topics=["/imu/data_raw"]):
+                if m.topic != "/imu/data_raw":
+                    on_message, add, measurement = eager_calls[m.topic]
+                    on_message(m.message)
+                    add(measurement(m.message))
+                    continue
+                node._on_imu(m.message)
+                most_held = max(most_held, len(node._held))
+                sample = cdr_fields.imu_sample(m.message)
+                eager.add_imu(*sample)
+                last_s = -math.inf if sample.t_s < last_s else last_s
+                if sample.t_s - last_s >= 1.0 / output_rate:
+                    row = eager.solution_row()
+                    if row is not None:
+                        last_s = sample.t_s
+                        expected.append(row)
+        node._publish_diagnostics()
+        taken = node.engine.status().imu_samples
+    finally:
+        node.destroy_node()
+    assert len(published) == len(expected) > (DURATION_S - STANDSTILL_S) * output_rate / 2
+    assert np.array_equal(np.array(published), np.array(expected))
+    assert taken == eager.status().imu_samples > 0.99 * DURATION_S * 134
+    assert 1 < most_held <= MAX_HELD
 
 
 def test_bad_parameters_are_rejected():
