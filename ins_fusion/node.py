@@ -10,7 +10,7 @@ from the IMU callback of the sample they are due at (``output_rate``, by stamp),
 processed. The IMU samples between two outputs are held and given to the engine together, in their
 order, with the next output's sample, before the next GNSS message or status, or when MAX_HELD
 wait: the engine computes the same numbers, and its code runs once per output instead of once per
-sample after a wake-up, when this machine's caches are cold (docs/benchmarks.md). All callbacks
+sample, each time after a wake-up with the CPU's caches cold (docs/benchmarks.md). All callbacks
 run on one executor thread, so the engine needs no locking; measurements are applied at their own
 stamps by the engine (late GNSS data are rolled back and re-propagated there).
 """
