@@ -13,12 +13,10 @@ gate recovery possible.
 
 from __future__ import annotations
 
-import math
-
 from gnss_ins_common.types import FloatArray, Quat
 from ins_fusion.core.compiled import jit, kernel_array
 from ins_fusion.core.eskf import ErrorStateFilter, ProcessModel
-from ins_fusion.core.fused_nhc import FusedUpdate, restart_interval, step_to, update_and_restart
+from ins_fusion.core.fused_nhc import FusedUpdate, step_to, update_rows
 from ins_fusion.core.measurements import AttitudeMeasurement, attitude_model
 from ins_fusion.core.rotation import as_quat
 from ins_fusion.core.state import X_MOUNTING, FilterState, base_mat_nb
@@ -40,7 +38,7 @@ def attitude_apply(
     receiver's frame, covariance of its roll, pitch, yaw [rad²]) on the error covariance ``P``
     and the nominal state ``x`` (X_* layout, changed in place; heading known): ``step_to`` the
     stamp, the model of base_link's Euler angles (``geometry``: rotation imu -> body, rotation
-    of base_link in the receiver's frame) and, when it has rows, ``update_and_restart``.
+    of base_link in the receiver's frame) and ``update_rows``.
     ``constants``: GNSS correlation time [s], the gates of 1, 2 and 3 rows, state size.
     Returns (stepped, Φ of the step (P when none), rows of the model (0: no angle measured),
     accepted, NIS, the new P)."""
@@ -59,10 +57,7 @@ def attitude_apply(
         columns[3],
         -1,
     )
-    if rows == 0:  # the covariance interval goes on from the attitude all the same
-        restart_interval(x)
-        return stepped, phi, 0, False, math.nan, P
-    accepted, nis, _, P_new = update_and_restart(P, x, (z, H, R), gates[rows - 1], columns)
+    accepted, nis, P_new = update_rows(P, x, rows, (z, H, R), gates, columns)
     return stepped, phi, rows, accepted, nis, P_new
 
 

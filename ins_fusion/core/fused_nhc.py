@@ -82,6 +82,26 @@ def update_and_restart(
 
 
 @jit
+def update_rows(
+    P: FloatArray,
+    x: FloatArray,
+    rows: int,
+    model: tuple[FloatArray, FloatArray, FloatArray],
+    gates: tuple[float, float, float],
+    columns: tuple[int, int, int, int, int],
+) -> tuple[bool, float, FloatArray]:
+    """``update_and_restart`` of a model of ``rows`` rows (1-3) at the gate of that many
+    (``gates``: of 1, 2 and 3 rows); a model without rows (nothing measured) updates nothing,
+    and the covariance interval goes on from the velocity all the same. Returns (accepted,
+    NIS (NaN without rows), new P)."""
+    if rows == 0:
+        restart_interval(x)
+        return False, math.nan, P
+    accepted, nis, _, P_new = update_and_restart(P, x, model, gates[rows - 1], columns)
+    return accepted, nis, P_new
+
+
+@jit
 def restart_interval(x: FloatArray) -> None:
     """The covariance interval in ``x`` goes on from the current velocity (after an update,
     as InsEngine._apply)."""

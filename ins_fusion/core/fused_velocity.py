@@ -14,12 +14,10 @@ step), and no gate recovery possible (fewer gated updates in a row than the reco
 
 from __future__ import annotations
 
-import math
-
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core.compiled import jit, kernel_array
 from ins_fusion.core.eskf import ErrorStateFilter, ProcessModel
-from ins_fusion.core.fused_nhc import FusedUpdate, restart_interval, step_to, update_and_restart
+from ins_fusion.core.fused_nhc import FusedUpdate, step_to, update_rows
 from ins_fusion.core.measurements import GnssVelocityMeasurement, _velocity_model
 from ins_fusion.core.state import FilterState
 
@@ -34,28 +32,24 @@ def velocity_apply(
     process: ProcessModel,
     geometry: tuple[FloatArray, FloatArray],
     columns: tuple[int, int, int, int, int],
-    constants: tuple[float, float, float, int],
+    constants: tuple[float, tuple[float, float, float], int],
 ) -> tuple[bool, FloatArray, int, bool, float, FloatArray]:
     """The GNSS velocity ``measured`` = (stamp [s], ENU velocity [m/s], its covariance
     [m²/s²]) on the error covariance ``P`` and the nominal state ``x`` (X_* layout, changed in
     place; heading known): ``step_to`` the stamp, the model of the antenna (``geometry``:
-    rotation imu -> body, lever arm of the antenna from the IMU [m], body FRD) and, when it
-    has rows, ``update_and_restart``. ``constants``: GNSS correlation time [s], the gates of
-    2 and 3 rows, state size. Returns (stepped, Φ of the step (P when none), rows of the model
+    rotation imu -> body, lever arm of the antenna from the IMU [m], body FRD) and
+    ``update_rows``. ``constants``: GNSS correlation time [s], the gates of 1, 2 and 3 rows,
+    state size. Returns (stepped, Φ of the step (P when none), rows of the model
     (0: unusable), accepted, NIS, the new P)."""
     t_m, vel_enu, cov_enu = measured
     mat_bi, arm_b = geometry
-    correlation_time_s, gate2, gate3, size = constants
+    correlation_time_s, gates, size = constants
     stepped, phi, P, prediction = step_to(P, x, t_m, process, mat_bi, columns, correlation_time_s)
     _, _, _, vel_m, mat_nb, rate_b, rate_i_m = prediction
     rows, z, H, R = _velocity_model(
         mat_nb, vel_m, rate_b, rate_i_m, arm_b, mat_bi, vel_enu, cov_enu, size, columns[0]
     )
-    if rows == 0:  # the covariance interval goes on from the velocity all the same
-        restart_interval(x)
-        return stepped, phi, 0, False, math.nan, P
-    threshold = gate2 if rows == 2 else gate3
-    accepted, nis, _, P_new = update_and_restart(P, x, (z, H, R), threshold, columns)
+    accepted, nis, P_new = update_rows(P, x, rows, (z, H, R), gates, columns)
     return stepped, phi, rows, accepted, nis, P_new
 
 
@@ -77,6 +71,6 @@ class FusedVelocity(FusedUpdate):
             (s, kf),
             (vel.t_s, kernel_array(vel.vel_enu_m_s), kernel_array(vel.cov_enu_m2_s2)),
             (geometry.mat_bi, kernel_array(geometry.arms(s)[0])),
-            (self._correlation_time_s, self._gates[1], self._gates[2], kf.layout.size),
+            (self._correlation_time_s, self._gates, kf.layout.size),
         )
         self._sensor_taken((s, kf), _KIND, result, live, adapting=True)

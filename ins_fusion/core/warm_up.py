@@ -87,7 +87,7 @@ def warm_up() -> float:
     rest, gate = (0.015, np.zeros(3), np.ones(3)), (60.0, 1.0, layout.size)
     zaru_apply(kf.P, s.x, rest, kf.process_model(), mat_bi, layout.columns, gate)
     measured = (0.015, np.zeros(3), np.eye(3))
-    gates = (60.0, 1.0, 1.0, layout.size)
+    gates = (60.0, (1.0, 1.0, 1.0), layout.size)
     velocity_apply(kf.P, s.x, measured, kf.process_model(), geometry, layout.columns, gates)
     attitude_apply(
         kf.P,
@@ -96,7 +96,7 @@ def warm_up() -> float:
         kf.process_model(),
         (mat_bi, geometry_of.q_a_base),
         layout.columns,
-        (60.0, (1.0, 1.0, 1.0), layout.size),
+        gates,
     )
     gnss_noise = GnssNoise(config, layout)
     gnss_noise.set_correlated_variance(s, kf, np.ones(3))
