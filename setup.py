@@ -28,6 +28,8 @@ setup(
         "pymap3d>=3.0",
         "pyproj>=3.6",
         "rosbags>=0.10",
+        # Reads MCAP files record by record, as a killed recorder left them (bags/salvage.py).
+        "mcap>=1.2",
         "filterpy>=1.4.5",
         "allantools>=2019.9",
         "matplotlib>=3.7",

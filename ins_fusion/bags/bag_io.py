@@ -285,11 +285,18 @@ class BagWriter:
         elif isinstance(storage, Sqlite3Writer):
             storage.conn.commit()
 
+    def start_new_file(self) -> None:
+        """Close the current file (complete, on disk) if it holds messages; the next message
+        starts a new one."""
+        if self._part is not None and self._part_count:
+            self._close_part()
+
     def close(self) -> BagSummary:
         """Finish the current file and write ``metadata.yaml``; returns the summary."""
         if not self._closed:
-            self._current_part()
-            self._close_part()
+            if self._part is not None or not self.files:
+                self._current_part()
+                self._close_part()
             self._write_metadata()
             self._closed = True
         return self.summary
@@ -334,8 +341,10 @@ class BagWriter:
         storage_file = self._part.storage.path
         self._part.close()
         self._part = None
+        _fsync(storage_file)
         self._part_metadata.append(_load_metadata(part_dir))
         self.files.append(storage_file.replace(self.path / storage_file.name))
+        _fsync(self.path)
         shutil.rmtree(part_dir)
 
     def _write_metadata(self) -> None:
@@ -366,7 +375,12 @@ class BagWriter:
             files=[f for part in parts for f in part["files"]],
         )
         text = yaml.safe_dump({"rosbag2_bagfile_information": merged}, sort_keys=False)
-        (self.path / "metadata.yaml").write_text(text, encoding="utf-8")
+        # Written whole or not at all: a bag with a metadata.yaml is read as complete.
+        scratch = self.path / ".metadata.yaml.writing"
+        scratch.write_text(text, encoding="utf-8")
+        _fsync(scratch)
+        scratch.replace(self.path / "metadata.yaml")
+        _fsync(self.path)
 
     def __enter__(self) -> BagWriter:
         return self
@@ -379,6 +393,15 @@ class BagWriter:
     ) -> None:
         # Closing on errors too keeps every message written so far in a readable bag.
         self.close()
+
+
+def _fsync(path: Path) -> None:
+    """Put a file's data (or a directory's entries) on disk before the next step relies on it."""
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
 
 
 def _load_metadata(bag_dir: Path) -> dict[str, Any]:

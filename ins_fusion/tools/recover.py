@@ -1,7 +1,8 @@
 """``gnss_ins recover``: a readable bag from a recording that did not finish (killed, power cut).
 
-The unfinished bag is only read; its messages go to a new bag (``BAG_recovered`` by default).
-See ins_fusion/bags/recover.py for what is recovered and docs/bags.md.
+The unfinished bag is only read; its messages go to a new bag (``BAG_recovered`` by default),
+written under a temporary name and renamed when complete. See ins_fusion/bags/recover.py for
+what is recovered, and docs/bags.md.
 """
 
 from __future__ import annotations
@@ -34,6 +35,5 @@ def run(args: argparse.Namespace) -> int:
     except (BagError, OSError) as exc:
         print(f"gnss_ins recover: error: {exc}", file=sys.stderr)
         return 2
-    print(recovered.summary.format(f"bag {output} recovered from {len(recovered.files)} file(s)"))
-    print(f"  incomplete records dropped: {recovered.dropped_bytes} bytes")
+    print(recovered.format(f"bag {output} recovered from {len(recovered.files)} file(s):"))
     return 0
