@@ -149,3 +149,60 @@ def test_salvage_of_garbage_and_of_nothing(tmp_path: Path):
         assert found.stopped
     (tmp_path / "c_0.db3").write_bytes(b"not a database at all" * 50)
     assert not salvage(tmp_path / "c_0.db3").messages
+
+
+@pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
+def test_a_restarted_recorder_continues_the_same_recording(tmp_path: Path, storage: str):
+    """Killed in its second file, resumed, killed again before the first split, resumed and
+    closed: one bag with every flushed message of each run and every message of the last."""
+    bag = tmp_path / "bag"
+    _, flushes = killed_recording(bag, storage, 150, flush_every=20, split_s=1.0)
+    first_run = flushes[-1][1]
+    closed = len(salvage(bag / f"bag_0.{'mcap' if storage == 'mcap' else 'db3'}").messages)
+    writer = BagWriter(bag, storage=storage, max_file_duration_s=1.0, resume=True)
+    assert [len(s.messages) for s in writer.resumed] == [len(first_run) - closed]
+    assert writer.resumed_end_ns == max(t for _, t in first_run)
+    later = T0 + 10**10
+    for k in range(30):
+        writer.write("/imu", later + k * 10 * MS, cdr(imu(later + k * 10 * MS, k)))
+    writer.flush()
+    second = {("/imu", later + k * 10 * MS) for k in range(30)}
+    writer = BagWriter(bag, storage=storage, resume=True)  # the second run killed as it was
+    for k in range(5):
+        writer.write("/fix", later + 10**9 + k, cdr(fix(later + 10**9 + k, k)))
+    writer.close()
+    assert not (bag / ".parts").exists()
+    assert sorted(p.name for p in bag.iterdir() if p.is_dir()) == []
+    got = recovered_keys(bag)
+    assert set(got) == first_run | second | {("/fix", later + 10**9 + k) for k in range(5)}
+    assert len(got) == len(set(got))
+    with BagReader(bag) as reader:  # topics declared again from the salvaged files
+        assert set(reader.topics) == set(TOPICS)
+
+
+def test_resuming_a_closed_recording_and_removing_its_oldest_files(tmp_path: Path):
+    bag = tmp_path / "bag"
+    with BagWriter(bag, max_file_duration_s=1.0) as writer:
+        for k in range(25):
+            writer.write("/imu", T0 + k * 10**8, imu(T0 + k * 10**8, k))
+    assert len(writer.files) == 3
+    writer = BagWriter(bag, max_file_duration_s=1.0, resume=True)
+    assert not (bag / "metadata.yaml").exists()  # being written again
+    assert writer.remove_oldest_file() is None  # a closed recording's files go together
+    for k in range(25, 50):
+        writer.write("/imu", T0 + k * 10**8, imu(T0 + k * 10**8, k))
+    removed = writer.remove_oldest_file()
+    assert removed is None
+    writer.close()
+    assert len(read_messages_list := list(read_messages(bag))) == 50
+    assert read_messages_list[-1].log_time_ns == T0 + 49 * 10**8
+    writer = BagWriter(tmp_path / "fresh", max_file_duration_s=1.0)
+    for k in range(25):
+        writer.write("/imu", T0 + k * 10**8, imu(T0 + k * 10**8, k))
+    removed = writer.remove_oldest_file()
+    assert removed is not None and removed[0].name == "fresh_0.mcap"
+    assert (removed[1], removed[2]) == (T0, T0 + 9 * 10**8)
+    writer.close()
+    assert [m.log_time_ns for m in read_messages(tmp_path / "fresh")] == [
+        T0 + k * 10**8 for k in range(10, 25)
+    ]

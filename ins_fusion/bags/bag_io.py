@@ -12,13 +12,11 @@ No rclpy here: the recorder, the player, the importer and the simulator share th
 
 from __future__ import annotations
 
-import heapq
 import os
 import shutil
 import struct
 from collections.abc import Collection, Iterator, Sequence
-from dataclasses import dataclass, field
-from datetime import UTC, datetime
+from dataclasses import dataclass
 from functools import cache
 from pathlib import Path, PurePath
 from types import TracebackType
@@ -33,14 +31,14 @@ from rosbags.rosbag2.storage_sqlite3 import Sqlite3Writer
 from rosbags.typesys import Stores, get_typestore
 from rosbags.typesys.store import Typestore
 
+from ins_fusion.bags.resume import PARTS_DIR, existing_recording, keep_part_metadata
+from ins_fusion.bags.salvage import Salvaged, salvage
+from ins_fusion.bags.summary import BagSummary
+
 #: ``--storage`` choices -> rosbags storage plugin (MCAP is the Jazzy default).
 STORAGES: dict[str, StoragePlugin] = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}
 #: rosbag2 metadata version written (Jazzy).
 BAG_VERSION: Literal[9] = 9
-#: Largest gaps kept per topic for the summary.
-GAPS_KEPT = 3
-#: A gap is listed in the summary when it lasts this many mean periods of its topic or more.
-GAP_REPORT_PERIODS = 1.5
 
 RawMessage = bytes | memoryview
 
@@ -53,133 +51,6 @@ class BagError(Exception):
 def jazzy_typestore() -> Typestore:
     """The rosbags typestore of ROS 2 Jazzy (common_interfaces, rosgraph_msgs, ...)."""
     return get_typestore(Stores.ROS2_JAZZY)
-
-
-def utc_text(time_ns: int) -> str:
-    """``2013-08-26T10:00:00.000Z`` for a time in ns since the Unix epoch."""
-    stamp = datetime.fromtimestamp(time_ns / 1e9, tz=UTC)
-    return stamp.strftime("%Y-%m-%dT%H:%M:%S.") + f"{stamp.microsecond // 1000:03d}Z"
-
-
-# --------------------------------------------------------------------------------------------
-# Summary
-# --------------------------------------------------------------------------------------------
-
-
-class Gap(NamedTuple):
-    """A gap between two consecutive messages of one topic."""
-
-    topic: str
-    start_ns: int
-    length_ns: int
-    periods: float  #: length in mean periods of the topic (1.0 = on time)
-
-
-@dataclass
-class TopicStats:
-    """Count, time span and largest gaps of one topic (times in ns)."""
-
-    msgtype: str
-    count: int = 0
-    first_ns: int = 0
-    last_ns: int = 0
-    #: min-heap of (length_ns, start_ns) holding the GAPS_KEPT largest gaps
-    gaps: list[tuple[int, int]] = field(default_factory=list)
-
-    @property
-    def rate_hz(self) -> float:
-        """Mean message rate over the topic's own span (0 with fewer than two messages)."""
-        span = self.last_ns - self.first_ns
-        return (self.count - 1) * 1e9 / span if span > 0 else 0.0
-
-    @property
-    def max_gap_ns(self) -> int:
-        """Largest interval between consecutive messages (0 with fewer than two messages)."""
-        return max(self.gaps)[0] if self.gaps else 0
-
-
-@dataclass
-class BagSummary:
-    """Messages per topic, time span and largest gaps; fed one message time at a time."""
-
-    topics: dict[str, TopicStats] = field(default_factory=dict)
-
-    def add(self, topic: str, msgtype: str, log_time_ns: int) -> None:
-        """Account one message. A time earlier than the topic's last (a loop) opens no gap."""
-        stats = self.topics.get(topic)
-        if stats is None:
-            self.topics[topic] = TopicStats(msgtype, 1, log_time_ns, log_time_ns)
-            return
-        gap = log_time_ns - stats.last_ns
-        if gap > 0:
-            item = (gap, stats.last_ns)
-            if len(stats.gaps) < GAPS_KEPT:
-                heapq.heappush(stats.gaps, item)
-            elif item > stats.gaps[0]:
-                heapq.heapreplace(stats.gaps, item)
-        stats.count += 1
-        stats.first_ns = min(stats.first_ns, log_time_ns)
-        stats.last_ns = max(stats.last_ns, log_time_ns)
-
-    @property
-    def count(self) -> int:
-        """Messages of all topics."""
-        return sum(s.count for s in self.topics.values())
-
-    @property
-    def start_ns(self) -> int:
-        """Time of the earliest message (0 when empty)."""
-        return min((s.first_ns for s in self.topics.values()), default=0)
-
-    @property
-    def end_ns(self) -> int:
-        """Time of the latest message (0 when empty)."""
-        return max((s.last_ns for s in self.topics.values()), default=0)
-
-    def largest_gaps(self, n: int = 5) -> list[Gap]:
-        """Up to ``n`` gaps of GAP_REPORT_PERIODS mean periods or more, longest (relative to
-        their topic's mean period) first."""
-        gaps = [
-            Gap(topic, start, length, length * s.rate_hz / 1e9)
-            for topic, s in self.topics.items()
-            for length, start in s.gaps
-            if length * s.rate_hz / 1e9 >= GAP_REPORT_PERIODS
-        ]
-        return sorted(gaps, key=lambda g: g.periods, reverse=True)[:n]
-
-    def format(self, title: str = "") -> str:
-        """Human-readable table (counts, rates, max gaps) and the largest gaps."""
-        lines = [title] if title else []
-        if not self.topics:
-            return "\n".join([*lines, "no messages"])
-        span_s = (self.end_ns - self.start_ns) / 1e9
-        lines.append(
-            f"{self.count} messages, {utc_text(self.start_ns)} .. {utc_text(self.end_ns)}"
-            f" ({span_s:.3f} s)"
-        )
-        width = max(len("topic"), *(len(t) for t in self.topics))
-        type_width = max(len("type"), *(len(s.msgtype) for s in self.topics.values()))
-        lines.append(
-            f"  {'topic':<{width}}  {'type':<{type_width}}  {'count':>8}  {'rate Hz':>9}"
-            f"  {'max gap s':>9}"
-        )
-        for topic in sorted(self.topics):
-            s = self.topics[topic]
-            lines.append(
-                f"  {topic:<{width}}  {s.msgtype:<{type_width}}  {s.count:>8}  {s.rate_hz:>9.3f}"
-                f"  {s.max_gap_ns / 1e9:>9.4f}"
-            )
-        gaps = self.largest_gaps()
-        if not gaps:
-            lines.append(f"  largest gaps: none of {GAP_REPORT_PERIODS} mean periods or more")
-        else:
-            lines.append("  largest gaps:")
-            lines.extend(
-                f"    {g.topic}: {g.length_ns / 1e9:.4f} s at"
-                f" +{(g.start_ns - self.start_ns) / 1e9:.3f} s ({g.periods:.1f} mean periods)"
-                for g in gaps
-            )
-        return "\n".join(lines)
 
 
 # --------------------------------------------------------------------------------------------
@@ -199,7 +70,8 @@ class BagWriter:
     message object of the topic's type. Topics are declared with ``add_topic`` (required for
     raw bytes); a message object declares its topic on first use. Files split when the payload
     bytes of the current file would exceed ``max_file_bytes`` or when a message is
-    ``max_file_duration_s`` or more after the file's first message (0 = never). Not
+    ``max_file_duration_s`` or more after the file's first message (0 = never). With ``resume``
+    an existing recording directory is continued (``resume_recording``) instead of refused. Not
     thread-safe: the storage files are opened by the first ``add_topic``/``write``/``close``, and
     that thread must do all the writing and the closing (sqlite3 connections are bound to it).
     """
@@ -212,11 +84,12 @@ class BagWriter:
         max_file_bytes: int = 0,
         max_file_duration_s: float = 0.0,
         typestore: Typestore | None = None,
+        resume: bool = False,
     ) -> None:
         if storage not in STORAGES:
             raise BagError(f"unknown storage {storage!r}; choose from {', '.join(STORAGES)}")
         self.path = Path(path)
-        if self.path.exists():
+        if self.path.exists() and not resume:
             raise BagError(f"{self.path} exists already, not overwriting")
         self.storage = storage
         self.max_file_bytes = max_file_bytes
@@ -232,7 +105,14 @@ class BagWriter:
         self._part_start_ns = 0
         self._part_count = 0
         self._closed = False
-        self.path.mkdir(parents=True)
+        self._next_index = 0  # split index of the next file
+        #: what a resumed recording held: the salvaged unfinished files, the end of its data (ns)
+        self.resumed: list[Salvaged] = []
+        self.resumed_end_ns = 0
+        if self.path.exists():
+            self._resume()
+        else:
+            self.path.mkdir(parents=True)
 
     def add_topic(self, topic: str, msgtype: str, qos: Sequence[Qos] = ()) -> None:
         """Declare a topic, its type (``pkg/msg/Name``) and the QoS profiles its publishers
@@ -285,6 +165,34 @@ class BagWriter:
         elif isinstance(storage, Sqlite3Writer):
             storage.conn.commit()
 
+    def write_salvaged(self, salvaged: Salvaged) -> dict[str, str]:
+        """Declare the topics of ``salvaged`` and write its messages (in log-time order);
+        returns the topics left out because their type is not in the typestore (topic: type)."""
+        skipped: dict[str, str] = {}
+        for topic, info in salvaged.topics.items():
+            if info.msgtype in self.typestore.fielddefs:
+                self.add_topic(topic, info.msgtype, info.qos)
+            else:
+                skipped[topic] = info.msgtype
+        for message in salvaged.messages:
+            if message.topic not in skipped:
+                self.write(message.topic, message.log_time_ns, message.data)
+        return skipped
+
+    def remove_oldest_file(self) -> tuple[Path, int, int] | None:
+        """Delete the oldest closed file of this recording (to free disk space); returns it with
+        its first and last message times (ns), or None when no closed file can be removed (a
+        file of a previously closed recording counts as one with the others of it)."""
+        if not self.files or len(self._part_metadata[0]["relative_file_paths"]) != 1:
+            return None
+        info = self._part_metadata.pop(0)
+        path = self.files.pop(0)
+        start = int(info["starting_time"]["nanoseconds_since_epoch"])
+        path.unlink()
+        (self.path / PARTS_DIR / f"{path.name}.yaml").unlink(missing_ok=True)
+        _fsync(self.path)
+        return path, start, start + int(info["duration"]["nanoseconds"])
+
     def start_new_file(self) -> None:
         """Close the current file (complete, on disk) if it holds messages; the next message
         starts a new one."""
@@ -298,6 +206,7 @@ class BagWriter:
                 self._current_part()
                 self._close_part()
             self._write_metadata()
+            shutil.rmtree(self.path / PARTS_DIR, ignore_errors=True)  # merged into metadata.yaml
             self._closed = True
         return self.summary
 
@@ -323,11 +232,12 @@ class BagWriter:
         # rosbags writes <dir>/<dir>.<ext>; each file is written as a one-file bag in a
         # sub-directory named like the final file, then moved up (see _close_part).
         part = Writer(
-            self.path / f"{self.path.name}_{len(self.files)}",
+            self.path / f"{self.path.name}_{self._next_index}",
             version=BAG_VERSION,
             storage_plugin=STORAGES[self.storage],
         )
         part.open()
+        self._next_index += 1
         self._part = part
         self._connections = {}
         self._part_bytes = 0
@@ -340,12 +250,42 @@ class BagWriter:
         part_dir = self._part.path
         storage_file = self._part.storage.path
         self._part.close()
-        self._part = None
+        self._part, self._part_count, self._part_bytes = None, 0, 0
         _fsync(storage_file)
-        self._part_metadata.append(_load_metadata(part_dir))
+        info = _load_metadata(part_dir)
+        keep_part_metadata(self.path, storage_file.name, info)  # for a writer that resumes
+        self._part_metadata.append(info)
         self.files.append(storage_file.replace(self.path / storage_file.name))
         _fsync(self.path)
         shutil.rmtree(part_dir)
+
+    def _resume(self) -> None:
+        """Continue the recording in ``path``: adopt its closed files, write what its unfinished
+        files hold into a new file each (then delete them: their messages are on disk again)."""
+        try:
+            existing = existing_recording(self.path)
+        except ValueError as exc:
+            raise BagError(f"cannot continue {self.path}: {exc}") from exc
+        self._part_metadata, self.files = existing.part_metadata, existing.files
+        self._next_index = existing.next_index
+        (self.path / "metadata.yaml").unlink(missing_ok=True)  # being written again
+        ends = [
+            p["starting_time"]["nanoseconds_since_epoch"] + p["duration"]["nanoseconds"]
+            for p in self._part_metadata
+            if p["message_count"]
+        ]
+        for source in existing.unfinished:
+            salvaged = salvage(source)
+            self.resumed.append(salvaged)
+            if salvaged.messages:
+                self.write_salvaged(salvaged)
+                self.start_new_file()
+                ends.append(salvaged.messages[-1].log_time_ns)
+            for leftover in (source, source.with_name(source.name + "-journal")):
+                leftover.unlink(missing_ok=True)
+            if source.parent != self.path:
+                shutil.rmtree(source.parent)
+        self.resumed_end_ns = max(ends, default=0)
 
     def _write_metadata(self) -> None:
         """Merge the one-file metadata of every part into the bag's metadata.yaml."""

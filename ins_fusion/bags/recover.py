@@ -16,8 +16,9 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
-from ins_fusion.bags.bag_io import BagError, BagSummary, BagWriter
+from ins_fusion.bags.bag_io import BagError, BagWriter
 from ins_fusion.bags.salvage import STORAGE_OF_SUFFIX, Salvaged, salvage
+from ins_fusion.bags.summary import BagSummary
 
 
 @dataclass(frozen=True)
@@ -98,7 +99,7 @@ def recover_bag(bag: Path, output: Path) -> Recovered:
             for source in sources:
                 found.append(salvaged := salvage(source))
                 if salvaged.messages:
-                    skipped.update(write_salvaged(writer, salvaged))
+                    skipped.update(writer.write_salvaged(salvaged))
                     writer.start_new_file()
         if not writer.summary.count:
             raise BagError(f"{bag}: no complete message in {', '.join(f.name for f in sources)}")
@@ -111,18 +112,3 @@ def recover_bag(bag: Path, output: Path) -> Recovered:
         raise
     scratch.rmdir()
     return Recovered(found, writer.summary, skipped)
-
-
-def write_salvaged(writer: BagWriter, salvaged: Salvaged) -> dict[str, str]:
-    """Declare the topics of ``salvaged`` and write its messages (in log-time order); returns
-    the topics left out because their type is not in the writer's typestore (topic -> type)."""
-    skipped: dict[str, str] = {}
-    for topic, info in salvaged.topics.items():
-        if info.msgtype in writer.typestore.fielddefs:
-            writer.add_topic(topic, info.msgtype, info.qos)
-        else:
-            skipped[topic] = info.msgtype
-    for message in salvaged.messages:
-        if message.topic not in skipped:
-            writer.write(message.topic, message.log_time_ns, message.data)
-    return skipped

@@ -16,8 +16,9 @@ from pathlib import Path
 
 from gnss_ins_common.message_fields import stamp_ns
 from ins_fusion.adapters.solution_out import fill_fused_fix, fill_odometry, publishable
-from ins_fusion.bags.bag_io import BagSummary, BagWriter
+from ins_fusion.bags.bag_io import BagWriter
 from ins_fusion.bags.messages import new_message
+from ins_fusion.bags.summary import BagSummary
 from ins_fusion.bags.topics import FIX_TYPE, INS_FIX, INS_ODOMETRY, ODOMETRY_TYPE
 from ins_fusion.core.engine import InsSolution
 

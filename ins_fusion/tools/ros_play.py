@@ -23,7 +23,8 @@ from rclpy.signals import SignalHandlerOptions
 from rosbags.interfaces import Qos, QosDurability
 from rosgraph_msgs.msg import Clock
 
-from ins_fusion.bags.bag_io import BagReader, BagSummary
+from ins_fusion.bags.bag_io import BagReader
+from ins_fusion.bags.summary import BagSummary
 from ins_fusion.runtime.progress import Progress
 from ins_fusion.tools.ros_record import message_class
 
