@@ -2,9 +2,15 @@
 
 The recording node (ins_fusion/tools/ros_record.py) subscribes with ``raw=True`` to each
 requested topic as soon as a publisher of it appears, with the QoS its publishers offer, and
-writes what it receives on a writer thread, flushed every 0.5 s (what a SIGKILL or power cut
-loses; ``gnss_ins recover`` reads the rest). Ctrl-C or SIGTERM stops the subscriptions, takes
-every message already received, and closes the bag cleanly.
+writes what it receives on a writer thread in log-time order, flushed within 0.6 s of its
+reception (what a SIGKILL or power cut loses; ``gnss_ins recover`` reads the rest). Ctrl-C or
+SIGTERM stops the subscriptions, takes every message already received, and closes the bag
+cleanly. A disk guard watches the free space (ins_fusion/bags/recording.py). ``--resume``
+continues an existing recording (a supervised recorder that was restarted).
+
+Exit codes: 0 recorded and closed; 1 writing failed (the bag is left for ``gnss_ins recover``);
+2 bad arguments; 3 stopped by the disk guard (the bag is closed and complete) or refused to start
+below the free-space limit.
 
 rclpy is imported only when recording starts (this module is loaded by ``gnss_ins --help``).
 """
@@ -12,10 +18,33 @@ rclpy is imported only when recording starts (this module is loaded by ``gnss_in
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
 from ins_fusion.bags.bag_io import STORAGES, BagError, BagWriter
+from ins_fusion.bags.recording import DEFAULT_MIN_FREE, POLICIES, MinFree, RecordingWriter
+from ins_fusion.bags.recording import free_space as read_free_space
+
+#: Exit code of a recording stopped (or not started) by the disk guard.
+EXIT_DISK_FULL = 3
+#: How long a message is held to be written in log-time order, and the longest time a written
+#: message waits to be flushed (s): a kill loses at most their sum.
+HOLD_S, FLUSH_PERIOD_S = 0.2, 0.4
+
+
+def _min_free(text: str) -> MinFree:
+    try:
+        return MinFree.parse(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from exc
+
+
+def _seconds(text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(f"{text}: a positive number of seconds")
+    return value
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -40,31 +69,102 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="S",
         help="start a new file after S seconds of recorded time (0: never)",
     )
+    parser.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue the recording in OUTPUT if it exists (its unfinished file is recovered "
+        "into a new one) instead of refusing it",
+    )
+    parser.add_argument(
+        "--min-free",
+        type=_min_free,
+        default=MinFree.parse(DEFAULT_MIN_FREE),
+        metavar="SIZE",
+        help="free space kept on the bag's file system: a size (500M, 1G), a percentage (5%%) "
+        f"or both, the smaller applies; 0 switches the guard off (default {DEFAULT_MIN_FREE})",
+    )
+    parser.add_argument(
+        "--on-disk-full",
+        choices=POLICIES,
+        default="stop",
+        help="at the free-space limit: close the bag and stop, or delete the oldest files of "
+        "this recording (needs --max-bag-duration or --max-bag-size) (default: stop)",
+    )
+    parser.add_argument(
+        "--silence-warning",
+        type=_seconds,
+        default=5.0,
+        metavar="S",
+        help="warn when a recorded topic with a publisher has been silent for S s (default 5)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
-    """Record until Ctrl-C/SIGTERM; prints the summary. 2 on bad arguments, 1 if writing
-    failed."""
+    """Record until Ctrl-C/SIGTERM; prints the summary (exit codes: module docstring)."""
     if not args.topics and not args.all:
         print("gnss_ins record: error: name topics to record or use --all", file=sys.stderr)
         return 2
+    disk = args.output if args.output.exists() else args.output.parent
+    if refused := _below_limit(disk.resolve(), args.min_free):
+        print(f"gnss_ins record: error: {refused}; not recording", file=sys.stderr)
+        return EXIT_DISK_FULL
     try:
         writer = BagWriter(
             args.output,
             storage=args.storage,
             max_file_bytes=args.max_bag_size,
             max_file_duration_s=args.max_bag_duration,
+            resume=args.resume,
         )
     except BagError as exc:
         print(f"gnss_ins record: error: {exc}", file=sys.stderr)
         return 2
+    for found in writer.resumed:
+        print(
+            f"continuing {args.output}: {len(found.messages)} messages of the unfinished "
+            f"{found.path.name} written into a new file",
+            file=sys.stderr,
+        )
+    recording = RecordingWriter(
+        writer,
+        _print_log,
+        hold_s=HOLD_S,
+        flush_period_s=FLUSH_PERIOD_S,
+        min_free=args.min_free,
+        policy=args.on_disk_full,
+    )
     from ins_fusion.tools.ros_record import record
 
-    lost, failure = record(writer, None if args.all else list(args.topics))
+    lost, failure = record(recording, None if args.all else list(args.topics), args.silence_warning)
     if failure is not None:
-        print(f"gnss_ins record: error: writing {args.output} failed: {failure!r}", file=sys.stderr)
+        print(
+            f"gnss_ins record: error: writing {args.output} failed: {failure!r}; "
+            f"`gnss_ins recover {args.output}` restores what reached the disk",
+            file=sys.stderr,
+        )
         return 1
-    print(writer.summary.format(f"bag {args.output} ({args.storage}, files: {len(writer.files)})"))
+    title = f"bag {args.output} ({args.storage}, files: {len(writer.files)})"
+    print(writer.summary.format(title + (" (this run)" if args.resume else "")))
     lost_text = ", ".join(f"{t} {n}" for t, n in sorted(lost.items()) if n) or "none"
     print(f"  lost in transport (reported by the middleware): {lost_text}")
+    print(f"  received later than {HOLD_S} s after a later message: {recording.late}")
+    for path in recording.deleted:
+        print(f"  deleted by the disk guard: {path.name}")
+    if recording.stopped is not None:
+        print(f"gnss_ins record: error: {recording.stopped}", file=sys.stderr)
+        return EXIT_DISK_FULL
     return 0
+
+
+def _below_limit(path: Path, min_free: MinFree) -> str | None:
+    """Why recording must not start on the file system of ``path`` (None: it may)."""
+    free = read_free_space(path)
+    limit = min_free.limit(free.total_bytes)
+    if limit > 0 and free.free_bytes < limit:
+        return f"{free.free_bytes} bytes free on the file system of {path}, below --min-free"
+    return None
+
+
+def _print_log(level: str, text: str) -> None:
+    """The recording's messages on stderr, in the rcutils form ``gnss_ins launch`` scans."""
+    print(f"[{level.upper()}] [gnss_ins_record]: {text}", file=sys.stderr, flush=True)

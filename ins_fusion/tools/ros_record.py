@@ -3,9 +3,14 @@ with ``raw=True`` (serialized CDR, no deserialization) to each requested topic a
 publisher of it appears in the graph, with the QoS its publishers offer (reliable only if all
 are, transient-local only if all are — rosbag2's rule). Callbacks only queue (topic, receive time,
 bytes); a writer thread hands them to ``BagWriter``. The receive time is the middleware's
-reception time (system clock, ns since the epoch). The writer thread flushes the bag every
-FLUSH_PERIOD_S while messages come, so a process killed otherwise (SIGKILL, power cut) leaves all
-but its last FLUSH_PERIOD_S on disk for ``gnss_ins recover``.
+reception time (system clock, ns since the epoch). The writer thread runs a
+``RecordingWriter`` (ins_fusion/bags/recording.py): messages held a moment and written in
+log-time order, flushed on a bounded interval, the disk's free space guarded; a process killed
+otherwise (SIGKILL, power cut) leaves all but its last fraction of a second on disk.
+
+The node also watches its topics (a topic silent for ``silence_s`` while it has a publisher, a
+topic whose publishers all left: a warning in its log, which ``gnss_ins launch`` shows) and
+publishes its state on /diagnostics every DIAGNOSTICS_PERIOD_S.
 """
 
 from __future__ import annotations
@@ -21,6 +26,7 @@ from functools import partial
 from typing import Any, NamedTuple
 
 import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
@@ -35,7 +41,8 @@ from rosbags.interfaces import (
     QosTime,
 )
 
-from ins_fusion.bags.bag_io import BagWriter
+from gnss_ins_common.ros_diagnostics import ERROR, OK, WARN, make_status
+from ins_fusion.bags.recording import RecordingWriter
 from ins_fusion.runtime.progress import Progress
 
 #: How often the graph is searched for new topics (s).
@@ -44,8 +51,8 @@ DISCOVERY_PERIOD_S = 0.2
 SUBSCRIPTION_DEPTH = 1000
 #: Executor wake-up period, the latency of reacting to Ctrl-C (s).
 SPIN_PERIOD_S = 0.1
-#: Longest time a written message waits before it is flushed to disk (s): what a kill loses.
-FLUSH_PERIOD_S = 0.5
+#: Period of the recorder's /diagnostics status and of its topic watch (s).
+DIAGNOSTICS_PERIOD_S = 1.0
 
 
 def message_class(msgtype: str) -> Any:
@@ -98,29 +105,47 @@ class _Message(NamedTuple):
     data: bytes
 
 
+class _Watch:
+    """What the recorder saw of one topic: messages, last arrival (monotonic s), warnings."""
+
+    def __init__(self) -> None:
+        self.count = 0
+        self.last = time.monotonic()
+        self.silent_warned = False
+        self.had_publishers = True
+
+
 class Recorder:
     """Subscribes to topics as they appear and writes what they carry on a writer thread.
 
     ``topics`` None records every topic. Counters (``received``, ``lost``) are updated on the
-    executor thread; the writer thread owns ``writer`` and closes it. ``stop`` is set by the
-    owner to end the recording, or by the writer thread when writing fails.
+    executor thread; the writer thread owns ``recording`` (and its bag) and closes it. ``stop`` is
+    set by the owner to end the recording, or by the writer thread when writing fails or the
+    disk guard stopped the recording.
     """
 
-    def __init__(self, node: Node, writer: BagWriter, topics: list[str] | None) -> None:
+    def __init__(
+        self, node: Node, recording: RecordingWriter, topics: list[str] | None, silence_s: float
+    ) -> None:
         self.node = node
-        self.writer = writer
+        self.recording = recording
+        self.writer = recording.writer
         self.wanted = None if topics is None else {node.resolve_topic_name(t) for t in topics}
+        self.silence_s = silence_s
         self.received = 0
         self.lost: Counter[str] = Counter()
         self.error: BaseException | None = None
         self.stop = threading.Event()
         self._subscriptions: dict[str, Any] = {}
+        self._watch: dict[str, _Watch] = {}
         self._ignored: set[str] = set()
         self._queue: queue.SimpleQueue[_Declare | _Message | None] = queue.SimpleQueue()
         self._thread = threading.Thread(target=self._write_loop, name="bag-writer", daemon=True)
         self._thread.start()
+        self._diagnostics = node.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self._discover()
         self._timer = node.create_timer(DISCOVERY_PERIOD_S, self._discover)
+        self._status_timer = node.create_timer(DIAGNOSTICS_PERIOD_S, self._watch_and_report)
 
     @property
     def waiting_for(self) -> list[str]:
@@ -156,6 +181,7 @@ class Recorder:
                 continue
             offered = [p.qos_profile for p in publishers]
             self._queue.put(_Declare(topic, msgtype, [qos_to_rosbags(p) for p in offered]))
+            self._watch[topic] = _Watch()
             self._subscriptions[topic] = self.node.create_subscription(
                 msg_class,
                 topic,
@@ -172,41 +198,94 @@ class Recorder:
         receive_ns = info.get("received_timestamp") or self.node.get_clock().now().nanoseconds
         self._queue.put(_Message(topic, receive_ns, data))
         self.received += 1
+        watch = self._watch[topic]
+        watch.count += 1
+        if watch.silent_warned:
+            silent = time.monotonic() - watch.last
+            self.node.get_logger().info(f"{topic} recorded again after {silent:.1f} s of silence")
+            watch.silent_warned = False
+        watch.last = time.monotonic()
 
     def _on_lost(self, topic: str, status: Any) -> None:
         self.lost[topic] += int(status.total_count_change)
 
+    def _watch_and_report(self) -> None:
+        """Warn about silent topics and topics that lost their publishers; publish the status."""
+        now = time.monotonic()
+        logger = self.node.get_logger()
+        silent = []
+        for topic, watch in self._watch.items():
+            publishers = self.node.count_publishers(topic)
+            if publishers == 0 and watch.had_publishers:
+                logger.warning(f"{topic}: no publisher any more (its node stopped?)")
+            watch.had_publishers = publishers > 0
+            if publishers and now - watch.last > self.silence_s:
+                silent.append(topic)
+                if not watch.silent_warned:
+                    watch.silent_warned = True
+                    logger.warning(
+                        f"{topic} silent for {now - watch.last:.1f} s although it has a publisher"
+                    )
+        self._diagnostics.publish(self._status(now, silent))
+
+    def _status(self, now: float, silent: list[str]) -> DiagnosticArray:
+        recording = self.recording
+        values: dict[str, object] = {
+            "bag": self.writer.path,
+            "files": len(self.writer.files) + 1,
+            "messages": self.received,
+            "late_messages": recording.late,
+            "deleted_files": len(recording.deleted),
+        }
+        if recording.free is not None:
+            values["free_bytes"] = recording.free.free_bytes
+        if recording.free is not None:
+            values["min_free_bytes"] = recording.min_free.limit(recording.free.total_bytes)
+        for topic, watch in sorted(self._watch.items()):
+            values[f"{topic} count"] = watch.count
+            values[f"{topic} age_s"] = round(now - watch.last, 3)
+        if self.error is not None or recording.stopped is not None:
+            level, message = ERROR, recording.stopped or f"writing failed: {self.error!r}"
+        elif recording.free is not None and recording.low_disk:
+            level, message = WARN, "disk space low"
+        elif silent or self.waiting_for:
+            level, message = WARN, f"silent: {', '.join(silent or self.waiting_for)}"
+        else:
+            level, message = OK, "recording"
+        status = make_status(
+            "gnss_ins_record: recording", str(self.writer.path), level, message, values
+        )
+        array = DiagnosticArray(status=[status])
+        array.header.stamp = self.node.get_clock().now().to_msg()
+        return array
+
     def _write_loop(self) -> None:
-        """Write queued items until the None sentinel, then close the bag — all on this thread
-        (the storage, e.g. a sqlite3 connection, belongs to the thread that opened it). Items
-        written are flushed at most FLUSH_PERIOD_S later."""
-        flush_due: float | None = None  # monotonic time the oldest unflushed item must be out
+        """Hand queued items to the recording until the None sentinel, then close it — all on
+        this thread (the storage, e.g. a sqlite3 connection, belongs to the thread that opened
+        it)."""
         try:
+            timeout = self.recording.service()
             while True:
-                timeout = None if flush_due is None else max(0.0, flush_due - time.monotonic())
                 try:
                     item = self._queue.get(timeout=timeout)
-                except queue.Empty:  # nothing came for a while: out with what is pending
-                    self.writer.flush()
-                    flush_due = None
-                    continue
+                except queue.Empty:  # nothing came: time to write, flush or check the disk
+                    item = False
                 if item is None:
                     break
                 if isinstance(item, _Declare):
-                    self.writer.add_topic(item.topic, item.msgtype, item.qos)
-                else:
-                    self.writer.write(item.topic, item.receive_ns, item.data)
-                if flush_due is None:
-                    flush_due = time.monotonic() + FLUSH_PERIOD_S
-                elif time.monotonic() >= flush_due:
-                    self.writer.flush()
-                    flush_due = None
+                    self.recording.declare(item.topic, item.msgtype, item.qos)
+                elif isinstance(item, _Message):
+                    self.recording.receive(item.topic, item.receive_ns, item.data)
+                timeout = self.recording.service()
+                if self.recording.stopped is not None:
+                    self.stop.set()
         except BaseException as exc:  # re-raised by close()
             self.error = exc
             self.stop.set()
         finally:
             try:
-                self.writer.close()
+                if self.recording.stopped is None:
+                    self.recording.close()
             except BaseException as exc:
                 self.error = self.error or exc
 
@@ -216,6 +295,7 @@ class Recorder:
             executor.spin_once(timeout_sec=SPIN_PERIOD_S)
             progress.update(self.received, f"backlog {self.backlog}")
         self._timer.cancel()
+        self._status_timer.cancel()
         before = -1
         while before != self.received:  # one pass per ready message; ends when none is ready
             before = self.received
@@ -230,17 +310,19 @@ class Recorder:
             raise self.error
 
 
-def record(writer: BagWriter, topics: list[str] | None) -> tuple[Counter[str], Exception | None]:
-    """Record into ``writer`` until Ctrl-C/SIGTERM (``topics`` None: every topic) and close it;
-    returns the messages lost in transport per topic and the error of the writer thread (disk
-    full, ...) if writing failed."""
+def record(
+    recording: RecordingWriter, topics: list[str] | None, silence_s: float
+) -> tuple[Counter[str], Exception | None]:
+    """Record into ``recording`` until Ctrl-C/SIGTERM or until its disk guard stops it (``topics``
+    None: every topic) and close it; returns the messages lost in transport per topic and the
+    error of the writer thread (disk full, ...) if writing failed."""
     # Own signal handlers (not rclpy's, which shut the context down at once) so that messages
     # already received are still taken and written after Ctrl-C.
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node("gnss_ins_record")
     executor = SingleThreadedExecutor()
     executor.add_node(node)
-    recorder = Recorder(node, writer, topics)
+    recorder = Recorder(node, recording, topics, silence_s)
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda *_: recorder.stop.set())
     if recorder.waiting_for:
