@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NamedTuple
 
+from mcap.exceptions import EndOfFile
 from mcap.records import Channel, Chunk, Footer, McapRecord, Message, MessageIndex, Schema
 from mcap.stream_reader import StreamReader, breakup_chunk
 from rosbags.interfaces import Qos
@@ -207,6 +208,8 @@ def _rows(db: sqlite3.Connection, query: str, found: Salvaged) -> list[tuple[Any
 
 def _reason(exc: Exception) -> str:
     """A short text for the record that could not be read."""
+    if isinstance(exc, EndOfFile):
+        return "the file ends inside a record (written when the recording stopped)"
     name = type(exc).__name__
     text = str(exc)
     return f"{name}: {text}" if text else name
