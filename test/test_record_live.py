@@ -123,5 +123,7 @@ def test_killed_recorder_loses_at_most_the_last_second(live_system, tmp_path, st
         )
         last = max(at for at, msg in sent if stamp_ns(msg) in recorded[topic])
         lost_at_end[topic] = killed - last
-        assert lost_at_end[topic] <= 1.0 + 1.0 / 5, (topic, lost_at_end[topic])
+        times = collector.receive_times[topic]
+        period = (times[-1] - times[0]) / (len(times) - 1)  # a topic's last message may be
+        assert lost_at_end[topic] <= 1.0 + period, (topic, lost_at_end[topic])  # that old
     print(storage, split, {t: round(s, 3) for t, s in lost_at_end.items()})
