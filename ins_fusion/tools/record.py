@@ -81,7 +81,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=MinFree.parse(DEFAULT_MIN_FREE),
         metavar="SIZE",
         help="free space kept on the bag's file system: a size (500M, 1G), a percentage (5%%) "
-        f"or both, the smaller applies; 0 switches the guard off (default {DEFAULT_MIN_FREE})",
+        "or both, the smaller applies; 0 switches the guard off (default "
+        + DEFAULT_MIN_FREE.replace("%", "%%")
+        + ")",
     )
     parser.add_argument(
         "--on-disk-full",
