@@ -1,34 +1,76 @@
 """Launch the gnss_ins vehicle on a machine with a full ROS 2 Jazzy install.
 
     ros2 launch gnss_ins vehicle.launch.py imu_port:=/dev/ttyUSB0 \
-        leica_port:=/dev/ttyUSB1 adu5_port:=/dev/ttyUSB2
+        leica_port:=/dev/ttyUSB1 adu5_port:=/dev/ttyUSB2 [record_dir:=/data/bags]
 
 The nodes, namespaces and remappings come from ins_fusion.runtime.vehicle_nodes (the same table as
 `gnss_ins launch` and the demo); parameters from the installed config/*.yaml, the port arguments
 override them. Each GNSS receiver runs in its own namespace (``leica/gnss/fix``,
-``adu5/gnss/attitude``); ins_fusion_node reads those.
+``adu5/gnss/attitude``); ins_fusion_node reads those. Every node is respawned 1 s after it ends
+(``respawn:=false``: not). A non-empty ``record_dir`` also starts `gnss_ins record` into
+``record_dir/vehicle_<UTC start time>`` (ins_fusion.runtime.recorder), respawned the same way
+and continuing the same recording (``--resume``).
 """
 
-from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument
+from pathlib import Path
+
+from launch import LaunchContext, LaunchDescription
+from launch.actions import DeclareLaunchArgument, ExecuteProcess, OpaqueFunction
+from launch.conditions import evaluate_condition_expression
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
 from gnss_ins_common.paths import config_file
+from ins_fusion.runtime.recorder import (
+    DEFAULT_SPLIT_S,
+    RECORDER,
+    STORAGES,
+    TOPICS_FILE,
+    Recording,
+    read_topics,
+    recording_name,
+)
 from ins_fusion.runtime.vehicle_nodes import DEFAULT_PORTS, VEHICLE
+
+#: Seconds between the end of a process and its respawn.
+RESPAWN_DELAY_S = 1.0
 
 
 def generate_launch_description() -> LaunchDescription:
-    """The IMU400CC, Leica, ADU5 and fusion nodes with their configuration files."""
+    """The IMU400CC, Leica, ADU5 and fusion nodes with their configuration files, and the
+    recorder when ``record_dir`` is given."""
     arguments = [
-        DeclareLaunchArgument(f"{role}_port", default_value=port)
-        for role, port in DEFAULT_PORTS.items()
+        *(
+            DeclareLaunchArgument(f"{role}_port", default_value=port)
+            for role, port in DEFAULT_PORTS.items()
+        ),
+        DeclareLaunchArgument(
+            "respawn", default_value="true", description="start a process again when it ends"
+        ),
+        DeclareLaunchArgument(
+            "record_dir", default_value="", description="record into DIR/vehicle_<UTC time>"
+        ),
+        DeclareLaunchArgument(
+            "record_split", default_value=str(DEFAULT_SPLIT_S), description="seconds per file"
+        ),
+        DeclareLaunchArgument(
+            "record_topics",
+            default_value=str(config_file(TOPICS_FILE)),
+            description="YAML file with the list 'topics:' to record",
+        ),
+        DeclareLaunchArgument("record_storage", default_value=STORAGES[0], choices=list(STORAGES)),
     ]
+    return LaunchDescription([*arguments, OpaqueFunction(function=_processes)])
 
-    def port(role: str | None) -> list[dict[str, LaunchConfiguration]]:
-        return [{"port": LaunchConfiguration(f"{role}_port")}] if role else []
 
-    nodes = [
+def _processes(context: LaunchContext) -> list[ExecuteProcess]:
+    """The nodes and the recorder, with the launch arguments' values."""
+
+    def value(name: str) -> str:
+        return LaunchConfiguration(name).perform(context)
+
+    respawn = evaluate_condition_expression(context, [LaunchConfiguration("respawn")])
+    processes: list[ExecuteProcess] = [
         Node(
             package="gnss_ins",
             executable=spec.executable,
@@ -36,15 +78,30 @@ def generate_launch_description() -> LaunchDescription:
             namespace=spec.namespace,
             parameters=[
                 str(config_file(spec.config)),
-                *(
-                    [{"port": LaunchConfiguration(f"{spec.port_role}_port")}]
-                    if spec.port_role
-                    else []
-                ),
+                *([{"port": value(f"{spec.port_role}_port")}] if spec.port_role else []),
             ],
             remappings=list(spec.remaps),
             output="screen",
+            respawn=respawn,
+            respawn_delay=RESPAWN_DELAY_S,
         )
         for spec in VEHICLE
     ]
-    return LaunchDescription([*arguments, *nodes])
+    if value("record_dir"):
+        recording = Recording(
+            Path(value("record_dir")) / recording_name(),
+            tuple(read_topics(Path(value("record_topics")))),
+            float(value("record_split")),
+            value("record_storage"),
+        )
+        recording.output.parent.mkdir(parents=True, exist_ok=True)
+        processes.append(
+            ExecuteProcess(
+                cmd=recording.command(),
+                name=RECORDER,
+                output="screen",
+                respawn=respawn,
+                respawn_delay=RESPAWN_DELAY_S,
+            )
+        )
+    return processes

@@ -1,10 +1,18 @@
-"""`gnss_ins launch` and the shared vehicle node table (also used by launch/vehicle.launch.py)."""
+"""`gnss_ins launch` and the shared vehicle node table (also used by launch/vehicle.launch.py):
+the nodes on emulated devices, a node killed with SIGKILL started again; the ROS launch file's
+respawn and recorder, read with stand-ins of the ``launch`` packages."""
 
 from __future__ import annotations
 
 import ast
+import importlib.util
+import os
+import re
 import signal
 import subprocess
+import sys
+import types
+from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
@@ -58,51 +66,168 @@ def test_ros_launch_file_uses_the_shared_table():
     assert "generate_launch_description" in source
 
 
-def test_launch_starts_every_node_on_emulated_hardware_and_stops_cleanly(tmp_path):
+TOPICS = {
+    "imu/data_raw": Imu,
+    "leica/gnss/fix": NavSatFix,
+    "adu5/gnss/attitude": Imu,
+    "/diagnostics": DiagnosticArray,
+}
+
+
+@contextmanager
+def launched(log_dir: Path):
+    """`gnss_ins launch` on the three emulated devices, with a Collector of TOPICS spinning;
+    stopped with SIGINT at the end. Yields (launcher, collector, output: filled at the end)."""
     leica = GnssEmulator(
         constant_velocity((3.0, 4.0, 0.0)), EmulatorConfig(receiver=Receiver.LEICA)
     )
     adu5 = GnssEmulator(constant_velocity((3.0, 4.0, 0.0)), EmulatorConfig(receiver=Receiver.ADU5))
-    topics = {
-        "imu/data_raw": Imu,
-        "leica/gnss/fix": NavSatFix,
-        "adu5/gnss/attitude": Imu,
-        "/diagnostics": DiagnosticArray,
-    }
     with Imu400ccEmulator() as imu, leica, adu5:
-        collector = Collector(topics)
+        collector = Collector(TOPICS)
+        ports = ("--imu-port", imu.path, "--leica-port", leica.path, "--adu5-port", adu5.path)
         launcher = subprocess.Popen(
-            gnss_ins_command(
-                "launch",
-                "--imu-port",
-                imu.path,
-                "--leica-port",
-                leica.path,
-                "--adu5-port",
-                adu5.path,
-                "--log-dir",
-                str(tmp_path),
-            ),
+            gnss_ins_command("launch", *ports, "--log-dir", str(log_dir)),
             stdout=subprocess.PIPE,
             text=True,
         )
+        output: list[str] = []
         try:
             with spinning(collector.node):
-                assert wait_for(lambda: all(collector.count(t) > 2 for t in topics), 30.0), {
-                    t: collector.count(t) for t in topics
-                }
-                # Every node reports on /diagnostics (the fusion node starts slowest).
-                assert wait_for(lambda: _reporters(collector) >= NODE_NAMES, 30.0), _reporters(
-                    collector
-                )
+                yield launcher, collector, output
         finally:
             launcher.send_signal(signal.SIGINT)
-            output, _ = launcher.communicate(timeout=30)
+            output.append(launcher.communicate(timeout=60)[0])
             collector.node.destroy_node()
-    assert launcher.returncode == 0, output
+
+
+class _Action:
+    """Stand-in of a ROS launch action or description: keeps its arguments."""
+
+    def __init__(self, *args, **kwargs):
+        self.args, self.kwargs = args, kwargs
+
+
+class _Configuration:
+    """Stand-in of LaunchConfiguration: the context is a dict of the arguments' values."""
+
+    def __init__(self, name):
+        self.name = name
+
+    def perform(self, context):
+        return context[self.name]
+
+
+def _stub_launch_modules(monkeypatch):
+    """The parts of the ``launch`` and ``launch_ros`` packages vehicle.launch.py uses."""
+    stubs = {
+        "launch": {"LaunchContext": dict, "LaunchDescription": _Action},
+        "launch.actions": dict.fromkeys(
+            ("DeclareLaunchArgument", "ExecuteProcess", "OpaqueFunction"), _Action
+        ),
+        "launch.conditions": {
+            "evaluate_condition_expression": lambda context, expression: (
+                expression[0].perform(context).lower() in ("true", "1")
+            )
+        },
+        "launch.substitutions": {"LaunchConfiguration": _Configuration},
+        "launch_ros": {},
+        "launch_ros.actions": {"Node": type("Node", (_Action,), {})},
+    }
+    for name, attributes in stubs.items():
+        module = types.ModuleType(name)
+        module.__dict__.update(attributes)
+        monkeypatch.setitem(sys.modules, name, module)
+
+
+@pytest.mark.parametrize("respawn", ["true", "false"])
+def test_ros_launch_file_respawns_the_nodes_and_starts_the_recorder(monkeypatch, tmp_path, respawn):
+    _stub_launch_modules(monkeypatch)
+    source = importlib.util.spec_from_file_location(
+        "vehicle_launch", REPO / "launch" / "vehicle.launch.py"
+    )
+    module = importlib.util.module_from_spec(source)
+    source.loader.exec_module(module)
+    (*arguments, opaque) = module.generate_launch_description().args[0]
+    context = {a.args[0]: a.kwargs["default_value"] for a in arguments}
+    assert (context["respawn"], context["record_dir"]) == ("true", "")
+    assert len(opaque.kwargs["function"](context)) == len(VEHICLE)  # no record_dir: no recorder
+    context.update(respawn=respawn, record_dir=str(tmp_path / "bags"))
+    *nodes, recorder = opaque.kwargs["function"](context)
+    assert [node.kwargs["name"] for node in nodes] == [spec.name for spec in VEHICLE]
+    leica = nodes[[spec.name for spec in VEHICLE].index("leica_gnss")]
+    assert {"port": "/dev/ttyUSB1"} in leica.kwargs["parameters"]
+    for process in [*nodes, recorder]:
+        assert process.kwargs["respawn"] is (respawn == "true")
+        assert process.kwargs["respawn_delay"] == 1.0
+    command = recorder.kwargs["cmd"]
+    output = Path(command[command.index("-o") + 1])
+    assert output.parent == tmp_path / "bags" and output.parent.is_dir()
+    assert re.fullmatch(r"vehicle_\d{8}_\d{6}", output.name)
+    assert "--resume" in command and "/leica/gnss/fix" in command
+    assert command[command.index("--max-bag-duration") + 1] == "600.0"
+
+
+def test_launch_starts_every_node_on_emulated_hardware_and_stops_cleanly(tmp_path):
+    with launched(tmp_path) as (launcher, collector, output):
+        assert wait_for(lambda: all(collector.count(t) > 2 for t in TOPICS), 30.0), {
+            t: collector.count(t) for t in TOPICS
+        }
+        # Every node reports on /diagnostics (the fusion node starts slowest).
+        assert wait_for(lambda: _reporters(collector) >= NODE_NAMES, 30.0), _reporters(collector)
+    assert launcher.returncode == 0, output[0]
     for spec in VEHICLE:
-        assert f"started {spec.name}" in output
+        assert f"started {spec.name}" in output[0]
         assert (tmp_path / f"{spec.name}.log").exists()
+
+
+def test_launch_restarts_a_node_killed_with_sigkill_and_leaves_the_others(tmp_path):
+    with launched(tmp_path) as (launcher, collector, output):
+        assert wait_for(lambda: collector.count("leica/gnss/fix") > 2, 30.0)
+        assert wait_for(lambda: set(node_pids(launcher.pid)) == NODE_NAMES, 10.0)
+        before = node_pids(launcher.pid)
+        os.kill(before["leica_gnss"], signal.SIGKILL)
+        killed = before["leica_gnss"]
+        assert wait_for(lambda: node_pids(launcher.pid).get("leica_gnss", killed) != killed, 3.0)
+        after = node_pids(launcher.pid)
+        assert {n: p for n, p in after.items() if n != "leica_gnss"} == {
+            n: p for n, p in before.items() if n != "leica_gnss"
+        }
+        assert launcher.poll() is None
+        # The new process opens the emulated port again and publishes.
+        fixes = collector.count("leica/gnss/fix")
+        assert wait_for(lambda: collector.count("leica/gnss/fix") > fixes + 2, 30.0)
+        assert node_pids(launcher.pid) == after
+    assert launcher.returncode == 0, output[0]
+    assert "leica_gnss exited (signal SIGKILL) after " in output[0]
+    assert "leica_gnss restarted (pid " in output[0]
+    log = (tmp_path / "leica_gnss.log").read_text()
+    assert f"leica_gnss started (pid {after['leica_gnss']}, restart 1)" in log
+
+
+def node_pids(parent: int) -> dict[str, int]:
+    """PID of each running node process started by ``parent``, by node name (psutil when
+    installed, else /proc); a killed node not yet reaped (a zombie) has no command line."""
+    children: list[tuple[int, list[str]]] = []
+    try:
+        import psutil
+    except ImportError:
+        for entry in Path("/proc").iterdir():
+            if not entry.name.isdigit():
+                continue
+            try:
+                stat = (entry / "stat").read_text()
+                cmdline = (entry / "cmdline").read_bytes().decode(errors="replace")
+            except OSError:  # ended meanwhile
+                continue
+            if int(stat.rsplit(")", 1)[1].split()[1]) == parent:  # the field after comm: ppid
+                children.append((int(entry.name), cmdline.split("\0")))
+    else:
+        for child in psutil.Process(parent).children():
+            try:
+                children.append((child.pid, child.cmdline()))
+            except psutil.Error:
+                continue
+    return {name: pid for pid, args in children for name in NODE_NAMES if f"__node:={name}" in args}
 
 
 def _reporters(collector: Collector) -> set[str]:

@@ -1,3 +1,3 @@
 """Running the system (no rclpy): the vehicle's node set and their command lines
-(``vehicle_nodes``), child processes with their logs (``processes``), a progress bar
-(``progress``)."""
+(``vehicle_nodes``), the vehicle's recorder (``recorder``), child processes with their logs,
+supervised and restarted (``processes``), a progress bar (``progress``)."""

@@ -27,7 +27,10 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
         "demo",
         "the whole system on a simulated drive: emulators, nodes, bag, accuracy report",
     ),
-    "launch": ("launch", "start the vehicle's nodes for real hardware (no ros2 needed)"),
+    "launch": (
+        "launch",
+        "start and supervise the vehicle's nodes for real hardware (no ros2 needed)",
+    ),
     "imu-demo": ("imu_demo", "run imu400cc_node on an emulated device and print what it publishes"),
     "import-qfree": ("import_qfree", "Q-Free OBU GNSS/MEMS text logs to a rosbag2 bag"),
     "record": ("record", "record ROS 2 topics to a rosbag2 bag (MCAP or sqlite3)"),

@@ -1,10 +1,13 @@
-"""`gnss_ins launch`: start the vehicle's nodes for real hardware on a machine without `ros2`.
+"""`gnss_ins launch`: start and supervise the vehicle's nodes for real hardware on a machine
+without `ros2`.
 
 The same nodes, namespaces and remappings as launch/vehicle.launch.py
-(ins_fusion.runtime.vehicle_nodes), each in its own process, until Ctrl-C/SIGTERM; a port that
-does not exist, every WARN/ERROR line of a node's log (rate-limited by the nodes) and a node that
-dies are reported on the console, and when one dies the others are stopped, so a broken cable or
-port never leaves half a system running silently.
+(ins_fusion.runtime.vehicle_nodes), each in its own process, until Ctrl-C/SIGTERM. A node that
+ends (crash, exit, kill -9) is started again with the same command, 0.5 s later, the delay
+doubling with each failure in a row up to 30 s (ins_fusion.runtime.processes); the others run
+on. A missing port, every WARN/ERROR line of a node's log (rate-limited by the nodes) and every
+restart are reported on the console. ``--record DIR`` adds a supervised recorder
+(ins_fusion.runtime.recorder); ``--stop-on-failure`` stops everything when one process ends.
 """
 
 from __future__ import annotations
@@ -14,12 +17,25 @@ import signal
 import time
 from pathlib import Path
 
-from ins_fusion.runtime.processes import ProcessGroup
+from gnss_ins_common.paths import config_file
+from ins_fusion.runtime.processes import Backoff, ProcessGroup, default_log_dir
+from ins_fusion.runtime.recorder import (
+    DEFAULT_SPLIT_S,
+    RECORDER,
+    STORAGES,
+    TOPICS_FILE,
+    Recording,
+    read_topics,
+    recording_name,
+)
 from ins_fusion.runtime.vehicle_nodes import ADU5, DEFAULT_PORTS, VEHICLE, command
+
+#: Seconds between two supervision steps (exits, restarts, new warnings).
+_PERIOD_S = 0.2
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """Ports and parameter files."""
+    """Ports, parameter files, logs, supervision and recording."""
     parser.add_argument(
         "--config",
         type=Path,
@@ -30,19 +46,81 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         parser.add_argument(f"--{role}-port", default=port, help=f"serial port of the {role}")
     parser.add_argument("--no-adu5", action="store_true", help="run without the ADU5")
     parser.add_argument(
-        "--log-dir", type=Path, default=Path("gnss_ins_logs"), help="one NAME.log per node"
+        "--log-dir",
+        type=Path,
+        help="directory of the NAME.log of each process, appended to and rotated at 10 MB "
+        "(default: $XDG_STATE_HOME/gnss_ins/logs, ~/.local/state/gnss_ins/logs without it)",
+    )
+    parser.add_argument(
+        "--stop-on-failure",
+        action="store_true",
+        help="stop everything and exit with 1 when a process ends, instead of restarting it",
+    )
+    parser.add_argument(
+        "--record",
+        type=Path,
+        metavar="DIR",
+        help="also record the topics into DIR/vehicle_<UTC start time> with `gnss_ins record`, "
+        "supervised like the nodes: a restarted recorder continues the same recording",
+    )
+    parser.add_argument(
+        "--record-split",
+        type=float,
+        default=DEFAULT_SPLIT_S,
+        metavar="S",
+        help="with --record: a new bag file every S seconds of recorded time (0: never)",
+    )
+    parser.add_argument(
+        "--record-topics",
+        type=Path,
+        metavar="FILE",
+        help=f"with --record: YAML file with the list 'topics:' to record "
+        f"(default: the installed config/{TOPICS_FILE})",
+    )
+    parser.add_argument(
+        "--record-storage",
+        choices=STORAGES,
+        default=STORAGES[0],
+        help="with --record: rosbag2 storage plugin",
+    )
+    parser.add_argument(
+        "--min-free",
+        metavar="SIZE",
+        help="with --record: passed to `gnss_ins record --min-free` (its free-space limit)",
+    )
+
+
+def recording(args: argparse.Namespace) -> Recording:
+    """The recorder of ``--record``, named now. Raises OSError or ValueError for a topics file
+    that cannot be read."""
+    topics = read_topics(args.record_topics or config_file(TOPICS_FILE))
+    return Recording(
+        args.record / recording_name(),
+        tuple(topics),
+        args.record_split,
+        args.record_storage,
+        args.min_free,
     )
 
 
 def run(args: argparse.Namespace) -> int:
-    """Start the nodes and wait; returns 1 when a node stopped on its own."""
+    """Start the nodes (and the recorder) and supervise them until Ctrl-C/SIGTERM; 0 then.
+    With ``--stop-on-failure``: 1 as soon as a process ends. 2 on bad arguments."""
     if args.config is not None and not args.config.is_dir():
         print(f"gnss_ins launch: error: --config {args.config} is not a directory")
         return 2
+    record: Recording | None = None
+    if args.record is not None:
+        try:
+            record = recording(args)
+            args.record.mkdir(parents=True, exist_ok=True)
+        except (OSError, ValueError) as exc:
+            print(f"gnss_ins launch: error: --record: {exc}")
+            return 2
+    log_dir = args.log_dir if args.log_dir is not None else default_log_dir()
     ports = {role: getattr(args, f"{role}_port") for role in DEFAULT_PORTS}
-    group = ProcessGroup(args.log_dir)
+    group = ProcessGroup(log_dir, backoff=None if args.stop_on_failure else Backoff())
     stop = False
-    ended: list[str] = []
 
     def request_stop(*_: object) -> None:
         nonlocal stop
@@ -50,6 +128,7 @@ def run(args: argparse.Namespace) -> int:
 
     signal.signal(signal.SIGTERM, request_stop)
     signal.signal(signal.SIGINT, request_stop)
+    ended: list[str] = []
     try:
         for spec in VEHICLE:
             if spec is ADU5 and args.no_adu5:
@@ -62,16 +141,28 @@ def run(args: argparse.Namespace) -> int:
                     f"warning: {port} does not exist; {spec.name} keeps trying to open it",
                     flush=True,
                 )
-        print(f"logs in {args.log_dir}/ (their warnings and errors also here); Ctrl-C to stop")
-        while not stop and not group.exited():
-            for line in group.problems():
+        if record is not None:
+            group.start(RECORDER, record.command())
+            print(
+                f"started {RECORDER}: {len(record.topics)} topics into {record.output} "
+                f"({record.storage}, a new file every {record.split_s:g} s)",
+                flush=True,
+            )
+        then = "stops everything" if args.stop_on_failure else "is started again"
+        print(
+            f"logs in {log_dir}/ (their warnings and errors also here); a process that ends "
+            f"{then}; Ctrl-C to stop",
+            flush=True,
+        )
+        while not stop and not (args.stop_on_failure and group.exited()):
+            for line in [*group.poll(), *group.problems()]:
                 print(line, flush=True)
-            time.sleep(0.2)
+            time.sleep(_PERIOD_S)
         for line in group.problems():
             print(line, flush=True)
-        ended = group.exited()
+        ended = group.exited() if args.stop_on_failure else []
     finally:
         group.stop_all()
     for name in ended:
-        print(f"gnss_ins launch: error: {name} stopped on its own; see {args.log_dir}/{name}.log")
+        print(f"gnss_ins launch: error: {name} stopped on its own; see {log_dir}/{name}.log")
     return 1 if ended else 0
