@@ -11,6 +11,7 @@ import re
 import signal
 import subprocess
 import sys
+import time
 import types
 from contextlib import contextmanager
 from pathlib import Path
@@ -24,6 +25,7 @@ from sensor_msgs.msg import Imu, NavSatFix
 from gnss_driver.emulator import EmulatorConfig, GnssEmulator, constant_velocity
 from gnss_driver.profiles import Receiver
 from imu400cc_driver.emulator import Imu400ccEmulator
+from ins_fusion.bags.bag_io import BagReader
 from ins_fusion.runtime.processes import gnss_ins_command
 from ins_fusion.runtime.vehicle_nodes import FUSION, VEHICLE, ros_arguments
 
@@ -75,7 +77,7 @@ TOPICS = {
 
 
 @contextmanager
-def launched(log_dir: Path):
+def launched(log_dir: Path, *options: str):
     """`gnss_ins launch` on the three emulated devices, with a Collector of TOPICS spinning;
     stopped with SIGINT at the end. Yields (launcher, collector, output: filled at the end)."""
     leica = GnssEmulator(
@@ -86,7 +88,7 @@ def launched(log_dir: Path):
         collector = Collector(TOPICS)
         ports = ("--imu-port", imu.path, "--leica-port", leica.path, "--adu5-port", adu5.path)
         launcher = subprocess.Popen(
-            gnss_ins_command("launch", *ports, "--log-dir", str(log_dir)),
+            gnss_ins_command("launch", *ports, "--log-dir", str(log_dir), *options),
             stdout=subprocess.PIPE,
             text=True,
         )
@@ -204,9 +206,11 @@ def test_launch_restarts_a_node_killed_with_sigkill_and_leaves_the_others(tmp_pa
     assert f"leica_gnss started (pid {after['leica_gnss']}, restart 1)" in log
 
 
-def node_pids(parent: int) -> dict[str, int]:
+def node_pids(parent: int, markers: dict[str, str] | None = None) -> dict[str, int]:
     """PID of each running node process started by ``parent``, by node name (psutil when
-    installed, else /proc); a killed node not yet reaped (a zombie) has no command line."""
+    installed, else /proc); a killed node not yet reaped (a zombie) has no command line.
+    ``markers``: name -> an argument that identifies the process (default: the node names)."""
+    markers = markers or {name: f"__node:={name}" for name in NODE_NAMES}
     children: list[tuple[int, list[str]]] = []
     try:
         import psutil
@@ -227,7 +231,37 @@ def node_pids(parent: int) -> dict[str, int]:
                 children.append((child.pid, child.cmdline()))
             except psutil.Error:
                 continue
-    return {name: pid for pid, args in children for name in NODE_NAMES if f"__node:={name}" in args}
+    return {name: pid for pid, args in children for name, mark in markers.items() if mark in args}
+
+
+RECORDER = {"recorder": "--resume"}
+
+
+def test_a_recorder_killed_under_launch_continues_the_same_recording(tmp_path):
+    bags = tmp_path / "bags"
+    with launched(tmp_path, "--record", str(bags)) as (launcher, collector, output):
+        assert wait_for(lambda: collector.count("imu/data_raw") > 2, 30.0)
+        assert wait_for(lambda: "recorder" in node_pids(launcher.pid, RECORDER), 10.0)
+        time.sleep(6.0)  # the recorder subscribes and records
+        killed = node_pids(launcher.pid, RECORDER)["recorder"]
+        os.kill(killed, signal.SIGKILL)
+        killed_at = time.time()
+        assert wait_for(
+            lambda: node_pids(launcher.pid, RECORDER).get("recorder", killed) != killed, 3.0
+        )
+        time.sleep(8.0)
+    assert launcher.returncode == 0, output[0]
+    (bag,) = bags.iterdir()
+    log = (tmp_path / "recorder.log").read_text()
+    assert "continuing " in log and "recording continued: gap of" in log
+    with BagReader(bag) as reader:  # closed by the second recorder: complete
+        times = [m.log_time_ns / 1e9 for m in reader.messages(["/imu/data_raw"])]
+    before = [t for t in times if t < killed_at]
+    after = [t for t in times if t > killed_at]
+    assert before and after and before[0] < killed_at - 4.0 and after[-1] > killed_at + 4.0
+    gap = after[0] - before[-1]
+    print(f"recording gap at the recorder's kill: {gap:.2f} s")
+    assert gap < 5.0
 
 
 def _reporters(collector: Collector) -> set[str]:
