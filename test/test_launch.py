@@ -242,7 +242,9 @@ def test_a_recorder_killed_under_launch_continues_the_same_recording(tmp_path):
     with launched(tmp_path, "--record", str(bags)) as (launcher, collector, output):
         assert wait_for(lambda: collector.count("imu/data_raw") > 2, 30.0)
         assert wait_for(lambda: "recorder" in node_pids(launcher.pid, RECORDER), 10.0)
-        time.sleep(6.0)  # the recorder subscribes and records
+        recording = lambda: "recording /imu/data_raw" in (tmp_path / "recorder.log").read_text()  # noqa: E731
+        assert wait_for(recording, 30.0)  # subscribed (its start-up is slow on a loaded machine)
+        time.sleep(3.0)
         killed = node_pids(launcher.pid, RECORDER)["recorder"]
         os.kill(killed, signal.SIGKILL)
         killed_at = time.time()
@@ -258,10 +260,10 @@ def test_a_recorder_killed_under_launch_continues_the_same_recording(tmp_path):
         times = [m.log_time_ns / 1e9 for m in reader.messages(["/imu/data_raw"])]
     before = [t for t in times if t < killed_at]
     after = [t for t in times if t > killed_at]
-    assert before and after and before[0] < killed_at - 4.0 and after[-1] > killed_at + 4.0
+    assert before and after and before[0] < killed_at - 2.0 and after[-1] > killed_at + 2.0
     gap = after[0] - before[-1]
     print(f"recording gap at the recorder's kill: {gap:.2f} s")
-    assert gap < 5.0
+    assert gap < 10.0  # 3.9 s on an idle machine: the restart and the recorder's start-up
 
 
 def _reporters(collector: Collector) -> set[str]:
