@@ -71,7 +71,7 @@ class BagWriter:
     raw bytes); a message object declares its topic on first use. Files split when the payload
     bytes of the current file would exceed ``max_file_bytes`` or when a message is
     ``max_file_duration_s`` or more after the file's first message (0 = never). With ``resume``
-    an existing recording directory is continued (``resume_recording``) instead of refused. Not
+    an existing recording directory is continued (``bags/resume.py``) instead of refused. Not
     thread-safe: the storage files are opened by the first ``add_topic``/``write``/``close``, and
     that thread must do all the writing and the closing (sqlite3 connections are bound to it).
     """
@@ -185,13 +185,12 @@ class BagWriter:
         file of a previously closed recording counts as one with the others of it)."""
         if not self.files or len(self._part_metadata[0]["relative_file_paths"]) != 1:
             return None
-        info = self._part_metadata.pop(0)
+        start, end = _span_ns(self._part_metadata.pop(0))
         path = self.files.pop(0)
-        start = int(info["starting_time"]["nanoseconds_since_epoch"])
         path.unlink()
         (self.path / PARTS_DIR / f"{path.name}.yaml").unlink(missing_ok=True)
         _fsync(self.path)
-        return path, start, start + int(info["duration"]["nanoseconds"])
+        return path, start, end
 
     def start_new_file(self) -> None:
         """Close the current file (complete, on disk) if it holds messages; the next message
@@ -269,11 +268,7 @@ class BagWriter:
         self._part_metadata, self.files = existing.part_metadata, existing.files
         self._next_index = existing.next_index
         (self.path / "metadata.yaml").unlink(missing_ok=True)  # being written again
-        ends = [
-            p["starting_time"]["nanoseconds_since_epoch"] + p["duration"]["nanoseconds"]
-            for p in self._part_metadata
-            if p["message_count"]
-        ]
+        ends = [_span_ns(p)[1] for p in self._part_metadata if p["message_count"]]
         for source in existing.unfinished:
             salvaged = salvage(source)
             self.resumed.append(salvaged)
@@ -292,11 +287,8 @@ class BagWriter:
         parts = self._part_metadata
         merged = dict(parts[0])
         with_messages = [p for p in parts if p["message_count"]] or parts[:1]
-        start = min(p["starting_time"]["nanoseconds_since_epoch"] for p in with_messages)
-        end = max(
-            p["starting_time"]["nanoseconds_since_epoch"] + p["duration"]["nanoseconds"]
-            for p in with_messages
-        )
+        start = min(_span_ns(p)[0] for p in with_messages)
+        end = max(_span_ns(p)[1] for p in with_messages)
         counts: dict[str, int] = {}
         for part in parts:
             for item in part["topics_with_message_count"]:
@@ -333,6 +325,12 @@ class BagWriter:
     ) -> None:
         # Closing on errors too keeps every message written so far in a readable bag.
         self.close()
+
+
+def _span_ns(info: dict[str, Any]) -> tuple[int, int]:
+    """Start and end (ns since the epoch) of the messages that rosbag2 metadata describes."""
+    start = int(info["starting_time"]["nanoseconds_since_epoch"])
+    return start, start + int(info["duration"]["nanoseconds"])
 
 
 def _fsync(path: Path) -> None:

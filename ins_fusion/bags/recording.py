@@ -95,9 +95,8 @@ class MinFree:
 
 
 class RecordingWriter:
-    """Holds, orders, writes, flushes and guards (see the module docstring). All methods but
-    ``receive`` run on one thread, the one that owns ``writer``; ``receive`` may be called from
-    that thread only too (the recorder queues to it)."""
+    """Holds, orders, writes, flushes and guards (see the module docstring). Every method runs
+    on the thread that owns ``writer`` (the recorder's writer thread, fed through a queue)."""
 
     def __init__(
         self,
@@ -116,7 +115,7 @@ class RecordingWriter:
         self.hold_ns = round(hold_s * 1e9)
         self.flush_period_s = flush_period_s
         self.min_free, self.policy, self.statvfs = min_free, policy, statvfs
-        #: why the recording stopped before it was asked to (None: it did not)
+        #: why the disk guard stopped the recording, its bag closed (None: it did not)
         self.stopped: str | None = None
         #: messages written after a later one had been (arrived more than ``hold_s`` late)
         self.late = 0

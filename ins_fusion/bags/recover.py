@@ -10,13 +10,13 @@ the output and renamed when it is complete: a bag under the final name is always
 from __future__ import annotations
 
 import os
-import re
 import shutil
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 from ins_fusion.bags.bag_io import BagError, BagWriter
+from ins_fusion.bags.resume import file_index
 from ins_fusion.bags.salvage import STORAGE_OF_SUFFIX, Salvaged, salvage
 from ins_fusion.bags.summary import BagSummary
 
@@ -66,12 +66,10 @@ class Recovered:
 
 def storage_files_left(bag: Path) -> list[Path]:
     """The storage files an unfinished recording left in ``bag``, in split order."""
-    suffixes = "|".join(s[1:] for s in STORAGE_OF_SUFFIX)
-    pattern = re.compile(rf"{re.escape(bag.name)}_(\d+)\.({suffixes})")
     found = [
-        (int(match.group(1)), path)
+        (index, path)
         for path in [*bag.glob("*.*"), *bag.glob("*/*.*")]
-        if (match := pattern.fullmatch(path.name))
+        if (index := file_index(bag, path.name)) is not None
     ]
     return [path for _, path in sorted(found)]
 

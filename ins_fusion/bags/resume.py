@@ -21,6 +21,8 @@ from typing import Any, cast
 
 import yaml
 
+from ins_fusion.bags.salvage import STORAGE_OF_SUFFIX
+
 #: The hidden directory of the closed files' one-file metadata.
 PARTS_DIR = ".parts"
 
@@ -49,8 +51,10 @@ def load_yaml(path: Path) -> dict[str, Any]:
 
 
 def file_index(bag: Path, name: str) -> int | None:
-    """The split index of a storage file name ``BAG_<i>.<ext>`` of the bag ``bag``."""
-    match = re.fullmatch(rf"{re.escape(bag.name)}_(\d+)\.(mcap|db3)", name)
+    """The split index of a storage file name ``BAG_<i>.mcap`` or ``.db3`` of the bag ``bag``
+    (None: not one)."""
+    suffixes = "|".join(re.escape(suffix) for suffix in STORAGE_OF_SUFFIX)
+    match = re.fullmatch(rf"{re.escape(bag.name)}_(\d+)({suffixes})", name)
     return int(match.group(1)) if match else None
 
 

@@ -239,14 +239,13 @@ class Recorder:
         }
         if recording.free is not None:
             values["free_bytes"] = recording.free.free_bytes
-        if recording.free is not None:
             values["min_free_bytes"] = recording.min_free.limit(recording.free.total_bytes)
         for topic, watch in sorted(self._watch.items()):
             values[f"{topic} count"] = watch.count
             values[f"{topic} age_s"] = round(now - watch.last, 3)
         if self.error is not None or recording.stopped is not None:
             level, message = ERROR, recording.stopped or f"writing failed: {self.error!r}"
-        elif recording.free is not None and recording.low_disk:
+        elif recording.low_disk:
             level, message = WARN, "disk space low"
         elif silent or self.waiting_for:
             level, message = WARN, f"silent: {', '.join(silent or self.waiting_for)}"
@@ -284,8 +283,7 @@ class Recorder:
             self.stop.set()
         finally:
             try:
-                if self.recording.stopped is None:
-                    self.recording.close()
+                self.recording.close()  # nothing left to do when the disk guard closed it
             except BaseException as exc:
                 self.error = self.error or exc
 
