@@ -284,3 +284,15 @@ def test_launch_refuses_a_missing_config_directory(tmp_path):
     )
     assert result.returncode == 2
     assert "not a directory" in result.stdout
+
+
+def test_launch_refuses_a_free_space_limit_the_recorder_would_refuse(tmp_path):
+    result = subprocess.run(
+        gnss_ins_command("launch", "--record", str(tmp_path), "--min-free", "12 parsecs"),
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert result.returncode == 2
+    assert "bad size" in result.stderr
+    assert not list(tmp_path.iterdir())  # nothing started, nothing recorded

@@ -29,6 +29,7 @@ from ins_fusion.runtime.recorder import (
     recording_name,
 )
 from ins_fusion.runtime.vehicle_nodes import ADU5, DEFAULT_PORTS, VEHICLE, command
+from ins_fusion.tools.record import min_free_option
 
 #: Seconds between two supervision steps (exits, restarts, new warnings).
 _PERIOD_S = 0.2
@@ -85,9 +86,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--min-free",
+        type=_checked_min_free,
         metavar="SIZE",
         help="with --record: passed to `gnss_ins record --min-free` (its free-space limit)",
     )
+
+
+def _checked_min_free(text: str) -> str:
+    """``--min-free`` refused here when ``gnss_ins record`` would refuse it: otherwise every
+    restart of the recorder would end on it."""
+    min_free_option(text)
+    return text
 
 
 def recording(args: argparse.Namespace) -> Recording:

@@ -33,7 +33,8 @@ EXIT_DISK_FULL = 3
 HOLD_S, FLUSH_PERIOD_S = 0.2, 0.4
 
 
-def _min_free(text: str) -> MinFree:
+def min_free_option(text: str) -> MinFree:
+    """``--min-free`` as argparse reads it (also ``gnss_ins launch --min-free``)."""
     try:
         return MinFree.parse(text)
     except ValueError as exc:
@@ -77,7 +78,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--min-free",
-        type=_min_free,
+        type=min_free_option,
         default=MinFree.parse(DEFAULT_MIN_FREE),
         metavar="SIZE",
         help="free space kept on the bag's file system: a size (500M, 1G), a percentage (5%%) "
