@@ -9,7 +9,8 @@ override them. Each GNSS receiver runs in its own namespace (``leica/gnss/fix``,
 ``adu5/gnss/attitude``); ins_fusion_node reads those. Every node is respawned 1 s after it ends
 (``respawn:=false``: not). A non-empty ``record_dir`` also starts `gnss_ins record` into
 ``record_dir/vehicle_<UTC start time>`` (ins_fusion.runtime.recorder), respawned the same way
-and continuing the same recording (``--resume``).
+and continuing the same recording (``--resume``). ROS discovery is closed to this machine
+(``discovery:=LOCALHOST``) unless ``discovery:=SUBNET`` opens it.
 """
 
 from pathlib import Path
@@ -30,7 +31,12 @@ from ins_fusion.runtime.recorder import (
     read_topics,
     recording_name,
 )
-from ins_fusion.runtime.vehicle_nodes import DEFAULT_PORTS, VEHICLE
+from ins_fusion.runtime.vehicle_nodes import (
+    DEFAULT_PORTS,
+    DISCOVERY_RANGES,
+    VEHICLE,
+    discovery_environment,
+)
 
 #: Seconds between the end of a process and its respawn.
 RESPAWN_DELAY_S = 1.0
@@ -59,6 +65,12 @@ def generate_launch_description() -> LaunchDescription:
             description="YAML file with the list 'topics:' to record",
         ),
         DeclareLaunchArgument("record_storage", default_value=STORAGES[0], choices=list(STORAGES)),
+        DeclareLaunchArgument(
+            "discovery",
+            default_value=DISCOVERY_RANGES[0],
+            choices=list(DISCOVERY_RANGES),
+            description="ROS 2 discovery range: LOCALHOST (this machine only) or SUBNET",
+        ),
     ]
     return LaunchDescription([*arguments, OpaqueFunction(function=_processes)])
 
@@ -70,6 +82,7 @@ def _processes(context: LaunchContext) -> list[ExecuteProcess]:
         return LaunchConfiguration(name).perform(context)
 
     respawn = evaluate_condition_expression(context, [LaunchConfiguration("respawn")])
+    env = discovery_environment(value("discovery"))
     processes: list[ExecuteProcess] = [
         Node(
             package="gnss_ins",
@@ -84,6 +97,7 @@ def _processes(context: LaunchContext) -> list[ExecuteProcess]:
             output="screen",
             respawn=respawn,
             respawn_delay=RESPAWN_DELAY_S,
+            additional_env=env,
         )
         for spec in VEHICLE
     ]
@@ -102,6 +116,7 @@ def _processes(context: LaunchContext) -> list[ExecuteProcess]:
                 output="screen",
                 respawn=respawn,
                 respawn_delay=RESPAWN_DELAY_S,
+                additional_env=env,
             )
         )
     return processes

@@ -161,6 +161,7 @@ def test_ros_launch_file_respawns_the_nodes_and_starts_the_recorder(monkeypatch,
     for process in [*nodes, recorder]:
         assert process.kwargs["respawn"] is (respawn == "true")
         assert process.kwargs["respawn_delay"] == 1.0
+        assert process.kwargs["additional_env"] == {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
     command = recorder.kwargs["cmd"]
     output = Path(command[command.index("-o") + 1])
     assert output.parent == tmp_path / "bags" and output.parent.is_dir()

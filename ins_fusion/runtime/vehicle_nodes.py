@@ -46,6 +46,17 @@ FUSION = NodeSpec(
 VEHICLE = (IMU, LEICA, ADU5, FUSION)
 #: Default serial ports per role.
 DEFAULT_PORTS = {"imu": "/dev/ttyUSB0", "leica": "/dev/ttyUSB1", "adu5": "/dev/ttyUSB2"}
+#: ROS 2 discovery ranges the daemon offers (``ROS_AUTOMATIC_DISCOVERY_RANGE``), closed first:
+#: LOCALHOST keeps every node reachable only from this machine, SUBNET opens them to every host
+#: of the vehicle's network with the same ROS_DOMAIN_ID.
+DISCOVERY_RANGES = ("LOCALHOST", "SUBNET")
+
+
+def discovery_environment(range_: str) -> dict[str, str]:
+    """The environment entry that sets the nodes' discovery range (one of DISCOVERY_RANGES)."""
+    if range_ not in DISCOVERY_RANGES:
+        raise ValueError(f"discovery range {range_!r}: one of {', '.join(DISCOVERY_RANGES)}")
+    return {"ROS_AUTOMATIC_DISCOVERY_RANGE": range_}
 
 
 def ros_arguments(

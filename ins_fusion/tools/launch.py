@@ -13,6 +13,7 @@ restart are reported on the console. ``--record DIR`` adds a supervised recorder
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import time
 from pathlib import Path
@@ -28,7 +29,14 @@ from ins_fusion.runtime.recorder import (
     read_topics,
     recording_name,
 )
-from ins_fusion.runtime.vehicle_nodes import ADU5, DEFAULT_PORTS, VEHICLE, command
+from ins_fusion.runtime.vehicle_nodes import (
+    ADU5,
+    DEFAULT_PORTS,
+    DISCOVERY_RANGES,
+    VEHICLE,
+    command,
+    discovery_environment,
+)
 from ins_fusion.tools.record import min_free_option
 
 #: Seconds between two supervision steps (exits, restarts, new warnings).
@@ -51,6 +59,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=Path,
         help="directory of the NAME.log of each process, appended to and rotated at 10 MB "
         "(default: $XDG_STATE_HOME/gnss_ins/logs, ~/.local/state/gnss_ins/logs without it)",
+    )
+    parser.add_argument(
+        "--discovery",
+        type=str.upper,
+        choices=DISCOVERY_RANGES,
+        default=DISCOVERY_RANGES[0],
+        help="ROS 2 discovery range of the processes: LOCALHOST (only this machine reaches the "
+        "nodes) or SUBNET (every host of the network with the same ROS_DOMAIN_ID can, e.g. "
+        "publish a fix the fusion uses: see docs/operation.md on securing it)",
     )
     parser.add_argument(
         "--stop-on-failure",
@@ -128,7 +145,8 @@ def run(args: argparse.Namespace) -> int:
             return 2
     log_dir = args.log_dir if args.log_dir is not None else default_log_dir()
     ports = {role: getattr(args, f"{role}_port") for role in DEFAULT_PORTS}
-    group = ProcessGroup(log_dir, backoff=None if args.stop_on_failure else Backoff())
+    env = {**os.environ, **discovery_environment(args.discovery)}
+    group = ProcessGroup(log_dir, env, backoff=None if args.stop_on_failure else Backoff())
     stop = False
 
     def request_stop(*_: object) -> None:
@@ -157,6 +175,8 @@ def run(args: argparse.Namespace) -> int:
                 f"({record.storage}, a new file every {record.split_s:g} s)",
                 flush=True,
             )
+        reach = "this machine only" if args.discovery == "LOCALHOST" else "the network"
+        print(f"ROS discovery: {args.discovery} ({reach})", flush=True)
         then = "stops everything" if args.stop_on_failure else "is started again"
         print(
             f"logs in {log_dir}/ (their warnings and errors also here); a process that ends "
