@@ -13,6 +13,10 @@ wait: the engine computes the same numbers, and its code runs once per output in
 sample, each time after a wake-up with the CPU's caches cold (docs/benchmarks.md). All callbacks
 run on one executor thread, so the engine needs no locking; measurements are applied at their own
 stamps by the engine (late GNSS data are rolled back and re-propagated there).
+
+An IMU watchdog ticks every ``imu_timeout`` / 2: when no IMU message arrived for ``imu_timeout``
+the node's state is ``no_imu`` (ERROR on /diagnostics, published at once and logged once) until
+samples come again; the IMU callback only counts them.
 """
 
 from __future__ import annotations
@@ -79,6 +83,8 @@ class InsFusionNode(Node):
         self._published = 0
         self._invalid_outputs = 0
         self._bad_imu_messages = 0
+        self._imu_received = 0  # IMU messages so far (the watchdog compares counts)
+        self._imu_watch = _ImuWatch(time.monotonic())
         self._degraded_after_s = config.degraded_after_s
         # IMU stamp [s] from which the state is 'navigating' again after an outage; None: not
         # recovering (never degraded, or degraded now). -inf: navigating from the start.
@@ -109,12 +115,14 @@ class InsFusionNode(Node):
         self.create_timer(
             values["diagnostics_period"], diag.guarded(self, self._publish_diagnostics)
         )
+        self.create_timer(values["imu_timeout"] / 2.0, diag.guarded(self, self._watch_imu))
         self.get_logger().info(
             f"fusing imu/data_raw + gnss/* into ins/odometry at {config.output_rate_hz:g} Hz"
         )
 
     # ---- inputs -------------------------------------------------------------------------------
     def _on_imu(self, data: bytes) -> None:
+        self._imu_received += 1
         try:
             sample = cdr_fields.imu_sample(data)
         except CdrError as exc:  # not from a conforming middleware; counted, never fatal
@@ -171,6 +179,26 @@ class InsFusionNode(Node):
             )
         self._temperature_c = msg.temperature
 
+    def _watch_imu(self) -> None:
+        """Two ticks without an IMU message (``imu_timeout``): no_imu, said at once; the first
+        message after it ends it, said at once too."""
+        watch, now = self._imu_watch, time.monotonic()
+        if self._imu_received != watch.count:
+            watch.count, watch.last_change_s, watch.quiet_ticks = self._imu_received, now, 0
+            if watch.silent:
+                watch.silent = False
+                self.get_logger().info("imu/data_raw is back")
+                self._publish_diagnostics()
+            return
+        watch.quiet_ticks += 1
+        if watch.quiet_ticks >= 2 and not watch.silent:
+            watch.silent = True
+            self.get_logger().error(
+                f"no IMU message on imu/data_raw for {now - watch.last_change_s:.1f} s:"
+                " not navigating (state no_imu)"
+            )
+            self._publish_diagnostics()
+
     # ---- outputs ------------------------------------------------------------------------------
     def _publish(self, row: FloatArray) -> None:
         # Serialized once and rewritten in place (adapters.cdr_out): no Python message to convert.
@@ -225,8 +253,13 @@ class InsFusionNode(Node):
                 logger.info(line)
         if status.warnings:
             level, message = diag.WARN, f"{message}; {status.warnings[-1]}"
+        state, silent_s = status.state, time.monotonic() - self._imu_watch.last_change_s
+        if self._imu_watch.silent:
+            state, level = "no_imu", diag.ERROR
+            message = f"no_imu: no IMU message for {silent_s:.1f} s, not navigating"
         values: dict[str, object] = {
-            "state": status.state,
+            "state": state,
+            "imu_silent_s": round(silent_s, 2),
             "imu_samples": status.imu_samples,
             "imu_gaps": status.imu_gaps,
             "imu_duplicates": status.imu_duplicates,
@@ -261,6 +294,17 @@ class InsFusionNode(Node):
         self._diagnostics.publish(
             diag.make_status(f"{self.get_name()}: INS", "gnss_ins", level, message, values)
         )
+
+
+class _ImuWatch:
+    """The IMU watchdog's memory: the message count at its last change and when (monotonic s),
+    ticks since, and whether the IMU is reported silent."""
+
+    def __init__(self, now_s: float) -> None:
+        self.count = 0
+        self.last_change_s = now_s
+        self.quiet_ticks = 0
+        self.silent = False
 
 
 def output_writer(map_frame: str, base_frame: str, rate_variance_rad2_s2: float) -> OutputWriter:

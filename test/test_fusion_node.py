@@ -183,7 +183,10 @@ def _check_outputs(collector: Collector, drive_bag: Path) -> None:
     assert imu.linear_acceleration_covariance[0] == -1.0
     assert imu.orientation_covariance[0] > 0.0
 
-    values = diagnostic_values(collector.get("/diagnostics")[-1])
+    # The engine's last state while the bag played (once it has ended the IMU is silent and
+    # the node's state no_imu: test_an_imu_that_falls_silent_...).
+    statuses = [diagnostic_values(array) for array in collector.get("/diagnostics")]
+    values = [v for v in statuses if v["state"] != "no_imu"][-1]
     assert values["state"] == "navigating"
     assert int(values["gnss_position.used"]) > 20
     # Most samples arrive; played at 4x on a loaded machine, a fraction of the best-effort
@@ -360,6 +363,55 @@ def test_the_imu_subscription_reliability_is_a_standard_qos_override():
                 ),
                 10.0,
             )
+    finally:
+        node.destroy_node()
+        collector.node.destroy_node()
+
+
+def test_an_imu_that_falls_silent_is_reported_within_a_second_and_its_return_too():
+    """imu/data_raw at 100 Hz, silent for 3 s, back: the status says no_imu (ERROR) within 1 s
+    of the silence although /diagnostics is otherwise only every 10 s, and stops saying it within
+    1 s of the first sample back."""
+    node = InsFusionNode(parameter_overrides=overrides(diagnostics_period=10.0))
+    collector = Collector({"/diagnostics": DiagnosticArray})
+    publisher = collector.node.create_publisher(
+        Imu, "imu/data_raw", QoSProfile(depth=50, reliability=ReliabilityPolicy.BEST_EFFORT)
+    )
+
+    def states_since(t: float) -> list[tuple[float, str, int]]:
+        return [
+            (at, diagnostic_values(array)["state"], array.status[0].level[0])
+            for at, array in zip(
+                collector.receive_times["/diagnostics"], collector.get("/diagnostics"), strict=True
+            )
+            if at >= t and array.status[0].name.startswith("ins_fusion_node")
+        ]
+
+    def publish_for(seconds: float) -> None:
+        end = time.time() + seconds
+        while time.time() < end:
+            msg = Imu()
+            msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(time.time_ns(), 10**9)
+            msg.header.frame_id = "imu_link"
+            msg.linear_acceleration.z = 9.81
+            publisher.publish(msg)
+            time.sleep(0.01)
+
+    try:
+        with spinning(node, collector.node):
+            assert wait_for(lambda: publisher.get_subscription_count() > 0, 10.0)
+            publish_for(2.0)
+            silent_from = time.time()
+            assert wait_for(lambda: states_since(silent_from), 3.0)
+            at, state, level = states_since(silent_from)[0]
+            assert (state, level) == ("no_imu", DiagnosticStatus.ERROR[0])
+            assert at - silent_from <= 1.0, at - silent_from
+            back_at = time.time()
+            publish_for(1.5)
+            assert wait_for(lambda: states_since(back_at), 3.0)
+            at, state, _ = states_since(back_at)[0]
+            assert state != "no_imu" and at - back_at <= 1.0, (state, at - back_at)
+            print(f"no_imu reported {states_since(silent_from)[0][0] - silent_from:.2f} s after")
     finally:
         node.destroy_node()
         collector.node.destroy_node()

@@ -439,4 +439,12 @@ PARAMETERS: tuple[Param, ...] = (
         " attitude_mounting_rpy_deg); empty = none",
     ),
     Param("diagnostics_period", 1.0, "period of the /diagnostics status [s]", 0.1, 60.0),
+    Param(
+        "imu_timeout",
+        0.5,
+        "imu/data_raw silent this long: state no_imu, ERROR on /diagnostics at once"
+        " (reported within 1.5 x this) [s]",
+        0.05,
+        10.0,
+    ),
 )
