@@ -1,0 +1,161 @@
+"""Soak of the vehicle daemon: ``gnss_ins launch --record`` on the three emulated devices for an
+hour (``--duration``), as the README's "Every tool without hardware" runs them: the IMU at rest,
+both receivers moving at 5 m/s (inconsistent inputs, as a faulty installation gives them).
+
+Every ``--sample`` seconds the resident memory (RSS) and CPU time of each process of the launch
+(the four nodes and the recorder, by /proc) are read. At the end launch is stopped with Ctrl-C and
+the recording is read: the last /diagnostics status of each node gives the IMU packets the driver
+lost (``dropped_packets``), the fusion's solutions that were not published for a non-finite value
+(``outputs_invalid``) and its resets; launch's console gives the restarts. Printed per process:
+RSS at the start of the steady state (after ``--settle`` s) and at the end, the growth per hour
+(least squares over the steady-state samples) and the mean CPU. Plain script, no asserts.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ins_fusion.bags.bag_io import BagReader
+from ins_fusion.runtime.processes import gnss_ins_command
+
+#: Process names of the launch, as their command lines show them.
+PROCESSES = {
+    "imu400cc_node": "__node:=imu400cc_node",
+    "leica_gnss": "__node:=leica_gnss",
+    "adu5_gnss": "__node:=adu5_gnss",
+    "ins_fusion_node": "__node:=ins_fusion_node",
+    "recorder": "--resume",
+}
+
+
+def children(parent: int) -> dict[str, int]:
+    """PID of each process of PROCESSES started by ``parent``."""
+    found: dict[str, int] = {}
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            ppid = int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1])
+            args = (entry / "cmdline").read_bytes().decode(errors="replace").split("\0")
+        except OSError:
+            continue
+        if ppid == parent:
+            found.update(
+                {name: int(entry.name) for name, mark in PROCESSES.items() if mark in args}
+            )
+    return found
+
+
+def rss_and_cpu(pid: int) -> tuple[float, float] | None:
+    """RSS [MB] and CPU time [s] of a process (None once it has ended)."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return None
+    ticks = os.sysconf("SC_CLK_TCK")
+    return int(fields[21]) * os.sysconf("SC_PAGE_SIZE") / 1e6, (
+        int(fields[11]) + int(fields[12])
+    ) / ticks
+
+
+def last_statuses(bag: Path) -> dict[str, dict[str, str]]:
+    """The last /diagnostics values of each status name in the recording."""
+    last: dict[str, dict[str, str]] = {}
+    with BagReader(bag) as reader:
+        for msg in reader.messages(["/diagnostics"], deserialize=True):
+            for status in msg.message.status:
+                last[status.name] = {kv.key: kv.value for kv in status.values}
+    return last
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--duration", type=float, default=3600.0, help="seconds of running")
+    parser.add_argument("--sample", type=float, default=30.0, help="seconds between readings")
+    parser.add_argument("--settle", type=float, default=300.0, help="start of the steady state")
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory(prefix="bench_soak.") as scratch:
+        work = Path(scratch)
+        ports = {name: str(work / name) for name in ("imu", "leica", "adu5")}
+        moving = ["--velocity", "3", "4", "0"]
+        emulators = [
+            subprocess.Popen(gnss_ins_command("emulate-imu", "--link", ports["imu"])),
+            subprocess.Popen(
+                gnss_ins_command(
+                    "emulate-gnss", "--receiver", "leica", "--link", ports["leica"], *moving
+                )
+            ),
+            subprocess.Popen(
+                gnss_ins_command(
+                    "emulate-gnss", "--receiver", "adu5", "--link", ports["adu5"], *moving, "--att"
+                )
+            ),
+        ]
+        while not all(Path(p).exists() for p in ports.values()):
+            time.sleep(0.1)
+        launch_log = work / "launch.out"
+        with launch_log.open("w") as out:
+            launcher = subprocess.Popen(
+                gnss_ins_command(
+                    "launch",
+                    *[f"--{role}-port={port}" for role, port in ports.items()],
+                    "--log-dir",
+                    str(work / "logs"),
+                    "--record",
+                    str(work / "bags"),
+                ),
+                stdout=out,
+                stderr=subprocess.STDOUT,
+            )
+        readings: dict[str, list[tuple[float, float, float]]] = {n: [] for n in PROCESSES}
+        start = time.monotonic()
+        try:
+            while (elapsed := time.monotonic() - start) < args.duration:
+                for name, pid in children(launcher.pid).items():
+                    if (reading := rss_and_cpu(pid)) is not None:
+                        readings[name].append((elapsed, *reading))
+                time.sleep(min(args.sample, max(0.0, args.duration - elapsed)))
+        finally:
+            launcher.send_signal(signal.SIGINT)
+            launcher.wait(timeout=120)
+            for emulator in emulators:
+                emulator.send_signal(signal.SIGINT)
+                emulator.wait(timeout=30)
+        console = launch_log.read_text()
+        (bag,) = (work / "bags").iterdir()
+        statuses = last_statuses(bag)
+    print(
+        f"soak: {args.duration:g} s, readings every {args.sample:g} s,"
+        f" steady from {args.settle:g} s"
+    )
+    print(f"  {'process':<16} {'RSS start MB':>12} {'RSS end MB':>10} {'MB/h':>8} {'CPU %':>6}")
+    for name, rows in readings.items():
+        steady = np.array([r for r in rows if r[0] >= args.settle] or rows)
+        if len(steady) < 2:
+            print(f"  {name:<16} (no readings)")
+            continue
+        slope = np.polyfit(steady[:, 0], steady[:, 1], 1)[0] * 3600.0
+        cpu = (steady[-1, 2] - steady[0, 2]) / (steady[-1, 0] - steady[0, 0]) * 100.0
+        print(
+            f"  {name:<16} {steady[0, 1]:>12.1f} {steady[-1, 1]:>10.1f} {slope:>8.2f} {cpu:>6.1f}"
+        )
+    imu = statuses.get("imu400cc_node: IMU400CC", {})
+    fusion = statuses.get("ins_fusion_node: INS", {})
+    print(f"  IMU packets {imu.get('packets')}, dropped {imu.get('dropped_packets')}")
+    print(f"  fusion: state {fusion.get('state')}, published {fusion.get('outputs_published')},")
+    print(f"    non-finite {fusion.get('outputs_invalid')}, resets {fusion.get('resets')}")
+    print(f"  restarts by launch: {console.count(' restarted (pid ')}")
+    sys.stdout.flush()
+
+
+if __name__ == "__main__":
+    main()
