@@ -418,6 +418,7 @@ class GnssNode(Node):
         link = self._link.stats
         values.update(
             rate_hz=rate,
+            expected_rate_hz=self._rate_hz,
             reconnects=link.reconnects,
             stalls=link.stalls,
             last_error=link.last_error,

@@ -223,6 +223,7 @@ class Imu400ccNode(Node):
             "port": self.params["port"],
             "mode": self.params["mode"],
             "rate_hz": rate,
+            "expected_rate_hz": expected,
             **driver.counters(),
             "reconnects": link.reconnects,
             "stalls": link.stalls,

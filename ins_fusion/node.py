@@ -193,10 +193,13 @@ class InsFusionNode(Node):
         watch.quiet_ticks += 1
         if watch.quiet_ticks >= 2 and not watch.silent:
             watch.silent = True
-            self.get_logger().error(
-                f"no IMU message on imu/data_raw for {now - watch.last_change_s:.1f} s:"
-                " not navigating (state no_imu)"
-            )
+            if self._imu_received:
+                self.get_logger().error(
+                    f"no IMU message on imu/data_raw for {now - watch.last_change_s:.1f} s:"
+                    " not navigating (state no_imu)"
+                )
+            else:  # starting before the IMU driver: the status says no_imu all the same
+                self.get_logger().info("waiting for the first IMU message on imu/data_raw")
             self._publish_diagnostics()
 
     # ---- outputs ------------------------------------------------------------------------------

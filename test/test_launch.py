@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import ast
 import importlib.util
+import json
 import os
 import re
 import signal
@@ -73,13 +74,15 @@ TOPICS = {
     "leica/gnss/fix": NavSatFix,
     "adu5/gnss/attitude": Imu,
     "/diagnostics": DiagnosticArray,
+    "/gnss_ins/status": DiagnosticArray,
 }
 
 
 @contextmanager
 def launched(log_dir: Path, *options: str):
     """`gnss_ins launch` on the three emulated devices, with a Collector of TOPICS spinning;
-    stopped with SIGINT at the end. Yields (launcher, collector, output: filled at the end)."""
+    stopped with SIGINT at the end. Yields (launcher, collector, output: filled at the end, the
+    emulated IMU)."""
     leica = GnssEmulator(
         constant_velocity((3.0, 4.0, 0.0)), EmulatorConfig(receiver=Receiver.LEICA)
     )
@@ -95,7 +98,7 @@ def launched(log_dir: Path, *options: str):
         output: list[str] = []
         try:
             with spinning(collector.node):
-                yield launcher, collector, output
+                yield launcher, collector, output, imu
         finally:
             launcher.send_signal(signal.SIGINT)
             output.append(launcher.communicate(timeout=60)[0])
@@ -171,7 +174,7 @@ def test_ros_launch_file_respawns_the_nodes_and_starts_the_recorder(monkeypatch,
 
 
 def test_launch_starts_every_node_on_emulated_hardware_and_stops_cleanly(tmp_path):
-    with launched(tmp_path) as (launcher, collector, output):
+    with launched(tmp_path) as (launcher, collector, output, _):
         assert wait_for(lambda: all(collector.count(t) > 2 for t in TOPICS), 30.0), {
             t: collector.count(t) for t in TOPICS
         }
@@ -184,7 +187,7 @@ def test_launch_starts_every_node_on_emulated_hardware_and_stops_cleanly(tmp_pat
 
 
 def test_launch_restarts_a_node_killed_with_sigkill_and_leaves_the_others(tmp_path):
-    with launched(tmp_path) as (launcher, collector, output):
+    with launched(tmp_path) as (launcher, collector, output, _):
         assert wait_for(lambda: collector.count("leica/gnss/fix") > 2, 30.0)
         assert wait_for(lambda: set(node_pids(launcher.pid)) == NODE_NAMES, 10.0)
         before = node_pids(launcher.pid)
@@ -240,7 +243,7 @@ RECORDER = {"recorder": "--resume"}
 
 def test_a_recorder_killed_under_launch_continues_the_same_recording(tmp_path):
     bags = tmp_path / "bags"
-    with launched(tmp_path, "--record", str(bags)) as (launcher, collector, output):
+    with launched(tmp_path, "--record", str(bags)) as (launcher, collector, output, _):
         assert wait_for(lambda: collector.count("imu/data_raw") > 2, 30.0)
         assert wait_for(lambda: "recorder" in node_pids(launcher.pid, RECORDER), 10.0)
         recording = lambda: "recording /imu/data_raw" in (tmp_path / "recorder.log").read_text()  # noqa: E731
@@ -297,3 +300,88 @@ def test_launch_refuses_a_free_space_limit_the_recorder_would_refuse(tmp_path):
     assert result.returncode == 2
     assert "bad size" in result.stderr
     assert not list(tmp_path.iterdir())  # nothing started, nothing recorded
+
+
+def test_status_shows_every_process_its_restarts_and_an_unplugged_imu(tmp_path):
+    """`gnss_ins status --json` beside a launch: every node, OK IMU; after a kill -9 of the
+    Leica node its restart; the aggregate on /gnss_ins/status; the IMU unplugged for 5 s: the
+    IMU and the fusion (no_imu) in ERROR within a second, both back within 3 s of the replug."""
+    with launched(tmp_path) as (launcher, collector, _, imu):
+        assert wait_for(lambda: _reporters(collector) >= NODE_NAMES, 60.0), _reporters(collector)
+        view = _status(tmp_path)
+        assert set(view["processes"]) == NODE_NAMES
+        assert view["processes"]["imu400cc_node"]["level"] == "OK", view
+        assert {p["restarts"] for p in view["processes"].values()} == {0}
+        killed = node_pids(launcher.pid)["leica_gnss"]
+        os.kill(killed, signal.SIGKILL)
+        restarted = lambda: node_pids(launcher.pid).get("leica_gnss", killed) != killed  # noqa: E731
+        assert wait_for(restarted, 3.0)
+        assert _status(tmp_path)["processes"]["leica_gnss"]["restarts"] == 1
+        assert wait_for(lambda: collector.count("/gnss_ins/status") > 0, 10.0)
+        system = collector.get("/gnss_ins/status")[-1].status[0]
+        assert system.name == "gnss_ins: system"
+
+        unplugged = time.time()
+        imu.unplug()
+        assert wait_for(lambda: _levels_since(collector, unplugged) >= BOTH_ERROR, 5.0)
+        took = max(_first_since(collector, unplugged, name, level) for name, level in BOTH_ERROR)
+        assert took - unplugged <= 1.5, took - unplugged
+        time.sleep(5.0)
+        plugged = time.time()
+        imu.plug()
+        back = lambda: (
+            ("imu400cc_node", 0) in _levels_since(collector, plugged)
+            and bool(  # noqa: E731
+                _fusion_states_since(collector, plugged) - {"no_imu"}
+            )
+        )
+        assert wait_for(back, 3.0), _levels_since(collector, plugged)
+        print(f"unplug seen after {took - unplugged:.2f} s")
+
+
+#: (status name prefix, level) of the IMU node and the fusion node once the IMU is unplugged.
+BOTH_ERROR = {("imu400cc_node", 2), ("ins_fusion_node", 2)}
+
+
+def _diagnostics_since(collector: Collector, since: float):
+    arrays = zip(
+        collector.receive_times["/diagnostics"], collector.get("/diagnostics"), strict=True
+    )
+    for at, array in arrays:
+        if at >= since:
+            for status in array.status:
+                yield at, status.name.split(":")[0], status
+
+
+def _levels_since(collector: Collector, since: float) -> set[tuple[str, int]]:
+    return {(name, status.level[0]) for _, name, status in _diagnostics_since(collector, since)}
+
+
+def _fusion_states_since(collector: Collector, since: float) -> set[str]:
+    return {
+        kv.value
+        for _, name, status in _diagnostics_since(collector, since)
+        if name == "ins_fusion_node"
+        for kv in status.values
+        if kv.key == "state"
+    }
+
+
+def _first_since(collector: Collector, since: float, name: str, level: int) -> float:
+    return min(
+        at
+        for at, found, status in _diagnostics_since(collector, since)
+        if found == name and status.level[0] == level
+    )
+
+
+def _status(log_dir: Path) -> dict:
+    result = subprocess.run(
+        gnss_ins_command("status", "--json", "--log-dir", str(log_dir)),
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    view = json.loads(result.stdout)
+    assert result.returncode == min(["OK", "WARN", "ERROR", "STALE"].index(view["level"]), 2)
+    return view

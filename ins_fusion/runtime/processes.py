@@ -218,6 +218,17 @@ class ProcessGroup:
         with self.log_path(name).open("a", encoding="utf-8") as log:
             log.write(f"=== {_utc_now()} {line}\n")
 
+    def state(self) -> dict[str, dict[str, Any]]:
+        """Each process's pid, restarts and whether it runs (``supervisor.json``)."""
+        return {
+            name: {
+                "pid": child.process.pid,
+                "restarts": child.restarts,
+                "running": child.process.poll() is None,
+            }
+            for name, child in self.children.items()
+        }
+
     def restarts(self) -> dict[str, int]:
         """How many times each process was started again."""
         return {name: child.restarts for name, child in self.children.items()}

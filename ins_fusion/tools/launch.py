@@ -17,9 +17,11 @@ import os
 import signal
 import time
 from pathlib import Path
+from typing import Any
 
 from gnss_ins_common.paths import config_file
-from ins_fusion.runtime.processes import Backoff, ProcessGroup, default_log_dir
+from ins_fusion.runtime.health import STATUS_TOPIC, write_supervisor_state
+from ins_fusion.runtime.processes import Backoff, ProcessGroup, default_log_dir, gnss_ins_command
 from ins_fusion.runtime.recorder import (
     DEFAULT_SPLIT_S,
     RECORDER,
@@ -41,6 +43,8 @@ from ins_fusion.tools.record import min_free_option
 
 #: Seconds between two supervision steps (exits, restarts, new warnings).
 _PERIOD_S = 0.2
+#: The process that publishes the system's health (``gnss_ins status --serve``).
+STATUS = "status"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -175,6 +179,8 @@ def run(args: argparse.Namespace) -> int:
                 f"({record.storage}, a new file every {record.split_s:g} s)",
                 flush=True,
             )
+        group.start(STATUS, gnss_ins_command("status", "--serve", "--log-dir", str(log_dir)))
+        print(f"started {STATUS}: the system's health on {STATUS_TOPIC}", flush=True)
         reach = "this machine only" if args.discovery == "LOCALHOST" else "the network"
         print(f"ROS discovery: {args.discovery} ({reach})", flush=True)
         then = "stops everything" if args.stop_on_failure else "is started again"
@@ -183,15 +189,20 @@ def run(args: argparse.Namespace) -> int:
             f"{then}; Ctrl-C to stop",
             flush=True,
         )
+        written: dict[str, Any] = {}
         while not stop and not (args.stop_on_failure and group.exited()):
             for line in [*group.poll(), *group.problems()]:
                 print(line, flush=True)
+            if (state := group.state()) != written:  # for `gnss_ins status`
+                write_supervisor_state(log_dir, state)
+                written = state
             time.sleep(_PERIOD_S)
         for line in group.problems():
             print(line, flush=True)
         ended = group.exited() if args.stop_on_failure else []
     finally:
         group.stop_all()
+        write_supervisor_state(log_dir, group.state())
     for name in ended:
         print(f"gnss_ins launch: error: {name} stopped on its own; see {log_dir}/{name}.log")
     return 1 if ended else 0

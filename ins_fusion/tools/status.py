@@ -1,0 +1,72 @@
+"""``gnss_ins status``: the vehicle's health on one screen, refreshed every second.
+
+Reads every /diagnostics status (the four nodes and the recorder) and the supervisor file of
+``gnss_ins launch`` in its log directory (restarts); prints per process its level, age,
+restarts, message and the values an operator reads (ins_fusion/runtime/health.py). ``--json``
+prints once, after ``--wait`` seconds of listening, for scripts and health checks; ``--once``
+the same as text. The exit code is 0 when the system is OK, 1 when something warns, 2 on an
+error or a process that is silent. ``--serve`` runs as a service that publishes the same view on
+/gnss_ins/status (diagnostic_msgs/DiagnosticArray), as ``gnss_ins launch`` starts it.
+
+rclpy is imported only when listening starts (this module is loaded by ``gnss_ins --help``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+from ins_fusion.runtime.health import Health, exit_code, format_view
+from ins_fusion.runtime.processes import default_log_dir
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Command-line options of ``gnss_ins status``."""
+    mode = parser.add_mutually_exclusive_group()
+    mode.add_argument("--json", action="store_true", help="print the view once as JSON")
+    mode.add_argument("--once", action="store_true", help="print the view once as text")
+    mode.add_argument(
+        "--serve", action="store_true", help="publish the view on /gnss_ins/status until stopped"
+    )
+    parser.add_argument(
+        "--wait",
+        type=float,
+        default=4.0,
+        metavar="S",
+        help="seconds of listening before the first view (discovery takes a second or two, "
+        "then the nodes report every second)",
+    )
+    parser.add_argument(
+        "--log-dir",
+        type=Path,
+        help="gnss_ins launch's log directory, for the restarts (default: launch's default)",
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Listen and show (exit code: module docstring)."""
+    from ins_fusion.tools.ros_status import watch
+
+    log_dir = args.log_dir if args.log_dir is not None else default_log_dir()
+    health = Health()
+    last: dict[str, Any] = {}
+
+    def on_view(view: dict[str, Any]) -> bool:
+        last.update(view)
+        if args.serve:
+            return True
+        if args.json:
+            print(json.dumps(view, indent=1))
+            return False
+        title = f"gnss_ins status {datetime.now(UTC):%Y-%m-%dT%H:%M:%SZ}"
+        if not args.once and sys.stdout.isatty():
+            print("\x1b[H\x1b[2J", end="")  # a refreshed screen
+        print(format_view(view, title), flush=True)
+        return not args.once
+
+    watch(health, log_dir, on_view, args.wait, args.serve)
+    return exit_code(last) if last else 2
