@@ -63,6 +63,8 @@ def main() -> None:
     parser.add_argument("--storage", choices=("mcap", "sqlite3"), default="mcap")
     parser.add_argument("--seed", type=int, default=1)
     args = parser.parse_args()
+    # A domain of its own: nothing of a system running beside it reaches the bench's nodes.
+    os.environ.setdefault("ROS_DOMAIN_ID", str(101 + os.getpid() % 100))
     rng = random.Random(args.seed)
     with tempfile.TemporaryDirectory(prefix="bench_record_kill.") as scratch:
         work = Path(scratch)

@@ -83,6 +83,8 @@ def main() -> None:
     parser.add_argument("--sample", type=float, default=30.0, help="seconds between readings")
     parser.add_argument("--settle", type=float, default=300.0, help="start of the steady state")
     args = parser.parse_args()
+    # A domain of its own: nothing of a system running beside it reaches the bench's nodes.
+    os.environ.setdefault("ROS_DOMAIN_ID", str(101 + os.getpid() % 100))
     with tempfile.TemporaryDirectory(prefix="bench_soak.") as scratch:
         work = Path(scratch)
         ports = {name: str(work / name) for name in ("imu", "leica", "adu5")}
