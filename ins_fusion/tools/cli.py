@@ -34,6 +34,8 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "imu-demo": ("imu_demo", "run imu400cc_node on an emulated device and print what it publishes"),
     "import-qfree": ("import_qfree", "Q-Free OBU GNSS/MEMS text logs to a rosbag2 bag"),
     "record": ("record", "record ROS 2 topics to a rosbag2 bag (MCAP or sqlite3)"),
+    "install-service": ("install_service", "start the vehicle daemon at boot (a systemd unit)"),
+    "list-devices": ("list_devices", "serial adapters with their stable /dev/serial/by-id names"),
     "status": ("status", "the vehicle's health on one screen (or --json), from /diagnostics"),
     "recover": ("recover", "a readable bag from a recording that was killed (no metadata.yaml)"),
     "play": ("play", "publish a rosbag2 bag with its timing and /clock"),
