@@ -206,3 +206,15 @@ def test_resuming_a_closed_recording_and_removing_its_oldest_files(tmp_path: Pat
     assert [m.log_time_ns for m in read_messages(tmp_path / "fresh")] == [
         T0 + k * 10**8 for k in range(10, 25)
     ]
+
+
+def test_a_recording_copied_under_another_name_is_recovered(tmp_path: Path):
+    """An operator copies the killed recording to a stick as ``drive``: its files keep their
+    names (``bag_<n>``)."""
+    _, flushes = killed_recording(tmp_path / "bag", "mcap", 150, flush_every=20, split_s=1.0)
+    (tmp_path / "bag").rename(tmp_path / "drive")
+    recover_bag(tmp_path / "drive", tmp_path / "out")
+    assert set(recovered_keys(tmp_path / "out")) == flushes[-1][1]
+    (tmp_path / "drive" / "other_0.mcap").write_bytes(b"")
+    with pytest.raises(BagError, match="several recordings: bag, other"):
+        recover_bag(tmp_path / "drive", tmp_path / "out2")

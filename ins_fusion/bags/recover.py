@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ins_fusion.bags.bag_io import BagError, BagWriter
-from ins_fusion.bags.resume import file_index
+from ins_fusion.bags.resume import split_name
 from ins_fusion.bags.salvage import STORAGE_OF_SUFFIX, Salvaged, salvage
 from ins_fusion.bags.summary import BagSummary
 
@@ -65,13 +65,18 @@ class Recovered:
 
 
 def storage_files_left(bag: Path) -> list[Path]:
-    """The storage files an unfinished recording left in ``bag``, in split order."""
-    found = [
-        (index, path)
+    """The storage files an unfinished recording left in ``bag``, in split order: named after
+    ``bag``, or after the one name they share (a recording copied under another name)."""
+    found = {
+        path: split
         for path in [*bag.glob("*.*"), *bag.glob("*/*.*")]
-        if (index := file_index(bag, path.name)) is not None
-    ]
-    return [path for _, path in sorted(found)]
+        if (split := split_name(path.name)) is not None
+    }
+    names = {name for name, _ in found.values()}
+    if len(names) > 1 and bag.name not in names:
+        raise BagError(f"{bag}: storage files of several recordings: {', '.join(sorted(names))}")
+    name = bag.name if bag.name in names else next(iter(names), bag.name)
+    return [path for path, split in sorted(found.items(), key=lambda f: f[1]) if split[0] == name]
 
 
 def recover_bag(bag: Path, output: Path) -> Recovered:
@@ -84,7 +89,7 @@ def recover_bag(bag: Path, output: Path) -> Recovered:
         raise BagError(f"{output} exists already, not overwriting")
     sources = storage_files_left(bag)
     if not sources:
-        raise BagError(f"{bag}: no {bag.name}_<n>.mcap or .db3 file to recover")
+        raise BagError(f"{bag}: no NAME_<n>.mcap or .db3 file to recover")
     storages = {STORAGE_OF_SUFFIX[f.suffix] for f in sources}
     if len(storages) > 1:
         raise BagError(f"{bag}: both MCAP and sqlite3 files; move one kind away")

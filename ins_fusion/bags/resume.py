@@ -50,12 +50,19 @@ def load_yaml(path: Path) -> dict[str, Any]:
     return cast(dict[str, Any], info)
 
 
+def split_name(name: str) -> tuple[str, int] | None:
+    """The bag name and split index of a storage file name ``NAME_<i>.mcap`` or ``.db3``
+    (None: not one)."""
+    suffixes = "|".join(re.escape(suffix) for suffix in STORAGE_OF_SUFFIX)
+    match = re.fullmatch(rf"(.+)_(\d+)({suffixes})", name)
+    return (match.group(1), int(match.group(2))) if match else None
+
+
 def file_index(bag: Path, name: str) -> int | None:
     """The split index of a storage file name ``BAG_<i>.mcap`` or ``.db3`` of the bag ``bag``
     (None: not one)."""
-    suffixes = "|".join(re.escape(suffix) for suffix in STORAGE_OF_SUFFIX)
-    match = re.fullmatch(rf"{re.escape(bag.name)}_(\d+)({suffixes})", name)
-    return int(match.group(1)) if match else None
+    split = split_name(name)
+    return split[1] if split is not None and split[0] == bag.name else None
 
 
 def existing_recording(bag: Path) -> ExistingRecording:
