@@ -165,3 +165,26 @@ def test_kernel_without_a_writable_cache_still_compiles() -> None:
     with pytest.warns(RuntimeWarning, match="NUMBA_CACHE_DIR"):
         kernel = jit(namespace["add_one"])
     assert kernel(1.0) == 2.0
+
+
+def test_the_kernel_cache_is_dropped_when_the_sources_change(tmp_path):
+    """numba would keep a caller's cached code after its callee's source changed: the cache of
+    the package goes when any of its sources does (and only then)."""
+    from ins_fusion.core.compiled import drop_stale_kernels
+
+    (tmp_path / "kernel.py").write_text("def f(): return 1\n")
+    cache = tmp_path / "__pycache__"
+    cache.mkdir()
+    kernels = [cache / "kernel.f-1.py311.nbi", cache / "kernel.f-1.py311.1.nbc"]
+    other = cache / "kernel.cpython-311.pyc"
+    for path in [*kernels, other]:
+        path.write_bytes(b"x")
+    assert drop_stale_kernels(tmp_path)  # no digest yet: of unknown sources
+    assert not any(k.exists() for k in kernels) and other.exists()
+    for path in kernels:
+        path.write_bytes(b"x")
+    assert not drop_stale_kernels(tmp_path)  # same sources: kept
+    assert all(k.exists() for k in kernels)
+    (tmp_path / "kernel.py").write_text("def f(): return 2\n")
+    assert drop_stale_kernels(tmp_path)
+    assert not any(k.exists() for k in kernels)

@@ -7,6 +7,11 @@ The functions stay ordinary Python source: with ``NUMBA_DISABLE_JIT=1`` in the e
 numba returns them unchanged and the engine runs as pure Python (the reference path the tests
 compare the compiled one with).
 
+numba checks a cached function against its own source file only, not against the functions it
+calls, which it compiles into it: after an update that changes a callee, a caller's cached code
+would keep the old callee. ``drop_stale_kernels`` (run at import) therefore keeps a digest of
+the package's sources beside the cache and empties the cache when they changed.
+
 Compiled code calls only compiled functions. ``compilable(f)`` marks a small helper (the
 earth model's and the quaternions' scalar formulas) that compiled code may call: for Python
 callers it stays the plain function, without a dispatcher's overhead.
@@ -14,8 +19,11 @@ callers it stays the plain function, without a dispatcher's overhead.
 
 from __future__ import annotations
 
+import hashlib
+import os
 import warnings
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any, TypeVar, cast
 
 import numba
@@ -23,6 +31,38 @@ import numpy as np
 from numba.extending import register_jitable
 
 F = TypeVar("F", bound=Callable[..., Any])
+
+#: The file beside numba's cache files that holds the digest of the sources they were made from.
+SOURCE_DIGEST_FILE = "kernels.source-digest"
+
+
+def drop_stale_kernels(package: Path = Path(__file__).parent) -> bool:
+    """Remove numba's cache files of ``package`` (its ``__pycache__``) when its sources or
+    numba's version differ from those they were compiled from; True if it removed them. Does
+    nothing where the cache directory is not writable (numba then caches elsewhere or not)."""
+    digest = hashlib.sha256(numba.__version__.encode())
+    for source in sorted(package.glob("*.py")):
+        digest.update(source.name.encode() + b"\0" + source.read_bytes())
+    cache = package / "__pycache__"
+    stamp = cache / SOURCE_DIGEST_FILE
+    try:
+        if stamp.read_text(encoding="ascii") == digest.hexdigest():
+            return False
+    except OSError:  # no stamp yet (or unreadable): the cache is of unknown sources
+        pass
+    try:
+        cache.mkdir(exist_ok=True)
+        for kernel in [*cache.glob("*.nbi"), *cache.glob("*.nbc")]:
+            kernel.unlink(missing_ok=True)
+        scratch = cache / f".{SOURCE_DIGEST_FILE}.{os.getpid()}"
+        scratch.write_text(digest.hexdigest(), encoding="ascii")
+        scratch.replace(stamp)
+    except OSError:
+        return False
+    return True
+
+
+drop_stale_kernels()
 
 
 def jit(function: F) -> F:
