@@ -237,6 +237,7 @@ def _fill_row(
         for j in range(n):
             P_sub[i, j] = P[states[i], states[j]]
     cov = J @ P_sub @ J.T
+    cov = 0.5 * (cov + cov.T)  # symmetric to the bit, as the outputs' check requires
     vn, ve, vd = x[X_NAV + 3], x[X_NAV + 4], x[X_NAV + 5]
     quat_nb = (x[X_NAV + 6], x[X_NAV + 7], x[X_NAV + 8], x[X_NAV + 9])
     out[MOUNTING] = np.nan
