@@ -246,6 +246,9 @@ class GnssNode(Node):
         self._setup_results: list[CommandResult] = []
         self._latencies: collections.deque[float] = collections.deque(maxlen=_LATENCY_WINDOW)
         self._last_fix_type = "none"
+        # Satellites used and horizontal σ [m] of the last fix (NaN: not reported / no fix).
+        self._last_satellites: int | None = None
+        self._last_horizontal_sigma_m = math.nan
         self._last_date_source = "none"
         self._rate = RateMeter(time.monotonic())
         self._attitude_problems = (0, 0)  # resets, degraded at the last diagnostics
@@ -334,6 +337,8 @@ class GnssNode(Node):
             fill_gnss_fix(NavSatFix(), stamp_ns(out.stamp_s), self._frame_id, fix)
         )
         self._last_fix_type = fix.fix_type.name
+        self._last_satellites = fix.satellites
+        self._last_horizontal_sigma_m = math.sqrt(fix.cov_enu_m2[0] + fix.cov_enu_m2[4])
 
     def _publish_velocity(self, out: EpochOutput) -> None:
         vel = out.velocity
@@ -389,6 +394,8 @@ class GnssNode(Node):
                 "duplicate_sentences": assembler.duplicate_sentences,
                 "untimed_epochs": assembler.untimed_epochs,
                 "last_fix_type": self._last_fix_type,
+                "satellites": "-" if self._last_satellites is None else self._last_satellites,
+                "horizontal_sigma_m": self._last_horizontal_sigma_m,
                 **{f"fixes_{name.lower()}": n for name, n in solver.fixes.items()},
                 "attitudes": solver.attitudes,
                 "attitude_resets": solver.attitude_resets,

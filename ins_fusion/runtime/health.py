@@ -29,8 +29,23 @@ SUPERVISOR_FILE = "supervisor.json"
 #: The vehicle's processes: status name prefix -> the values shown, in order.
 SHOWN: dict[str, tuple[str, ...]] = {
     "imu400cc_node": ("rate_hz", "expected_rate_hz", "packets", "dropped_packets", "reconnects"),
-    "leica_gnss": ("last_fix_type", "rate_hz", "expected_rate_hz", "epochs", "reconnects"),
-    "adu5_gnss": ("last_fix_type", "rate_hz", "expected_rate_hz", "attitudes", "reconnects"),
+    "leica_gnss": (
+        "last_fix_type",
+        "satellites",
+        "horizontal_sigma_m",
+        "rate_hz",
+        "expected_rate_hz",
+        "reconnects",
+    ),
+    "adu5_gnss": (
+        "last_fix_type",
+        "satellites",
+        "horizontal_sigma_m",
+        "rate_hz",
+        "expected_rate_hz",
+        "attitudes",
+        "reconnects",
+    ),
     "ins_fusion_node": (
         "state",
         "horizontal_sigma_m",
