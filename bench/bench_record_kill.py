@@ -17,31 +17,16 @@ import argparse
 import os
 import random
 import signal
-import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
+from vehicle_rig import children, emulated_vehicle
+
 from ins_fusion.bags.bag_io import BagReader
-from ins_fusion.runtime.processes import gnss_ins_command
 
 IMU_TOPIC = "/imu/data_raw"
-
-
-def recorder_pid(launcher: int) -> int | None:
-    """The PID of the recorder child of ``launcher`` (its command line has ``--resume``)."""
-    for entry in Path("/proc").iterdir():
-        if not entry.name.isdigit():
-            continue
-        try:
-            stat = (entry / "stat").read_text()
-            cmdline = (entry / "cmdline").read_bytes().split(b"\0")
-        except OSError:
-            continue
-        if int(stat.rsplit(")", 1)[1].split()[1]) == launcher and b"--resume" in cmdline:
-            return int(entry.name)
-    return None
 
 
 def wait_for_text(path: Path, text: str, timeout_s: float, after: int = 0) -> int:
@@ -63,46 +48,17 @@ def main() -> None:
     parser.add_argument("--storage", choices=("mcap", "sqlite3"), default="mcap")
     parser.add_argument("--seed", type=int, default=1)
     args = parser.parse_args()
-    # A domain of its own: nothing of a system running beside it reaches the bench's nodes.
-    os.environ.setdefault("ROS_DOMAIN_ID", str(101 + os.getpid() % 100))
     rng = random.Random(args.seed)
     with tempfile.TemporaryDirectory(prefix="bench_record_kill.") as scratch:
         work = Path(scratch)
-        ports = {name: str(work / name) for name in ("imu", "leica", "adu5")}
-        emulators = [
-            subprocess.Popen(gnss_ins_command("emulate-imu", "--link", ports["imu"])),
-            subprocess.Popen(
-                gnss_ins_command("emulate-gnss", "--receiver", "leica", "--link", ports["leica"])
-            ),
-            subprocess.Popen(
-                gnss_ins_command(
-                    "emulate-gnss", "--receiver", "adu5", "--link", ports["adu5"], "--att"
-                )
-            ),
-        ]
-        while not all(Path(p).exists() for p in ports.values()):
-            time.sleep(0.1)
-        logs, bags = work / "logs", work / "bags"
-        launcher = subprocess.Popen(
-            gnss_ins_command(
-                "launch",
-                *[f"--{role}-port={port}" for role, port in ports.items()],
-                "--log-dir",
-                str(logs),
-                "--record",
-                str(bags),
-                "--record-storage",
-                args.storage,
-            ),
-            stdout=subprocess.DEVNULL,
-        )
-        recorder_log = logs / "recorder.log"
+        bags, recorder_log = work / "bags", work / "logs" / "recorder.log"
+        options = ("--record", str(bags), "--record-storage", args.storage)
         kills: list[float] = []
-        seen = wait_for_text(recorder_log, f"recording {IMU_TOPIC}", 60.0)
-        try:
+        with emulated_vehicle(work, *options) as launcher:
+            seen = wait_for_text(recorder_log, f"recording {IMU_TOPIC}", 60.0)
             for k in range(args.kills):
                 time.sleep(rng.uniform(args.min_s, args.max_s))
-                pid = recorder_pid(launcher.pid)
+                pid = children(launcher.pid).get("recorder")
                 if pid is None:
                     sys.exit("no recorder running")
                 os.kill(pid, signal.SIGKILL)
@@ -110,12 +66,6 @@ def main() -> None:
                 print(f"kill {k + 1}: recorder {pid} killed", flush=True)
                 seen = wait_for_text(recorder_log, f"recording {IMU_TOPIC}", 60.0, after=seen)
             time.sleep(5.0)
-        finally:
-            launcher.send_signal(signal.SIGINT)
-            launcher.wait(timeout=120)
-            for emulator in emulators:
-                emulator.send_signal(signal.SIGINT)
-                emulator.wait(timeout=30)
         (bag,) = bags.iterdir()
         with BagReader(bag) as reader:
             times = [m.log_time_ns / 1e9 for m in reader.messages([IMU_TOPIC])]

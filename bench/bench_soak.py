@@ -15,44 +15,15 @@ from __future__ import annotations
 
 import argparse
 import os
-import signal
-import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+from vehicle_rig import PROCESSES, children, emulated_vehicle
 
 from ins_fusion.bags.bag_io import BagReader
-from ins_fusion.runtime.processes import gnss_ins_command
-
-#: Process names of the launch, as their command lines show them.
-PROCESSES = {
-    "imu400cc_node": "__node:=imu400cc_node",
-    "leica_gnss": "__node:=leica_gnss",
-    "adu5_gnss": "__node:=adu5_gnss",
-    "ins_fusion_node": "__node:=ins_fusion_node",
-    "recorder": "--resume",
-}
-
-
-def children(parent: int) -> dict[str, int]:
-    """PID of each process of PROCESSES started by ``parent``."""
-    found: dict[str, int] = {}
-    for entry in Path("/proc").iterdir():
-        if not entry.name.isdigit():
-            continue
-        try:
-            ppid = int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1])
-            args = (entry / "cmdline").read_bytes().decode(errors="replace").split("\0")
-        except OSError:
-            continue
-        if ppid == parent:
-            found.update(
-                {name: int(entry.name) for name, mark in PROCESSES.items() if mark in args}
-            )
-    return found
 
 
 def rss_and_cpu(pid: int) -> tuple[float, float] | None:
@@ -83,55 +54,22 @@ def main() -> None:
     parser.add_argument("--sample", type=float, default=30.0, help="seconds between readings")
     parser.add_argument("--settle", type=float, default=300.0, help="start of the steady state")
     args = parser.parse_args()
-    # A domain of its own: nothing of a system running beside it reaches the bench's nodes.
-    os.environ.setdefault("ROS_DOMAIN_ID", str(101 + os.getpid() % 100))
     with tempfile.TemporaryDirectory(prefix="bench_soak.") as scratch:
         work = Path(scratch)
-        ports = {name: str(work / name) for name in ("imu", "leica", "adu5")}
-        moving = ["--velocity", "3", "4", "0"]
-        emulators = [
-            subprocess.Popen(gnss_ins_command("emulate-imu", "--link", ports["imu"])),
-            subprocess.Popen(
-                gnss_ins_command(
-                    "emulate-gnss", "--receiver", "leica", "--link", ports["leica"], *moving
-                )
-            ),
-            subprocess.Popen(
-                gnss_ins_command(
-                    "emulate-gnss", "--receiver", "adu5", "--link", ports["adu5"], *moving, "--att"
-                )
-            ),
-        ]
-        while not all(Path(p).exists() for p in ports.values()):
-            time.sleep(0.1)
         launch_log = work / "launch.out"
-        with launch_log.open("w") as out:
-            launcher = subprocess.Popen(
-                gnss_ins_command(
-                    "launch",
-                    *[f"--{role}-port={port}" for role, port in ports.items()],
-                    "--log-dir",
-                    str(work / "logs"),
-                    "--record",
-                    str(work / "bags"),
-                ),
-                stdout=out,
-                stderr=subprocess.STDOUT,
-            )
-        readings: dict[str, list[tuple[float, float, float]]] = {n: [] for n in PROCESSES}
-        start = time.monotonic()
-        try:
+        with (
+            launch_log.open("w") as out,
+            emulated_vehicle(
+                work, "--record", str(work / "bags"), velocity=("3", "4", "0"), output=out
+            ) as launcher,
+        ):
+            readings: dict[str, list[tuple[float, float, float]]] = {n: [] for n in PROCESSES}
+            start = time.monotonic()
             while (elapsed := time.monotonic() - start) < args.duration:
                 for name, pid in children(launcher.pid).items():
                     if (reading := rss_and_cpu(pid)) is not None:
                         readings[name].append((elapsed, *reading))
                 time.sleep(min(args.sample, max(0.0, args.duration - elapsed)))
-        finally:
-            launcher.send_signal(signal.SIGINT)
-            launcher.wait(timeout=120)
-            for emulator in emulators:
-                emulator.send_signal(signal.SIGINT)
-                emulator.wait(timeout=30)
         console = launch_log.read_text()
         (bag,) = (work / "bags").iterdir()
         statuses = last_statuses(bag)
