@@ -7,6 +7,7 @@ from __future__ import annotations
 import ast
 import importlib.util
 import json
+import math
 import os
 import re
 import signal
@@ -17,6 +18,7 @@ import types
 from contextlib import contextmanager
 from pathlib import Path
 
+import numpy as np
 import pytest
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
@@ -329,12 +331,12 @@ def test_status_shows_every_process_its_restarts_and_an_unplugged_imu(tmp_path):
         time.sleep(5.0)
         plugged = time.time()
         imu.plug()
-        back = lambda: (
-            ("imu400cc_node", 0) in _levels_since(collector, plugged)
-            and bool(  # noqa: E731
+
+        def back():
+            return ("imu400cc_node", 0) in _levels_since(collector, plugged) and bool(
                 _fusion_states_since(collector, plugged) - {"no_imu"}
             )
-        )
+
         assert wait_for(back, 3.0), _levels_since(collector, plugged)
         print(f"unplug seen after {took - unplugged:.2f} s")
 
@@ -385,3 +387,65 @@ def _status(log_dir: Path) -> dict:
     view = json.loads(result.stdout)
     assert result.returncode == min(["OK", "WARN", "ERROR", "STALE"].index(view["level"]), 2)
     return view
+
+
+#: Per node, the recorded topic it publishes, and the recorded topics that go on while it is
+#: down (the fusion's output needs the IMU), with the longest gap allowed in them [s].
+OWN_TOPIC = {
+    "imu400cc_node": "/imu/data_raw",
+    "leica_gnss": "/leica/gnss/fix",
+    "adu5_gnss": "/adu5/gnss/attitude",
+    "ins_fusion_node": "/ins/odometry",
+}
+LONGEST_GAP_S = {
+    "/imu/data_raw": 0.5,
+    "/leica/gnss/fix": 1.6,
+    "/adu5/gnss/attitude": 0.6,
+    "/ins/odometry": 0.5,
+}
+
+
+def test_each_node_killed_in_turn_comes_back_and_the_recording_keeps_the_others(tmp_path):
+    """kill -9 of each node in turn under `launch --record`: running again within 3 s with the
+    other PIDs unchanged, publishing again; the recording has a gap in that node's topic only."""
+    bags = tmp_path / "bags"
+    kills: dict[str, float] = {}
+    with launched(tmp_path, "--record", str(bags)) as (launcher, collector, _, _imu):
+        assert wait_for(lambda: _reporters(collector) >= NODE_NAMES, 60.0), _reporters(collector)
+        recording = lambda: "recording /ins/odometry" in (tmp_path / "recorder.log").read_text()  # noqa: E731
+        assert wait_for(recording, 30.0)
+        time.sleep(3.0)
+        for name in OWN_TOPIC:
+            before = node_pids(launcher.pid)
+            kills[name] = time.time()
+            os.kill(before[name], signal.SIGKILL)
+            again = lambda n=name, b=before: node_pids(launcher.pid).get(n, b[n]) != b[n]  # noqa: E731
+            assert wait_for(again, 3.0), name
+            after = node_pids(launcher.pid)
+            assert {n: p for n, p in after.items() if n != name} == {
+                n: p for n, p in before.items() if n != name
+            }
+
+            def back(n=name, t=kills[name]):
+                return (n, 0) in _levels_since(collector, t) or (
+                    n == "ins_fusion_node" and bool(_fusion_states_since(collector, t))
+                )
+
+            assert wait_for(back, 30.0), name  # its status again: it runs and reports
+            time.sleep(4.0)  # publishing again before the next kill
+    assert launcher.returncode == 0
+    (bag,) = bags.iterdir()
+    with BagReader(bag) as reader:
+        times = {
+            topic: np.array([m.log_time_ns / 1e9 for m in reader.messages([topic])])
+            for topic in LONGEST_GAP_S
+        }
+    for name, killed in kills.items():
+        for topic, t in times.items():
+            around = t[(t > killed - 2.0) & (t < killed + 3.0)]
+            gap = float(np.diff(around).max()) if len(around) > 1 else math.inf
+            own = topic == OWN_TOPIC[name] or (name == "imu400cc_node" and topic == "/ins/odometry")
+            if own:
+                assert t[t > killed + 1.0].size, (name, topic, "never again")
+            else:
+                assert gap <= LONGEST_GAP_S[topic], (name, topic, gap)
