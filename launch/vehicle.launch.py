@@ -22,6 +22,7 @@ from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
 from gnss_ins_common.paths import config_file
+from ins_fusion.runtime.health import STATUS_PROCESS, status_command
 from ins_fusion.runtime.recorder import (
     DEFAULT_SPLIT_S,
     RECORDER,
@@ -101,6 +102,16 @@ def _processes(context: LaunchContext) -> list[ExecuteProcess]:
         )
         for spec in VEHICLE
     ]
+    processes.append(  # the system's health on /gnss_ins/status
+        ExecuteProcess(
+            cmd=status_command(None),
+            name=STATUS_PROCESS,
+            output="screen",
+            respawn=respawn,
+            respawn_delay=RESPAWN_DELAY_S,
+            additional_env=env,
+        )
+    )
     if value("record_dir"):
         recording = Recording(
             Path(value("record_dir")) / recording_name(),

@@ -157,13 +157,14 @@ def test_ros_launch_file_respawns_the_nodes_and_starts_the_recorder(monkeypatch,
     (*arguments, opaque) = module.generate_launch_description().args[0]
     context = {a.args[0]: a.kwargs["default_value"] for a in arguments}
     assert (context["respawn"], context["record_dir"]) == ("true", "")
-    assert len(opaque.kwargs["function"](context)) == len(VEHICLE)  # no record_dir: no recorder
+    *nodes, status = opaque.kwargs["function"](context)  # no record_dir: no recorder
+    assert len(nodes) == len(VEHICLE) and status.kwargs["cmd"][-2:] == ["status", "--serve"]
     context.update(respawn=respawn, record_dir=str(tmp_path / "bags"))
-    *nodes, recorder = opaque.kwargs["function"](context)
+    *nodes, status, recorder = opaque.kwargs["function"](context)
     assert [node.kwargs["name"] for node in nodes] == [spec.name for spec in VEHICLE]
     leica = nodes[[spec.name for spec in VEHICLE].index("leica_gnss")]
     assert {"port": "/dev/ttyUSB1"} in leica.kwargs["parameters"]
-    for process in [*nodes, recorder]:
+    for process in [*nodes, status, recorder]:
         assert process.kwargs["respawn"] is (respawn == "true")
         assert process.kwargs["respawn_delay"] == 1.0
         assert process.kwargs["additional_env"] == {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}

@@ -17,13 +17,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ins_fusion.runtime.processes import gnss_ins_command
+
 #: Levels of diagnostic_msgs/DiagnosticStatus, in order of severity.
 LEVELS = ("OK", "WARN", "ERROR", "STALE")
 OK, WARN, ERROR, STALE = range(4)
 #: A process whose last status is older than this is STALE (the nodes report every second).
 STALE_AFTER_S = 3.0
-#: The topic of the aggregate (``gnss_ins status --serve``).
+#: The topic of the aggregate, and the supervised process that publishes it.
 STATUS_TOPIC = "/gnss_ins/status"
+STATUS_PROCESS = "status"
 #: The supervisor's state file in launch's log directory.
 SUPERVISOR_FILE = "supervisor.json"
 #: The vehicle's processes: status name prefix -> the values shown, in order.
@@ -148,6 +151,12 @@ def format_view(view: Mapping[str, Any], title: str) -> str:
             shown = ", ".join(f"{key} {value}" for key, value in entry["values"].items())
             lines.append(f"  {'':<{width}}  {shown}")
     return "\n".join(lines)
+
+
+def status_command(log_dir: Path | None) -> list[str]:
+    """``gnss_ins status --serve``, reading the supervisor file in ``log_dir`` if given."""
+    options = ["--log-dir", str(log_dir)] if log_dir is not None else []
+    return gnss_ins_command("status", "--serve", *options)
 
 
 def write_supervisor_state(log_dir: Path, processes: Mapping[str, Mapping[str, Any]]) -> None:

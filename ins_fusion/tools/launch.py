@@ -13,6 +13,7 @@ restart are reported on the console. ``--record DIR`` adds a supervised recorder
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import signal
 import time
@@ -20,8 +21,13 @@ from pathlib import Path
 from typing import Any
 
 from gnss_ins_common.paths import config_file
-from ins_fusion.runtime.health import STATUS_TOPIC, write_supervisor_state
-from ins_fusion.runtime.processes import Backoff, ProcessGroup, default_log_dir, gnss_ins_command
+from ins_fusion.runtime.health import (
+    STATUS_PROCESS,
+    STATUS_TOPIC,
+    status_command,
+    write_supervisor_state,
+)
+from ins_fusion.runtime.processes import Backoff, ProcessGroup, default_log_dir
 from ins_fusion.runtime.recorder import (
     DEFAULT_SPLIT_S,
     RECORDER,
@@ -43,8 +49,6 @@ from ins_fusion.tools.record import min_free_option
 
 #: Seconds between two supervision steps (exits, restarts, new warnings).
 _PERIOD_S = 0.2
-#: The process that publishes the system's health (``gnss_ins status --serve``).
-STATUS = "status"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -87,7 +91,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--record-split",
-        type=float,
+        type=_split_seconds,
         default=DEFAULT_SPLIT_S,
         metavar="S",
         help="with --record: a new bag file every S seconds of recorded time (0: never)",
@@ -111,6 +115,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="SIZE",
         help="with --record: passed to `gnss_ins record --min-free` (its free-space limit)",
     )
+
+
+def _split_seconds(text: str) -> float:
+    """``--record-split``: seconds >= 0 (0: one file)."""
+    value = float(text)
+    if not math.isfinite(value) or value < 0:
+        raise argparse.ArgumentTypeError(f"{text}: seconds >= 0 (0: never split)")
+    return value
 
 
 def _checked_min_free(text: str) -> str:
@@ -179,8 +191,8 @@ def run(args: argparse.Namespace) -> int:
                 f"({record.storage}, a new file every {record.split_s:g} s)",
                 flush=True,
             )
-        group.start(STATUS, gnss_ins_command("status", "--serve", "--log-dir", str(log_dir)))
-        print(f"started {STATUS}: the system's health on {STATUS_TOPIC}", flush=True)
+        group.start(STATUS_PROCESS, status_command(log_dir))
+        print(f"started {STATUS_PROCESS}: the system's health on {STATUS_TOPIC}", flush=True)
         reach = "this machine only" if args.discovery == "LOCALHOST" else "the network"
         print(f"ROS discovery: {args.discovery} ({reach})", flush=True)
         then = "stops everything" if args.stop_on_failure else "is started again"
