@@ -35,7 +35,7 @@ def emulated_vehicle(
 ) -> Iterator[subprocess.Popen[bytes]]:
     """The emulators (the receivers moving at ``velocity`` ENU m/s, the IMU at rest) and
     ``gnss_ins launch --log-dir WORK/logs LAUNCH_OPTIONS`` on them (its console to ``output``,
-    else nowhere); stopped with SIGINT at the end, launch first."""
+    else nowhere); stopped at the end, launch first (SIGINT, which it handles itself)."""
     # A domain of its own: nothing of a system running beside it reaches the bench's nodes.
     os.environ.setdefault("ROS_DOMAIN_ID", str(101 + os.getpid() % 100))
     ports = {name: str(work / name) for name in ("imu", "leica", "adu5")}
@@ -72,8 +72,8 @@ def emulated_vehicle(
             launcher.send_signal(signal.SIGINT)
             launcher.wait(timeout=120)
     finally:
-        for emulator in emulators:
-            emulator.send_signal(signal.SIGINT)
+        for emulator in emulators:  # SIGTERM: a shell's background job ignores SIGINT
+            emulator.terminate()
             emulator.wait(timeout=30)
 
 
