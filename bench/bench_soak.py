@@ -5,9 +5,9 @@ both receivers moving at 5 m/s (inconsistent inputs, as a faulty installation gi
 Every ``--sample`` seconds the resident memory (RSS) and CPU time of each process of the launch
 (the four nodes and the recorder, by /proc) are read. At the end launch is stopped with Ctrl-C and
 the recording is read: the last /diagnostics status of each node gives the IMU packets the driver
-lost (``dropped_packets``), the fusion's solutions that were not published for a non-finite value
-(``outputs_invalid``) and its resets; launch's console gives the restarts. Printed per process:
-RSS at the start of the steady state (after ``--settle`` s) and at the end, the growth per hour
+lost (``dropped_packets``), the fusion's solutions that were not published (``outputs_invalid``;
+its log says why) and its resets; launch's console gives the restarts. Printed per process: RSS
+at the start of the steady state (after ``--settle`` s) and at the end, the growth per hour
 (least squares over the steady-state samples) and the mean CPU. Plain script, no asserts.
 """
 
@@ -53,9 +53,17 @@ def main() -> None:
     parser.add_argument("--duration", type=float, default=3600.0, help="seconds of running")
     parser.add_argument("--sample", type=float, default=30.0, help="seconds between readings")
     parser.add_argument("--settle", type=float, default=300.0, help="start of the steady state")
+    parser.add_argument(
+        "--keep",
+        type=Path,
+        metavar="DIR",
+        help="new directory that keeps the nodes' logs, launch's console and the recording",
+    )
     args = parser.parse_args()
+    if args.keep is not None:
+        args.keep.mkdir(parents=True)  # refuses an existing directory: nothing overwritten
     with tempfile.TemporaryDirectory(prefix="bench_soak.") as scratch:
-        work = Path(scratch)
+        work = Path(scratch) if args.keep is None else args.keep
         launch_log = work / "launch.out"
         with (
             launch_log.open("w") as out,
@@ -92,7 +100,9 @@ def main() -> None:
     fusion = statuses.get("ins_fusion_node: INS", {})
     print(f"  IMU packets {imu.get('packets')}, dropped {imu.get('dropped_packets')}")
     print(f"  fusion: state {fusion.get('state')}, published {fusion.get('outputs_published')},")
-    print(f"    non-finite {fusion.get('outputs_invalid')}, resets {fusion.get('resets')}")
+    print(f"    not published {fusion.get('outputs_invalid')}, resets {fusion.get('resets')}")
+    if args.keep is not None:
+        print(f"  logs, console and recording kept in {args.keep}")
     print(f"  restarts by launch: {console.count(' restarted (pid ')}")
     sys.stdout.flush()
 

@@ -45,7 +45,9 @@ from ins_fusion.adapters.cdr_out import OutputWriter
 from ins_fusion.adapters.status_log import WARN, StatusLog
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.engine import InsEngine
+from ins_fusion.core.output_numbers import fault_report
 from ins_fusion.core.params import PARAMETERS as FUSION_PARAMETERS
+from ins_fusion.core.solution import STATE, STATES, T
 from ins_fusion.ros_tf import TfBroadcaster, transform_template
 
 #: One table for the node and `gnss_ins replay` (ins_fusion/core/params.py).
@@ -209,8 +211,8 @@ class InsFusionNode(Node):
         if outputs is None:  # a non-finite value or covariance: counted, not sent
             self._invalid_outputs += 1
             self.get_logger().error(
-                "solution with a non-finite value or a covariance that is not positive"
-                " semi-definite not published",
+                f"solution at {row[T]:.3f} s ({STATES[int(row[STATE])]}) not published:"
+                f" {fault_report(row)}",
                 throttle_duration_sec=10.0,
             )
             return

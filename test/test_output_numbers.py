@@ -8,12 +8,15 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from ins_fusion.core.output_numbers import (
+    FAULTS,
     FIX,
     IMU,
     NUMBERS,
     ODOMETRY,
     PSD_TOLERANCE,
+    fault_report,
     output_numbers,
+    row_fault,
 )
 from ins_fusion.core.solution import COV_ATT, COV_POS, COV_VEL, POS, QUAT, RATE, VEL, WIDTH
 
@@ -75,3 +78,20 @@ def test_rounding_below_the_tolerance_is_still_psd():
     assert output_numbers(row, 1e-5, np.empty(NUMBERS))
     row[COV_VEL.start + 8] = -4.0 * PSD_TOLERANCE * 2.0
     assert not output_numbers(row, 1e-5, np.empty(NUMBERS))
+
+
+def test_fault_names_the_first_check_that_fails():
+    row = _row(3, 0.0)
+    assert row_fault(row) == 0 and fault_report(row) == "publishable"
+    broken = row.copy()
+    broken[COV_ATT.start + 1] += 1.0  # asymmetric attitude covariance
+    assert FAULTS[row_fault(broken)] == "attitude covariance not symmetric"
+    broken[COV_VEL.start + 4] = -1.0  # indefinite velocity covariance: checked before attitude
+    assert FAULTS[row_fault(broken)] == "velocity covariance not positive semi-definite"
+    report = fault_report(broken)
+    assert report.startswith("velocity covariance not positive semi-definite: ")
+    assert "eigenvalues [-1." in report
+    broken[COV_POS.start] = np.inf
+    assert FAULTS[row_fault(broken)] == "position covariance not finite"
+    broken[VEL.start] = np.nan
+    assert fault_report(broken).startswith("a non-finite number in the state: [")

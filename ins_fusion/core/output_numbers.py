@@ -44,33 +44,73 @@ _O_QUAT, _O_POSE_COV, _O_VEL, _O_RATE, _O_TWIST_COV = 3, 7, 43, 46, 49
 _I_COV, _I_RATE, _I_RATE_COV, _I_ACCEL_COV = 101, 110, 113, 125
 
 
+#: The covariances a row's outputs carry, in the order row_fault checks them.
+CHECKED_COVARIANCES = (("position", COV_POS), ("velocity", COV_VEL), ("attitude", COV_ATT))
+#: What a 3x3 covariance can fail, in the order _matrix_fault checks it.
+_MATRIX_FAULTS = ("not finite", "not symmetric", "not positive semi-definite")
+#: row_fault's answers, by index: publishable, or the first check the row fails.
+FAULTS = (
+    "none",
+    "a non-finite number in the state",
+    *(f"{name} covariance {fault}" for name, _ in CHECKED_COVARIANCES for fault in _MATRIX_FAULTS),
+)
+_FIRST_COVARIANCE_FAULT = 2
+
+
 @compilable
-def _psd3(row: FloatArray, start: int) -> bool:
-    """True if the 3x3 row-major matrix at ``row[start:start + 9]`` is finite, symmetric and
-    positive semi-definite up to rounding."""
+def _matrix_fault(row: FloatArray, start: int) -> int:
+    """0 if the 3x3 row-major matrix at ``row[start:start + 9]`` is finite, symmetric and
+    positive semi-definite up to rounding, else 1 + the index of the first of _MATRIX_FAULTS."""
     c = np.empty((3, 3))
     for i in range(3):
         for j in range(3):
             value = row[start + 3 * i + j]
             if not math.isfinite(value):
-                return False
+                return 1
             c[i, j] = value
     for i in range(3):
         for j in range(3):
             if abs(c[i, j] - c[j, i]) > SYMMETRY_TOLERANCE * abs(c[j, i]):
-                return False
+                return 2
     eigenvalues = np.linalg.eigvalsh(c)
-    return bool(eigenvalues.min() >= -PSD_TOLERANCE * max(1.0, eigenvalues.max()))
+    return 0 if eigenvalues.min() >= -PSD_TOLERANCE * max(1.0, eigenvalues.max()) else 3
+
+
+@compilable
+def row_fault(row: FloatArray) -> int:
+    """Index in FAULTS of the first reason the row is not publishable (0: publishable)."""
+    for i in range(LAT, RATE.stop):
+        if not math.isfinite(row[i]):
+            return 1
+    starts = (COV_POS.start, COV_VEL.start, COV_ATT.start)
+    for block in range(3):
+        fault = _matrix_fault(row, starts[block])
+        if fault:
+            return _FIRST_COVARIANCE_FAULT + len(_MATRIX_FAULTS) * block + fault - 1
+    return 0
 
 
 @compilable
 def publishable_row(row: FloatArray) -> bool:
     """True if every number of the row that the outputs carry is finite and each covariance
-    positive semi-definite (ARCHITECTURE.md: valid or not published)."""
-    for i in range(LAT, RATE.stop):
-        if not math.isfinite(row[i]):
-            return False
-    return _psd3(row, COV_POS.start) and _psd3(row, COV_VEL.start) and _psd3(row, COV_ATT.start)
+    positive semi-definite (valid or not published)."""
+    return row_fault(row) == 0
+
+
+def fault_report(row: FloatArray) -> str:
+    """Why a row is not publishable, with the numbers that fail (for the log)."""
+    fault = row_fault(row)
+    if fault == 0:
+        return "publishable"
+    if fault == 1:
+        return f"{FAULTS[fault]}: {np.array2string(row[LAT : RATE.stop], precision=6)}"
+    _, block = CHECKED_COVARIANCES[(fault - _FIRST_COVARIANCE_FAULT) // len(_MATRIX_FAULTS)]
+    matrix = row[block].reshape(3, 3)
+    text = f"{FAULTS[fault]}: {np.array2string(matrix, precision=17)}"
+    if not np.isfinite(matrix).all():
+        return text
+    eigenvalues = np.linalg.eigvalsh(0.5 * (matrix + matrix.T))
+    return f"{text}, eigenvalues {np.array2string(eigenvalues, precision=6)}"
 
 
 @jit
