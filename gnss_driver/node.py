@@ -17,7 +17,6 @@ import time
 from typing import Any
 
 from geometry_msgs.msg import TwistWithCovarianceStamped
-from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, NavSatFix, TimeReference
 
@@ -50,10 +49,11 @@ from gnss_ins_common.message_fields import (
 from gnss_ins_common.params import Param, needs_values, serial_link_params
 from gnss_ins_common.rates import RateMeter
 from gnss_ins_common.ros_endpoints import Endpoints
+from gnss_ins_common.ros_lifecycle import AUTOSTART, ManagedSerialDriver
 from gnss_ins_common.ros_node_main import run_node
 from gnss_ins_common.ros_params import declare_parameters
 from gnss_ins_common.ros_serial import node_time_s, start_serial_link
-from gnss_ins_common.serial_link import LinkSettings
+from gnss_ins_common.serial_link import LinkSettings, SerialLink
 
 
 def _commands_error(commands: list[str]) -> str | None:
@@ -182,17 +182,20 @@ PARAMETERS = (
         0.01,
         5.0,
     ),
+    AUTOSTART,
 )
 
 #: Latency samples averaged for the diagnostics.
 _LATENCY_WINDOW = 50
 
 
-class GnssNode(Node):
-    """The driver node; see the module docstring."""
+class GnssNode(ManagedSerialDriver):
+    """The driver node, a managed node (gnss_ins_common.ros_lifecycle); see the module
+    docstring."""
 
     def __init__(self, **kwargs: Any) -> None:
-        """Declare and validate the parameters, open the port in the background."""
+        """Declare and validate the parameters; with ``autostart`` configure (the port opened
+        in the background) and activate."""
         super().__init__("gnss_node", **kwargs)
         p = declare_parameters(self, PARAMETERS)
         self.params = p
@@ -265,7 +268,12 @@ class GnssNode(Node):
         self.create_timer(p["diagnostics_period"], diag.guarded(self, self._publish_diagnostics))
         self.create_timer(p["epoch_idle_timeout"] / 2.0, diag.guarded(self, self._flush_idle))
 
-        self._link = start_serial_link(
+        self.start_managed(p["autostart"], before_close=None)
+
+    def open_link(self) -> SerialLink:
+        """The serial link (configure)."""
+        p = self.params
+        link = start_serial_link(
             self,
             LinkSettings(port=p["port"], baud=p["baud"], stall_timeout_s=p["stall_timeout"]),
             self._on_open,
@@ -275,6 +283,7 @@ class GnssNode(Node):
             f"reading {self._receiver.value} on {p['port']} at {p['baud']} baud,"
             f" {len(self._commands)} set-up commands"
         )
+        return link
 
     # ---- serial side (link thread) ----------------------------------------------------------
     def _on_open(self, port: Any) -> None:
@@ -304,6 +313,8 @@ class GnssNode(Node):
 
     # ---- messages -----------------------------------------------------------------------------
     def _publish(self, outputs: list[EpochOutput]) -> None:
+        if not self.publishing(held=len(outputs)):
+            return
         for out in outputs:
             try:
                 self._publish_epoch(out)
@@ -422,15 +433,18 @@ class GnssNode(Node):
         resets, degraded = (a - b for a, b in zip(problems, self._attitude_problems, strict=True))
         self._attitude_problems = problems
         rate = self._rate.rate_hz(epochs, now)
-        link = self._link.stats
+        link = self.link_stats
         values.update(
             rate_hz=rate,
             expected_rate_hz=self._rate_hz,
             reconnects=link.reconnects,
             stalls=link.stalls,
+            held_while_inactive=self.held_while_inactive,
             last_error=link.last_error,
         )
-        if not self._link.is_open:
+        if (problem := self.lifecycle_problem()) is not None:
+            level, message = problem
+        elif not self.port_open:
             level, message = diag.ERROR, f"port closed: {link.last_error or 'opening'}"
         elif rate < 0.5 * self._rate_hz:
             level, message = diag.WARN, f"{rate:.1f} epochs/s, expected {self._rate_hz:g}"
@@ -452,10 +466,6 @@ class GnssNode(Node):
         name = f"{self.get_name()}: GNSS {self._receiver.value}"
         hardware_id = f"{self._receiver.value} {self.params['port']}"
         self._diagnostics.publish(diag.make_status(name, hardware_id, level, message, values))
-
-    def close(self) -> None:
-        """Stop the reader thread and close the port."""
-        self._link.stop()
 
 
 def _mean(values: collections.deque[float]) -> float:

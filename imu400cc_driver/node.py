@@ -12,7 +12,6 @@ from __future__ import annotations
 import time
 from typing import Any
 
-from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, Temperature
 
@@ -22,10 +21,11 @@ from gnss_ins_common.message_fields import fill_imu, fill_temperature, stamp_ns
 from gnss_ins_common.params import Param, needs_values, serial_link_params
 from gnss_ins_common.rates import RateMeter
 from gnss_ins_common.ros_endpoints import Endpoints
+from gnss_ins_common.ros_lifecycle import AUTOSTART, ManagedSerialDriver
 from gnss_ins_common.ros_node_main import run_node
 from gnss_ins_common.ros_params import declare_parameters
 from gnss_ins_common.ros_serial import start_serial_link
-from gnss_ins_common.serial_link import LinkSettings
+from gnss_ins_common.serial_link import LinkSettings, SerialLink
 from imu400cc_driver.axes import DEFAULT_AXIS_SPEC
 from imu400cc_driver.driver import (
     ACCEL_NOISE_DENSITY,
@@ -101,6 +101,7 @@ PARAMETERS = (
         60.0,
     ),
     Param("temperature_rate", 1.0, "publish rate of imu/temperature [Hz]", 0.1, 134.0),
+    AUTOSTART,
 )
 
 
@@ -122,11 +123,13 @@ def driver_config(p: dict[str, Any]) -> DriverConfig:
     )
 
 
-class Imu400ccNode(Node):
-    """The driver node; see the module docstring."""
+class Imu400ccNode(ManagedSerialDriver):
+    """The driver node, a managed node (gnss_ins_common.ros_lifecycle); see the module
+    docstring."""
 
     def __init__(self, **kwargs: Any) -> None:
-        """Declare and validate the parameters, open the port in the background."""
+        """Declare and validate the parameters; with ``autostart`` configure (the port opened
+        in the background) and activate."""
         super().__init__("imu400cc_node", **kwargs)
         p = declare_parameters(self, PARAMETERS)
         self.params = p
@@ -139,6 +142,7 @@ class Imu400ccNode(Node):
         self._frame_id = p["frame_id"]
         self._rate = RateMeter(time.monotonic())
         self._serial_number: int | None = None
+        self._opened = False  # the port was opened before (the driver then starts anew)
 
         qos = QoSProfile(depth=200, reliability=ReliabilityPolicy.RELIABLE)
         endpoints = Endpoints(self)
@@ -149,9 +153,14 @@ class Imu400ccNode(Node):
         if not config.continuous:
             self.create_timer(1.0 / p["poll_rate"], diag.guarded(self, self._poll))
 
-        # Polled: one packet per poll period, so wait at least three of them.
-        min_timeout_s = 0.0 if config.continuous else 3.0 / p["poll_rate"]
-        self._link = start_serial_link(
+        self.start_managed(p["autostart"], before_close=stop_stream)
+
+    def open_link(self) -> SerialLink:
+        """The serial link (configure); polled: one packet per poll period, so its time-outs
+        are at least three of them."""
+        p = self.params
+        min_timeout_s = 0.0 if self._driver.config.continuous else 3.0 / p["poll_rate"]
+        link = start_serial_link(
             self,
             LinkSettings(
                 port=p["port"],
@@ -165,22 +174,27 @@ class Imu400ccNode(Node):
         self.get_logger().info(
             f"reading IMU400CC on {p['port']} at {p['baud']} baud, {p['mode']} mode"
         )
+        return link
 
     # ---- serial side (link thread) ----------------------------------------------------------
     def _on_open(self, port: Any) -> None:
         info = configure_device(port, self._driver.config.continuous, log=self.get_logger().warning)
         self._serial_number = info.serial_number
-        if self._link.stats.opens > 1:  # a reconnect: the stream and its timer start anew
+        if self._opened:  # a reconnect or a new configure: the stream and its timer start anew
             self._driver.reset()
+        self._opened = True
 
     def _on_data(self, chunk: bytes, received_s: float) -> None:
         samples = self._driver.feed(chunk, received_s)
-        if samples:
-            self._link.note_valid()
+        link = self.link
+        if samples and link is not None:
+            link.note_valid()
         for sample in samples:
             self._publish(sample)
 
     def _publish(self, sample: ImuSample) -> None:
+        if not self.publishing():
+            return
         stamp = stamp_ns(sample.stamp_s)
         meas = sample.measurement
         driver = self._driver
@@ -207,13 +221,17 @@ class Imu400ccNode(Node):
 
     # ---- executor side ----------------------------------------------------------------------
     def _poll(self) -> None:
-        self._link.write(Command.GET_PACKET.wire)
+        link = self.link
+        if link is not None:
+            link.write(Command.GET_PACKET.wire)
 
     def _publish_diagnostics(self) -> None:
-        driver, link = self._driver, self._link.stats
+        driver, link = self._driver, self.link_stats
         rate = self._rate.rate_hz(driver.stats.samples, time.monotonic())
         expected = driver.config.sample_rate_hz
-        if not self._link.is_open:
+        if (problem := self.lifecycle_problem()) is not None:
+            level, message = problem
+        elif not self.port_open:
             level, message = diag.ERROR, f"port closed: {link.last_error or 'opening'}"
         elif rate < 0.9 * expected:
             level, message = diag.WARN, f"rate {rate:.1f} Hz below {expected:.0f} Hz"
@@ -225,6 +243,7 @@ class Imu400ccNode(Node):
             "rate_hz": rate,
             "expected_rate_hz": expected,
             **driver.counters(),
+            "held_while_inactive": self.held_while_inactive,
             "reconnects": link.reconnects,
             "stalls": link.stalls,
             "invalid_stalls": link.invalid_stalls,
@@ -236,10 +255,6 @@ class Imu400ccNode(Node):
         self._diagnostics.publish(
             diag.make_status(f"{self.get_name()}: IMU400CC", hardware_id, level, message, values)
         )
-
-    def close(self) -> None:
-        """Stop the stream and the reader thread."""
-        self._link.stop(before_close=stop_stream)
 
 
 def main(args: list[str] | None = None) -> int:
