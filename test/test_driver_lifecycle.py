@@ -84,8 +84,10 @@ def _status(collector: Collector, name: str) -> tuple[int, str, dict[str, str]]:
     for array in reversed(collector.get("/diagnostics")):
         for status in array.status:
             if status.name.startswith(name):
-                return status.level, status.message, diagnostic_values(
-                    DiagnosticArray(status=[status])
+                return (
+                    status.level,
+                    status.message,
+                    diagnostic_values(DiagnosticArray(status=[status])),
                 )
     raise AssertionError(f"no /diagnostics of {name}")
 
