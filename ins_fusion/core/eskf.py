@@ -175,6 +175,9 @@ class ErrorStateFilter:
         n = layout.size
         self.layout = layout
         self.P: FloatArray = np.zeros((n, n))
+        #: Largest variance of each error state after a fading (``scale``), inf: none; set by
+        #: the start to what is known of the state before any measurement (bounded_covariance).
+        self.variance_ceiling: FloatArray = np.full(n, math.inf)
         #: Transition matrix Φ of the last ``propagate`` (a new array per call).
         self.phi: FloatArray = np.eye(n)
         #: Observer of the covariance's changes (the RTS smoother's recorder), set by the engine.
@@ -306,8 +309,9 @@ class ErrorStateFilter:
         self._accel_psd = accel_psd
 
     def scale(self, factor: float) -> None:
-        """Multiply the covariance by ``factor`` (fading memory: every state less certain)."""
-        self.P = self.P * factor
+        """Multiply the covariance by ``factor`` (fading memory: every state less certain), no
+        state's variance beyond its ``variance_ceiling``."""
+        self.P = bounded_covariance(self.P * factor, self.variance_ceiling)
 
     def add_noise(self, start: int, cov: FloatArray) -> None:
         """Add a 3x3 covariance to the diagonal block of the states at ``start`` (noise the
@@ -347,6 +351,22 @@ class ErrorStateFilter:
         if worst >= 0:
             return f"negative variance in state {worst}"
         return None
+
+
+def bounded_covariance(P: FloatArray, ceiling: FloatArray) -> FloatArray:
+    """P with the variance of each state i above ``ceiling[i]`` brought down to it, its
+    correlations kept: D P D with D_ii = sqrt(ceiling_i / P_ii) where that is below 1, else 1
+    (a congruence: a positive semi-definite P stays so).
+
+    A fading multiplies every variance; repeated over a long run of inconsistent measurements
+    (an IMU at rest under a moving antenna: issue 38) it multiplied the bias variances without
+    bound until the state overflowed. A bias, a scale factor, a mounting angle cannot be less
+    known than before the first measurement, so their prior variance bounds them."""
+    variance = np.diagonal(P)
+    shrink = np.sqrt(np.minimum(1.0, ceiling / np.maximum(variance, np.finfo(float).tiny)))
+    if bool(np.all(shrink == 1.0)):
+        return P
+    return shrink[:, None] * P * shrink[None, :]
 
 
 @jit

@@ -162,7 +162,6 @@ class Startup:
         att: AttitudeMeasurement | None,
     ) -> Started:
         """Start the filter in motion: attitude from the receiver, or level + course."""
-        noise = self._config.imu_noise
         tilt_var = self._config.moving_tilt_sigma_rad**2
         if att is not None:
             roll, pitch, yaw = euler_rad(self._geometry.measured_mat_nb(att))
@@ -179,10 +178,7 @@ class Startup:
             yaw, yaw_var = course(vel)
             att_var = np.array([tilt_var, tilt_var, yaw_var])
         vel_ned = np.nan_to_num(MAT_ENU_NED @ vel.vel_enu_m_s)
-        gyro_var = _turn_on_variance(
-            None if self._calibration is None else self._calibration.gyro.bias_sigma,
-            noise.gyro_turn_on_bias,
-        ) + np.square(noise.gyro_bias_instability)
+        gyro_var = self._gyro_bias_variance()
         started = self._start(
             t,
             fix,
@@ -246,8 +242,38 @@ class Startup:
                 np.eye(3) * noise.accel_scale_sigma**2
             )
         kf.P = P
+        kf.variance_ceiling = self._variance_ceiling(layout.size, np.diagonal(P))
         self._gnss_noise.restart_position(state, kf, fix)
         return state, kf
+
+    def _variance_ceiling(self, size: int, initial: FloatArray) -> FloatArray:
+        """Largest variance of each error state (ErrorStateFilter.variance_ceiling): for the
+        biases, scale factors, mounting and time offset their prior (datasheet or calibration;
+        the start's own variance if larger), for the attitude an unknown angle's; none for
+        position, velocity and the correlated GNSS error."""
+        config, layout = self._config, self._layout
+        noise = config.imu_noise
+        ceiling = np.full(size, math.inf)
+        ceiling[ATT : ATT + 3] = UNKNOWN_YAW_VARIANCE
+        ceiling[BG : BG + 3] = self._gyro_bias_variance()
+        ceiling[BA : BA + 3] = self._accel_bias_variance()
+        if layout.mt is not None:
+            ceiling[layout.mt : layout.mt + 2] = config.mounting_sigma_rad**2
+        if layout.td is not None:
+            ceiling[layout.td] = config.time_offset_sigma_s**2
+        if layout.sg is not None:
+            ceiling[layout.sg : layout.sg + 3] = noise.gyro_scale_sigma**2
+        if layout.sa is not None:
+            ceiling[layout.sa : layout.sa + 3] = noise.accel_scale_sigma**2
+        bounded: FloatArray = np.maximum(ceiling, initial)
+        return bounded
+
+    def _gyro_bias_variance(self) -> FloatArray:
+        noise = self._config.imu_noise
+        return _turn_on_variance(
+            None if self._calibration is None else self._calibration.gyro.bias_sigma,
+            noise.gyro_turn_on_bias,
+        ) + np.square(noise.gyro_bias_instability)
 
     def _accel_bias_variance(self) -> FloatArray:
         noise = self._config.imu_noise
