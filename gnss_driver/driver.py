@@ -144,6 +144,7 @@ class GnssDriver:
     ) -> None:
         if isinstance(sentence, pynmea2.GSA):
             self.solver.note_gsa(sentence)
+            self.assembler.attach(sentence)
         elif isinstance(sentence, ASHRACK):
             self.stats.acks += 1
         elif isinstance(sentence, ASHRNAK):

@@ -71,6 +71,8 @@ class Epoch:
     of the host time at which the epoch's first byte left the receiver.
     ``previous``: the closed epoch this one extends (its sentences come first here).
     ``published``: set by the consumer: what it made of the epoch (kept for an extension).
+    ``gsa``: the GSA sentences that arrived while it was open (GSA carries no time and is not
+    one of its sentences; one per constellation, NMEA 0183 4.10).
     """
 
     time_of_day_ms: int | None
@@ -78,6 +80,7 @@ class Epoch:
     arrivals: list[tuple[float, int]] = field(default_factory=list)
     previous: Epoch | None = None
     published: object = None
+    gsa: list[pynmea2.GSA] = field(default_factory=list)
 
     def add(self, sentence: pynmea2.NMEASentence, wire_bytes: int, arrival_s: float) -> None:
         """Append a sentence."""
@@ -98,7 +101,9 @@ class Epoch:
 
     def extension(self) -> Epoch:
         """A new open epoch of the same instant that holds this one's sentences."""
-        return Epoch(self.time_of_day_ms, list(self.sentences), list(self.arrivals), self)
+        return Epoch(
+            self.time_of_day_ms, list(self.sentences), list(self.arrivals), self, gsa=list(self.gsa)
+        )
 
 
 @dataclass(slots=True)
@@ -166,6 +171,11 @@ class EpochAssembler:
     def note_traffic(self, arrival_s: float) -> None:
         """Bytes of any kind arrived at host time ``arrival_s`` [s]."""
         self._last_traffic = max(self._last_traffic, arrival_s)
+
+    def attach(self, gsa: pynmea2.GSA) -> None:
+        """A GSA sentence: kept with the open epoch (``Epoch.gsa``); none open, not kept."""
+        if self._open is not None:
+            self._open.gsa.append(gsa)
 
     def add(
         self,
@@ -254,6 +264,7 @@ class EpochAssembler:
                 else:
                     epoch.add(sentence, upto - total, arrival_s)
                 total = upto
+            epoch.gsa.extend(carrying.gsa)
         self.stats.extended_epochs += 1
         last_ms = last.time_of_day_ms
         if last_ms is not None and (learned := self._learned.get(last_ms % 1000)) is not None:

@@ -122,9 +122,16 @@ PARAMETERS = (
     Param(
         "min_satellites",
         SolutionConfig().min_satellites,
-        "a position from fewer satellites used is published as no fix (3-D needs 4)",
+        "a position from fewer satellites used is published as no fix (3-D needs 4; a 2-D fix"
+        " needs one fewer; a count the receiver does not report is not checked)",
         0,
         12,
+    ),
+    Param(
+        "allow_2d_fix",
+        SolutionConfig().allow_2d_fix,
+        "publish 2-D fixes (GSA mode 2, 3 satellites, RMC/GLL without a recent altitude) as fixes"
+        " with altitude NaN and vertical variance 1e6 (height unknown); false: no fix",
     ),
     Param(
         "llq_projection",
@@ -235,6 +242,7 @@ class GnssNode(ManagedSerialDriver):
                     p["llq_horizontal_fraction"],
                     p["min_satellites"],
                     p["llq_projection"],
+                    p["allow_2d_fix"],
                 ),
                 attitude=AttitudeConfig(
                     sigma_rpy_deg=(sigma[0], sigma[1], sigma[2]),
@@ -394,6 +402,10 @@ class GnssNode(ManagedSerialDriver):
                 "bad_fields": solver_fields.bad_fields,
                 **{f"rejected {name}": n for name, n in sorted(solver_fields.rejected.items())},
                 "too_few_satellites": solver.too_few_satellites,
+                "satellites_unreported": solver.satellites_unreported,
+                "fixes_2d": solver.fixes_2d,
+                "rejected_2d": solver.rejected_2d,
+                "held_altitudes": solver.held_altitudes,
                 "geoid_model": geoid.MODEL,
                 "geoid_altitudes": solver.geoid_altitudes,
                 "internal_errors": driver.stats.internal_errors,

@@ -7,25 +7,15 @@ letters (R, F, P, D, A), else LLQ quality (1 SPS, 2 RTK float, 3 RTK fixed), els
 mode letter, else SPS for a PAT position. Quality 0, 6 (dead reckoning), 7 (manual) and 8
 (simulator), status 'V', mode 'N' or fewer satellites than ``min_satellites`` (GGA, GNS, LLQ)
 are NO_FIX: published as such, with NaN position and no covariance, never a made-up position.
+A satellites-used count the receiver did not report, 2-D fixes and the altitude of RMC/GLL
+epochs follow ``fix_rules``.
 
 Altitude: height above the WGS-84 ellipsoid = GGA/GNS altitude (mean sea level) + geoid
 separation; when the receiver leaves the separation empty, the EGM96 undulation of
 ``geoid.MODEL`` at the position (counted in ``geoid_altitudes``). PAT's altitude is taken as
 ellipsoidal [external: Ashtech's PAT reports the WGS-84 solution; verify on the receiver].
 
-Covariance, ENU [m^2], each of the horizontal and vertical parts from the first source present:
-1. GST: σ_lat, σ_lon, σ_alt as the N, E, U standard deviations; with the error ellipse
-   (semi-axes, orientation from north) also the E-N correlation of the ellipse -> KNOWN, else
-   diagonal -> DIAGONAL_KNOWN. (Receivers do not always make the ellipse and the σ fields agree,
-   so the σ fields set the variances.)
-2. LLQ coordinate quality CQ = σ_h + σ_v with σ_h = sqrt(σ_E² + σ_N²) (notes §7.2, (7.1)),
-   split as σ_h = f·CQ, σ_v = (1 - f)·CQ, σ_E² = σ_N² = σ_h² / 2 -> DIAGONAL_KNOWN. The report
-   gives only the sum; the split f is this project's assumption, the ratio of the rover's
-   nominal RTK accuracy 2 cm : 3 cm (notes §7.2), f = 0.4 by default
-   (``SolutionConfig.llq_horizontal_fraction``, gnss_node ``llq_horizontal_fraction``).
-3. HDOP x UERE (per fix type): σ_E² = σ_N² = (HDOP·UERE)² / 2; σ_U = VDOP·UERE with VDOP from
-   GSA, else 2·HDOP [external: typical geometry] -> APPROXIMATED. No HDOP at all counts as 1.
-The covariance type is the weaker of the two parts'.
+Covariance, ENU [m^2]: GST, else LLQ, else the DOPs (``fix_covariance``).
 
 Velocity: VTG, else RMC: speed and course over ground -> ENU (v_E, v_N, 0); the vertical is
 not measured (notes §7.2: no down velocity), so its variance is ``UNKNOWN_VARIANCE``.
@@ -47,11 +37,14 @@ import pynmea2
 from gnss_driver import geoid
 from gnss_driver.attitude import AttitudeConverter, Orientation
 from gnss_driver.epoch import Epoch
+from gnss_driver.fix_covariance import LLQ_HORIZONTAL_FRACTION, FixCovariance
+from gnss_driver.fix_rules import HeldAltitude, gsa_mode, gsa_satellites, is_2d
 from gnss_driver.grid import GridProjection
 from gnss_driver.plausibility import KNOTS_TO_M_S, FieldReader
 from gnss_driver.sentences import ASHRATT, ASHRPAT, LLQ, sentence_id, text
 from gnss_ins_common.message_fields import UNKNOWN_VARIANCE, fill_navsatfix
 from gnss_ins_common.navsat import (
+    HEIGHT_UNKNOWN_VARIANCE_M2,
     SERVICE_COMPASS,
     SERVICE_GALILEO,
     SERVICE_GLONASS,
@@ -59,12 +52,6 @@ from gnss_ins_common.navsat import (
     CovarianceType,
     NavSatStatus,
 )
-
-#: Default fraction of the LLQ coordinate quality that is horizontal: 2 cm of 2 + 3 cm (notes
-#: §7.2); the project's assumption, the report gives only the sum (7.1).
-LLQ_HORIZONTAL_FRACTION = 0.4
-#: VDOP / HDOP when no GSA gives VDOP [external: typical satellite geometry].
-VDOP_PER_HDOP = 2.0
 
 
 class FixType(IntEnum):
@@ -159,12 +146,16 @@ class SolutionConfig:
     min_satellites: int = 4
     #: Projected CRS of LLQ's grid position (e.g. "EPSG:25832"); "" = LLQ gives no position.
     llq_projection: str = ""
+    #: Publish 2-D fixes (height unknown, ``fix_rules``); False: they are NO_FIX.
+    allow_2d_fix: bool = True
 
 
 @dataclass(frozen=True, slots=True)
 class GnssFix:
     """A position fix. ``lat_deg``/``lon_deg`` north/east positive, ``alt_m`` above the WGS-84
-    ellipsoid (NaN when unknown); all NaN with ``NO_FIX``. ``cov_enu_m2``: row-major 3x3."""
+    ellipsoid (NaN when unknown); all NaN with ``NO_FIX``. ``cov_enu_m2``: row-major 3x3.
+    ``satellites``: used, None when not reported; ``two_d``: the height is unknown (altitude
+    NaN, vertical variance ``HEIGHT_UNKNOWN_VARIANCE_M2``)."""
 
     fix_type: FixType
     lat_deg: float
@@ -176,6 +167,7 @@ class GnssFix:
     position_source: str
     satellites: int | None
     service: int
+    two_d: bool = False
 
     @property
     def status(self) -> NavSatStatus:
@@ -206,6 +198,13 @@ class SolutionStats:
 
     no_fix: int = 0
     too_few_satellites: int = 0
+    #: Valid fixes whose satellites-used count the receiver did not report (0 or empty).
+    satellites_unreported: int = 0
+    #: 2-D fixes: published (``allow_2d_fix``) or made NO_FIX.
+    fixes_2d: int = 0
+    rejected_2d: int = 0
+    #: RMC/GLL fixes given the altitude of a recent 3-D fix.
+    held_altitudes: int = 0
     #: Altitudes completed with the geoid model (GGA/GNS without a geoid separation).
     geoid_altitudes: int = 0
     fixes: dict[str, int] = field(default_factory=dict)
@@ -238,17 +237,12 @@ class EpochSolver:
         self.stats = SolutionStats()
         self.fields = FieldReader()
         self._grid = GridProjection(config.llq_projection) if config.llq_projection else None
-        self._hdop_gsa: float | None = None
-        self._vdop_gsa: float | None = None
+        self._covariance = FixCovariance(self.fields, config.llq_horizontal_fraction)
+        self._held: HeldAltitude | None = None
 
     def note_gsa(self, gsa: pynmea2.GSA) -> None:
         """Remember the DOPs of a GSA sentence (GSA is timeless and may repeat per epoch)."""
-        hdop = self.fields.number(gsa, "hdop")
-        vdop = self.fields.number(gsa, "vdop")
-        if hdop is not None:
-            self._hdop_gsa = hdop
-        if vdop is not None:
-            self._vdop_gsa = vdop
+        self._covariance.note_gsa(gsa)
 
     def solve(self, epoch: Epoch) -> EpochSolution:
         """Everything ``epoch`` tells (see the module docstring)."""
@@ -293,10 +287,11 @@ class EpochSolver:
         service = _service(epoch)
         if fix_type not in VALID_FIX_TYPES:
             return _no_fix(name, service)
-        counted = gga if gga is not None else source if isinstance(source, LLQ) else None
-        sats = self.fields.integer(counted, "num_sats") if counted is not None else None
-        if sats is not None and sats < self.config.min_satellites:
-            self.stats.too_few_satellites += 1
+        sats = self._satellites(epoch, gga, source)
+        heightless = source is rmc or source is gll  # no height field
+        held = self._held_altitude(epoch) if heightless else None
+        two_d = is_2d(gsa_mode(epoch.gsa), sats) or (heightless and held is None)
+        if not self._enough_satellites(sats, two_d):
             return _no_fix(name, service)
         if isinstance(source, LLQ):
             position = self._grid_position(source)
@@ -305,8 +300,55 @@ class EpochSolver:
         if position is None:
             return _no_fix(name, service)
         alt = self._altitude(source, *position)
-        cov, cov_type, accuracy = self._covariance(epoch, gga, fix_type)
-        return GnssFix(fix_type, *position, alt, cov, cov_type, accuracy, name, sats, service)
+        uere = self.config.uere.for_fix(fix_type)
+        cov, cov_type, accuracy = self._covariance.covariance(epoch, gga, uere)
+        if two_d:
+            alt, cov = _NAN, (*cov[:8], HEIGHT_UNKNOWN_VARIANCE_M2)
+        elif held is not None:
+            self.stats.held_altitudes += 1
+            alt, cov = held[0], (*cov[:8], held[1])
+        elif math.isfinite(alt) and epoch.time_of_day_ms is not None:
+            self._held = HeldAltitude(epoch.time_of_day_ms, alt, cov[8])
+        return GnssFix(
+            fix_type, *position, alt, cov, cov_type, accuracy, name, sats, service, two_d
+        )
+
+    def _satellites(
+        self,
+        epoch: Epoch,
+        gga: pynmea2.GGA | pynmea2.GNS | None,
+        source: pynmea2.NMEASentence,
+    ) -> int | None:
+        """Satellites used by a valid fix: from GGA/GNS or LLQ; 0 or empty is "not reported",
+        then from the epoch's GNS, else its GSAs, else None (``fix_rules``)."""
+        counted = gga if gga is not None else source if isinstance(source, LLQ) else None
+        sats = self.fields.integer(counted, "num_sats") if counted is not None else None
+        if sats or counted is None:
+            return sats
+        self.stats.satellites_unreported += 1
+        gns = epoch.get(pynmea2.GNS) if isinstance(gga, pynmea2.GGA) else None
+        from_gns = self.fields.integer(gns, "num_sats") if gns is not None else None
+        return from_gns or gsa_satellites(epoch.gsa)
+
+    def _enough_satellites(self, sats: int | None, two_d: bool) -> bool:
+        """``min_satellites`` on a reported count (``min_satellites - 1`` for a 2-D fix, which
+        needs ``allow_2d_fix``); the counters."""
+        if two_d:
+            self.stats.fixes_2d += 1
+            if not self.config.allow_2d_fix:
+                self.stats.rejected_2d += 1
+                return False
+        needed = self.config.min_satellites - (1 if two_d else 0)
+        if sats is not None and sats < needed:
+            self.stats.too_few_satellites += 1
+            return False
+        return True
+
+    def _held_altitude(self, epoch: Epoch) -> tuple[float, float] | None:
+        """(altitude [m], vertical variance [m²]) of the last 3-D fix for an RMC/GLL epoch."""
+        if self._held is None or epoch.time_of_day_ms is None:
+            return None
+        return self._held.at(epoch.time_of_day_ms)
 
     def _mode_fix_type(self, sentence: pynmea2.NMEASentence) -> FixType | None:
         """Fix type from RMC/GLL status and mode letter; None when neither says anything."""
@@ -347,69 +389,6 @@ class EpochSolver:
             self.stats.geoid_altitudes += 1
             separation = geoid.undulation_m(lat_deg, lon_deg)
         return msl + separation
-
-    def _covariance(
-        self, epoch: Epoch, gga: pynmea2.GGA | pynmea2.GNS | None, fix_type: FixType
-    ) -> tuple[tuple[float, ...], CovarianceType, str]:
-        """``gga``: the GGA or GNS of the epoch (its HDOP)."""
-        horizontal: tuple[tuple[float, float, float], CovarianceType, str] | None = None
-        vertical: tuple[float, CovarianceType] | None = None
-        gst = epoch.get(pynmea2.GST)
-        if gst is not None:
-            horizontal, vertical = self._gst(gst)
-        llq = epoch.get(LLQ)
-        cq = self.fields.number(llq, "coord_quality") if llq is not None else None
-        if cq is not None:
-            sigma_h = self.config.llq_horizontal_fraction * cq
-            if horizontal is None:
-                h2 = sigma_h * sigma_h / 2.0
-                horizontal = (h2, h2, 0.0), CovarianceType.DIAGONAL_KNOWN, "LLQ"
-            if vertical is None:
-                vertical = (cq - sigma_h) ** 2, CovarianceType.DIAGONAL_KNOWN
-        if horizontal is None or vertical is None:
-            hdop_field = "horizontal_dil" if isinstance(gga, pynmea2.GGA) else "hdop"
-            hdop = self.fields.number(gga, hdop_field) if gga is not None else None
-            hdop = hdop or self._hdop_gsa or 1.0
-            vdop = self._vdop_gsa or VDOP_PER_HDOP * hdop
-            uere = self.config.uere.for_fix(fix_type)
-            h2 = (hdop * uere) ** 2 / 2.0
-            if horizontal is None:
-                horizontal = (h2, h2, 0.0), CovarianceType.APPROXIMATED, "HDOP"
-            if vertical is None:
-                vertical = (vdop * uere) ** 2, CovarianceType.APPROXIMATED
-        (ee, nn, en), h_type, accuracy = horizontal
-        up, v_type = vertical
-        cov = (ee, en, 0.0, en, nn, 0.0, 0.0, 0.0, up)
-        return cov, min(h_type, v_type), accuracy
-
-    def _gst(
-        self, gst: pynmea2.GST
-    ) -> tuple[
-        tuple[tuple[float, float, float], CovarianceType, str] | None,
-        tuple[float, CovarianceType] | None,
-    ]:
-        sigma_n = self.fields.number(gst, "std_dev_latitude")
-        sigma_e = self.fields.number(gst, "std_dev_longitude")
-        sigma_u = self.fields.number(gst, "std_dev_altitude")
-        vertical = None if sigma_u is None else (sigma_u * sigma_u, CovarianceType.KNOWN)
-        if sigma_n is None or sigma_e is None:
-            return None, vertical
-        major = self.fields.number(gst, "std_dev_major")
-        minor = self.fields.number(gst, "std_dev_minor")
-        orientation = self.fields.number(gst, "orientation")
-        if major is None or minor is None or orientation is None:
-            diagonal = (sigma_e * sigma_e, sigma_n * sigma_n, 0.0)
-            return (diagonal, CovarianceType.DIAGONAL_KNOWN, "GST"), vertical
-        # Semi-major axis along azimuth θ (clockwise from north): u = (sin θ, cos θ) in (E, N);
-        # only its E-N correlation is used, the variances stay those of the σ fields.
-        theta = math.radians(orientation)
-        ue, un = math.sin(theta), math.cos(theta)
-        a2, b2 = major * major, minor * minor
-        ee = a2 * ue * ue + b2 * un * un
-        nn = a2 * un * un + b2 * ue * ue
-        rho = (a2 - b2) * ue * un / math.sqrt(ee * nn)
-        full = (sigma_e * sigma_e, sigma_n * sigma_n, rho * sigma_e * sigma_n)
-        return (full, CovarianceType.KNOWN, "GST"), vertical
 
     # ---- velocity ---------------------------------------------------------------------------
     def _velocity(self, epoch: Epoch) -> GnssVelocity | None:

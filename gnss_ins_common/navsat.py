@@ -29,3 +29,10 @@ class CovarianceType(IntEnum):
     APPROXIMATED = 1
     DIAGONAL_KNOWN = 2
     KNOWN = 3
+
+
+#: A NavSatFix vertical variance at or above this [m²] ((1 km)², the drivers' "not measured"
+#: variance, message_fields.UNKNOWN_VARIANCE), or a NaN altitude, marks the height as unknown: a
+#: 2-D fix, whose horizontal position alone is measured. The GNSS driver publishes 2-D fixes
+#: with a NaN altitude and this vertical variance; the fusion uses only their horizontal part.
+HEIGHT_UNKNOWN_VARIANCE_M2 = 1.0e6

@@ -125,7 +125,7 @@ def test_an_att_with_an_absurd_time_of_week_costs_only_itself():
 
 def test_a_gga_with_too_few_satellites_is_no_fix():
     gga = "GPGGA,123519.00,4807.038,N,01131.000,W,1,{},0.9,545.4,M,46.9,M,,"
-    (out,), driver = run(nmea(gga.format("00")))
+    (out,), driver = run(nmea(gga.format("02")))
     assert out.fix.fix_type is FixType.NO_FIX and math.isnan(out.fix.lat_deg)
     assert driver.solver.stats.too_few_satellites == 1
     (out,), _ = run(nmea(gga.format("04")))

@@ -164,7 +164,7 @@ def test_gns_is_a_position_source_with_its_mode_letters(modes, fix_type, service
 
 
 def test_gns_with_too_few_satellites_is_no_fix():
-    (solution, solver) = solve("GNGNS,123519.00,4807.038,N,01131.000,W,AA,03,0.9,545.4,46.9,,")
+    (solution, solver) = solve("GNGNS,123519.00,4807.038,N,01131.000,W,AA,02,0.9,545.4,46.9,,")
     assert solution.fix.fix_type is FixType.NO_FIX and solver.stats.too_few_satellites == 1
 
 

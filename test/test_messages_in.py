@@ -17,6 +17,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from gnss_ins_common.message_fields import fill_imu, fill_navsatfix, fill_orientation, fill_velocity
+from gnss_ins_common.navsat import HEIGHT_UNKNOWN_VARIANCE_M2
 from ins_fusion.adapters import messages_in
 from ins_fusion.bags.messages import new_message
 from ins_fusion.bags.topics import FIX_TYPE, IMU_TYPE, VELOCITY_TYPE
@@ -56,12 +57,27 @@ def test_valid_fix_carries_position_and_enu_covariance():
 
 
 @pytest.mark.parametrize(
+    ("alt", "vertical"),
+    [(math.nan, 0.09), (41.5, HEIGHT_UNKNOWN_VARIANCE_M2), (41.5, math.inf), (math.nan, math.nan)],
+)
+def test_a_2d_fix_is_valid_with_its_height_marked_unknown(alt, vertical):
+    cov = [0.01, 0.001, 0.5, 0.001, 0.02, 0.5, 0.5, 0.5, vertical]
+    fix = messages_in.fix_measurement(_fix(0, 1, alt, cov))
+    assert fix.valid and not fix.height_known and math.isnan(fix.height_m)
+    assert (fix.lat_deg, fix.lon_deg) == (57.01, 9.98)
+    expected = np.diag([0.0, 0.0, HEIGHT_UNKNOWN_VARIANCE_M2])
+    expected[:2, :2] = [[0.01, 0.001], [0.001, 0.02]]
+    np.testing.assert_array_equal(fix.cov_enu_m2, expected)  # no vertical correlation left
+    assert messages_in.fix_measurement(_fix()).height_known
+
+
+@pytest.mark.parametrize(
     ("status", "cov_type", "alt", "cov"),
     [
         (-1, 2, 41.5, COV3),  # NO_FIX
         (-2, 2, 41.5, COV3),  # STATUS_UNKNOWN
         (0, 0, 41.5, COV3),  # covariance type UNKNOWN: cannot be weighted
-        (0, 1, math.nan, COV3),  # altitude unknown (no geoid separation)
+        (0, 1, math.nan, [math.nan, 0, 0, 0, 1.0, 0, 0, 0, 1.0]),  # 2-D, horizontal unusable
         (0, 2, 41.5, [math.nan] * 9),
         (0, 2, 41.5, [0.0] * 9),
         (0, 2, 41.5, [-1.0, 0, 0, 0, -1.0, 0, 0, 0, -4.0]),

@@ -19,6 +19,7 @@ element is -1 marks a quantity the message does not carry.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from typing import Any, NamedTuple
@@ -101,22 +102,28 @@ def fixes_from_fields(
     (n), covariances ENU [m²] (n, 3, 3).
 
     Valid only with a fix (status >= FIX; NO_FIX and UNKNOWN carry no position), finite
-    latitude, longitude and altitude (altitude above the WGS-84 ellipsoid, ARCHITECTURE.md),
-    and a known, finite, positive definite covariance (type not UNKNOWN; a zero or negative
-    variance is no accuracy either): a position without an accuracy cannot be weighted. Invalid
-    fixes are still handed to the engine, which ignores and counts them.
+    latitude and longitude, and a known, finite, positive definite covariance (type not
+    UNKNOWN; a zero or negative variance is no accuracy either): a position without an
+    accuracy cannot be weighted. A NaN altitude or a vertical variance of at least
+    HEIGHT_UNKNOWN_VARIANCE_M2 (gnss_ins_common.navsat) is a 2-D fix: valid on its horizontal
+    part (``GnssFixMeasurement`` marks its height unknown); else the altitude is above the
+    WGS-84 ellipsoid (ARCHITECTURE.md). Invalid fixes are still handed to the engine, which
+    ignores and counts them.
     """
+    fixes = [
+        GnssFixMeasurement(t, lat, lon, alt, matrix)
+        for t, (lat, lon, alt), matrix in zip(t_s.tolist(), lla.tolist(), cov, strict=True)
+    ]
+    marked = np.array([f.cov_enu_m2 for f in fixes]).reshape(-1, 3, 3)
     valid = (
         (np.asarray(status, dtype=np.int64) >= NavSatStatus.FIX)
         & (np.asarray(covariance_type, dtype=np.int64) != CovarianceType.UNKNOWN)
-        & np.isfinite(lla).all(axis=1)
-        & positive_definite(cov)
+        & np.isfinite(lla[:, :2]).all(axis=1)
+        & positive_definite(marked)
     )
     return [
-        GnssFixMeasurement(t, lat, lon, alt, matrix, ok)
-        for t, (lat, lon, alt), matrix, ok in zip(
-            t_s.tolist(), lla.tolist(), cov, valid.tolist(), strict=True
-        )
+        fix if ok else dataclasses.replace(fix, valid=False)
+        for fix, ok in zip(fixes, valid.tolist(), strict=True)
     ]
 
 

@@ -309,11 +309,13 @@ def white_push(
     """WhiteNoiseMonitor.pushed on its ``values`` (W_* layout, in place). The state's own error
     growth between the two fixes, H P⁻_k Hᵀ - H P⁺_{k-1} Hᵀ, which the filter predicts, is taken
     off the squared difference; the rest is divided by the two reported variances, so the share
-    carries over when the fix type changes."""
+    carries over when the fix type changes. A 2-D fix (2 rows) leaves the vertical's numbers
+    as they were and pushes the vertical mean itself (no change)."""
+    rows = innovation.shape[0]
     dt = t_s - values[W_LAST_T]  # NaN without a previous fix
     if 0.0 < dt <= values[W_MAX_INTERVAL]:
-        square = np.empty(3)
-        for k in range(3):
+        square = values[W_MEAN : W_MEAN + 3].copy()
+        for k in range(rows):
             growth = max(predicted[k] - values[W_UPDATED + k], 0.0)
             step = innovation[k] - values[W_RESIDUAL + k]
             excess = max(step * step - growth, 0.0)
@@ -321,9 +323,9 @@ def white_push(
         mean = values[W_MEAN : W_MEAN + 3]
         values[W_COUNT] = push_square(mean, int(values[W_COUNT]), square, 1.0, values[W_WINDOW])
     values[W_LAST_T] = t_s
-    values[W_RESIDUAL : W_RESIDUAL + 3] = residual
-    values[W_UPDATED : W_UPDATED + 3] = updated
-    values[W_REPORTED : W_REPORTED + 3] = reported
+    values[W_RESIDUAL : W_RESIDUAL + rows] = residual
+    values[W_UPDATED : W_UPDATED + rows] = updated
+    values[W_REPORTED : W_REPORTED + rows] = reported[:rows]
 
 
 #: Weight of one normalised innovation in the running NIS mean, and of the mean's log in the

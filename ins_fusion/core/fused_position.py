@@ -33,7 +33,7 @@ from ins_fusion.core.gnss_noise import (
     _position_noise,
     shrink_correlated,
 )
-from ins_fusion.core.measurements import GnssFixMeasurement, _position_model
+from ins_fusion.core.measurements import GnssFixMeasurement, _position_model, height_measured
 from ins_fusion.core.propagation import Propagator
 from ins_fusion.core.state import (
     X_GNSS_ERROR,
@@ -66,7 +66,8 @@ def position_apply(
     it moved (``shrink_correlated``), the model of the antenna (``geometry``: rotation imu ->
     body, lever arm of the antenna from the IMU [m], body FRD), diag(H P Hᵀ),
     ``update_and_restart`` and the push of the white-noise monitor's values ``white`` (in
-    place). ``constants``: GNSS correlation time [s], the gate of 3 rows, state size.
+    place). ``constants``: GNSS correlation time [s], the gate of the fix's rows (3, a 2-D fix
+    2: ``height_measured``), state size.
     Returns (stepped, Φ of the step (P when none), what the split asked of the correlated
     error states (gnss_noise.NOISE_*), the new P, accepted, NIS); NOISE_RESTART: nothing
     after the covariance step was made."""
@@ -77,13 +78,14 @@ def position_apply(
     stepped, phi, P, prediction = step_to(P, x, t_m, process, mat_bi, columns, correlation_time_s)
     lat, lon, height, _, mat_nb, _, _ = prediction
     gp = columns[2]
+    vertical = height_measured(fix_height, cov_enu[2, 2])
     R, correlated, reported, action = _position_noise(
         cov_enu,
         scale_sq,
         white_var_ned,
         white_fraction,
         share,
-        gp >= 0,
+        (gp >= 0, vertical),
         (x[X_GNSS_REPORTED], x[X_GNSS_REPORTED + 1], x[X_GNSS_REPORTED + 2]),
         (x[X_GNSS_VARIANCE], x[X_GNSS_VARIANCE + 1], x[X_GNSS_VARIANCE + 2]),
     )
@@ -93,7 +95,7 @@ def position_apply(
         _, P, _ = shrink_correlated(P, x, correlated, gp)
     error = (x[X_GNSS_ERROR], x[X_GNSS_ERROR + 1], x[X_GNSS_ERROR + 2])
     z, H, R = _position_model(
-        lat, lon, height, mat_nb, fix_lat, fix_lon, fix_height, arm_b, R, error, size, gp
+        lat, lon, height, mat_nb, fix_lat, fix_lon, fix_height, arm_b, R, error, size, gp, vertical
     )
     predicted = projected_variance(H, P)
     accepted, nis, dx, P_new = update_and_restart(P, x, (z, H, R), threshold, columns)
@@ -130,6 +132,7 @@ class FusedPosition(FusedUpdate):
         counted); False: only the covariance step was made (see ``position_apply``)."""
         kf.set_white_noise(*self._propagator.white_noise(s))  # read only by a step
         geometry, corrections = self._geometry, self._corrections
+        rows = 3 if fix.height_known else 2
         white = s.gnss_white.values.copy()
         stepped, phi, action, P, accepted, nis = position_apply(
             kernel_array(kf.P),
@@ -146,14 +149,14 @@ class FusedPosition(FusedUpdate):
             (geometry.mat_bi, kernel_array(geometry.arms(s)[0])),
             kf.layout.columns,
             self._noise.settings(s),
-            (self._correlation_time_s, corrections.gate(3), kf.layout.size),
+            (self._correlation_time_s, corrections.gate(rows), kf.layout.size),
         )
         self._taken(kf, stepped, phi, P)
         if action == NOISE_RESTART:
             return False
         if action == NOISE_MOVED:  # the kernel set it in the state (set_correlated_variance)
             kf.gnss_variance = s.gnss_variance
-        self._booked(s, _KIND, (accepted, nis), live, 3)
+        self._booked(s, _KIND, (accepted, nis), live, rows)
         s.gnss_white = s.gnss_white.with_values(white)
         if accepted:
             s.last_position_t_s = max(s.last_position_t_s, fix.t_s)

@@ -57,7 +57,7 @@ class GnssNoise:
         return _position_noise(
             kernel_array(fix.cov_enu_m2),
             *self.settings(s),
-            self._layout.gp is not None,
+            (self._layout.gp is not None, fix.height_known),
             s.gnss_reported,
             s.gnss_variance,
         )
@@ -164,15 +164,18 @@ def _position_noise(
     white_var_ned: FloatArray,
     white_fraction: float,
     share: FloatArray,
-    correlated_states: bool,
+    kept: tuple[bool, bool],
     reported_before: Vec3,
     variance_before: Vec3,
 ) -> tuple[FloatArray, FloatArray, FloatArray, int]:
     """``GnssNoise.position_noise`` from the fix's ENU covariance [m²], the configuration
     (``scale_sq``: gnss_position_noise_scale²; the white floor per NED axis [m²] and fraction),
-    the measured white ``share`` (NaN: none), whether the correlated error states are kept
-    (``correlated_states``) and their reported and stationary variances [m²] at their last
-    (re)start and update."""
+    the measured white ``share`` (NaN: none), ``kept`` = (whether the correlated error states
+    are kept, whether the fix measures its height) and their reported and stationary variances
+    [m²] at their last (re)start and update. A 2-D fix leaves the vertical's reported and
+    correlated variance as they were and does not restart nor move them."""
+    correlated_states, vertical = kept
+    axes = 3 if vertical else 2
     total = ned_cov(cov_enu) * scale_sq
     white, correlated, reported = np.empty(3), np.empty(3), np.empty(3)
     scale = np.empty(3)
@@ -187,6 +190,8 @@ def _position_noise(
         white[k] = w
         correlated[k] = max(variance - w, 0.0)
         scale[k] = math.sqrt(w / max(variance, 1e-30))
+    if not vertical:
+        reported[2], correlated[2] = reported_before[2], variance_before[2]
     for i in range(3):
         for j in range(3):
             total[i, j] = total[i, j] * (scale[i] * scale[j])
@@ -194,7 +199,7 @@ def _position_noise(
     if correlated_states:
         moved = False
         low, high = math.inf, -math.inf
-        for k in range(3):
+        for k in range(axes):
             ratio = reported[k] / max(reported_before[k], 1e-12)
             low, high = min(low, ratio), max(high, ratio)
             moved = moved or correlated[k] != variance_before[k]

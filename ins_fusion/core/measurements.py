@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from gnss_ins_common.navsat import HEIGHT_UNKNOWN_VARIANCE_M2
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core import earth
 from ins_fusion.core.alignment import earth_rate_body_rad_s
@@ -39,10 +40,22 @@ def _array(value: object, shape: tuple[int, ...]) -> FloatArray:
     return out
 
 
+@compilable
+def height_measured(height_m: float, var_up_m2: float) -> bool:
+    """Does a fix measure its height [m] with this vertical variance [m²]? Not when the height
+    is not finite or the variance is not below HEIGHT_UNKNOWN_VARIANCE_M2 (or NaN): a 2-D fix
+    (gnss_ins_common.navsat), of which only the horizontal position is used."""
+    return math.isfinite(height_m) and var_up_m2 < HEIGHT_UNKNOWN_VARIANCE_M2
+
+
 @dataclass(frozen=True)
 class GnssFixMeasurement:
     """Antenna position (gnss/fix): WGS-84 latitude/longitude [deg], ellipsoidal height [m],
-    ENU covariance [m²] (3, 3); ``valid`` False for no-fix messages (ignored and counted)."""
+    ENU covariance [m²] (3, 3); ``valid`` False for no-fix messages (ignored and counted).
+
+    A 2-D fix (``height_measured`` false) is kept as height NaN with the vertical variance
+    HEIGHT_UNKNOWN_VARIANCE_M2 and no vertical correlation: its model has the horizontal rows
+    only, and it never starts the filter nor sets the datum."""
 
     t_s: float
     lat_deg: float
@@ -52,7 +65,17 @@ class GnssFixMeasurement:
     valid: bool = True
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "cov_enu_m2", _array(self.cov_enu_m2, (3, 3)))
+        cov = np.array(self.cov_enu_m2, dtype=np.float64).reshape(3, 3)
+        if not height_measured(self.height_m, float(cov[2, 2])):
+            object.__setattr__(self, "height_m", math.nan)
+            cov[2, :] = cov[:, 2] = 0.0
+            cov[2, 2] = HEIGHT_UNKNOWN_VARIANCE_M2
+        object.__setattr__(self, "cov_enu_m2", _array(cov, (3, 3)))
+
+    @property
+    def height_known(self) -> bool:
+        """Whether the height is measured (a 3-D fix)."""
+        return height_measured(self.height_m, float(self.cov_enu_m2[2, 2]))
 
 
 @dataclass(frozen=True)
@@ -135,7 +158,8 @@ def gnss_position(
 ) -> Model:
     """Antenna position p + C_nb l plus the estimated time-correlated receiver error ε_g (when
     it is a state). H: δp -> I, ψ -> -[(C_nb l)×], δε_g -> I; R: the white part of the
-    receiver's covariance. Compiled (``_position_model``)."""
+    receiver's covariance. North and east rows only for a 2-D fix. Compiled
+    (``_position_model``)."""
     return _position_model(
         pred.lat_rad,
         pred.lon_rad,
@@ -149,6 +173,7 @@ def gnss_position(
         gnss_error_ned,
         pred.layout.size,
         pred.layout.columns[2],
+        meas.height_known,
     )
 
 
@@ -166,9 +191,11 @@ def _position_model(
     gnss_error_ned: tuple[float, float, float],
     size: int,
     gp: int,
+    vertical: bool,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """``gnss_position``'s model from the predicted IMU position (lat, lon [rad], h [m]) and
-    attitude, the fix's position and the layout's size and GNSS error column (-1: none)."""
+    attitude, the fix's position and the layout's size and GNSS error column (-1: none);
+    without ``vertical`` (a 2-D fix) the north and east rows only."""
     arm_n = mat_nb @ lever_b
     r_m, r_n = earth.radii_from_sin(math.sin(lat_rad))
     offset = (
@@ -184,7 +211,8 @@ def _position_model(
             H[k, gp + k] = 1.0
         z[k] = offset[k] - arm_n[k] - gnss_error_ned[k]
     H[:, ATT : ATT + 3] = -skew(arm_n)
-    return z, H, white_cov_ned.copy()
+    rows = 3 if vertical else 2
+    return z[:rows].copy(), H[:rows].copy(), white_cov_ned[:rows, :rows].copy()
 
 
 def gnss_velocity(
