@@ -6,7 +6,7 @@ loading them.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 from ins_fusion.bags.topics import (
     ATTITUDE_TYPE,
@@ -128,7 +128,8 @@ def choose_topics(
             notes.append(f"no {default}: {role} from {candidates[0]}, the bag's only {wanted}")
         else:
             notes.append(f"no {default} and no other {wanted} topic: replaying without {role}")
-    return replace(topics, **chosen), notes
+    roles = {**topics.by_role(), **chosen}
+    return TopicMap(**roles, named=topics.named), notes
 
 
 def choose_reference(
