@@ -24,6 +24,7 @@ A fenced block with commands (``sh``/``bash``/no language, a line starting with 
 
 from __future__ import annotations
 
+import contextlib
 import os
 import random
 import re
@@ -177,10 +178,8 @@ class Session:
             output, _ = process.communicate()
             return Result(output, -1, timed_out=True)
         finally:
-            try:  # what a block left behind (a job of a job)
+            with contextlib.suppress(ProcessLookupError):  # what a block left behind
                 os.killpg(process.pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
         return Result(output, process.returncode)
 
 
