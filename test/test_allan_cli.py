@@ -79,9 +79,15 @@ def test_a_40_min_record_gives_a_provisional_bias(bag_40_min, tmp_path, capsys):
     bias instability within a factor 2 of the simulated unit's, marked provisional, with the
     record length that would pin it."""
     output = tmp_path / "noise.yaml"
-    code, _, err = _allan(capsys, bag_40_min, "-o", output)
+    code, out, err = _allan(capsys, bag_40_min, "-o", output)
     assert code == 0, err
     loaded = load_yaml(output, "ins_fusion_node", PARAMETERS)
+    # Where the table is printed: the values written and why they are not the table's.
+    assert f"{output}: bias instability written for the node: the PROVISIONAL values" in out
+    for name in ("gyro_bias_instability", "accel_bias_instability"):
+        written = ", ".join(map(str, loaded[f"imu_noise.{name}"]))
+        assert f"  {name} [" in out and f"] {written}\n" in out
+    assert f"  bias_correlation_time [s] {loaded['imu_noise.bias_correlation_time']}" in out
     assert loaded["imu_noise.gyro_arw"] == pytest.approx([2.82, 2.75, 3.30], rel=0.05)
     assert loaded["imu_noise.accel_vrw"] == pytest.approx([0.0201, 0.0263, 0.0249], rel=0.05)
     gyro = np.array(loaded["imu_noise.gyro_bias_instability"]) / [10.8, 6.84, 18.4]  # deg/h

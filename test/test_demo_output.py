@@ -15,7 +15,15 @@ import pytest
 from ins_fusion.runtime.processes import gnss_ins_command
 from ins_fusion.runtime.vehicle_nodes import VEHICLE
 from ins_fusion.tools import cli
-from ins_fusion.tools.demo import _prepare_output
+from ins_fusion.tools.demo import (
+    DURATION_LIMIT_ENV,
+    STANDSTILL_S,
+    _default_outages,
+    _describe_outages,
+    _duration_s,
+    _prepare_output,
+    window_s,
+)
 
 
 def test_a_new_directory_is_created_and_marked(tmp_path: Path) -> None:
@@ -55,6 +63,29 @@ def test_a_file_in_the_way_is_refused(tmp_path: Path) -> None:
     path = tmp_path / "demo"
     path.write_text("x")
     assert "not a directory" in (_prepare_output(path) or "")
+
+
+@pytest.mark.parametrize("duration_s", [66.0, 75.0, 90.0, 104.0, 120.0, 150.0, 300.0])
+def test_the_default_outages_lie_inside_any_drive_and_are_said(duration_s: float) -> None:
+    outages = _default_outages(duration_s)
+    assert outages, duration_s  # a drive of 6 s or more after the standstill has one
+    for window in map(window_s, outages):
+        assert window["start_s"] >= STANDSTILL_S  # after the alignment's standstill
+        assert window["start_s"] + window["duration_s"] <= duration_s - 2.0
+    assert len(outages) == (2 if duration_s >= STANDSTILL_S + 80 else 1)
+    said = _describe_outages(outages, duration_s)
+    assert said.count(" s at ") == len(outages), said
+
+
+def test_a_drive_without_room_for_an_outage_says_so() -> None:
+    assert _default_outages(62.0) == []
+    assert "without GNSS outages" in _describe_outages([], 62.0)
+
+
+def test_the_duration_limit_only_shortens(monkeypatch: pytest.MonkeyPatch) -> None:
+    assert _duration_s(90.0) == 90.0
+    monkeypatch.setenv(DURATION_LIMIT_ENV, "40")
+    assert _duration_s(90.0) == 40.0 and _duration_s(30.0) == 30.0
 
 
 @pytest.mark.ros
@@ -109,6 +140,7 @@ def test_a_short_demo_writes_one_report_and_figure_and_shuts_down_in_order(tmp_p
     # No default outage fits a 30 s drive (the IMU may start late on a loaded machine, so
     # an outage given here could fall after its data).
     assert report["outages"] == [] and report["replay_report"]["outages"] == []
+    assert "offline replay without GNSS outages" in result.stdout
     assert (out / "demo.png").read_bytes()[:4] == b"\x89PNG"
     assert not (out / "replay_report.json").exists() and not (out / "replay.png").exists()
     for spec in VEHICLE:

@@ -215,6 +215,20 @@ def test_play_loops_until_interrupted(tmp_path: Path):
         collector.node.destroy_node()
 
 
+def test_play_interrupted_before_any_subscriber_says_nothing_was_published(tmp_path: Path):
+    bag = tmp_path / "unheard"
+    with BagWriter(bag, storage="mcap") as writer:
+        writer.add_topic("/test/unheard", "sensor_msgs/msg/Imu")
+        writer.write("/test/unheard", 10**18, serialize_message(imu(0)))
+    player = gnss_ins("play", str(bag), "--loop", "--wait-for-subscribers")
+    assert player.stderr is not None
+    assert "waiting for subscribers" in player.stderr.readline()
+    player.send_signal(signal.SIGINT)
+    out = finish(player)
+    assert "interrupted while waiting for subscribers, nothing published" in out
+    assert "pass(es)" not in out
+
+
 def test_refusals(tmp_path: Path, capsys: pytest.CaptureFixture[str]):
     assert main(["record", "-o", str(tmp_path / "bag")]) == 2
     assert "name topics" in capsys.readouterr().err

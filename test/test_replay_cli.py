@@ -21,7 +21,7 @@ from ins_fusion.core.params import PARAMETERS
 from ins_fusion.replay.inputs import load_bag
 from ins_fusion.replay.outages import Outage, mask
 from ins_fusion.replay.pipeline import replay
-from ins_fusion.replay.plot import measured, plot_replay
+from ins_fusion.replay.plot import measured, plot_replay, settled_from
 from ins_fusion.tools import cli
 
 DURATION_S = FIGURE_EIGHT_90_S.duration_s
@@ -302,7 +302,7 @@ def test_bag_without_reference_is_replayed_without_accuracy(bag, tmp_path, capsy
     report_path, plot_path = tmp_path / "r.json", tmp_path / "p.png"
     code, out, err = _replay(capsys, sensors, "--report", report_path, "--plot", plot_path)
     assert code == 0
-    assert "no /ground_truth/fix in the bag" in err
+    assert "no reference (/ground_truth/fix) in the bag" in err
     assert "accuracy not evaluated" in out
     report = json.loads(report_path.read_text())
     assert report["reference"] is None and report["evaluated_samples"] == 0
@@ -334,6 +334,27 @@ def test_plot_without_reference_shows_the_measurements_against_the_fused_solutio
     plot = tmp_path / "p.png"
     plot_replay(plot, result.compared_track, inputs.t0_s, None, [outage], "t", None, data)
     assert plot.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_the_plot_is_scaled_to_the_navigation_not_the_alignment(bag, tmp_path):
+    """The alignment's σ spike (degrees) is drawn, clipped; the attitude panels' scale is that of
+    the navigation after it (tenths of a degree), errors and ±3σ inside."""
+    inputs = load_bag(bag)
+    result = replay(inputs, validate_all(PARAMETERS, {}), [], "/ground_truth")
+    assert result.evaluation is not None and result.evaluation.attitude is not None
+    attitude = result.evaluation.attitude
+    figure = plot_replay(
+        tmp_path / "p.png", result.compared_track, inputs.t0_s, result.evaluation, [], "t"
+    )
+    settled = attitude.t_rel_s >= settled_from(attitude.t_rel_s, attitude.sigma)
+    assert 0.9 * len(settled) < settled.sum() < len(settled)  # a short transient left out
+    for axis, panel in enumerate(figure.axes[4:7]):  # track, E, N, U, roll, pitch, yaw
+        low, high = panel.get_ylim()
+        bound = 3.0 * attitude.sigma[:, axis]
+        if axis > 0:  # the pitch and yaw spikes, clipped
+            assert bound.max() > 2.0 * high
+        shown = np.concatenate([bound[settled], -bound[settled], attitude.error[settled, axis]])
+        assert low <= shown.min() and shown.max() <= high < 1.2 * shown.max()
 
 
 def test_a_refused_run_names_the_outputs_it_did_not_write(bag, tmp_path, capsys):

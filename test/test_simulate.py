@@ -356,3 +356,21 @@ def test_imu_and_gnss_rates_replace_the_profiles(tmp_path, capsys):
     assert np.all(np.diff(stamps[T.GNSS_ATTITUDE]) == 200_000_000)  # the ADU5's own 5 Hz
     assert cli.main(["simulate", "--live", "--imu-rate=200"]) == 2
     assert "for bags" in capsys.readouterr().err
+
+
+def test_the_option_table_of_simulator_md_gives_the_parser_defaults() -> None:
+    """docs/simulator.md's `| --option | `default` |` rows say what `simulate --help` does."""
+    import argparse
+    import re
+    from pathlib import Path
+
+    from ins_fusion.tools import simulate
+
+    parser = argparse.ArgumentParser()
+    simulate.add_arguments(parser)
+    defaults = {a.option_strings[-1]: a.default for a in parser._actions if a.option_strings}
+    page = (Path(__file__).resolve().parents[1] / "docs" / "simulator.md").read_text()
+    rows = re.findall(r"^\| `(--[a-z0-9-]+)` \| `([^`|]+)` \|", page, re.M)
+    assert len(rows) >= 4, rows
+    for option, default in rows:
+        assert str(defaults[option]) == default, option

@@ -164,6 +164,29 @@ def fusion_parameters(
     return {name: validate(_SPECS[name], value) for name, value in values.items()}
 
 
+def written_bias_lines(
+    parameters: dict[str, Any], provisional: ProvisionalBiases | None, output: Path | str
+) -> list[str]:
+    """What ``output`` gets for the bias instability and why it is not the table's per-axis
+    fit: the node takes one correlation time for all axes, and a provisional σ is the
+    conservative value at that time (empty without bias terms)."""
+    if "imu_noise.bias_correlation_time" not in parameters:
+        return []
+    why = (
+        "the PROVISIONAL values of the warning (a conservative sigma at one common T), not the"
+        " table's fits"
+        if provisional is not None and provisional.axes
+        else "the table's sigmas; T is one value for all axes, the geometric mean of theirs"
+    )
+    lines = [f"{output}: bias instability written for the node: {why}"]
+    for name in ("gyro_bias_instability", "accel_bias_instability", "bias_correlation_time"):
+        value = parameters[f"imu_noise.{name}"]
+        shown = ", ".join(map(str, value)) if isinstance(value, list) else str(value)
+        unit = _COMMENTS[f"imu_noise.{name}"].split("]")[0] + "]"
+        lines.append(f"  {name} {unit} {shown}")
+    return lines
+
+
 _COMMENTS = {
     "imu_noise.gyro_arw": "[deg/sqrt(h)] white-noise density, -1/2 line at 1 s",
     "imu_noise.accel_vrw": "[m/s/sqrt(h)] white-noise density, -1/2 line at 1 s",

@@ -116,6 +116,8 @@ def _load(args: argparse.Namespace) -> ReplayInputs:
             )
         except InputError as exc:
             raise UsageError(str(exc)) from None
+    for note in inputs.notes:
+        print(f"note: {note}", file=sys.stderr)
     for outage in args.outage:
         if outage.start_s >= inputs.duration_s:
             raise UsageError(
@@ -124,7 +126,10 @@ def _load(args: argparse.Namespace) -> ReplayInputs:
             )
     if inputs.reference is None and args.reference is None:
         scored = "; outages scored against the withheld GNSS fixes" if args.outage else ""
-        print(f"note: no {prefix}/fix in the bag; accuracy not evaluated{scored}", file=sys.stderr)
+        print(
+            f"note: no reference ({prefix}/fix) in the bag; accuracy not evaluated{scored}",
+            file=sys.stderr,
+        )
     return inputs
 
 
@@ -158,7 +163,7 @@ def _run(args: argparse.Namespace) -> int:
     for setting in settings or [{}]:
         _check_engine({**parameters, **setting})
     inputs = _load(args)
-    reference = None if inputs.reference is None else (args.reference or DEFAULT_REFERENCE)
+    reference = None if inputs.reference is None else inputs.reference_prefix
     _frame_note(inputs, parameters)
     outages: list[Outage] = args.outage
     if args.free_inertial is not None:

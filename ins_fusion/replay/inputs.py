@@ -42,7 +42,10 @@ from ins_fusion.replay.topics import (
     DEFAULT_TOPICS,
     REFERENCE_TYPES,
     SENSOR_TYPES,
+    TopicChoiceError,
     TopicMap,
+    choose_reference,
+    choose_topics,
 )
 
 Measurement = GnssFixMeasurement | GnssVelocityMeasurement | AttitudeMeasurement
@@ -119,6 +122,10 @@ class ReplayInputs:
     reference: Reference | None
     read_time_s: float
     imu_frame: str = ""
+    #: What the replay chose for a default topic that is absent (choose_topics, choose_reference).
+    notes: tuple[str, ...] = ()
+    #: The reference topics' prefix (the one chosen when the default is absent).
+    reference_prefix: str = DEFAULT_REFERENCE
 
     @property
     def t0_s(self) -> float:
@@ -160,8 +167,15 @@ def load_bag(
     try:
         with BagReader(path) as reader:
             available = {name: info.msgtype for name, info in reader.topics.items()}
-            roles = {topic: role for role, topic in topics.by_role().items()}
             prefix = reference_prefix.rstrip("/")
+            try:
+                topics, notes = choose_topics(topics, available, prefix)
+                if not reference_required:
+                    prefix, note = choose_reference(prefix, available, [*topics.by_role().values()])
+                    notes += [note] if note else []
+            except TopicChoiceError as exc:
+                raise InputError(f"{path}: {exc}") from None
+            roles = {topic: role for role, topic in topics.by_role().items()}
             ref_topics = {f"{prefix}/{s}": s for s in REFERENCE_TYPES}
             _check_types(
                 available,
@@ -204,7 +218,15 @@ def load_bag(
         detail = str(exc).removeprefix(f"{path}: ")  # the bag's name once
         raise InputError(f"cannot read bag {path}: {detail}") from exc
     return ReplayInputs(
-        str(path), topics, imu, measurements, reference, time.perf_counter() - start, imu_frame
+        str(path),
+        topics,
+        imu,
+        measurements,
+        reference,
+        time.perf_counter() - start,
+        imu_frame,
+        tuple(notes),
+        prefix,
     )
 
 

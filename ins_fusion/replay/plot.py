@@ -120,8 +120,9 @@ def plot_replay(
     title: str,
     smoothed: Scored | None = None,
     measured: Measured | None = None,
-) -> None:
-    """Save the replay figure to ``path`` (format from its suffix, e.g. .png, .pdf); with
+) -> Figure:
+    """Save the replay figure to ``path`` (format from its suffix, e.g. .png, .pdf) and return
+    it; each error panel is scaled to the navigation after the alignment settled; with
     ``smoothed``, the smoothed solution over the forward one; with ``measured`` (used when
     there is no ``evaluation``), the measurements against the fused solution."""
     fig, ax_track, axes = track_and_time_panels((15, 10), 6, 1.3)
@@ -137,19 +138,51 @@ def plot_replay(
     if smoothed is not None:
         runs.append((smoothed.compared, smoothed.evaluation, True))
     for i, attitude in enumerate((False, True)):
+        settled_s = np.inf
         for run_track, run_evaluation, is_smoothed in runs:
             t, err, sigma = _errors_and_sigma(run_track, t0_s, run_evaluation, attitude)
+            settled_s = min(settled_s, settled_from(t, sigma))
             for axis in range(3):
                 column = None if err is None else err[:, axis]
                 _error_curves(axes[3 * i + axis], t, column, sigma[:, axis], is_smoothed)
         for axis in range(3):
             _shade(axes[3 * i + axis], outages)
+            _scale_from(axes[3 * i + axis], settled_s)
             axes[3 * i + axis].set_ylabel(labels[3 * i + axis])
             axes[3 * i + axis].grid(True, lw=0.3)
     axes[0].legend(loc="upper right", fontsize="small")
     axes[-1].set_xlabel("time after the first IMU sample [s]")
     fig.suptitle(title)
     fig.savefig(path, dpi=110)
+    return fig
+
+
+def settled_from(t_s: FloatArray, sigma: FloatArray) -> float:
+    """When the alignment's uncertainty has settled [s, as ``t_s``]: the first time at which
+    every axis's σ (n, 3) is within twice its median over the run (an outage's growth later is
+    part of the navigation, not of the alignment)."""
+    if not len(t_s):
+        return float("inf")
+    settled = sigma <= 2.0 * np.median(sigma, axis=0)
+    first = [int(np.argmax(column)) if column.any() else len(t_s) - 1 for column in settled.T]
+    return float(t_s[max(first)])
+
+
+def _scale_from(ax: Axes, settled_s: float) -> None:
+    """Y limits from every curve of ``ax`` after ``settled_s`` (the alignment before it is
+    drawn, clipped, but does not set the scale)."""
+    values = [
+        np.asarray(line.get_ydata(), dtype=float)[
+            np.asarray(line.get_xdata(), dtype=float) >= settled_s
+        ]
+        for line in ax.get_lines()
+    ]
+    shown = np.concatenate(values) if values else np.empty(0)
+    shown = shown[np.isfinite(shown)]
+    if shown.size:
+        low, high = float(shown.min()), float(shown.max())
+        pad = 0.05 * (high - low) or 1e-3
+        ax.set_ylim(low - pad, high + pad)
 
 
 def track_and_time_panels(

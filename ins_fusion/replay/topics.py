@@ -16,6 +16,7 @@ from ins_fusion.bags.topics import (
     GNSS_VEL,
     IMU_DATA,
     IMU_TYPE,
+    INS_FIX,
     TRUTH_PREFIX,
     VELOCITY_TYPE,
 )
@@ -79,3 +80,83 @@ class TopicMap:
 
 #: The node's default topic names.
 DEFAULT_TOPICS = TopicMap()
+
+
+class TopicChoiceError(ValueError):
+    """A default topic is absent and the bag offers several of its type (message lists them)."""
+
+
+#: The fusion node's own outputs (``/ins/...``): never an input nor a reference.
+_OUTPUT_PREFIX = INS_FIX.rsplit("/", 1)[0] + "/"
+
+
+def _listing(topics: list[str]) -> str:
+    return ", ".join(topics)
+
+
+def choose_topics(
+    topics: TopicMap, available: dict[str, str], reference_prefix: str
+) -> tuple[TopicMap, list[str]]:
+    """The input topics of a bag whose topics and types are ``available``: a role the user did
+    not name and whose default topic is absent takes the bag's only topic of the role's type
+    (not the reference's, not the node's ``/ins`` output, not another role's); several such
+    topics raise TopicChoiceError listing them. Returns the map and one note per role whose
+    topic was chosen or is missing."""
+    taken = {t for r, t in topics.by_role().items() if r in topics.named or t in available}
+    reference = reference_prefix.rstrip("/") + "/"
+    chosen: dict[str, str] = {}
+    notes: list[str] = []
+    for role, default in topics.by_role().items():
+        if role in topics.named or default in available:
+            continue
+        wanted = SENSOR_TYPES[role]
+        candidates = sorted(
+            t
+            for t, msgtype in available.items()
+            if msgtype == wanted
+            and t not in taken
+            and not t.startswith((reference, _OUTPUT_PREFIX))
+        )
+        if len(candidates) > 1:
+            raise TopicChoiceError(
+                f"no {default}; the bag's {wanted} topics {_listing(candidates)} could each be"
+                f" the {role!r} input: choose one with --topics {role}=TOPIC"
+            )
+        if candidates:
+            chosen[role] = candidates[0]
+            taken.add(candidates[0])
+            notes.append(f"no {default}: {role} from {candidates[0]}, the bag's only {wanted}")
+        else:
+            notes.append(f"no {default} and no other {wanted} topic: replaying without {role}")
+    roles = {**topics.by_role(), **chosen}
+    return TopicMap(**roles, named=topics.named), notes
+
+
+def choose_reference(
+    prefix: str, available: dict[str, str], sensor_topics: list[str]
+) -> tuple[str, str | None]:
+    """The reference prefix: ``prefix`` when ``PREFIX/fix`` is in the bag, else the only other
+    ``P/fix`` of the reference type (not a sensor topic, not the node's output), with a note
+    saying so; several raise TopicChoiceError listing them; none keeps ``prefix`` (no
+    reference)."""
+    prefix = prefix.rstrip("/")
+    wanted = REFERENCE_TYPES["fix"]
+    if f"{prefix}/fix" in available:
+        return prefix, None
+    candidates = sorted(
+        t
+        for t, msgtype in available.items()
+        if msgtype == wanted
+        and t.endswith("/fix")
+        and t not in sensor_topics
+        and not t.startswith(_OUTPUT_PREFIX)
+    )
+    if len(candidates) > 1:
+        raise TopicChoiceError(
+            f"no {prefix}/fix; the bag's other {wanted} topics {_listing(candidates)} could each"
+            " be the reference: choose one with --reference PREFIX (the topic without /fix)"
+        )
+    if not candidates:
+        return prefix, None
+    found = candidates[0].removesuffix("/fix")
+    return found, f"no {prefix}/fix: reference {found}/*, the bag's only other {wanted} /fix"

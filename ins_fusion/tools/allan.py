@@ -39,6 +39,7 @@ from ins_fusion.noise_id.output import (
     provisional_lines,
     summary_table,
     write_parameter_file,
+    written_bias_lines,
 )
 from ins_fusion.noise_id.plot import plot_allan
 from ins_fusion.noise_id.provisional import provisional_biases
@@ -162,5 +163,6 @@ def run(args: argparse.Namespace) -> int:
         except ParameterValueError as exc:
             return _error(f"identified values outside the node's ranges: {exc}")
         write_parameter_file(args.output, report, parameters, provisional)
+        print("\n".join(written_bias_lines(parameters, provisional, args.output)))
         print(f"parameters: {args.output}")
     return 0

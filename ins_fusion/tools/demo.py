@@ -123,9 +123,37 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _default_outages(duration_s: float) -> list[str]:
-    """20 s outages 20 s and 55 s into the drive that end at least 5 s before the data do."""
+    """20 s outages 20 s and 55 s into the drive that end at least 5 s before the data do; a
+    drive too short for either gets one outage over its middle third (none below 6 s)."""
     starts = (STANDSTILL_S + 20.0, STANDSTILL_S + 55.0)
-    return [f"{start:g}:20" for start in starts if start + 25.0 <= duration_s]
+    fitting = [f"{start:g}:20" for start in starts if start + 25.0 <= duration_s]
+    third_s = (duration_s - STANDSTILL_S) / 3.0
+    if fitting or third_s < 2.0:
+        return fitting
+    return [f"{STANDSTILL_S + third_s:.4g}:{third_s:.4g}"]
+
+
+#: Caps the live drive [s] whatever --duration says (the documentation test runs the pages'
+#: demo in less time); the demo prints the shortened duration.
+DURATION_LIMIT_ENV = "GNSS_INS_DEMO_DURATION_LIMIT_S"
+
+
+def _duration_s(requested_s: float) -> float:
+    """``--duration``, capped by DURATION_LIMIT_ENV when it is set."""
+    limit = os.environ.get(DURATION_LIMIT_ENV)
+    return min(requested_s, float(limit)) if limit else requested_s
+
+
+def _describe_outages(outages: Sequence[str], duration_s: float) -> str:
+    """The terminal's line on the replay's outages (or why there is none)."""
+    if not outages:
+        return (
+            f"  offline replay without GNSS outages: a {duration_s:g} s drive leaves less than"
+            f" 6 s after the {STANDSTILL_S:g} s standstill"
+        )
+    windows = [window_s(text) for text in outages]
+    listed = ", ".join(f"{w['duration_s']:g} s at {w['start_s']:g} s" for w in windows)
+    return f"  offline replay with GNSS outages: {listed}"
 
 
 class _Lines:
@@ -231,7 +259,14 @@ def run(args: argparse.Namespace) -> int:
     env.setdefault("ROS_DOMAIN_ID", str(random.SystemRandom().randint(1, 100)))
     env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     started = time.monotonic()
-    print(f"gnss_ins demo: {args.duration:.0f} s simulated drive in real time, output in {out}/")
+    requested_s, args.duration = args.duration, _duration_s(args.duration)
+    shortened = f" (shortened by {DURATION_LIMIT_ENV})" if args.duration < requested_s else ""
+    print(
+        f"gnss_ins demo: {args.duration:.0f} s simulated drive in real time{shortened},"
+        f" output in {out}/"
+    )
+    outages = args.outage or _default_outages(args.duration)
+    print(_describe_outages(outages, args.duration))
     print(
         f"  ROS_DOMAIN_ID={env['ROS_DOMAIN_ID']} (localhost only): watch with e.g."
         f" ROS_DOMAIN_ID={env['ROS_DOMAIN_ID']} ros2 topic echo /ins/odometry",
@@ -248,7 +283,6 @@ def run(args: argparse.Namespace) -> int:
         flush=True,
     )
     _merge([out / "drive", out / "truth"], out / "drive_with_truth")
-    outages = args.outage or _default_outages(args.duration)
     replay = _replay(out, outages, env)
     if replay is None:
         return 1

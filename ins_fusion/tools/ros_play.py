@@ -158,15 +158,23 @@ def play(args: argparse.Namespace, reader: BagReader, topics: list[str]) -> int:
             player.wait_for_subscribers()
         wall_start = time.monotonic()
         span_s = max(reader.end_ns - start_ns, 0) / 1e9
-        passes = 1
+        passes = 0  # complete passes
         with Progress("play", total=span_s, unit="s") as progress:
-            while player.play(start_ns, progress) and args.loop:
+            while not player.stop.is_set() and player.play(start_ns, progress):
                 passes += 1
+                if not args.loop:
+                    break
         player.flush()
         wall_s = time.monotonic() - wall_start
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
-    title = f"played {args.bag} at rate {args.rate:g}, {passes} pass(es) in {wall_s:.2f} s"
+    interrupted = player.stop.is_set()
+    if interrupted and player.summary.count == 0:
+        waited = " while waiting for subscribers" if args.wait_for_subscribers else ""
+        print(f"played {args.bag}: interrupted{waited}, nothing published")
+        return 0
+    done = f"interrupted after {passes} complete pass(es)" if interrupted else f"{passes} pass(es)"
+    title = f"played {args.bag} at rate {args.rate:g}, {done} in {wall_s:.2f} s"
     print(player.summary.format(title))
     return 0
