@@ -14,8 +14,6 @@ from docs_pages import PAGES, Session, blocks, differences
 # Real nodes run in the README's blocks: in the session of the real-time tests.
 pytestmark = pytest.mark.ros
 
-#: Pages whose command blocks carry no markers yet, and why (explicit, never silently skipped).
-UNMARKED = {"gnss.md": "being rewritten on another branch; its markers come with that change"}
 #: Anything of these in a block's output fails it, whatever its exit status.
 FAILURE = re.compile(
     r"Traceback \(most recent call last\)|command not found|exists already"
@@ -27,7 +25,6 @@ def test_every_command_block_is_marked() -> None:
     unmarked = [
         b.where
         for page in PAGES
-        if page.name not in UNMARKED
         for b in blocks(page)
         if b.has_commands and b.kind is None
     ]
