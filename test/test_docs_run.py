@@ -23,10 +23,7 @@ FAILURE = re.compile(
 
 def test_every_command_block_is_marked() -> None:
     unmarked = [
-        b.where
-        for page in PAGES
-        for b in blocks(page)
-        if b.has_commands and b.kind is None
+        b.where for page in PAGES for b in blocks(page) if b.has_commands and b.kind is None
     ]
     assert not unmarked, f"command blocks without a docs-test marker: {unmarked}"
     reasonless = [b.where for p in PAGES for b in blocks(p) if b.kind == "skip" and not b.reason]
