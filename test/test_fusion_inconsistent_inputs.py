@@ -112,6 +112,6 @@ def test_an_imu_at_rest_under_a_moving_antenna_never_overflows(seed):
 
 def test_without_the_bound_the_same_inputs_overflow(monkeypatch):
     """The scenario is hard enough to show the failure: the fading unbounded, as before."""
-    monkeypatch.setattr(eskf, "bounded_covariance", lambda P, _ceiling: P)
+    monkeypatch.setattr(eskf, "faded_covariance", lambda P, factor, _ceiling: P * factor)
     engine, _, largest_bias = _run(HOUR_S, 1)
     assert engine.status().resets > 0 or largest_bias > 2.0 * _prior_gyro_bias_sigma(engine)

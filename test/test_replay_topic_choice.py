@@ -70,6 +70,10 @@ def test_the_reference_prefix_is_chosen_the_same_way() -> None:
     with pytest.raises(TopicChoiceError, match="/novatel/fix, /spatial/fix"):
         choose_reference("/ground_truth", {**spatial, "/novatel/fix": FIX_TYPE}, sensors)
     assert choose_reference("/ground_truth", {"/ins/fix": FIX_TYPE}, []) == ("/ground_truth", None)
+    # The vehicle's recording: no truth, the ADU5's own fix beside its attitude (a sensor topic).
+    vehicle = {k: v for k, v in DEMO_TOPICS.items() if not k.startswith("/ground_truth")}
+    vehicle["/adu5/gnss/fix"] = FIX_TYPE
+    assert choose_reference("/ground_truth", vehicle, sensors) == ("/ground_truth", None)
 
 
 def _renamed(source: Path, target: Path, names: dict[str, str]) -> None:

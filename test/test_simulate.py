@@ -203,7 +203,7 @@ def test_truth_topics_are_base_link_exactly(bag):
 
 
 def _node_stub(cls: type, **attributes: Any) -> tuple[SimpleNamespace, dict[str, list[Any]]]:
-    """An object standing in for a node: the class's publishing methods bound to it, every
+    """An object standing in for an active node: the class's publishing methods bound to it, every
     ``*_pub`` publisher collecting its messages."""
     published: dict[str, list[Any]] = {}
     stub = SimpleNamespace(**attributes)
@@ -214,6 +214,7 @@ def _node_stub(cls: type, **attributes: Any) -> tuple[SimpleNamespace, dict[str,
             setattr(stub, name, partial(getattr(cls, name), stub))
     clock = SimpleNamespace(now=lambda: SimpleNamespace(nanoseconds=0))
     stub.get_clock = lambda: clock
+    stub.publishing = lambda held=1: True  # an active (lifecycle) driver
     return stub, published
 
 

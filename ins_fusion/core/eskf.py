@@ -176,7 +176,7 @@ class ErrorStateFilter:
         self.layout = layout
         self.P: FloatArray = np.zeros((n, n))
         #: Largest variance of each error state after a fading (``scale``), inf: none; set by
-        #: the start to what is known of the state before any measurement (bounded_covariance).
+        #: the start to what is known of the state before any measurement (faded_covariance).
         self.variance_ceiling: FloatArray = np.full(n, math.inf)
         #: Transition matrix Φ of the last ``propagate`` (a new array per call).
         self.phi: FloatArray = np.eye(n)
@@ -310,8 +310,8 @@ class ErrorStateFilter:
 
     def scale(self, factor: float) -> None:
         """Multiply the covariance by ``factor`` (fading memory: every state less certain), no
-        state's variance beyond its ``variance_ceiling``."""
-        self.P = bounded_covariance(self.P * factor, self.variance_ceiling)
+        state's variance beyond its ``variance_ceiling`` (``faded_covariance``)."""
+        self.P = faded_covariance(self.P, factor, self.variance_ceiling)
 
     def add_noise(self, start: int, cov: FloatArray) -> None:
         """Add a 3x3 covariance to the diagonal block of the states at ``start`` (noise the
@@ -353,20 +353,24 @@ class ErrorStateFilter:
         return None
 
 
-def bounded_covariance(P: FloatArray, ceiling: FloatArray) -> FloatArray:
-    """P with the variance of each state i above ``ceiling[i]`` brought down to it, its
-    correlations kept: D P D with D_ii = sqrt(ceiling_i / P_ii) where that is below 1, else 1
-    (a congruence: a positive semi-definite P stays so).
+def faded_covariance(P: FloatArray, factor: float, ceiling: FloatArray) -> FloatArray:
+    """P faded by ``factor`` (fading memory: factor x P), as noise added to P, (factor - 1) P,
+    whose rows and columns are scaled down (D A D, D diagonal <= 1) for the states whose variance
+    would otherwise end above ``ceiling``: such a state ends at its ceiling, one already there
+    gets nothing. The result stays positive semi-definite and never below P (what the RTS
+    smoother's noise step needs).
 
     A fading multiplies every variance; repeated over a long run of inconsistent measurements
     (an IMU at rest under a moving antenna: issue 38) it multiplied the bias variances without
     bound until the state overflowed. A bias, a scale factor, a mounting angle cannot be less
     known than before the first measurement, so their prior variance bounds them."""
-    variance = np.diagonal(P)
-    shrink = np.sqrt(np.minimum(1.0, ceiling / np.maximum(variance, np.finfo(float).tiny)))
+    added = P * (factor - 1.0)
+    room = np.maximum(ceiling - np.diagonal(P), 0.0)
+    growth = np.maximum(np.diagonal(added), np.finfo(float).tiny)
+    shrink = np.sqrt(np.minimum(1.0, room / growth))
     if bool(np.all(shrink == 1.0)):
-        return P
-    return shrink[:, None] * P * shrink[None, :]
+        return P * factor
+    return P + shrink[:, None] * added * shrink[None, :]
 
 
 @jit

@@ -136,7 +136,8 @@ def choose_reference(
     prefix: str, available: dict[str, str], sensor_topics: list[str]
 ) -> tuple[str, str | None]:
     """The reference prefix: ``prefix`` when ``PREFIX/fix`` is in the bag, else the only other
-    ``P/fix`` of the reference type (not a sensor topic, not the node's output), with a note
+    ``P/fix`` of the reference type (none of ``P/*`` a sensor topic: a receiver's own fix beside
+    its attitude is no reference; not the node's output), with a note
     saying so; several raise TopicChoiceError listing them; none keeps ``prefix`` (no
     reference)."""
     prefix = prefix.rstrip("/")
@@ -148,8 +149,8 @@ def choose_reference(
         for t, msgtype in available.items()
         if msgtype == wanted
         and t.endswith("/fix")
-        and t not in sensor_topics
         and not t.startswith(_OUTPUT_PREFIX)
+        and not _shares_a_sensor_topic(t.removesuffix("/fix"), sensor_topics)
     )
     if len(candidates) > 1:
         raise TopicChoiceError(
@@ -160,3 +161,8 @@ def choose_reference(
         return prefix, None
     found = candidates[0].removesuffix("/fix")
     return found, f"no {prefix}/fix: reference {found}/*, the bag's only other {wanted} /fix"
+
+
+def _shares_a_sensor_topic(prefix: str, sensor_topics: list[str]) -> bool:
+    """True if a reference topic under ``prefix`` would be one the replay reads as a sensor."""
+    return any(f"{prefix}/{name}" in sensor_topics for name in REFERENCE_TYPES)
