@@ -152,9 +152,9 @@ def _frame_note(inputs: ReplayInputs, parameters: dict[str, Any]) -> None:
         )
 
 
-def run_replay(args: argparse.Namespace) -> int:
-    """Replay (or sweep) as the arguments say; 0 done, 1 no fused solution (the report is
-    written, the other outputs not), UsageError on bad input."""
+def check_options(args: argparse.Namespace) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    """Everything but the bag: the options' combination, the parameters and the sweep's
+    settings the engine accepts; (parameters, settings), UsageError otherwise."""
     _check_usage(args)
     parameters = _parameters(args)
     try:
@@ -163,6 +163,13 @@ def run_replay(args: argparse.Namespace) -> int:
         raise UsageError(str(exc)) from None
     for setting in settings or [{}]:
         _check_engine({**parameters, **setting})
+    return parameters, settings
+
+
+def run_replay(args: argparse.Namespace) -> int:
+    """Replay (or sweep) as the arguments say; 0 done, 1 no fused solution (the report is
+    written, the other outputs not), UsageError on bad input."""
+    parameters, settings = check_options(args)
     inputs = _load(args)
     reference = None if inputs.reference is None else (args.reference or DEFAULT_REFERENCE)
     _frame_note(inputs, parameters)
