@@ -45,6 +45,13 @@ def write_atomic(path: Path, data: bytes) -> None:
     os.replace(partial, path)
 
 
+def _read_json(path: Path) -> dict[str, Any] | None:
+    if not path.is_file():
+        return None
+    content: dict[str, Any] = json.loads(path.read_text(encoding="utf-8"))
+    return content
+
+
 class BatchStore:
     """The results in ``root`` (open it with ``open_store``)."""
 
@@ -53,19 +60,11 @@ class BatchStore:
 
     def outcome(self, name: str) -> dict[str, Any] | None:
         """The saved outcome of bag ``name`` (None: not done)."""
-        path = self.root / name / OUTCOME
-        if not path.is_file():
-            return None
-        outcome: dict[str, Any] = json.loads(path.read_text(encoding="utf-8"))
-        return outcome
+        return _read_json(self.root / name / OUTCOME)
 
     def report(self, name: str) -> dict[str, Any] | None:
         """The saved replay report of bag ``name`` (None: none written)."""
-        path = self.root / name / REPORT
-        if not path.is_file():
-            return None
-        report: dict[str, Any] = json.loads(path.read_text(encoding="utf-8"))
-        return report
+        return _read_json(self.root / name / REPORT)
 
     def pending(self, bags: Mapping[str, str], force: bool, retry_failed: bool) -> list[str]:
         """The names of ``bags`` (name -> path) to replay: not done yet, all with ``force``, and
