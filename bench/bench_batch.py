@@ -60,7 +60,7 @@ def _sequential(bags: list[str]) -> None:
     for bag in bags:
         result = replay_bag(template, bag, True, (EXPORT,))
         assert result.status == "ok", result.error
-        print(f"{result.seconds:.3f}")
+        print(f"{result.seconds:.3f} {result.cpu_seconds:.3f}")
 
 
 def _timed(command: list[str]) -> tuple[float, str]:
@@ -117,7 +117,8 @@ def main() -> None:
         )
         cli = [sys.executable, "-m", "ins_fusion.tools.cli"]
         sequential, out = _timed([sys.executable, __file__, "--sequential", *bags])
-        task_s = [float(x) for x in out.split()]
+        task_s = [float(line.split()[0]) for line in out.splitlines()]
+        cpu_s = sum(float(line.split()[1]) for line in out.splitlines())
         print(
             f"one after the other, one process:  {sequential:6.1f} s  (tasks {sum(task_s):.1f} s,"
             f" first {task_s[0]:.1f} s, the others {sum(task_s[1:]) / 7:.2f} s each)"
@@ -157,10 +158,17 @@ def main() -> None:
         )
         outcomes = [json.loads((out_dir / Path(b).name / "outcome.json").read_text()) for b in bags]
         seconds = sum(o["seconds"] for o in outcomes)
+        cpu_batch = sum(o["cpu_seconds"] for o in outcomes)
         print(
             f"gnss_ins batch --workers {args.workers}:         {batch:6.1f} s  (tasks "
             f"{seconds:.1f} s): {sequential / batch:.2f}x one process,"
             f" {commands / batch:.2f}x the replay commands"
+        )
+        print(
+            f"the tasks' CPU: {cpu_s:.1f} s one after the other, {cpu_batch:.1f} s in the batch;"
+            f" cores obtained over the wall time: {cpu_s / sequential:.2f} and"
+            f" {cpu_batch / batch:.2f} (of {args.workers}: the rest went to the machine's other"
+            " load)"
         )
         overhead = (args.workers * batch - seconds) / len(bags)
         print(

@@ -110,7 +110,7 @@ def _replay(
         for done, (name, result, error) in enumerate(completed(futures), 1):
             if error is not None:  # the task itself failed: its worker died, or the cluster
                 result = BagResult(
-                    plan.bags[name], "failed", f"{type(error).__name__}: {error}", 3, 0.0, "-"
+                    plan.bags[name], "failed", f"{type(error).__name__}: {error}", 3, 0.0, 0.0, "-"
                 )
             store.save(name, result)
             line = f"{name}: {result.status} ({result.seconds:.1f} s on {result.worker})"

@@ -37,13 +37,15 @@ _STREAMS = threading.Lock()
 @dataclass(frozen=True)
 class BagResult:
     """What a task produced: ``status`` "ok", "no solution" (exit status 1: the report is
-    written, no plot nor exports) or "failed" (``error`` says why); ``files``: name -> bytes."""
+    written, no plot nor exports) or "failed" (``error`` says why); ``seconds`` its wall time,
+    ``cpu_seconds`` its process's CPU time meanwhile; ``files``: name -> bytes."""
 
     bag: str
     status: str
     error: str | None
     exit_status: int
     seconds: float
+    cpu_seconds: float
     worker: str
     files: dict[str, bytes] = field(default_factory=dict)
 
@@ -54,7 +56,7 @@ def replay_bag(
     """Replay ``bag`` with the options of ``template`` (a parsed ``gnss_ins replay`` command
     line), writing the report, the plot (``plot``) and ``exports`` (file names, their suffix the
     format). Never raises for a bad bag: the error is in the result."""
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     with tempfile.TemporaryDirectory(prefix="gnss_ins_batch_") as scratch:
         folder = Path(scratch)
         args = argparse.Namespace(**vars(template))
@@ -85,6 +87,7 @@ def replay_bag(
         error,
         exit_status,
         time.perf_counter() - start,
+        time.process_time() - cpu,
         socket.gethostname(),
         files,
     )
