@@ -35,8 +35,6 @@ OPTIONS = ("--outage", "30:10", "--smooth")
 #: Report keys that are wall times, different at each run.
 WALL = {"read_time_s", "fusion_time_s", "wall_time_s", "realtime_factor", "smoothing_time_s"}
 
-pytestmark = pytest.mark.xdist_group("batch")
-
 
 def _timeless(report: dict) -> dict:
     plain = {k: v for k, v in report.items() if k not in WALL}
