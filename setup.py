@@ -37,6 +37,9 @@ setup(
         "gpxpy>=1.6",
         # The engine's per-sample arithmetic, compiled (ins_fusion/core/compiled.py).
         "numba>=0.60",
+        # gnss_ins batch and the sweeps of gnss_ins replay run on a Dask cluster
+        # (ins_fusion/runtime/cluster.py, docs/fleet.md).
+        "dask[distributed]>=2024.8",
     ],
     extras_require={
         "test": [

@@ -29,6 +29,7 @@ LAYERS: dict[str, int] = {
     "ins_fusion.noise_id": 6,
     "ins_fusion.calibration_id": 6,
     "ins_fusion.qfree": 6,
+    "ins_fusion.fleet": 7,
     "ins_fusion": 7,  # the package root: node.py and ros_*.py, the ROS layer
     "ins_fusion.tools": 8,
 }

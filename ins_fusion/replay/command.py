@@ -2,7 +2,8 @@
 parameters, read the bag, replay (and smooth) or sweep, print, write the report, plot, fused bag
 and exports.
 
-Bad input raises UsageError, printed by ``execute`` with exit status 2.
+Bad input raises UsageError, printed by ``execute`` with exit status 2; ``run_replay`` raises it
+(``gnss_ins batch`` runs one bag with it, ins_fusion.fleet.task).
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from ins_fusion.replay.settings import grid
 from ins_fusion.replay.sweep import format_sweep, run_sweep
 from ins_fusion.replay.topics import DEFAULT_REFERENCE
 from ins_fusion.replay.withheld import WithheldEvaluation
+from ins_fusion.runtime.cluster import ClusterError
 from ins_fusion.runtime.progress import Progress
 
 
@@ -42,7 +44,7 @@ def execute(args: argparse.Namespace) -> int:
     requested outputs that were not written are named)."""
     absent = [(label, path) for label, path in _requested(args) if not Path(path).exists()]
     try:
-        return _run(args)
+        return run_replay(args)
     except UsageError as exc:
         print(f"gnss_ins replay: error: {exc}", file=sys.stderr)
         for label, path in absent:
@@ -90,6 +92,8 @@ def _check_usage(args: argparse.Namespace) -> None:
         raise UsageError("--rank-by ranks the runs of a --sweep")
     if args.workers is not None and args.workers < 1:
         raise UsageError("--workers must be at least 1")
+    if args.scheduler is not None and not args.sweep:
+        raise UsageError("--scheduler runs the settings of a --sweep")
     if args.free_inertial is not None and (args.outage or args.sweep):
         raise UsageError("--free-inertial withholds GNSS itself: not with --outage or --sweep")
     if args.output is not None and args.output.exists():
@@ -153,7 +157,9 @@ def _frame_note(inputs: ReplayInputs, parameters: dict[str, Any]) -> None:
         )
 
 
-def _run(args: argparse.Namespace) -> int:
+def check_options(args: argparse.Namespace) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    """Everything but the bag: the options' combination, the parameters and the sweep's
+    settings the engine accepts; (parameters, settings), UsageError otherwise."""
     _check_usage(args)
     parameters = _parameters(args)
     try:
@@ -162,6 +168,13 @@ def _run(args: argparse.Namespace) -> int:
         raise UsageError(str(exc)) from None
     for setting in settings or [{}]:
         _check_engine({**parameters, **setting})
+    return parameters, settings
+
+
+def run_replay(args: argparse.Namespace) -> int:
+    """Replay (or sweep) as the arguments say; 0 done, 1 no fused solution (the report is
+    written, the other outputs not), UsageError on bad input."""
+    parameters, settings = check_options(args)
     inputs = _load(args)
     reference = None if inputs.reference is None else inputs.reference_prefix
     _frame_note(inputs, parameters)
@@ -299,16 +312,20 @@ def _sweep(
 ) -> int:
     rank_by = args.rank_by or DEFAULT_RANK_BY
     with Progress("sweep", total=len(settings), unit="runs") as bar:
-        results = run_sweep(
-            inputs,
-            parameters,
-            settings,
-            outages,
-            reference,
-            rank_by,
-            args.workers,
-            lambda done, _: bar.update(done),
-        )
+        try:
+            results = run_sweep(
+                inputs,
+                parameters,
+                settings,
+                outages,
+                reference,
+                rank_by,
+                args.workers,
+                lambda done, _: bar.update(done),
+                args.scheduler,
+            )
+        except ClusterError as exc:
+            raise UsageError(str(exc)) from None
     print(format_sweep(results, rank_by))
     if args.report is not None:
         runs = [{"setting": r.setting, "score": r.score, "report": r.report} for r in results]

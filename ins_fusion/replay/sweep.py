@@ -1,14 +1,13 @@
 """Parameter sweeps: replay every setting of a grid and rank the settings by one metric.
 
-Runs go to a process pool (one worker per core, at most one per setting); the inputs are read
-once and handed to each worker when it starts. Scores: ins_fusion.replay.ranking.
+One task per setting on a Dask cluster (ins_fusion.runtime.cluster: a LocalCluster of one
+process per core, at most one per setting, or the scheduler given); the inputs are read once
+and sent to every worker. Scores: ins_fusion.replay.ranking.
 """
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable, Mapping, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from typing import Any
 
@@ -17,6 +16,7 @@ from ins_fusion.replay.outages import Outage
 from ins_fusion.replay.pipeline import replay
 from ins_fusion.replay.ranking import RANK_METRICS
 from ins_fusion.replay.report import Report
+from ins_fusion.runtime.cluster import cluster, completed, submit_each
 
 
 @dataclass(frozen=True)
@@ -28,19 +28,13 @@ class SweepResult:
     score: float | None
 
 
-_INPUTS: ReplayInputs | None = None
-
-
-def _init_worker(inputs: ReplayInputs) -> None:
-    global _INPUTS
-    _INPUTS = inputs
-
-
 def _run_setting(
-    parameters: dict[str, Any], outages: tuple[Outage, ...], reference: str | None
+    inputs: ReplayInputs,
+    parameters: dict[str, Any],
+    outages: tuple[Outage, ...],
+    reference: str | None,
 ) -> Report:
-    assert _INPUTS is not None
-    return replay(_INPUTS, parameters, outages, reference).report
+    return replay(inputs, parameters, outages, reference).report
 
 
 def run_sweep(
@@ -52,23 +46,27 @@ def run_sweep(
     rank_by: str,
     workers: int | None = None,
     progress: Callable[[int, int], None] | None = None,
+    scheduler: str | None = None,
 ) -> list[SweepResult]:
     """Replay ``base`` updated with each setting; results best first (unscored last).
 
-    ``workers``: processes (default: one per core, at most one per setting).
+    ``scheduler``: a Dask scheduler's address, None for a LocalCluster of ``workers`` processes
+    (default: one per core, at most one per setting). A run that raises raises here.
     """
     score = RANK_METRICS[rank_by][0]
     count = len(settings)
-    workers = min(workers or os.cpu_count() or 1, count)
     results: list[SweepResult] = []
-    with ProcessPoolExecutor(workers, initializer=_init_worker, initargs=(inputs,)) as pool:
-        futures = {
-            pool.submit(_run_setting, {**base, **setting}, tuple(outages), reference): setting
-            for setting in settings
+    with cluster(scheduler, workers, count) as client:
+        shared = client.scatter(inputs, broadcast=True)
+        arguments = {
+            index: (shared, {**base, **setting}, tuple(outages), reference)
+            for index, setting in enumerate(settings)
         }
-        for done, future in enumerate(as_completed(futures), 1):
-            report = future.result()
-            results.append(SweepResult(futures[future], report, score(report)))
+        futures = submit_each(client, _run_setting, arguments)
+        for done, (index, report, error) in enumerate(completed(futures), 1):
+            if error is not None:
+                raise error
+            results.append(SweepResult(settings[index], report, score(report)))
             if progress is not None:
                 progress(done, count)
     return sorted(results, key=lambda r: (r.score is None, r.score or 0.0))

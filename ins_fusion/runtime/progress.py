@@ -59,6 +59,15 @@ class Progress:
         self.total = total
         self.update(done)
 
+    def message(self, text: str) -> None:
+        """A line of its own on the stream above the bar (the bar drawn again below it)."""
+        if self.enabled:
+            self.stream.write("\r\x1b[K")
+        self.stream.write(text + "\n")
+        self.stream.flush()
+        if self.enabled:
+            self._draw(time.monotonic())
+
     def close(self) -> None:
         """Draw the final state and end the line."""
         if self.enabled:

@@ -19,6 +19,7 @@ from typing import Any
 
 #: sub-command name -> (module under ins_fusion.tools, one-line help)
 SUBCOMMANDS: dict[str, tuple[str, str]] = {
+    "batch": ("batch", "many bags replayed on a Dask cluster: per-bag results, fleet summary"),
     "allan": ("allan", "IMU noise terms from a static bag (Allan deviation) as fusion parameters"),
     "calibrate": ("calibrate", "IMU laboratory calibration from bags: biases, scales, axes"),
     "emulate-imu": ("emulate_imu", "emulated IMU400CC on a pseudo-terminal"),
@@ -47,7 +48,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
 #: engine's matrices are at most 21 x 21 and a replay's work on whole tracks gains nothing
 #: measurable from more threads, whose start at numpy's import alone costs ~0.07 s of CPU (a
 #: whole replay: ~0.2 s less, docs/benchmarks.md).
-SINGLE_THREAD_BLAS = frozenset({"replay"})
+SINGLE_THREAD_BLAS = frozenset({"replay", "batch"})
 
 
 def argument_type(parse: Callable[[str], Any]) -> Callable[[str], Any]:

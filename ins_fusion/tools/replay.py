@@ -16,7 +16,9 @@ after the forward pass (report section ``smoothed``, both in the plot, its own t
 fused bag); ``--export FILE`` writes the forward or smoothed solution as CSV, GPX or NMEA
 (ins_fusion.replay.export). ``--sweep NAME=V1,V2,...``
 (repeatable: the grid of all combinations) replays every setting and ranks them by
-``--rank-by``. docs/replay.md describes the report. Exit status 2 on bad input.
+``--rank-by``, one task per setting on a Dask cluster (a local one of ``--workers`` processes,
+or ``--scheduler``'s, docs/fleet.md). docs/replay.md describes the report. Exit status 2 on bad
+input.
 """
 
 from __future__ import annotations
@@ -38,54 +40,95 @@ def _start(text: str) -> float:
     return value
 
 
+def add_replay_options(parser: argparse.ArgumentParser) -> list[str]:
+    """The options of one replay that ``gnss_ins batch`` shares; their destination names."""
+    actions = [
+        parser.add_argument(
+            "--params",
+            type=Path,
+            metavar="YAML",
+            help="ROS parameter file (ins_fusion_node section)",
+        ),
+        parser.add_argument(
+            "--set",
+            dest="settings",
+            type=argument_type(parse_setting),
+            action="append",
+            default=[],
+            metavar="NAME=VALUE",
+            help="override one parameter, value as in the YAML file (repeatable)",
+        ),
+        parser.add_argument(
+            "--outage",
+            type=argument_type(parse_outage),
+            action="append",
+            default=[],
+            metavar="START:DURATION",
+            help="drop GNSS fix/velocity/attitude stamped in this window [s after the first IMU "
+            "stamp] and score the fused antenna against the withheld fixes (repeatable)",
+        ),
+        parser.add_argument(
+            "--free-inertial",
+            type=argument_type(_start),
+            metavar="START",
+            help="the Aalborg report's evaluation: withhold all GNSS from START [s after the "
+            "first IMU stamp] on, no ZUPT/ZARU/NHC, and print the drift against the withheld "
+            "fixes 5...180 s after START",
+        ),
+        parser.add_argument(
+            "--reference",
+            metavar="PREFIX",
+            help=f"reference topics PREFIX/fix, PREFIX/attitude, PREFIX/vel (default "
+            f"{DEFAULT_REFERENCE}, used when present; a given PREFIX must exist)",
+        ),
+        parser.add_argument(
+            "--smooth",
+            action="store_true",
+            help="also run the Rauch-Tung-Striebel smoother over the forward pass "
+            "(post-processing: report, plot and fused bag get the smoothed solution too)",
+        ),
+        parser.add_argument(
+            "--export-solution",
+            choices=("forward", "smoothed"),
+            help="which solution --export writes (default: smoothed with --smooth, else forward)",
+        ),
+        parser.add_argument(
+            "--topics",
+            type=argument_type(TopicMap.parse),
+            default=DEFAULT_TOPICS,
+            metavar="ROLE=TOPIC,...",
+            help="input topics (defaults "
+            + ",".join(f"{role}={topic}" for role, topic in DEFAULT_TOPICS.by_role().items())
+            + ")",
+        ),
+    ]
+    return [action.dest for action in actions]
+
+
+def add_cluster_options(parser: argparse.ArgumentParser, tasks: str) -> None:
+    """``--scheduler`` and ``--workers``: where the tasks (``tasks``, e.g. "bags") run."""
+    parser.add_argument(
+        "--scheduler",
+        metavar="tcp://HOST:PORT",
+        help=f"run the {tasks} on this Dask scheduler's workers (docs/fleet.md; default: a "
+        "local cluster)",
+    )
+    parser.add_argument(
+        "--workers",
+        type=int,
+        metavar="N",
+        help=f"processes of the local cluster running the {tasks} (default: one per core)",
+    )
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``gnss_ins replay``."""
     parser.add_argument("bag", type=Path, help="rosbag2 bag (directory or storage file)")
-    parser.add_argument(
-        "--params", type=Path, metavar="YAML", help="ROS parameter file (ins_fusion_node section)"
-    )
-    parser.add_argument(
-        "--set",
-        dest="settings",
-        type=argument_type(parse_setting),
-        action="append",
-        default=[],
-        metavar="NAME=VALUE",
-        help="override one parameter, value as in the YAML file (repeatable)",
-    )
-    parser.add_argument(
-        "--outage",
-        type=argument_type(parse_outage),
-        action="append",
-        default=[],
-        metavar="START:DURATION",
-        help="drop GNSS fix/velocity/attitude stamped in this window [s after the first IMU "
-        "stamp] and score the fused antenna against the withheld fixes (repeatable)",
-    )
-    parser.add_argument(
-        "--free-inertial",
-        type=argument_type(_start),
-        metavar="START",
-        help="the Aalborg report's evaluation: withhold all GNSS from START [s after the first "
-        "IMU stamp] on, no ZUPT/ZARU/NHC, and print the drift against the withheld fixes "
-        "5...180 s after START",
-    )
-    parser.add_argument(
-        "--reference",
-        metavar="PREFIX",
-        help=f"reference topics PREFIX/fix, PREFIX/attitude, PREFIX/vel (default "
-        f"{DEFAULT_REFERENCE}, used when present; a given PREFIX must exist)",
-    )
+    add_replay_options(parser)
     parser.add_argument("--report", type=Path, metavar="FILE.json", help="write the JSON report")
     parser.add_argument("--plot", type=Path, metavar="FILE.png", help="write the figure")
     parser.add_argument(
         "--output", type=Path, metavar="FUSED", help="write /ins/odometry and /ins/fix to this bag"
-    )
-    parser.add_argument(
-        "--smooth",
-        action="store_true",
-        help="also run the Rauch-Tung-Striebel smoother over the forward pass (post-processing: "
-        "report, plot and fused bag get the smoothed solution too)",
     )
     parser.add_argument(
         "--export",
@@ -94,20 +137,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=[],
         metavar="FILE",
         help="write the solution past alignment as .csv, .gpx or .nmea (by suffix; repeatable)",
-    )
-    parser.add_argument(
-        "--export-solution",
-        choices=("forward", "smoothed"),
-        help="which solution --export writes (default: smoothed with --smooth, else forward)",
-    )
-    parser.add_argument(
-        "--topics",
-        type=argument_type(TopicMap.parse),
-        default=DEFAULT_TOPICS,
-        metavar="ROLE=TOPIC,...",
-        help="input topics (defaults "
-        + ",".join(f"{role}={topic}" for role, topic in DEFAULT_TOPICS.by_role().items())
-        + ")",
     )
     parser.add_argument(
         "--sweep",
@@ -124,9 +153,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help=f"sweep ranking metric, lower is better: {', '.join(sorted(RANK_METRICS))}"
         f" (default {DEFAULT_RANK_BY})",
     )
-    parser.add_argument(
-        "--workers", type=int, help="sweep processes (default: one per core)", metavar="N"
-    )
+    add_cluster_options(parser, "sweep's settings")
 
 
 def run(args: argparse.Namespace) -> int:
