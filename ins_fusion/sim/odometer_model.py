@@ -2,7 +2,7 @@
 
 The wheel at the measuring point rolls the distance W(t) = ∫ v_P (1 + s)(1 − λ) dt, with v_P
 the true forward speed (base_link x) at the measuring point, s the scale error (tyre radius,
-load, pressure: 0.5–3 %, issue 35) and λ the braking slip ratio. A counter with k pulses per
+load, pressure: 0.5–3 %) and λ the braking slip ratio. A counter with k pulses per
 metre holds N(t) = floor(k·W(t)); every output period T it reports
 
     speed = (N(t_i) − N(t_{i−1})) / (k·T) + n,   n white, σ = ``noise_sigma_m_s``,
@@ -18,7 +18,7 @@ filter's gate has to catch (assumed model, no source document measures it).
 
 Numbers of ``DMI`` are assumptions, typical of a survey distance measuring instrument on a
 rear wheel: 1024 pulses per revolution of a 2 m tyre (≈ 500 pulses/m), 20 Hz output (step
-0.04 m/s), 2 % scale error (the issue's acceptance case), 0.01 m/s of white noise.
+0.04 m/s), 2 % scale error, 0.01 m/s of white noise.
 """
 
 from __future__ import annotations
