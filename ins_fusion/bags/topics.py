@@ -13,6 +13,7 @@ rosbags or the engine.
 | /gnss/vel | geometry_msgs/TwistWithCovarianceStamped (ENU) | gnss_link |
 | /gnss/attitude | sensor_msgs/Imu (orientation only) | gnss_link |
 | /gnss/time_reference | sensor_msgs/TimeReference | gnss_link |
+| /vehicle/speed | geometry_msgs/TwistWithCovarianceStamped (linear.x = forward speed) | base_link |
 | /ground_truth/fix, /vel, /attitude | as /gnss/* (a reference: the simulator's truth) | base_link |
 | /ins/odometry, /ins/fix | Odometry, NavSatFix (ins_fusion_node's output) | map, base_link |
 """
@@ -39,7 +40,10 @@ TRUTH_FIX, TRUTH_VEL, TRUTH_ATTITUDE = (
     f"{TRUTH_PREFIX}/attitude",
 )
 INS_ODOMETRY, INS_FIX = "/ins/odometry", "/ins/fix"
+#: The vehicle's forward speed (odometer, CAN): VELOCITY_TYPE, twist.linear.x [m/s].
+VEHICLE_SPEED = "/vehicle/speed"
 IMU_FRAME, GNSS_FRAME, TRUTH_FRAME = "imu_link", "gnss_link", "base_link"
+SPEED_FRAME = "base_link"
 
 #: The sensor and truth topics a simulation may write and their types, in the order they are
 #: declared in a bag.

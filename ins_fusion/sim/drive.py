@@ -10,6 +10,7 @@ one clock that is also UTC (simulation time 0 = ``start_ns``).
 | /imu/temperature (Temperature) | imu_link | every 134th sample | as that sample |
 | /gnss/fix, /gnss/vel, /gnss/time_reference | gnss_link | epoch (UTC) | + receiver latency |
 | /gnss/attitude (Imu, orientation only) | gnss_link | ADU5 epoch | + ADU5 latency |
+| /vehicle/speed (TwistWithCovarianceStamped) | base_link | middle of a count | its end |
 | /ground_truth/fix, /vel, /attitude | base_link | truth time | at once |
 
 Names, frames and types from ins_fusion.bags.topics (``TOPICS``); velocities are
@@ -18,8 +19,10 @@ TwistWithCovarianceStamped in ENU.
 Contents are the drivers' (their own ``fill_*`` functions): the IMU400CC node's covariances
 (per-sample variance of the simulated noise, which for the band-limited imu400cc is its default
 (7.14) σ²) and its temperature counts; the GNSS messages are gnss_node's reading of the receivers'
-NMEA (sim.receivers). The truth is exact: covariances 0, the angular part of the velocity and the
-rate and acceleration of the attitude marked as absent.
+NMEA (sim.receivers); the odometer's (only with ``SimulationConfig.odometer``) its forward
+speed in linear.x with the profile's stated variance, y, z and the angular part unknown. The
+truth is exact: covariances 0, the angular part of the velocity and the rate and acceleration
+of the attitude marked as absent.
 """
 
 from __future__ import annotations
@@ -38,6 +41,7 @@ import numpy as np
 from gnss_driver.profiles import Receiver
 from gnss_driver.solution import fill_gnss_fix
 from gnss_ins_common.message_fields import (
+    UNKNOWN_VARIANCE,
     fill_imu,
     fill_navsatfix,
     fill_orientation,
@@ -61,16 +65,19 @@ from ins_fusion.bags.topics import (
     IMU_FRAME,
     IMU_TEMPERATURE,
     IMU_TYPE,
+    SPEED_FRAME,
     TOPICS,
     TRUTH_ATTITUDE,
     TRUTH_FIX,
     TRUTH_FRAME,
     TRUTH_VEL,
+    VEHICLE_SPEED,
     VELOCITY_TYPE,
 )
 from ins_fusion.sim import gnss_model, imu_model, vibration
 from ins_fusion.sim.gnss_model import GnssErrorModel, GnssSchedule, SkyMask, SkyZone
 from ins_fusion.sim.imu_model import ImuErrorModel
+from ins_fusion.sim.odometer_model import OdometerModel, OdometerProfile
 from ins_fusion.sim.receivers import ReceiverModel
 from ins_fusion.sim.scenarios import SCENARIOS, SURVEY_CAR
 from ins_fusion.sim.vehicle import TruthCache, VehicleTruth
@@ -115,7 +122,8 @@ class SimulationConfig:
     of simulation time 0 [ns], and the engine/road vibration the IMU senses (a profile of
     sim.vibration.PROFILES: ``none``, ``car`` (the default: the project's own drives are not
     kinder than a car on a road), ``rough``). ``imu_rate_hz`` / ``gnss_rate_hz`` replace the
-    nominal output rate [Hz] of the IMU profile / the position receiver (None: the profile's)."""
+    nominal output rate [Hz] of the IMU profile / the position receiver (None: the profile's).
+    ``odometer``: the odometer on /vehicle/speed (None: none, the bag as without it)."""
 
     scenario: str = "test_pattern"
     duration_s: float = 240.0
@@ -132,6 +140,7 @@ class SimulationConfig:
     vibration: str = "car"
     imu_rate_hz: float | None = None
     gnss_rate_hz: float | None = None
+    odometer: OdometerProfile | None = None
 
 
 def _ns(t_s: FloatArray) -> FloatArray:
@@ -170,9 +179,9 @@ class Simulation:
         self.config = config
         trajectory = SCENARIOS[config.scenario](config.duration_s)
         self.vehicle = VehicleTruth(trajectory, SURVEY_CAR)
-        # A fourth child leaves the first three (and so every other error source) unchanged.
-        imu_seed, gnss_seed, adu5_seed, self.vibration_seed = (
-            int(s.generate_state(1)[0]) for s in np.random.SeedSequence(config.seed).spawn(4)
+        # A new child leaves the ones before it (and so every other error source) unchanged.
+        imu_seed, gnss_seed, adu5_seed, self.vibration_seed, odometer_seed = (
+            int(s.generate_state(1)[0]) for s in np.random.SeedSequence(config.seed).spawn(5)
         )
         self.imu_profile = _with_rate(imu_model.PROFILES[config.imu], config.imu_rate_hz)
         self.imu_model = ImuErrorModel(self.imu_profile, imu_seed, config.band_limited)
@@ -201,6 +210,9 @@ class Simulation:
                 config.gnss_noise_scale,
             )
             self.receivers.append((ReceiverModel(receiver), model))
+        self.odometer = None
+        if config.odometer is not None:
+            self.odometer = OdometerModel(config.odometer, self.vehicle.odometer, odometer_seed)
 
     def _zone(self, spec: SkyZoneSpec) -> SkyZone:
         if not 0.0 <= spec.t_s <= self.config.duration_s:
@@ -218,7 +230,10 @@ class Simulation:
         skip = set() if self.config.gnss else {GNSS_FIX, GNSS_VEL, GNSS_TIME}
         if not self.config.adu5:
             skip.add(GNSS_ATTITUDE)
-        return {topic: msgtype for topic, msgtype in TOPICS.items() if topic not in skip}
+        topics = {topic: msgtype for topic, msgtype in TOPICS.items() if topic not in skip}
+        if self.odometer is not None:
+            topics[VEHICLE_SPEED] = VELOCITY_TYPE
+        return topics
 
     def stream(self, block_s: float = 10.0) -> Iterator[Event]:
         """Every message of the drive, in receive order (stable for equal times)."""
@@ -236,10 +251,12 @@ class Simulation:
         yield from pending
 
     def events(self, t_start_s: float, t_end_s: float) -> list[Event]:
-        """IMU, GNSS and truth messages stamped in [t_start_s, t_end_s) (simulation time)."""
+        """IMU, GNSS, odometer and truth messages read in [t_start_s, t_end_s) (simulation
+        time)."""
         return [
             *self.imu_events(t_start_s, t_end_s),
             *self.gnss_events(t_start_s, t_end_s),
+            *self.speed_events(t_start_s, t_end_s),
             *self.truth_events(t_start_s, t_end_s),
         ]
 
@@ -319,6 +336,34 @@ class Simulation:
                     )
                 )
         return events
+
+    def speed_events(self, t_start_s: float, t_end_s: float) -> list[Event]:
+        """/vehicle/speed of the odometer's readings in [t_start_s, t_end_s) (none at 0, where
+        no period has been counted): stamped at the middle of the counting period, the time of
+        validity of its mean speed, received at its end."""
+        if self.odometer is None:
+            return []
+        t = _grid(self.odometer.profile.rate_hz, t_start_s, t_end_s)
+        outputs = self.odometer.measure(t[t > 0.0])
+        variance = self.odometer.profile.reported_sigma_m_s**2
+        covariance = [variance, 0.0, 0.0, 0.0, UNKNOWN_VARIANCE, 0.0, 0.0, 0.0, UNKNOWN_VARIANCE]
+        start = self.config.start_ns
+        return [
+            Event(
+                start + int(log),
+                VEHICLE_SPEED,
+                fill_velocity(
+                    new_message(VELOCITY_TYPE),
+                    start + int(stamp),
+                    SPEED_FRAME,
+                    (speed, 0.0, 0.0),
+                    covariance,
+                ),
+            )
+            for log, stamp, speed in zip(
+                _ns(outputs.t_s), _ns(outputs.mid_s), outputs.speed_m_s.tolist(), strict=True
+            )
+        ]
 
     def truth_events(self, t_start_s: float, t_end_s: float) -> list[Event]:
         """/ground_truth/* of base_link at the truth rate, received when stamped."""

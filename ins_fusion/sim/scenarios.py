@@ -19,9 +19,12 @@ AALBORG_START = GeodeticStart(math.radians(57.0150), math.radians(9.9870), 40.0,
 
 #: A survey car (assumption; the Aalborg report never measured its lever arms, §7.4): IMU on the
 #: roof frame 0.8 m ahead of base_link (rear axle centre on the ground) and 1.6 m up, the GNSS
-#: antenna above the rear axle at 1.75 m.
+#: antenna above the rear axle at 1.75 m, the odometer (DMI) on the left rear wheel's hub (1.6 m
+#: track, 0.33 m tyre radius).
 SURVEY_CAR = VehicleSetup(
-    imu=Mounting(lever_arm_flu_m=(0.8, 0.0, 1.6)), gnss_antenna_flu_m=(0.0, 0.0, 1.75)
+    imu=Mounting(lever_arm_flu_m=(0.8, 0.0, 1.6)),
+    gnss_antenna_flu_m=(0.0, 0.0, 1.75),
+    odometer_flu_m=(0.0, 0.8, 0.33),
 )
 
 _KMH = 1.0 / 3.6

@@ -445,6 +445,11 @@ class Trajectory:
             raise ValueError(f"time outside the trajectory [0, {self.duration_s}] s")
         return t
 
+    def path_speed(self, t_s: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """base_link speed along its path [m/s] and its rate of change [m/s²] at times t_s."""
+        speed, accel, _, _ = self._speed.evaluate(self._check_times(t_s))
+        return speed, accel
+
     def frame_truth(self, t_s: FloatArray, mounting: Mounting = Mounting()) -> FrameTruth:
         """Truth of a frame mounted on base_link (default: base_link itself) at times t_s."""
         t = self._check_times(t_s)

@@ -2,9 +2,10 @@
 
 ``VehicleTruth.imu_truth(t)`` gives what a perfect IMU in imu_link reads (REP-145: FLU, specific
 force with +g up at rest, rate in rad/s); ``VehicleTruth.gnss_truth(t)`` gives the GNSS antenna's
-position and velocity and the base_link attitude. Batch forms over arrays of times serve the bag
-writer; the scalar forms serve the real-time emulators and the GNSS error model, through a
-``TruthCache`` where speed matters.
+position and velocity and the base_link attitude; ``VehicleTruth.odometer(t)`` the forward speed
+of the odometer's wheel. Batch forms over arrays of times serve the bag writer; the scalar forms
+serve the real-time emulators and the GNSS error model, through a ``TruthCache`` where speed
+matters.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from dataclasses import dataclass, field
 from typing import Generic, TypeVar
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from gnss_ins_common.types import FloatArray
 from ins_fusion.sim.trajectory import FrameTruth, Mounting, Trajectory
@@ -24,10 +26,12 @@ T = TypeVar("T")
 @dataclass(frozen=True)
 class VehicleSetup:
     """Where the sensors sit on base_link (REP-103 FLU): the IMU frame (lever arm and mounting
-    rotation of imu_link) and the GNSS antenna phase centre (lever arm only)."""
+    rotation of imu_link), the GNSS antenna phase centre and the odometer's measuring point (a
+    wheel hub; lever arms only)."""
 
     imu: Mounting = field(default_factory=Mounting)
     gnss_antenna_flu_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    odometer_flu_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -50,6 +54,7 @@ class VehicleTruth:
         self.trajectory = trajectory
         self.setup = setup
         self._antenna = Mounting(lever_arm_flu_m=setup.gnss_antenna_flu_m)
+        self._odometer = Mounting(lever_arm_flu_m=setup.odometer_flu_m)
 
     @property
     def duration_s(self) -> float:
@@ -69,6 +74,14 @@ class VehicleTruth:
         """Truth of the GNSS antenna phase centre at times t_s (its frame has base_link's
         orientation)."""
         return self.trajectory.frame_truth(t_s, self._antenna)
+
+    def odometer(self, t_s: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """What an odometer measures at times t_s: the forward speed (base_link x) of its
+        measuring point [m/s], and base_link's acceleration along its path [m/s²] (slip)."""
+        point = self.trajectory.frame_truth(t_s, self._odometer)
+        forward_ned = Rotation.from_quat(point.quat_nb).as_matrix()[:, :, 0]
+        forward_m_s = np.einsum("ni,ni->n", forward_ned, point.vel_ned_m_s)
+        return forward_m_s, self.trajectory.path_speed(t_s)[1]
 
     def imu_truths(self, t_s: FloatArray) -> list[tuple[FloatArray, FloatArray]]:
         """``imu_truth`` at each of the times t_s, from one batch evaluation."""

@@ -36,7 +36,7 @@ from gnss_ins_common.types import FloatArray
 from imu400cc_driver.emulator import EmulatorConfig, Imu400ccEmulator, SentPacket
 from ins_fusion.bags.bag_io import STORAGES, BagError, BagWriter
 from ins_fusion.runtime.progress import Progress
-from ins_fusion.sim import imu_model, vibration
+from ins_fusion.sim import imu_model, odometer_model, vibration
 from ins_fusion.sim.drive import (
     DEFAULT_START_NS,
     POSITION_RECEIVERS,
@@ -81,6 +81,13 @@ def _outage(text: str) -> tuple[float, float]:
 def _sky_zone(text: str) -> SkyZoneSpec:
     values = _numbers(text, (2, 3), "T:RADIUS[:SATELLITES]")
     return SkyZoneSpec(values[0], values[1], int(values[2]) if len(values) == 3 else 0)
+
+
+def _number(text: str) -> float:
+    value = _numbers(text, (1, 1), "a number")[0]
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"must be finite, got {text!r}")
+    return value
 
 
 def _utc_ns(text: str) -> int:
@@ -163,6 +170,26 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "a road (docs/simulator.md)",
     )
     parser.add_argument(
+        "--speed",
+        action="store_true",
+        help="an odometer (DMI on the left rear wheel) on /vehicle/speed (bags only)",
+    )
+    parser.add_argument(
+        "--speed-rate", type=_positive, metavar="HZ", help="odometer output rate (default 20)"
+    )
+    parser.add_argument(
+        "--speed-scale",
+        type=_number,
+        metavar="FRACTION",
+        help="odometer scale error, measured/true - 1 (default 0.02)",
+    )
+    parser.add_argument(
+        "--speed-slip-threshold",
+        type=_number,
+        metavar="M_S2",
+        help="deceleration above which the wheels slip and the odometer under-reads (default 3)",
+    )
+    parser.add_argument(
         "--truth-rate", type=_positive, default=50.0, help="rate of /ground_truth/* [Hz]"
     )
     parser.add_argument(
@@ -204,6 +231,18 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 2
+    speed_options = (args.speed_rate, args.speed_scale, args.speed_slip_threshold)
+    if not args.speed and any(v is not None for v in speed_options):
+        print("gnss_ins simulate: error: the --speed-* options need --speed", file=sys.stderr)
+        return 2
+    if args.live and args.speed:
+        print("gnss_ins simulate: error: --speed is for bags (no odometer device)", file=sys.stderr)
+        return 2
+    try:
+        odometer = _odometer(args) if args.speed else None
+    except ValueError as exc:
+        print(f"gnss_ins simulate: error: {exc}", file=sys.stderr)
+        return 2
     config = SimulationConfig(
         scenario=args.scenario,
         duration_s=args.duration,
@@ -219,6 +258,7 @@ def run(args: argparse.Namespace) -> int:
         vibration=args.vibration,
         imu_rate_hz=args.imu_rate,
         gnss_rate_hz=args.gnss_rate,
+        odometer=odometer,
     )
     try:
         if args.live:
@@ -228,6 +268,18 @@ def run(args: argparse.Namespace) -> int:
         print(f"gnss_ins simulate: error: {exc}", file=sys.stderr)
         return 2
     return 0
+
+
+def _odometer(args: argparse.Namespace) -> odometer_model.OdometerProfile:
+    """The DMI profile with the rate, scale error and slip threshold given (ValueError if
+    invalid)."""
+    changes = {
+        "rate_hz": args.speed_rate,
+        "scale_error": args.speed_scale,
+        "slip_threshold_m_s2": args.speed_slip_threshold,
+    }
+    given = {name: value for name, value in changes.items() if value is not None}
+    return dataclasses.replace(odometer_model.DMI, **given)
 
 
 def write_bag(config: SimulationConfig, path: Path, storage: str = "mcap") -> None:
@@ -252,6 +304,11 @@ def write_bag(config: SimulationConfig, path: Path, storage: str = "mcap") -> No
         title += f", vibration {config.vibration}"
     rates = (("imu", config.imu_rate_hz), ("gnss", config.gnss_rate_hz))
     title += "".join(f", {name} at {hz:g} Hz" for name, hz in rates if hz is not None)
+    if (dmi := config.odometer) is not None:
+        title += (
+            f", speed {dmi.name} at {dmi.rate_hz:g} Hz (scale {dmi.scale_error:+.2%},"
+            f" slip above {dmi.slip_threshold_m_s2:g} m/s²)"
+        )
     print(writer.summary.format(title))
 
 
