@@ -15,7 +15,7 @@ from test_fusion_drives import CALIBRATION, Drive, config, deliver, feed, simula
 
 from ins_fusion.core.calibration import ImuCalibration
 from ins_fusion.core.engine import MEASUREMENT_NAMES, GnssFixMeasurement, InsEngine
-from ins_fusion.core.measurements import AttitudeMeasurement
+from ins_fusion.core.records import AttitudeMeasurement
 
 #: Figure-eight: 10 s standstill, then 10 m/s circles of 40 m radius.
 DURATION_S = 70.0

@@ -38,9 +38,6 @@ from ins_fusion.core.eskf import (
     gyro_misalignment_variance,
 )
 from ins_fusion.core.measurements import (
-    GnssFixMeasurement,
-    GnssVelocityMeasurement,
-    Prediction,
     attitude,
     euler_jacobian,
     gnss_position,
@@ -48,6 +45,7 @@ from ins_fusion.core.measurements import (
     nhc,
     zupt,
 )
+from ins_fusion.core.records import GnssFixMeasurement, GnssVelocityMeasurement, Prediction
 from ins_fusion.core.rotation import MAT_ENU_NED, euler_rad, quat_from_euler
 from ins_fusion.core.strapdown import NavState, increment, propagate
 

@@ -14,7 +14,7 @@ from ins_fusion.core.adaptation import W_COUNT, W_MEAN
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.eskf import POS, ErrorStateFilter, StateLayout
 from ins_fusion.core.gnss_noise import NOISE_KEPT, NOISE_MOVED, NOISE_RESTART, GnssNoise
-from ins_fusion.core.measurements import GnssFixMeasurement
+from ins_fusion.core.records import GnssFixMeasurement
 from ins_fusion.core.rotation import quat_from_euler
 from ins_fusion.core.state import FilterState
 from ins_fusion.core.strapdown import NavState

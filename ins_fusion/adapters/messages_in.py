@@ -27,7 +27,7 @@ import numpy as np
 
 from gnss_ins_common.navsat import CovarianceType, NavSatStatus
 from gnss_ins_common.types import BoolArray, FloatArray, Vec3
-from ins_fusion.core.measurements import (
+from ins_fusion.core.records import (
     AttitudeMeasurement,
     GnssFixMeasurement,
     GnssVelocityMeasurement,

@@ -83,12 +83,12 @@ from ins_fusion.core.intake import (
     record_sample,
     take_sample,
 )
-from ins_fusion.core.measurements import (
+from ins_fusion.core.propagation import ImuDensities, Propagator, bridge
+from ins_fusion.core.records import (
     AttitudeMeasurement,
     GnssFixMeasurement,
     GnssVelocityMeasurement,
 )
-from ins_fusion.core.propagation import ImuDensities, Propagator, bridge
 from ins_fusion.core.sample_runs import RUN_DONE, RUN_PROBLEM, CompiledRuns
 from ins_fusion.core.smoother import SmootherHooks
 from ins_fusion.core.solution import InsSolution, SolutionBuilder, self_calibration, unpack

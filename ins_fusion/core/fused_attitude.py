@@ -17,7 +17,8 @@ from gnss_ins_common.types import FloatArray, Quat
 from ins_fusion.core.compiled import jit, kernel_array
 from ins_fusion.core.eskf import ErrorStateFilter, ProcessModel
 from ins_fusion.core.fused_nhc import FusedUpdate, step_to, update_rows
-from ins_fusion.core.measurements import AttitudeMeasurement, attitude_model
+from ins_fusion.core.measurements import attitude_model
+from ins_fusion.core.records import AttitudeMeasurement
 from ins_fusion.core.rotation import as_quat
 from ins_fusion.core.state import X_MOUNTING, FilterState, base_mat_nb
 

@@ -33,8 +33,9 @@ from ins_fusion.core.gnss_noise import (
     _position_noise,
     shrink_correlated,
 )
-from ins_fusion.core.measurements import GnssFixMeasurement, _position_model
+from ins_fusion.core.measurements import _position_model
 from ins_fusion.core.propagation import Propagator
+from ins_fusion.core.records import GnssFixMeasurement
 from ins_fusion.core.state import (
     X_GNSS_ERROR,
     X_GNSS_REPORTED,

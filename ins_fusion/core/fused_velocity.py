@@ -18,7 +18,8 @@ from gnss_ins_common.types import FloatArray
 from ins_fusion.core.compiled import jit, kernel_array
 from ins_fusion.core.eskf import ErrorStateFilter, ProcessModel
 from ins_fusion.core.fused_nhc import FusedUpdate, step_to, update_rows
-from ins_fusion.core.measurements import GnssVelocityMeasurement, _velocity_model
+from ins_fusion.core.measurements import _velocity_model
+from ins_fusion.core.records import GnssVelocityMeasurement
 from ins_fusion.core.state import FilterState
 
 _KIND = "gnss_velocity"

@@ -12,7 +12,8 @@ from gnss_ins_common.types import FloatArray, Vec3
 from ins_fusion.core.compiled import jit, kernel_array
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.eskf import POS, ErrorStateFilter, StateLayout
-from ins_fusion.core.measurements import GnssFixMeasurement, ned_cov
+from ins_fusion.core.measurements import ned_cov
+from ins_fusion.core.records import GnssFixMeasurement
 from ins_fusion.core.rotation import MAT_ENU_NED
 from ins_fusion.core.state import X_GNSS_ERROR, X_GNSS_VARIANCE, FilterState, restart_block
 

@@ -10,7 +10,8 @@ import numpy as np
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core.eskf import VEL, ErrorStateFilter
 from ins_fusion.core.gnss_noise import GnssNoise
-from ins_fusion.core.measurements import GnssFixMeasurement, GnssVelocityMeasurement, ned_cov
+from ins_fusion.core.measurements import ned_cov
+from ins_fusion.core.records import GnssFixMeasurement, GnssVelocityMeasurement
 from ins_fusion.core.rotation import (
     MAT_ENU_NED,
     as_quat,

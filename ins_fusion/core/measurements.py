@@ -3,15 +3,14 @@
 Every model returns (z, H, R) with the innovation z = measured - predicted, so that
 z ≈ H δx + v for the error state of core.eskf (x_true = x_nominal + δx, C_true = (I + [ψ×]) C).
 The prediction is the nominal state at the measurement's own stamp (``Prediction``). Frames:
-NED/FRD inside; the ROS-facing dataclasses use ENU/FLU (REP-103) like the messages they come
-from. Lever arms are base_link FRD vectors from the IMU (the mechanised point) to the point
-measured.
+NED/FRD inside; the ROS-facing records (core.records) use ENU/FLU (REP-103) like the messages
+they come from. Lever arms are base_link FRD vectors from the IMU (the mechanised point) to
+the point measured.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -19,7 +18,12 @@ from gnss_ins_common.types import FloatArray
 from ins_fusion.core import earth
 from ins_fusion.core.alignment import earth_rate_body_rad_s
 from ins_fusion.core.compiled import compilable, jit, kernel_array
-from ins_fusion.core.eskf import ATT, BG, POS, VEL, StateLayout
+from ins_fusion.core.eskf import ATT, BG, POS, VEL
+from ins_fusion.core.records import (
+    GnssFixMeasurement,
+    GnssVelocityMeasurement,
+    Prediction,
+)
 from ins_fusion.core.rotation import euler_rad, skew, wrap_angle
 
 #: A variance at or above this marks a component as not measured: GNSS vertical velocity [m²/s²]
@@ -31,74 +35,6 @@ _AXIS = (1, 0, 2)
 _SIGN = (1.0, 1.0, -1.0)
 #: FLU <-> FRD sign flips of the (roll, pitch, yaw) errors of a REP-103 orientation covariance.
 _RPY_SIGN = (1.0, -1.0, -1.0)
-
-
-def _array(value: object, shape: tuple[int, ...]) -> FloatArray:
-    out = np.asarray(value, dtype=np.float64).reshape(shape)
-    out.setflags(write=False)
-    return out
-
-
-@dataclass(frozen=True)
-class GnssFixMeasurement:
-    """Antenna position (gnss/fix): WGS-84 latitude/longitude [deg], ellipsoidal height [m],
-    ENU covariance [m²] (3, 3); ``valid`` False for no-fix messages (ignored and counted)."""
-
-    t_s: float
-    lat_deg: float
-    lon_deg: float
-    height_m: float
-    cov_enu_m2: FloatArray
-    valid: bool = True
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "cov_enu_m2", _array(self.cov_enu_m2, (3, 3)))
-
-
-@dataclass(frozen=True)
-class GnssVelocityMeasurement:
-    """Antenna velocity (gnss/vel) in ENU [m/s] with its covariance [m²/s²] (3, 3); a vertical
-    variance >= UNKNOWN_VELOCITY_VARIANCE (or NaN) means 'vertical unknown'."""
-
-    t_s: float
-    vel_enu_m_s: FloatArray
-    cov_enu_m2_s2: FloatArray
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "vel_enu_m_s", _array(self.vel_enu_m_s, (3,)))
-        object.__setattr__(self, "cov_enu_m2_s2", _array(self.cov_enu_m2_s2, (3, 3)))
-
-
-@dataclass(frozen=True)
-class AttitudeMeasurement:
-    """Orientation (gnss/attitude): quaternion (x, y, z, w) of the receiver's vehicle frame
-    (FLU) in ENU and the covariance of its roll, pitch, yaw errors about the FLU axes [rad²]
-    (3, 3); a variance >= UNKNOWN_ANGLE_VARIANCE marks an angle as not measured (heading-only
-    receivers)."""
-
-    t_s: float
-    quat_enu_flu_xyzw: FloatArray
-    cov_rpy_rad2: FloatArray
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "quat_enu_flu_xyzw", _array(self.quat_enu_flu_xyzw, (4,)))
-        object.__setattr__(self, "cov_rpy_rad2", _array(self.cov_rpy_rad2, (3, 3)))
-
-
-@dataclass(frozen=True)
-class Prediction:
-    """Nominal state at a measurement stamp: IMU position (lat, lon [rad], h [m]), NED
-    velocity [m/s], body (base_link FRD) -> NED rotation, corrected body rate ω_ib [rad/s] in
-    base_link FRD and in imu FRD."""
-
-    lat_rad: float
-    lon_rad: float
-    height_m: float
-    vel_ned_m_s: FloatArray
-    mat_nb: FloatArray
-    rate_b: FloatArray
-    rate_i: FloatArray
-    layout: StateLayout = field(default_factory=StateLayout)
 
 
 Model = tuple[FloatArray, FloatArray, FloatArray]

@@ -18,7 +18,7 @@ from ins_fusion.core.adaptation import ImuNoiseMonitor
 from ins_fusion.core.compiled import jit, kernel_array
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.eskf import ATT, VEL, ErrorStateFilter, ProcessModel, propagate_kernel
-from ins_fusion.core.measurements import Prediction
+from ins_fusion.core.records import Prediction
 from ins_fusion.core.rotation import mat_from_quat
 from ins_fusion.core.state import (
     X_ACCEL_LP,

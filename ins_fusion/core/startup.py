@@ -36,8 +36,8 @@ from ins_fusion.core.eskf import (
 )
 from ins_fusion.core.gnss_noise import GnssNoise
 from ins_fusion.core.heading import ALIGN_FIX_MAX_AGE_S, course, fast_enough, velocity_variance
-from ins_fusion.core.measurements import (
-    UNKNOWN_ANGLE_VARIANCE,
+from ins_fusion.core.measurements import UNKNOWN_ANGLE_VARIANCE
+from ins_fusion.core.records import (
     AttitudeMeasurement,
     GnssFixMeasurement,
     GnssVelocityMeasurement,

@@ -19,7 +19,7 @@ from ins_fusion.core.adaptation import WhiteNoiseMonitor
 from ins_fusion.core.compiled import compilable, jit
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.eskf import ATT, BA, BG, POS, VEL, ErrorStateFilter, StateLayout
-from ins_fusion.core.measurements import (
+from ins_fusion.core.records import (
     AttitudeMeasurement,
     GnssFixMeasurement,
     GnssVelocityMeasurement,

@@ -30,17 +30,19 @@ from ins_fusion.core.gnss_noise import NOISE_MOVED, NOISE_RESTART, GnssNoise
 from ins_fusion.core.heading import fast_enough, heading_from_course, set_heading
 from ins_fusion.core.measurements import (
     UNKNOWN_ANGLE_VARIANCE,
-    AttitudeMeasurement,
-    GnssFixMeasurement,
-    GnssVelocityMeasurement,
     Model,
-    Prediction,
     attitude,
     gnss_position,
     gnss_velocity,
     nhc,
     zaru,
     zupt,
+)
+from ins_fusion.core.records import (
+    AttitudeMeasurement,
+    GnssFixMeasurement,
+    GnssVelocityMeasurement,
+    Prediction,
 )
 from ins_fusion.core.rotation import euler_rad, skew
 from ins_fusion.core.state import X_BG, FilterState, Geometry, LatestInputs, inject

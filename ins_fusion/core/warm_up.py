@@ -25,19 +25,10 @@ from ins_fusion.core.fused_stationary import zaru_apply, zupt_apply
 from ins_fusion.core.fused_velocity import velocity_apply
 from ins_fusion.core.gnss_noise import GnssNoise
 from ins_fusion.core.intake import new_intake, record_sample, take_sample
-from ins_fusion.core.measurements import (
-    GnssFixMeasurement,
-    GnssVelocityMeasurement,
-    Prediction,
-    attitude,
-    gnss_position,
-    gnss_velocity,
-    nhc,
-    zaru,
-    zupt,
-)
+from ins_fusion.core.measurements import attitude, gnss_position, gnss_velocity, nhc, zaru, zupt
 from ins_fusion.core.output_numbers import NUMBERS, output_numbers
 from ins_fusion.core.propagation import advance, covariance_step, predicted_state
+from ins_fusion.core.records import GnssFixMeasurement, GnssVelocityMeasurement, Prediction
 from ins_fusion.core.sample_runs import STEPS_PER_RUN, advance_run, take_run
 from ins_fusion.core.solution import WIDTH, SolutionBuilder
 from ins_fusion.core.state import X_COV_DT, X_SIZE, FilterState, Geometry, inject_nominal

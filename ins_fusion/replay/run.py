@@ -22,7 +22,7 @@ from ins_fusion.core import solution_rows
 from ins_fusion.core.compiled import kernel_array
 from ins_fusion.core.config import FusionConfig
 from ins_fusion.core.engine import EngineStatus, InsEngine, InsSolution
-from ins_fusion.core.measurements import GnssFixMeasurement
+from ins_fusion.core.records import GnssFixMeasurement
 from ins_fusion.core.smoothed_solution import attach_recorder, smoothed_rows
 from ins_fusion.replay.inputs import Measurement, ReplayInputs
 from ins_fusion.replay.outages import Outage, in_any
