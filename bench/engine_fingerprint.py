@@ -32,10 +32,10 @@ from sim_bags import FIGURE_EIGHT_90_S, TEST_PATTERN_75_S  # noqa: E402
 from test_sample_runs import _SETS, _damaged  # noqa: E402
 
 from gnss_ins_common.params import load_yaml, validate_all  # noqa: E402
-from ins_fusion.core.config import NODE_NAME, FusionConfig  # noqa: E402
-from ins_fusion.core.engine import InsEngine  # noqa: E402
-from ins_fusion.core.params import PARAMETERS  # noqa: E402
-from ins_fusion.core.smoothed_solution import attach_recorder  # noqa: E402
+from ins_fusion.core.engine.engine import InsEngine  # noqa: E402
+from ins_fusion.core.engine.smoothed_solution import attach_recorder  # noqa: E402
+from ins_fusion.core.settings.config import NODE_NAME, FusionConfig  # noqa: E402
+from ins_fusion.core.settings.params import PARAMETERS  # noqa: E402
 from ins_fusion.replay.inputs import ReplayInputs, load_bag  # noqa: E402
 from ins_fusion.replay.run import output_ticks, run_fusion  # noqa: E402
 from ins_fusion.replay.topics import TopicMap  # noqa: E402
