@@ -19,7 +19,6 @@ from __future__ import annotations
 import argparse
 import sys
 import tempfile
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -29,45 +28,18 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "test"))
 
 from sim_bags import FIGURE_EIGHT_90_S, TEST_PATTERN_75_S  # noqa: E402
-from test_sample_runs import _SETS, _damaged  # noqa: E402
+from test_sample_runs import _SETS, _damaged, _sample_by_sample  # noqa: E402
 
 from gnss_ins_common.params import load_yaml, validate_all  # noqa: E402
-from ins_fusion.core.engine.engine import InsEngine  # noqa: E402
-from ins_fusion.core.engine.smoothed_solution import attach_recorder  # noqa: E402
-from ins_fusion.core.settings.config import NODE_NAME, FusionConfig  # noqa: E402
+from ins_fusion.core.settings.config import NODE_NAME  # noqa: E402
 from ins_fusion.core.settings.params import PARAMETERS  # noqa: E402
 from ins_fusion.replay.inputs import ReplayInputs, load_bag  # noqa: E402
-from ins_fusion.replay.run import output_ticks, run_fusion  # noqa: E402
+from ins_fusion.replay.run import run_fusion  # noqa: E402
 from ins_fusion.replay.topics import TopicMap  # noqa: E402
 from ins_fusion.tools.simulate import write_bag  # noqa: E402
 
 COMMA = REPO / "test" / "fixtures" / "comma2k19"
 RELATIVE = 1e-9
-
-
-def _sample_by_sample(inputs: ReplayInputs, parameters: dict[str, Any]) -> tuple[Any, str]:
-    """Rows and status of the engine fed sample by sample, the recorder attached."""
-    config = FusionConfig.from_parameters(parameters)
-    engine = InsEngine(config)
-    recorder = attach_recorder(engine)
-    feed: dict[str, Callable[[Any], None]] = {
-        "fix": engine.add_gnss_fix,
-        "vel": engine.add_gnss_velocity,
-        "attitude": engine.add_attitude,
-    }
-    ticks = output_ticks(inputs.imu.t_s, inputs.t0_s, config.output_rate_hz)
-    rows, j, kept = [], 0, inputs.measurements
-    for k, (t, rate, force) in enumerate(inputs.imu.samples()):
-        while j < len(kept) and kept[j][0] <= k:
-            feed[kept[j][1]](kept[j][2])
-            j += 1
-        engine.add_imu(t, rate, force)
-        if ticks[k] and (row := engine.solution_row()) is not None:
-            rows.append(row)
-    for _, role, measurement in kept[j:]:
-        feed[role](measurement)
-    recorder.close()
-    return np.array(rows), repr(engine.status())
 
 
 def fingerprint() -> dict[str, Any]:
@@ -95,9 +67,9 @@ def fingerprint() -> dict[str, Any]:
                 if run.smoothed is not None:
                     out[f"{key}/smoothed"] = run.smoothed.rows
                 if drive == "eight" and set_name != "no_pseudo":
-                    rows, status = _sample_by_sample(inputs, parameters)
+                    rows, status = _sample_by_sample(inputs, parameters, smooth=True)
                     out[f"{key}/general_rows"] = rows
-                    out[f"{key}/general_status"] = status
+                    out[f"{key}/general_status"] = repr(status)
     return out
 
 

@@ -56,7 +56,7 @@ from ins_fusion.core.nav.calibration import T_SIZE as CALIBRATION_SIZE
 from ins_fusion.core.nav.calibration import ImuCalibration
 from ins_fusion.core.nav.strapdown import NAV_SIZE, SampleIntegrator, increment
 from ins_fusion.core.nav.units import STANDARD_GRAVITY_M_S2
-from ins_fusion.core.output.solution import SolutionBuilder
+from ins_fusion.core.output.solution import STATES, SolutionBuilder, state_code
 from ins_fusion.core.settings.config import FusionConfig
 from ins_fusion.core.smoother.rts import SmootherHooks
 
@@ -376,8 +376,4 @@ class EngineLoop:
 
     def _state_name(self) -> str:
         s = self._state
-        if s is None or not s.heading_known:
-            return "aligning"
-        if s.t_s - s.last_position_t_s > self.config.degraded_after_s:
-            return "degraded"
-        return "navigating"
+        return "aligning" if s is None else STATES[state_code(s.x, self.config.degraded_after_s)]

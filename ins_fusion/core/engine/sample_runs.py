@@ -43,7 +43,6 @@ from ins_fusion.core.filter.propagation import ImuDensities, Propagator, advance
 from ins_fusion.core.filter.state import (
     X_COV_DT,
     X_HEADING_KNOWN,
-    X_LAST_POSITION_T,
     X_MOUNTING,
     X_NAV,
     X_Q_SCALE,
@@ -58,7 +57,7 @@ from ins_fusion.core.measurements.nhc import nhc_apply
 from ins_fusion.core.measurements.stop_detector import StopDetector
 from ins_fusion.core.measurements.updates import Corrections
 from ins_fusion.core.nav.strapdown import INCREMENT_SIZE, NAV_SIZE, SampleIntegrator
-from ins_fusion.core.output.solution import STATE, WIDTH, SolutionBuilder, _fill_row
+from ins_fusion.core.output.solution import STATE, WIDTH, SolutionBuilder, _fill_row, state_code
 from ins_fusion.core.output.solution_rows import RowBuffer
 from ins_fusion.core.settings.config import FusionConfig
 
@@ -67,8 +66,6 @@ from ins_fusion.core.settings.config import FusionConfig
 RUN_DONE, RUN_PROBLEM = -1, -2
 #: Most covariances one run hands back (covariance steps and NHC updates).
 STEPS_PER_RUN = 8
-#: Row STATE values (core.output.solution.STATES).
-_NAVIGATING, _DEGRADED, _ALIGNING = 1.0, 2.0, 0.0
 
 
 @jit
@@ -209,12 +206,7 @@ def take_run(
             _fill_row(
                 row, J, x, P, states, arm_b, r_bi, arm_bi, rate_i, mounting, origin, mat_enu_ecef
             )
-            if x[X_HEADING_KNOWN] == 0.0:
-                row[STATE] = _ALIGNING
-            elif x[X_T] - x[X_LAST_POSITION_T] > degraded_after_s:
-                row[STATE] = _DEGRADED
-            else:
-                row[STATE] = _NAVIGATING
+            row[STATE] = state_code(x, degraded_after_s)
             r += 1
     return stop, RUN_DONE, m, r, v, c, e
 

@@ -13,13 +13,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from gnss_ins_common.types import FloatArray, IntArray, Vec3
-from ins_fusion.core.compiled import jit, kernel_array
+from ins_fusion.core.compiled import compilable, jit, kernel_array
 from ins_fusion.core.filter.eskf import ATT, BG, ErrorStateFilter, StateLayout
 from ins_fusion.core.filter.eskf import POS as POS_STATE
 from ins_fusion.core.filter.eskf import VEL as VEL_STATE
 from ins_fusion.core.filter.state import (
     X_BA,
     X_BG,
+    X_HEADING_KNOWN,
+    X_LAST_POSITION_T,
     X_NAV,
     X_SG,
     X_T,
@@ -78,6 +80,20 @@ class InsSolution:
 #: accel_bias_flu_m_s2 (3); imu_mounting_rpy_rad (3, NaN = None); the state as its index in
 #: ``STATES``. Units and frames as InsSolution.
 STATES = ("aligning", "navigating", "degraded")
+
+
+@compilable
+def state_code(x: FloatArray, degraded_after_s: float) -> int:
+    """The index in STATES of the engine's state of FilterState.x ``x``: aligning while the
+    heading is unknown, degraded when no GNSS position was used for ``degraded_after_s`` [s],
+    else navigating."""
+    if x[X_HEADING_KNOWN] == 0.0:
+        return 0
+    if x[X_T] - x[X_LAST_POSITION_T] > degraded_after_s:
+        return 2
+    return 1
+
+
 T, LAT, LON, HEIGHT = 0, 1, 2, 3
 POS, VEL, QUAT, RATE = slice(4, 7), slice(7, 10), slice(10, 14), slice(14, 17)
 COV_POS, COV_VEL, COV_ATT = slice(17, 26), slice(26, 35), slice(35, 44)
