@@ -54,7 +54,7 @@ else
 endif
 	$(BIN)/pip install --quiet -e '.[test]'
 	@echo "Compiling the fusion engine's kernels into numba's cache (once, ~30 s)"
-	$(BIN)/python -c "from ins_fusion.core.warm_up import warm_up; warm_up()"
+	$(BIN)/python -c "from ins_fusion.core.engine.warm_up import warm_up; warm_up()"
 	touch $@
 
 venv: $(BIN)/.installed

@@ -31,9 +31,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ins_fusion.core import earth
-from ins_fusion.core.rotation import flu_to_frd
-from ins_fusion.core.strapdown import SampleIntegrator, propagate
+from ins_fusion.core.nav import earth
+from ins_fusion.core.nav.rotation import flu_to_frd
+from ins_fusion.core.nav.strapdown import SampleIntegrator, propagate
 from ins_fusion.replay.free_inertial import ELAPSED_S, sigma_afv, sigma_pos
 from ins_fusion.sim.imu_model import IMU400CC, ImuErrorModel, TriadErrors
 from ins_fusion.sim.scenarios import SURVEY_CAR, aalborg_straight

@@ -42,8 +42,8 @@ from test_fusion_drives import (
     simulate,
 )
 
-from ins_fusion.core.calibration import ImuCalibration
-from ins_fusion.core.engine import InsEngine
+from ins_fusion.core.engine.engine import InsEngine
+from ins_fusion.core.nav.calibration import ImuCalibration
 
 CAL = ImuCalibration.from_yaml(CALIBRATION)
 #: The heading counts as known once the filter's yaw σ is below this [deg] (unknown: 90°).

@@ -34,8 +34,8 @@ from speed_bag import simulated_bag
 _WORKER = """
 import os, sys
 from gnss_ins_common.params import validate_all
-from ins_fusion.core.params import PARAMETERS
-from ins_fusion.core.warm_up import warm_up
+from ins_fusion.core.settings.params import PARAMETERS
+from ins_fusion.core.engine.warm_up import warm_up
 from ins_fusion.replay.inputs import load_bag
 from ins_fusion.replay.run import run_fusion
 from ins_fusion.replay.topics import TopicMap

@@ -172,7 +172,7 @@ def main() -> None:
         node_env = {**os.environ, EXECUTOR_ENV: args.executor}
         if args.tree:
             node_env["PYTHONPATH"] = str(args.tree.resolve())
-            warm_up = "from ins_fusion.core.warm_up import warm_up; warm_up()"
+            warm_up = "from ins_fusion.core.engine.warm_up import warm_up; warm_up()"
             subprocess.run([sys.executable, "-c", warm_up], env=node_env, check=True)
         node_args = ["--ros-args", "-p", f"output_rate:={args.output_rate}"]
         command = [bin_dir / "ins_fusion_node", *node_args]

@@ -45,7 +45,7 @@ from noise_mismatch import (
     scaled_vibration,
 )
 
-from ins_fusion.core.units import to_deg_sqrt_h, to_m_s_sqrt_h
+from ins_fusion.core.nav.units import to_deg_sqrt_h, to_m_s_sqrt_h
 from ins_fusion.sim.imu_model import PROFILES as IMU_PROFILES
 from ins_fusion.sim.vibration import CAR
 

@@ -19,8 +19,8 @@ from pathlib import Path
 from typing import Any
 
 from gnss_ins_common.params import load_yaml, validate_all
-from ins_fusion.core.config import NODE_NAME
-from ins_fusion.core.params import PARAMETERS
+from ins_fusion.core.settings.config import NODE_NAME
+from ins_fusion.core.settings.params import PARAMETERS
 from ins_fusion.replay.inputs import load_bag
 from ins_fusion.replay.outages import Outage
 from ins_fusion.replay.pipeline import replay

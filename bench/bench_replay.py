@@ -35,9 +35,9 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ins_fusion.core import earth
-from ins_fusion.core.measurements import GnssFixMeasurement
-from ins_fusion.core.params import PARAMETERS
+from ins_fusion.core.filter.records import GnssFixMeasurement
+from ins_fusion.core.nav import earth
+from ins_fusion.core.settings.params import PARAMETERS
 from ins_fusion.replay.inputs import ReplayInputs, load_bag
 from ins_fusion.replay.metrics import horizontal
 from ins_fusion.replay.outages import Outage

@@ -62,7 +62,7 @@ FILTER_PARTS: dict[str, list[tuple[str, str]]] = {
         ("ins_fusion/core/", "add_gnss_velocity"),
     ],
     "engine.solution_row": [("ins_fusion/core/", "solution_row")],
-    "track rows (RowBuffer.append)": [("core/solution_rows.py", "append")],
+    "track rows (RowBuffer.append)": [("core/output/solution_rows.py", "append")],
 }
 
 

@@ -24,8 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ins_fusion.core.rotation import flu_to_frd
-from ins_fusion.core.strapdown import SampleIntegrator, propagate
+from ins_fusion.core.nav.rotation import flu_to_frd
+from ins_fusion.core.nav.strapdown import SampleIntegrator, propagate
 from ins_fusion.sim.drive import Simulation, SimulationConfig
 from ins_fusion.sim.gnss_model import PROFILES as GNSS_PROFILES
 from ins_fusion.sim.gnss_model import GnssErrorModel

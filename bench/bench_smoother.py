@@ -41,8 +41,8 @@ from bench_real_drive import BAG as REAL_BAG
 from bench_real_drive import FIXTURE, OUTAGE_SETS
 
 from gnss_ins_common.params import load_yaml, validate_all
-from ins_fusion.core.config import NODE_NAME
-from ins_fusion.core.params import PARAMETERS
+from ins_fusion.core.settings.config import NODE_NAME
+from ins_fusion.core.settings.params import PARAMETERS
 from ins_fusion.replay.inputs import load_bag
 from ins_fusion.replay.outages import Outage
 from ins_fusion.replay.pipeline import replay

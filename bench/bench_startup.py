@@ -33,8 +33,8 @@ from ins_fusion.tools.simulate import write_bag
 _FIRST_SOLUTION = """
 import sys
 import ins_fusion.node  # rclpy, the messages, the engine: what the node imports
-from ins_fusion.core.config import FusionConfig
-from ins_fusion.core.engine import InsEngine
+from ins_fusion.core.settings.config import FusionConfig
+from ins_fusion.core.engine.engine import InsEngine
 from ins_fusion.replay.inputs import load_bag
 from ins_fusion.replay.topics import TopicMap
 

@@ -36,14 +36,14 @@ import pymap3d
 from reference_ekf import ReferenceEkf, ReferenceNoise
 from scipy.spatial.transform import Rotation
 
-from ins_fusion.core.config import FusionConfig
-from ins_fusion.core.engine import (
+from ins_fusion.core.engine.engine import (
     EngineStatus,
     GnssFixMeasurement,
     GnssVelocityMeasurement,
     InsEngine,
 )
-from ins_fusion.core.units import STANDARD_GRAVITY_M_S2, to_deg_h, to_deg_sqrt_h, to_m_s_sqrt_h
+from ins_fusion.core.nav.units import STANDARD_GRAVITY_M_S2, to_deg_h, to_deg_sqrt_h, to_m_s_sqrt_h
+from ins_fusion.core.settings.config import FusionConfig
 from ins_fusion.sim.gnss_model import PROFILES as GNSS_PROFILES
 from ins_fusion.sim.gnss_model import GnssErrorModel, GnssSchedule
 from ins_fusion.sim.imu_model import PROFILES as IMU_PROFILES

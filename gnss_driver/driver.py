@@ -8,7 +8,7 @@ solves each closed epoch and stamps it on the host clock:
   to and including it (10 bits per character at ``baud``; notes §7.1 (7.2) with start and stop
   bits); the smallest bound is paired with the epoch's UTC time;
 - ``EnvelopeClockSync`` (gnss_ins_common.clock_sync) maps UTC to host time by the lower
-  envelope of those pairs (shared/ARCHITECTURE.md, "The shared clock");
+  envelope of those pairs (ARCHITECTURE.md, "The shared clock");
 - the stamp is the mapped UTC minus ``latency_s``, the receiver's fixed delay from the epoch
   to its first output byte (0 unless known, e.g. from a PPS test);
 - with ``use_gnss_time`` (a host clock disciplined to UTC by NTP/PTP/PPS) the stamp is the UTC

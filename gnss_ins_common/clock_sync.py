@@ -3,7 +3,7 @@
 A sensor stamps its samples on its own time axis (IMU device time, GNSS UTC); the host only knows
 when the bytes arrived. Each pair (sensor time ``s``, host time ``h``, the arrival already minus
 the serial transmission time) satisfies ``h = offset + (1 + skew) * s + delay`` with ``delay >= 0``
-(shared/ARCHITECTURE.md, "The shared clock"). The delays of ``d = h - s`` against ``s`` are
+(ARCHITECTURE.md, "The shared clock"). The delays of ``d = h - s`` against ``s`` are
 therefore bounded below by the line ``offset + skew * s``: the mapping is the lower convex hull of
 the points in a sliding window, and of its supporting lines the one that minimises the mean
 distance of the points above it, i.e. the hull edge spanning the mean sensor time (Moon, Skelly &

@@ -2,7 +2,7 @@
 
 The ``fill_*`` functions set a message's fields by attribute, so the same function fills an rclpy
 message (``sensor_msgs.msg.Imu()``) in a node and a rosbags one in ``gnss_ins simulate``: one
-definition of each published message. Conventions (shared/ARCHITECTURE.md): stamps in integer ns
+definition of each published message. Conventions (ARCHITECTURE.md): stamps in integer ns
 on the host clock, REP-103 ENU/FLU, REP-145 for IMU data; a quantity a message does not carry is
 marked by -1 as the first element of its covariance (sensor_msgs/Imu) or by ``UNKNOWN_VARIANCE``
 on the diagonal (the angular part of a velocity twist, unobserved attitude axes).

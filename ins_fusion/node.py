@@ -1,4 +1,4 @@
-"""ins_fusion_node: GNSS-aided INS on ROS 2, a thin layer over ``ins_fusion.core.engine``.
+"""ins_fusion_node: GNSS-aided INS on ROS 2, a thin layer over ``ins_fusion.core.engine.engine``.
 
 Subscribes ``imu/data_raw`` (sensor_msgs/Imu), ``gnss/fix`` (NavSatFix), ``gnss/vel``
 (TwistWithCovarianceStamped, ENU) and ``gnss/attitude`` (Imu orientation); publishes
@@ -43,14 +43,14 @@ from ins_fusion.adapters import cdr_fields, messages_in, tf_frames
 from ins_fusion.adapters.cdr_fields import CdrError
 from ins_fusion.adapters.cdr_out import OutputWriter
 from ins_fusion.adapters.status_log import WARN, StatusLog
-from ins_fusion.core.config import FusionConfig
-from ins_fusion.core.engine import InsEngine
-from ins_fusion.core.output_numbers import fault_report
-from ins_fusion.core.params import PARAMETERS as FUSION_PARAMETERS
-from ins_fusion.core.solution import STATE, STATES, T
+from ins_fusion.core.engine.engine import InsEngine
+from ins_fusion.core.output.output_numbers import fault_report
+from ins_fusion.core.output.solution import STATE, STATES, T
+from ins_fusion.core.settings.config import FusionConfig
+from ins_fusion.core.settings.params import PARAMETERS as FUSION_PARAMETERS
 from ins_fusion.ros_tf import TfBroadcaster, transform_template
 
-#: One table for the node and `gnss_ins replay` (ins_fusion/core/params.py).
+#: One table for the node and `gnss_ins replay` (ins_fusion/core/settings/params.py).
 PARAMETERS = FUSION_PARAMETERS
 #: Most IMU samples held between outputs (0.24 s at 134 Hz, for a low output_rate).
 MAX_HELD = 32

@@ -22,8 +22,7 @@ from hypothesis import strategies as st
 
 from gnss_ins_common.params import ParameterValueError, load_yaml
 from ins_fusion.bags.imu import ImuRecord
-from ins_fusion.core.params import PARAMETERS
-from ins_fusion.core.units import (
+from ins_fusion.core.nav.units import (
     deg_h,
     deg_s,
     deg_sqrt_h,
@@ -31,6 +30,7 @@ from ins_fusion.core.units import (
     mg,
     to_deg_sqrt_h,
 )
+from ins_fusion.core.settings.params import PARAMETERS
 from ins_fusion.noise_id.allan import allan_curve, overlapping_adev, tau_grid
 from ins_fusion.noise_id.analysis import (
     ACCEL,

@@ -16,8 +16,8 @@ from gnss_ins_common.message_fields import fill_temperature
 from gnss_ins_common.params import load_yaml
 from ins_fusion.bags.bag_io import BagWriter
 from ins_fusion.bags.messages import new_message
-from ins_fusion.core.params import PARAMETERS
-from ins_fusion.core.units import deg_s
+from ins_fusion.core.nav.units import deg_s
+from ins_fusion.core.settings.params import PARAMETERS
 from ins_fusion.noise_id.synthetic import static_record, write_static_bag
 from ins_fusion.sim.imu_model import PROFILES
 from ins_fusion.tools import cli

@@ -12,7 +12,7 @@ import math
 import numpy as np
 import pytest
 
-from ins_fusion.core.units import deg_h, deg_sqrt_h, m_s_sqrt_h, mg
+from ins_fusion.core.nav.units import deg_h, deg_sqrt_h, m_s_sqrt_h, mg
 from ins_fusion.noise_id.analysis import GYRO, identify, shortcomings
 from ins_fusion.noise_id.record import sample_clock
 from ins_fusion.noise_id.synthetic import static_record

@@ -17,8 +17,8 @@ from gnss_ins_common.axes import AxisMap
 from ins_fusion.bags.imu import write_imu_bag
 from ins_fusion.calibration_id import procedures
 from ins_fusion.calibration_id.model import Site
-from ins_fusion.core.calibration import ImuCalibration
-from ins_fusion.core.units import STANDARD_GRAVITY_M_S2, deg_s, mg
+from ins_fusion.core.nav.calibration import ImuCalibration
+from ins_fusion.core.nav.units import STANDARD_GRAVITY_M_S2, deg_s, mg
 from ins_fusion.sim.imu_model import IMU400CC
 from ins_fusion.tools.cli import main
 

@@ -23,7 +23,7 @@ from ins_fusion.calibration_id.lsq import EstimationError
 from ins_fusion.calibration_id.model import BiasInstability, Site
 from ins_fusion.calibration_id.result import Quantity
 from ins_fusion.calibration_id.segments import Kind, Means, Segment
-from ins_fusion.core.earth import EARTH_RATE_RAD_S
+from ins_fusion.core.nav.earth import EARTH_RATE_RAD_S
 from ins_fusion.sim.imu_model import L3G4200D_LIS331DLH
 
 #: Aalborg §5.2.2: g_l^LL = -1.0017 g; its "g" is 9.8 m/s² (notes §10).

@@ -13,8 +13,8 @@ from hypothesis import strategies as st
 
 from gnss_ins_common.axes import AxisMap
 from imu400cc_driver.axes import DEFAULT_ACCEL_SIGN, DEFAULT_AXIS_SPEC
-from ins_fusion.core.calibration import CalibrationError, ImuCalibration
-from ins_fusion.core.units import STANDARD_GRAVITY_M_S2, deg_s, mg
+from ins_fusion.core.nav.calibration import CalibrationError, ImuCalibration
+from ins_fusion.core.nav.units import STANDARD_GRAVITY_M_S2, deg_s, mg
 from ins_fusion.sim.imu_model import IMU400CC
 
 CONFIG = Path(__file__).resolve().parents[1] / "config" / "imu400cc_calibration.yaml"

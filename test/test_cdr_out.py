@@ -15,8 +15,8 @@ from tf2_msgs.msg import TFMessage
 from gnss_ins_common.message_fields import fill_orientation, stamp_ns
 from ins_fusion.adapters.cdr_out import SerializedMessage
 from ins_fusion.adapters.solution_out import fill_fused_fix, fill_odometry
-from ins_fusion.core.engine import InsSolution
-from ins_fusion.core.solution_rows import COV_VEL, LAT, pack
+from ins_fusion.core.engine.engine import InsSolution
+from ins_fusion.core.output.solution_rows import COV_VEL, LAT, pack
 from ins_fusion.node import output_writer
 
 RATE_VARIANCE = 3.3e-6

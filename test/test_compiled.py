@@ -14,28 +14,23 @@ import pytest
 from sim_bags import FIGURE_EIGHT_90_S, shared_bag
 
 from gnss_ins_common.params import validate_all
-from ins_fusion.core import (
-    adaptation,
-    eskf,
-    fused_attitude,
-    fused_nhc,
-    fused_position,
-    fused_stationary,
-    fused_velocity,
-    gnss_noise,
-    intake,
-    measurements,
-    output_numbers,
-    propagation,
-    sample_runs,
-    solution,
-    state,
-    stop_detector,
-    strapdown,
-)
 from ins_fusion.core.compiled import jit
-from ins_fusion.core.params import PARAMETERS
-from ins_fusion.core.warm_up import warm_up
+from ins_fusion.core.engine import intake, sample_runs
+from ins_fusion.core.engine.warm_up import warm_up
+from ins_fusion.core.filter import adaptation, eskf, propagation, state
+from ins_fusion.core.measurements import (
+    attitude,
+    gnss_noise,
+    gnss_position,
+    gnss_velocity,
+    models,
+    nhc,
+    stationary,
+    stop_detector,
+)
+from ins_fusion.core.nav import strapdown
+from ins_fusion.core.output import output_numbers, solution
+from ins_fusion.core.settings.params import PARAMETERS
 from ins_fusion.replay.inputs import load_bag
 from ins_fusion.replay.outages import Outage
 from ins_fusion.replay.run import run_fusion
@@ -111,7 +106,7 @@ _KERNELS = (
     intake.record_sample,
     stop_detector.ring_push,
     stop_detector.window_statistics,
-    measurements.nhc_model,
+    models.nhc_model,
     propagation.advance,
     propagation.covariance_step,
     propagation.predicted_state,
@@ -120,29 +115,29 @@ _KERNELS = (
     state.inject_nominal,
     gnss_noise._position_noise,
     gnss_noise.shrink_correlated,
-    measurements._position_model,
-    measurements._velocity_model,
+    models._position_model,
+    models._velocity_model,
     eskf.projected_variance,
     eskf._covariance_problem,
     adaptation.white_push_fix,
     output_numbers.output_numbers,
     sample_runs.take_run,
     sample_runs.advance_run,
-    fused_nhc.nhc_apply,
-    fused_velocity.velocity_apply,
-    fused_position.position_apply,
-    fused_attitude.attitude_apply,
-    measurements.attitude_model,
-    fused_stationary.zupt_apply,
-    fused_stationary.zaru_apply,
-    measurements.zupt_model,
-    measurements.zaru_model,
+    nhc.nhc_apply,
+    gnss_velocity.velocity_apply,
+    gnss_position.position_apply,
+    attitude.attitude_apply,
+    models.attitude_model,
+    stationary.zupt_apply,
+    stationary.zaru_apply,
+    models.zupt_model,
+    models.zaru_model,
 )
 _REAL = Path(__file__).parent / "fixtures" / "comma2k19" / "comma2k19_ex1_seg40"
 
 
 def test_warm_up_types_every_kernel_the_drives_use(drive: Path) -> None:
-    """After core.warm_up, drives (simulated with every optional state, the real segment) add
+    """After core.engine.warm_up, drives (simulated with every optional state, the real segment) add
     no compilation: a live sample never waits for the compiler."""
     if _PURE_SESSION:
         pytest.skip("pure-Python run requested")
@@ -168,23 +163,28 @@ def test_kernel_without_a_writable_cache_still_compiles() -> None:
 
 
 def test_the_kernel_cache_is_dropped_when_the_sources_change(tmp_path):
-    """numba would keep a caller's cached code after its callee's source changed: the cache of
-    the package goes when any of its sources does (and only then)."""
+    """numba would keep a caller's cached code after its callee's source changed: the caches of
+    the package and its sub-packages go when any of their sources does (and only then)."""
     from ins_fusion.core.compiled import drop_stale_kernels
 
     (tmp_path / "kernel.py").write_text("def f(): return 1\n")
-    cache = tmp_path / "__pycache__"
-    cache.mkdir()
-    kernels = [cache / "kernel.f-1.py311.nbi", cache / "kernel.f-1.py311.1.nbc"]
-    other = cache / "kernel.cpython-311.pyc"
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "callee.py").write_text("def g(): return 1\n")
+    kernels = []
+    for folder, module in ((tmp_path, "kernel"), (tmp_path / "sub", "callee")):
+        cache = folder / "__pycache__"
+        cache.mkdir()
+        kernels += [cache / f"{module}.f-1.py311.nbi", cache / f"{module}.f-1.py311.1.nbc"]
+    other = tmp_path / "__pycache__" / "kernel.cpython-311.pyc"
     for path in [*kernels, other]:
         path.write_bytes(b"x")
     assert drop_stale_kernels(tmp_path)  # no digest yet: of unknown sources
     assert not any(k.exists() for k in kernels) and other.exists()
-    for path in kernels:
-        path.write_bytes(b"x")
-    assert not drop_stale_kernels(tmp_path)  # same sources: kept
-    assert all(k.exists() for k in kernels)
-    (tmp_path / "kernel.py").write_text("def f(): return 2\n")
-    assert drop_stale_kernels(tmp_path)
-    assert not any(k.exists() for k in kernels)
+    for source in ("kernel.py", "sub/callee.py"):
+        for path in kernels:
+            path.write_bytes(b"x")
+        assert not drop_stale_kernels(tmp_path)  # same sources: kept
+        assert all(k.exists() for k in kernels)
+        (tmp_path / source).write_text("def f(): return 2\n")
+        assert drop_stale_kernels(tmp_path)
+        assert not any(k.exists() for k in kernels)

@@ -15,8 +15,8 @@ from ros_harness import node_executable, wait_for
 from sensor_msgs.msg import Imu
 
 from ins_fusion.adapters.status_log import INFO, WARN, StatusLog
-from ins_fusion.core.config import FusionConfig
-from ins_fusion.core.engine import InsEngine
+from ins_fusion.core.engine.engine import InsEngine
+from ins_fusion.core.settings.config import FusionConfig
 from ins_fusion.runtime.processes import gnss_ins_command
 
 pytestmark = pytest.mark.ros

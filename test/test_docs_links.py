@@ -1,6 +1,6 @@
-"""Every relative Markdown link of README.md and docs/*.md resolves inside the repository (file
-and #anchor), the prose names no file that is not shipped and no internal issue number, and
-`gnss_ins --version` matches the package's declared version and license files agree."""
+"""Every relative Markdown link of README.md, ARCHITECTURE.md and docs/*.md resolves inside the
+repository (file and #anchor), the prose names no file that is not shipped and no internal issue
+number, and `gnss_ins --version` matches the package's declared version and license files agree."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
-DOCS = [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]
+DOCS = [REPO / "README.md", REPO / "ARCHITECTURE.md", *sorted((REPO / "docs").glob("*.md"))]
 LINK = re.compile(r"\[[^\]]*\]\(([^)\s]+)\)")
 CODE = re.compile(r"```.*?```|`[^`\n]*`", re.DOTALL)  # code is not a link
 

@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from ins_fusion.core import earth
+from ins_fusion.core.nav import earth
 
 LAT_57 = math.radians(57.0)
 

@@ -4,8 +4,8 @@ On a simulated drive whose receiver drops to 2-D fixes for a minute and writes a
 altitude into them (a receiver in 2-D mode holds some height of its own), the fusion takes
 their horizontal position and keeps its height from the IMU and the last 3-D fixes; the same
 fixes taken as 3-D pull the height off (so the test can fail). And the compiled GNSS position
-update (core.fused_position) with a replay's compiled runs gives, with 2-D fixes, the same
-rows to the bit as the engine run the general way.
+update (core.measurements.gnss_position) with a replay's compiled runs gives, with 2-D fixes,
+the same rows to the bit as the engine run the general way.
 """
 
 from __future__ import annotations
@@ -19,9 +19,9 @@ from test_sample_runs import _sample_by_sample, inputs  # noqa: F401  (the fixtu
 
 from gnss_ins_common.navsat import HEIGHT_UNKNOWN_VARIANCE_M2
 from gnss_ins_common.params import validate_all
-from ins_fusion.core.fused_position import FusedPosition
-from ins_fusion.core.measurements import GnssFixMeasurement
-from ins_fusion.core.params import PARAMETERS
+from ins_fusion.core.filter.records import GnssFixMeasurement
+from ins_fusion.core.measurements.gnss_position import FusedPosition
+from ins_fusion.core.settings.params import PARAMETERS
 from ins_fusion.replay.inputs import ReplayInputs
 from ins_fusion.replay.run import run_fusion
 

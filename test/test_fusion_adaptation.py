@@ -1,5 +1,5 @@
-"""core.adaptation: the IMU noise measured from the data, the white GNSS noise measured from the
-innovations, and the fading factor of a gate recovery."""
+"""core.filter.adaptation: the IMU noise measured from the data, the white GNSS noise measured from
+the innovations, and the fading factor of a gate recovery."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ins_fusion.core.adaptation import (
+from ins_fusion.core.filter.adaptation import (
     B_MEAN,
     B_VERSION,
     ImuNoiseMonitor,

@@ -14,14 +14,14 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from gnss_ins_common.params import ParameterValueError, load_yaml
-from ins_fusion.core.alignment import Levelling, earth_rate_body_rad_s, level
-from ins_fusion.core.calibration import CalibrationError, ImuCalibration
-from ins_fusion.core.config import NODE_NAME, FusionConfig, StopDetectorConfig
-from ins_fusion.core.params import PARAMETERS
-from ins_fusion.core.rotation import MAT_FLU_FRD, quat_from_euler
-from ins_fusion.core.stop_detector import StopDetector
-from ins_fusion.core.strapdown import NavState
-from ins_fusion.core.units import DEG, STANDARD_GRAVITY_M_S2, mg
+from ins_fusion.core.measurements.stop_detector import StopDetector
+from ins_fusion.core.nav.calibration import CalibrationError, ImuCalibration
+from ins_fusion.core.nav.levelling import Levelling, earth_rate_body_rad_s, level
+from ins_fusion.core.nav.rotation import MAT_FLU_FRD, quat_from_euler
+from ins_fusion.core.nav.strapdown import NavState
+from ins_fusion.core.nav.units import DEG, STANDARD_GRAVITY_M_S2, mg
+from ins_fusion.core.settings.config import NODE_NAME, FusionConfig, StopDetectorConfig
+from ins_fusion.core.settings.params import PARAMETERS
 from ins_fusion.sim.imu_model import IMU400CC, ImuErrorModel, ImuProfile, TriadErrors
 
 REPO = Path(__file__).resolve().parents[1]

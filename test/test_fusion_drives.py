@@ -23,17 +23,17 @@ from typing import Any
 import numpy as np
 import pytest
 
-from ins_fusion.core import earth
-from ins_fusion.core.calibration import ImuCalibration
-from ins_fusion.core.config import FusionConfig
-from ins_fusion.core.engine import (
+from ins_fusion.core.engine.engine import (
     AttitudeMeasurement,
     EngineStatus,
     GnssFixMeasurement,
     GnssVelocityMeasurement,
     InsEngine,
 )
-from ins_fusion.core.rotation import euler_from_quat, quat_nb_from_enu_flu
+from ins_fusion.core.nav import earth
+from ins_fusion.core.nav.calibration import ImuCalibration
+from ins_fusion.core.nav.rotation import euler_from_quat, quat_nb_from_enu_flu
+from ins_fusion.core.settings.config import FusionConfig
 from ins_fusion.sim.gnss_model import PROFILES as GNSS_PROFILES
 from ins_fusion.sim.gnss_model import GnssErrorModel, GnssFix, GnssSchedule
 from ins_fusion.sim.imu_model import PROFILES as IMU_PROFILES

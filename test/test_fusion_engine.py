@@ -13,9 +13,9 @@ import pytest
 from scipy.spatial.transform import Rotation
 from test_fusion_drives import CALIBRATION, Drive, config, deliver, feed, simulate
 
-from ins_fusion.core.calibration import ImuCalibration
-from ins_fusion.core.engine import MEASUREMENT_NAMES, GnssFixMeasurement, InsEngine
-from ins_fusion.core.measurements import AttitudeMeasurement
+from ins_fusion.core.engine.engine import MEASUREMENT_NAMES, GnssFixMeasurement, InsEngine
+from ins_fusion.core.filter.records import AttitudeMeasurement
+from ins_fusion.core.nav.calibration import ImuCalibration
 
 #: Figure-eight: 10 s standstill, then 10 m/s circles of 40 m radius.
 DURATION_S = 70.0
@@ -377,8 +377,8 @@ def test_every_output_covariance_is_symmetric_to_the_bit_and_publishable(eight_a
     an off-diagonal near zero then differed from its mirror by more than the outputs' relative
     check allows, and the node dropped the solution as not publishable (twice in 7 min of the
     README's inconsistent emulators: IMU at rest, receivers moving). They are symmetrized."""
-    from ins_fusion.core.output_numbers import publishable_row
-    from ins_fusion.core.solution import COV_ATT, COV_POS, COV_VEL
+    from ins_fusion.core.output.output_numbers import publishable_row
+    from ins_fusion.core.output.solution import COV_ATT, COV_POS, COV_VEL
 
     engine = _engine()
     rows = []

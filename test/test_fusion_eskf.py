@@ -1,4 +1,5 @@
-"""Error-state filter algebra (core.eskf, core.measurements) against independent references.
+"""Error-state filter algebra (core.filter.eskf, core.measurements.models) against independent
+references.
 
 - F against finite differences of the strapdown mechanization itself: perturb the true state
   by each error state in turn, mechanize both with the same raw IMU data, and compare the
@@ -22,10 +23,7 @@ from hypothesis import strategies as st
 from scipy.linalg import expm
 from scipy.spatial.transform import Rotation
 
-from ins_fusion.core import earth
-from ins_fusion.core.calibration import ImuCalibration
-from ins_fusion.core.config import FusionConfig
-from ins_fusion.core.eskf import (
+from ins_fusion.core.filter.eskf import (
     ATT,
     AXIS_ERROR_TIME_S,
     BA,
@@ -37,10 +35,8 @@ from ins_fusion.core.eskf import (
     chi2_threshold,
     gyro_misalignment_variance,
 )
-from ins_fusion.core.measurements import (
-    GnssFixMeasurement,
-    GnssVelocityMeasurement,
-    Prediction,
+from ins_fusion.core.filter.records import GnssFixMeasurement, GnssVelocityMeasurement, Prediction
+from ins_fusion.core.measurements.models import (
     attitude,
     euler_jacobian,
     gnss_position,
@@ -48,8 +44,11 @@ from ins_fusion.core.measurements import (
     nhc,
     zupt,
 )
-from ins_fusion.core.rotation import MAT_ENU_NED, euler_rad, quat_from_euler
-from ins_fusion.core.strapdown import NavState, increment, propagate
+from ins_fusion.core.nav import earth
+from ins_fusion.core.nav.calibration import ImuCalibration
+from ins_fusion.core.nav.rotation import MAT_ENU_NED, euler_rad, quat_from_euler
+from ins_fusion.core.nav.strapdown import NavState, increment, propagate
+from ins_fusion.core.settings.config import FusionConfig
 
 REPO = Path(__file__).resolve().parents[1]
 NOISE = FusionConfig.default().imu_noise
@@ -132,7 +131,7 @@ def test_error_dynamics_match_finite_differences_of_the_mechanization():
         true_end = _mechanize(_plus(nav, dx[:9]), rate, force, steps, dt)
         measured = _minus(true_end, nominal_end)
         predicted = (transition @ dx)[:9]
-        # Allowances: the position terms core.eskf leaves out (v/R in δṗ, ∂g/∂φ in δv̇, Ω/R
+        # Allowances: the position terms core.filter.eskf leaves out (v/R in δṗ, ∂g/∂φ in δv̇, Ω/R
         # in ψ̇) and the resolution of a latitude in radians (2e-16 rad ≈ 1.4e-9 m).
         allowance = {
             POS: 5e-6 * horizon * size + 5e-9,

@@ -1,4 +1,5 @@
-"""core.gnss_noise: the correlated GNSS error states follow the measured white/correlated split."""
+"""core.measurements.gnss_noise: the correlated GNSS error states follow the measured
+white/correlated split."""
 
 from __future__ import annotations
 
@@ -10,14 +11,19 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from ins_fusion.core.adaptation import W_COUNT, W_MEAN
-from ins_fusion.core.config import FusionConfig
-from ins_fusion.core.eskf import POS, ErrorStateFilter, StateLayout
-from ins_fusion.core.gnss_noise import NOISE_KEPT, NOISE_MOVED, NOISE_RESTART, GnssNoise
-from ins_fusion.core.measurements import GnssFixMeasurement
-from ins_fusion.core.rotation import quat_from_euler
-from ins_fusion.core.state import FilterState
-from ins_fusion.core.strapdown import NavState
+from ins_fusion.core.filter.adaptation import W_COUNT, W_MEAN
+from ins_fusion.core.filter.eskf import POS, ErrorStateFilter, StateLayout
+from ins_fusion.core.filter.records import GnssFixMeasurement
+from ins_fusion.core.filter.state import FilterState
+from ins_fusion.core.measurements.gnss_noise import (
+    NOISE_KEPT,
+    NOISE_MOVED,
+    NOISE_RESTART,
+    GnssNoise,
+)
+from ins_fusion.core.nav.rotation import quat_from_euler
+from ins_fusion.core.nav.strapdown import NavState
+from ins_fusion.core.settings.config import FusionConfig
 
 
 def test_an_error_state_less_certain_than_its_new_process_shrinks_with_its_estimate():

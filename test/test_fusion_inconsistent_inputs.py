@@ -16,18 +16,18 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from gnss_ins_common.params import load_yaml
-from ins_fusion.core import eskf
-from ins_fusion.core.config import NODE_NAME, FusionConfig
-from ins_fusion.core.engine import InsEngine
-from ins_fusion.core.eskf import BG
-from ins_fusion.core.measurements import (
+from ins_fusion.core.engine.engine import InsEngine
+from ins_fusion.core.filter import eskf
+from ins_fusion.core.filter.eskf import BG
+from ins_fusion.core.filter.records import (
     AttitudeMeasurement,
     GnssFixMeasurement,
     GnssVelocityMeasurement,
 )
-from ins_fusion.core.output_numbers import FAULTS, row_fault
-from ins_fusion.core.params import PARAMETERS
-from ins_fusion.core.solution import GYRO
+from ins_fusion.core.output.output_numbers import FAULTS, row_fault
+from ins_fusion.core.output.solution import GYRO
+from ins_fusion.core.settings.config import NODE_NAME, FusionConfig
+from ins_fusion.core.settings.params import PARAMETERS
 
 REPO = Path(__file__).resolve().parents[1]
 IMU_RATE_HZ = 134.0

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from test_fusion_drives import Drive, config, feed, simulate
 
-from ins_fusion.core.engine import InsEngine
+from ins_fusion.core.engine.engine import InsEngine
 from ins_fusion.replay.report import format_table
 
 #: imu_link turned 180° about its x axis: FLU (x, y, z) reads (x, -y, -z).

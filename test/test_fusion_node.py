@@ -35,9 +35,9 @@ from gnss_ins_common.params import ParameterValueError
 from gnss_ins_common.ros_node_main import EXECUTOR_ENV
 from ins_fusion.adapters import cdr_fields, messages_in
 from ins_fusion.bags.bag_io import BagReader
-from ins_fusion.core.config import FusionConfig
-from ins_fusion.core.engine import InsEngine
-from ins_fusion.core.solution import COV_VEL, QUAT, WIDTH
+from ins_fusion.core.engine.engine import InsEngine
+from ins_fusion.core.output.solution import COV_VEL, QUAT, WIDTH
+from ins_fusion.core.settings.config import FusionConfig
 from ins_fusion.node import MAX_HELD, InsFusionNode
 from ins_fusion.sim.drive import SimulationConfig
 from ins_fusion.tools.simulate import write_bag

@@ -47,9 +47,9 @@ def test_datasheet_parameters_with_vibration_stay_consistent(gnss):
 def test_a_white_receiver_does_not_hold_a_tactical_imu_off_its_fixes():
     """Tactical IMU (stim300 datasheet), white 5 m receiver, no vibration: the default split
     makes the first fixes 95 % correlated error; when the measured white share says otherwise,
-    the GNSS error states must give that error back (core.gnss_noise), or they hold the position
-    metres off the fixes (before: NEES 6.2, 93 % in 3σ, horizontal RMS 1.22 m on this drive).
-    Consistent, and closer than the position-only reference EKF told the truth."""
+    the GNSS error states must give that error back (core.measurements.gnss_noise), or they hold the
+    position metres off the fixes (before: NEES 6.2, 93 % in 3σ, horizontal RMS 1.22 m on this
+    drive). Consistent, and closer than the position-only reference EKF told the truth."""
     streams = build_streams("stim300", "white5", "none", seed=1, duration_s=DURATION_S)
     track = run_engine(streams, datasheet_parameters(streams.profile))
     reference = run_reference(streams)
@@ -67,8 +67,8 @@ def test_a_tactical_imu_with_rtk_stays_consistent_through_its_misalignment():
     """Tactical IMU (stim300: 500 ppm scale factors, 1 mrad misalignment drawn per power-up),
     RTK, no vibration, the datasheet's scale accuracy and misalignment among the parameters: in
     the figure-eight's 14 deg/s turns the misalignment turns the attitude by 50 deg/h, which the
-    turn-rate noise (core.eskf) must cover. Without it this drive gives NEES 13.6, 70 % in 3σ,
-    6 % of the fixes gated and a gate recovery."""
+    turn-rate noise (core.filter.eskf) must cover. Without it this drive gives NEES 13.6, 70 % in
+    3σ, 6 % of the fixes gated and a gate recovery."""
     streams = build_streams("stim300", "rtk", "none", seed=1, duration_s=100.0)
     track = run_engine(streams, datasheet_parameters(streams.profile))
     window = track.window()

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from test_fusion_drives import CALIBRATION, Drive, _from_fix, config, run
 
-from ins_fusion.core.calibration import ImuCalibration
+from ins_fusion.core.nav.calibration import ImuCalibration
 from ins_fusion.replay.inputs import load_bag
 from ins_fusion.replay.pipeline import replay
 from ins_fusion.replay.topics import DEFAULT_REFERENCE, TopicMap
@@ -113,7 +113,7 @@ def test_driving_straight_moves_no_estimate_without_cause(calibration):
 
 
 def test_switched_off_there_are_no_calibration_states():
-    from ins_fusion.core.engine import InsEngine
+    from ins_fusion.core.engine.engine import InsEngine
 
     assert InsEngine(config()).layout.td is None  # the time offset is a calibration run's
     engine = InsEngine(config(self_calibration__mounting=False))

@@ -1,5 +1,5 @@
-"""core.timeline: ``extend_run`` (a compiled run's entries in one call) keeps the same history
-as appending the entries one by one, whatever the batches and the history length, and the
+"""core.filter.timeline: ``extend_run`` (a compiled run's entries in one call) keeps the same
+history as appending the entries one by one, whatever the batches and the history length, and the
 entries it gives back are the run's."""
 
 from __future__ import annotations
@@ -8,10 +8,10 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ins_fusion.core.adaptation import WhiteNoiseMonitor
-from ins_fusion.core.state import X_SIZE, X_T
-from ins_fusion.core.status import new_counters
-from ins_fusion.core.timeline import Entry, RunEntries, Timeline
+from ins_fusion.core.filter.adaptation import WhiteNoiseMonitor
+from ins_fusion.core.filter.state import X_SIZE, X_T
+from ins_fusion.core.filter.status import new_counters
+from ins_fusion.core.filter.timeline import Entry, RunEntries, Timeline
 
 _INC = np.zeros(7)
 _WHITE = WhiteNoiseMonitor()

@@ -1,4 +1,5 @@
-"""core.output_numbers: the compiled output numbers against numpy's formulas on the same row."""
+"""core.output.output_numbers: the compiled output numbers against numpy's formulas on the same
+row."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from ins_fusion.core.output_numbers import (
+from ins_fusion.core.output.output_numbers import (
     FAULTS,
     FIX,
     IMU,
@@ -18,7 +19,7 @@ from ins_fusion.core.output_numbers import (
     output_numbers,
     row_fault,
 )
-from ins_fusion.core.solution import COV_ATT, COV_POS, COV_VEL, POS, QUAT, RATE, VEL, WIDTH
+from ins_fusion.core.output.solution import COV_ATT, COV_POS, COV_VEL, POS, QUAT, RATE, VEL, WIDTH
 
 
 def _row(seed: int, shift: float) -> np.ndarray:

@@ -8,7 +8,7 @@ import pytest
 
 from gnss_driver.node import PARAMETERS as GNSS_PARAMETERS
 from imu400cc_driver.node import PARAMETERS as IMU_PARAMETERS
-from ins_fusion.core.params import PARAMETERS as FUSION_PARAMETERS
+from ins_fusion.core.settings.params import PARAMETERS as FUSION_PARAMETERS
 
 REPO = Path(__file__).resolve().parents[1]
 NODES = {

@@ -91,7 +91,7 @@ def test_load_yaml_reads_a_wildcard_section(tmp_path):
 def _node_specs() -> list[Param]:
     from gnss_driver.node import PARAMETERS as GNSS
     from imu400cc_driver.node import PARAMETERS as IMU
-    from ins_fusion.core.params import PARAMETERS as FUSION
+    from ins_fusion.core.settings.params import PARAMETERS as FUSION
 
     return [*IMU, *GNSS, *FUSION]
 

@@ -15,9 +15,9 @@ from sim_bags import FIGURE_EIGHT_90_S, shared_bag
 
 from gnss_ins_common.params import validate_all
 from ins_fusion.bags.bag_io import BagReader, BagWriter
-from ins_fusion.core.config import FusionConfig
-from ins_fusion.core.measurements import GnssFixMeasurement
-from ins_fusion.core.params import PARAMETERS
+from ins_fusion.core.filter.records import GnssFixMeasurement
+from ins_fusion.core.settings.config import FusionConfig
+from ins_fusion.core.settings.params import PARAMETERS
 from ins_fusion.replay.inputs import load_bag
 from ins_fusion.replay.outages import Outage, mask
 from ins_fusion.replay.pipeline import replay

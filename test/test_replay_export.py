@@ -14,7 +14,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from gnss_driver import geoid
-from ins_fusion.core.engine import InsSolution
+from ins_fusion.core.engine.engine import InsSolution
 from ins_fusion.replay.export import CSV_COLUMNS, export
 from ins_fusion.replay.run import SolutionTrack
 

@@ -17,10 +17,10 @@ from scipy.spatial.transform import Rotation
 
 from ins_fusion.adapters.messages_in import ImuSample
 from ins_fusion.bags.bag_io import BagReader, BagWriter
-from ins_fusion.core import earth
-from ins_fusion.core.config import FusionConfig
-from ins_fusion.core.engine import InsSolution
-from ins_fusion.core.rotation import MAT_FLU_FRD, mat_from_rpy_flu
+from ins_fusion.core.engine.engine import InsSolution
+from ins_fusion.core.nav import earth
+from ins_fusion.core.nav.rotation import MAT_FLU_FRD, mat_from_rpy_flu
+from ins_fusion.core.settings.config import FusionConfig
 from ins_fusion.replay import metrics, pipeline
 from ins_fusion.replay.frames import comparison_frame, mounting_quat, moved_track
 from ins_fusion.replay.inputs import ImuSeries, Reference, ReplayInputs, Series

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from ins_fusion.core import earth
-from ins_fusion.core.engine import InsSolution
+from ins_fusion.core.engine.engine import InsSolution
+from ins_fusion.core.nav import earth
 from ins_fusion.replay import metrics
 from ins_fusion.replay.inputs import Reference, Series
 from ins_fusion.replay.outages import Outage, mask, parse_outage

@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ins_fusion.adapters.messages_in import ImuSample
-from ins_fusion.core.measurements import GnssFixMeasurement
+from ins_fusion.core.filter.records import GnssFixMeasurement
 from ins_fusion.replay.inputs import ImuSeries, ReplayInputs
 from ins_fusion.replay.run import _TICK_TOLERANCE, output_ticks, run_fusion
 from ins_fusion.replay.topics import TopicMap

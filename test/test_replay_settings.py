@@ -9,7 +9,7 @@ import pytest
 
 from gnss_ins_common.params import ParameterValueError
 from ins_fusion.adapters.messages_in import ImuSample
-from ins_fusion.core.measurements import GnssFixMeasurement, GnssVelocityMeasurement
+from ins_fusion.core.filter.records import GnssFixMeasurement, GnssVelocityMeasurement
 from ins_fusion.replay import run as replay_run
 from ins_fusion.replay.inputs import ImuSeries, ReplayInputs, TopicMap
 from ins_fusion.replay.outages import Outage

@@ -16,8 +16,8 @@ from scipy.spatial.transform import Rotation
 from test_replay_metrics import _solution as metrics_solution
 
 from ins_fusion.bags.bag_io import BagReader, BagWriter
-from ins_fusion.core import earth
-from ins_fusion.core.measurements import GnssFixMeasurement
+from ins_fusion.core.filter.records import GnssFixMeasurement
+from ins_fusion.core.nav import earth
 from ins_fusion.replay.frames import lever_arm_covariance, moved_track
 from ins_fusion.replay.outages import Outage
 from ins_fusion.replay.ranking import RANK_METRICS

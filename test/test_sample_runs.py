@@ -1,8 +1,8 @@
-"""core.sample_runs via InsEngine.add_imu_series (what a replay runs) and the re-propagation
+"""core.engine.sample_runs via InsEngine.add_imu_series (what a replay runs) and the re-propagation
 runs after late measurements: the same rows and counters, to the bit, as feeding the engine
 sample by sample with add_imu and solution_row and re-propagating entry by entry, on
 a drive with late GNSS data and with damaged IMU data (corrupt samples, a gap, a duplicate
-stamp, a stamp out of order, a clock that goes back). With the fused NHC (core.fused_nhc) as
+stamp, a stamp out of order, a clock that goes back). With the fused NHC (core.measurements.nhc) as
 well, against the engine with the smoother's recorder attached, which takes every sample and
 every update the general way."""
 
@@ -16,17 +16,17 @@ from sim_bags import FIGURE_EIGHT_90_S, TEST_PATTERN_75_S, shared_bag
 from test_compiled import PARAMETER_SETS
 
 from gnss_ins_common.params import validate_all
-from ins_fusion.core import sample_runs
 from ins_fusion.core.compiled import kernel_array
-from ins_fusion.core.config import FusionConfig
-from ins_fusion.core.engine import InsEngine
-from ins_fusion.core.fused_attitude import FusedAttitude
-from ins_fusion.core.fused_position import FusedPosition
-from ins_fusion.core.fused_stationary import FusedStationary
-from ins_fusion.core.fused_velocity import FusedVelocity
-from ins_fusion.core.params import PARAMETERS
-from ins_fusion.core.smoothed_solution import attach_recorder
-from ins_fusion.core.solution_rows import RowBuffer
+from ins_fusion.core.engine import sample_runs
+from ins_fusion.core.engine.engine import InsEngine
+from ins_fusion.core.engine.smoothed_solution import attach_recorder
+from ins_fusion.core.measurements.attitude import FusedAttitude
+from ins_fusion.core.measurements.gnss_position import FusedPosition
+from ins_fusion.core.measurements.gnss_velocity import FusedVelocity
+from ins_fusion.core.measurements.stationary import FusedStationary
+from ins_fusion.core.output.solution_rows import RowBuffer
+from ins_fusion.core.settings.config import FusionConfig
+from ins_fusion.core.settings.params import PARAMETERS
 from ins_fusion.replay.inputs import ImuSeries, ReplayInputs, load_bag
 from ins_fusion.replay.run import output_ticks, run_fusion
 from ins_fusion.replay.topics import TopicMap

@@ -9,7 +9,7 @@ import allantools
 import numpy as np
 import pytest
 
-from ins_fusion.core import units
+from ins_fusion.core.nav import units
 from ins_fusion.sim.imu_model import IMU400CC, STIM300, ImuErrorModel, TriadErrors
 from ins_fusion.sim.noise import BandLimitedNoise, _first_order_recursion
 

@@ -9,8 +9,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from ins_fusion.bags.topics import GNSS_FIX
-from ins_fusion.core import earth
-from ins_fusion.core.rotation import euler_from_quat, quat_nb_from_enu_flu
+from ins_fusion.core.nav import earth
+from ins_fusion.core.nav.rotation import euler_from_quat, quat_nb_from_enu_flu
 from ins_fusion.sim.drive import Simulation, SimulationConfig
 from ins_fusion.sim.gnss_model import (
     FIX_NOISE,

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy.optimize import least_squares
 
-from ins_fusion.core import units
+from ins_fusion.core.nav import units
 from ins_fusion.sim.imu_model import (
     IDEAL,
     IMU400CC,

@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from ins_fusion.core import earth
-from ins_fusion.core.rotation import flu_to_frd
-from ins_fusion.core.strapdown import SampleIntegrator, propagate
+from ins_fusion.core.nav import earth
+from ins_fusion.core.nav.rotation import flu_to_frd
+from ins_fusion.core.nav.strapdown import SampleIntegrator, propagate
 from ins_fusion.sim.scenarios import SURVEY_CAR, figure_eight, seed_test_pattern
 from ins_fusion.sim.trajectory import Mounting, Trajectory
 from ins_fusion.sim.vehicle import VehicleSetup, VehicleTruth

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from ins_fusion.core import earth
+from ins_fusion.core.nav import earth
 from ins_fusion.sim.gnss_model import (
     PROFILES,
     FixType,

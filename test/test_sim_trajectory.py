@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from ins_fusion.core import earth
-from ins_fusion.core.rotation import euler_from_quat
+from ins_fusion.core.nav import earth
+from ins_fusion.core.nav.rotation import euler_from_quat
 from ins_fusion.sim.scenarios import AALBORG_START, SURVEY_CAR, figure_eight, seed_test_pattern
 from ins_fusion.sim.trajectory import Mounting, Route, SmoothChannel
 from ins_fusion.sim.vehicle import VehicleSetup, VehicleTruth

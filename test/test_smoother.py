@@ -1,7 +1,7 @@
-"""The RTS smoother of the closed-loop error-state filter (core.smoother, core.smoother_recorder)
-on a linear-Gaussian toy problem, against filterpy's open-loop Kalman filter + rts_smoother and
-against the batch solution of the whole trajectory; the recorder's rollbacks and its chunks on
-disk.
+"""The RTS smoother of the closed-loop error-state filter (core.smoother.rts,
+core.smoother.recorder) on a linear-Gaussian toy problem, against filterpy's open-loop Kalman filter
++ rts_smoother and against the batch solution of the whole trajectory; the recorder's rollbacks and
+its chunks on disk.
 
 The toy: position, velocity and a Gauss-Markov measurement bias; position measurements (two at
 some steps, none at others), one step with extra noise and one where the bias restarts (the
@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 from filterpy.kalman import KalmanFilter, rts_smoother
 
-from ins_fusion.core.smoother import Smoothed, backward_step, smoother_gain
-from ins_fusion.core.smoother_recorder import SmootherRecorder, Snapshot
+from ins_fusion.core.smoother.recorder import SmootherRecorder, Snapshot
+from ins_fusion.core.smoother.rts import Smoothed, backward_step, smoother_gain
 
 DT = 0.5
 F = np.array([[1.0, DT, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, np.exp(-DT / 20.0)]])

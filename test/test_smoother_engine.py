@@ -1,5 +1,5 @@
-"""The smoother's recorder on the real engine (core.smoothed_solution.attach_recorder): the hooks
-do not change the forward solution, late measurements (rollbacks, re-propagation) leave the
+"""The smoother's recorder on the real engine (core.engine.smoothed_solution.attach_recorder): the
+hooks do not change the forward solution, late measurements (rollbacks, re-propagation) leave the
 records of the final timeline, and the smoothed solution beats the forward one in an outage."""
 
 from __future__ import annotations
@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 from test_fusion_drives import CALIBRATION, Drive, config, feed, simulate
 
-from ins_fusion.core import earth
-from ins_fusion.core.calibration import ImuCalibration
-from ins_fusion.core.engine import InsEngine, InsSolution
-from ins_fusion.core.smoothed_solution import attach_recorder, smoothed_rows
-from ins_fusion.core.solution_rows import unpack
+from ins_fusion.core.engine.engine import InsEngine, InsSolution
+from ins_fusion.core.engine.smoothed_solution import attach_recorder, smoothed_rows
+from ins_fusion.core.nav import earth
+from ins_fusion.core.nav.calibration import ImuCalibration
+from ins_fusion.core.output.solution_rows import unpack
 
 DURATION_S = 70.0
 #: GNSS (fix, velocity, attitude) withheld by stamp, as `gnss_ins replay --outage` does [s].

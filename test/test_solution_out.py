@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from ins_fusion.adapters.solution_out import odometry_arrays, publishable
-from ins_fusion.core.engine import InsSolution
+from ins_fusion.core.engine.engine import InsSolution
 
 
 def _solution(yaw_deg: float, vel_enu, cov_vel) -> InsSolution:

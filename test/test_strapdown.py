@@ -10,8 +10,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from ins_fusion.core import earth
-from ins_fusion.core.rotation import (
+from ins_fusion.core.nav import earth
+from ins_fusion.core.nav.rotation import (
     frd_to_flu,
     ned_to_enu,
     quat_enu_flu_from_nb,
@@ -21,7 +21,7 @@ from ins_fusion.core.rotation import (
     quat_nb_from_enu_flu,
     quat_rotate,
 )
-from ins_fusion.core.strapdown import NavState, SampleIntegrator, increment, propagate
+from ins_fusion.core.nav.strapdown import NavState, SampleIntegrator, increment, propagate
 
 LAT, LON, HEIGHT = math.radians(57.0), math.radians(9.987), 40.0
 unit = st.floats(-1.0, 1.0)

@@ -13,7 +13,7 @@ from scipy.spatial.transform import Rotation
 from tf2_msgs.msg import TFMessage
 
 from ins_fusion.adapters.tf_frames import quat_from_rpy_deg, static_transforms, world_frame
-from ins_fusion.core.params import PARAMETERS
+from ins_fusion.core.settings.params import PARAMETERS
 from ins_fusion.node import InsFusionNode
 
 pytestmark = pytest.mark.ros

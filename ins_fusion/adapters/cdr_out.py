@@ -7,7 +7,7 @@ serialized bytes. The node therefore serializes one message per output once, wit
 fixed-size run of float64 at the end of the message, where every number it publishes sits:
 
 - nav_msgs/Odometry: position, orientation, pose covariance, linear and angular velocity, twist
-  covariance (85 float64, ``core.output_numbers``);
+  covariance (85 float64, ``core.output.output_numbers``);
 - sensor_msgs/NavSatFix: status (int8 just after frame_id), then latitude, longitude, altitude
   and the covariance (12 float64) before position_covariance_type (uint8, the last byte);
 - sensor_msgs/Imu of ins/imu: orientation, its covariance, angular_velocity, its covariance,
@@ -30,8 +30,15 @@ import numpy as np
 from gnss_ins_common.message_fields import stamp_ns
 from gnss_ins_common.navsat import NavSatStatus
 from gnss_ins_common.types import FloatArray
-from ins_fusion.core.output_numbers import FIX, IMU, NUMBERS, ODOMETRY, TRANSFORM, output_numbers
-from ins_fusion.core.solution import STATE, STATES, T
+from ins_fusion.core.output.output_numbers import (
+    FIX,
+    IMU,
+    NUMBERS,
+    ODOMETRY,
+    TRANSFORM,
+    output_numbers,
+)
+from ins_fusion.core.output.solution import STATE, STATES, T
 
 _ENCAPSULATION = 4
 _NS_PER_S = 1_000_000_000
@@ -97,8 +104,8 @@ class OutputWriter:
         self._numbers = np.empty(NUMBERS)
 
     def write(self, row: FloatArray) -> Outputs | None:
-        """The four messages of a solution row (core.solution), stamped at its IMU stamp; None
-        if the row is not publishable (a non-finite number or covariance not PSD)."""
+        """The four messages of a solution row (core.output.solution), stamped at its IMU stamp;
+        None if the row is not publishable (a non-finite number or covariance not PSD)."""
         numbers = self._numbers
         if not output_numbers(row, self._rate_variance, numbers):
             return None

@@ -5,7 +5,7 @@ One definition of how ins_fusion_node and ``gnss_ins replay`` read their topics 
 only read fields by attribute (rclpy messages and rosbags-deserialized ones have the same field
 names) and return the engine's plain types. No ROS import.
 
-Conventions (shared/ARCHITECTURE.md): every time is the message's ``header.stamp`` [s since the
+Conventions (ARCHITECTURE.md): every time is the message's ``header.stamp`` [s since the
 epoch, host clock]; REP-103 ENU world and FLU body; REP-145 IMU data; a covariance whose first
 element is -1 marks a quantity the message does not carry.
 
@@ -28,7 +28,7 @@ import numpy as np
 
 from gnss_ins_common.navsat import CovarianceType, NavSatStatus
 from gnss_ins_common.types import BoolArray, FloatArray, Vec3
-from ins_fusion.core.measurements import (
+from ins_fusion.core.filter.records import (
     AttitudeMeasurement,
     GnssFixMeasurement,
     GnssVelocityMeasurement,

@@ -20,9 +20,9 @@ import numpy as np
 from gnss_ins_common.message_fields import fill_navsatfix, set_header, stamp_ns
 from gnss_ins_common.navsat import SERVICE_GPS, CovarianceType, NavSatStatus
 from gnss_ins_common.types import FloatArray
-from ins_fusion.core.engine import InsSolution
-from ins_fusion.core.output_numbers import NUMBERS, ODOMETRY, output_numbers
-from ins_fusion.core.solution_rows import pack
+from ins_fusion.core.engine.engine import InsSolution
+from ins_fusion.core.output.output_numbers import NUMBERS, ODOMETRY, output_numbers
+from ins_fusion.core.output.solution_rows import pack
 
 
 @dataclass(frozen=True)
@@ -38,7 +38,8 @@ class OdometryArrays:
 
 
 def _numbers(solution: InsSolution, rate_variance_rad2_s2: float) -> FloatArray | None:
-    """The outputs' numbers of ``solution`` (core.output_numbers), None if not publishable."""
+    """The outputs' numbers of ``solution`` (core.output.output_numbers), None if not
+    publishable."""
     numbers = np.empty(NUMBERS)
     valid = output_numbers(pack(solution), rate_variance_rad2_s2, numbers)
     return numbers if valid else None

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from ins_fusion.core.engine import EngineStatus
+from ins_fusion.core.engine.engine import EngineStatus
 
 INFO, WARN = "info", "warning"
 

@@ -4,7 +4,7 @@
 (ins_fusion.calibration_id) analyse; ``read_imu`` makes it from a bag, ``write_imu_bag`` writes
 one as imu400cc_node publishes it (simulated records for the tests, benchmarks and procedures).
 
-Time base: sample times are the messages' ``header.stamp`` (shared/ARCHITECTURE.md "The shared
+Time base: sample times are the messages' ``header.stamp`` (ARCHITECTURE.md "The shared
 clock"), not the bag's receive (log) times. ``t_s`` and ``temperature_t_s`` count seconds from
 the record's ``start_ns`` [ns since the Unix epoch]: with ``start_ns`` 0 they are seconds since
 the epoch (``sec + nanosec·1e-9``, as ins_fusion_node reads stamps); ``read_imu(relative=True)``

@@ -1,5 +1,5 @@
 """Topic names, frames and message types of the nodes as bags hold them (absolute names, the
-nodes' relative names in the root namespace; shared/ARCHITECTURE.md "Nodes and interfaces").
+nodes' relative names in the root namespace; ARCHITECTURE.md "Nodes and interfaces").
 
 One place for what ``gnss_ins simulate``, ``import-qfree``, ``replay``, ``allan``, ``calibrate``
 and the demo read and write. Plain constants: the command lines import them without loading

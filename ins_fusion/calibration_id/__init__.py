@@ -2,7 +2,7 @@
 
 The methods of the Aalborg report (shared/reference/imu400cc-aalborg-notes.md §4, "notes" below)
 estimate, from the IMU records of bags (ins_fusion.bags.imu), the deterministic errors of the
-observation model (2.1)/(2.2) that ins_fusion.core.calibration corrects, each with its own
+observation model (2.1)/(2.2) that ins_fusion.core.nav.calibration corrects, each with its own
 observation equations and an uncertainty propagated from the noise of the data (§4.4):
 
 | module | what |

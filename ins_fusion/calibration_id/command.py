@@ -36,10 +36,10 @@ from ins_fusion.calibration_id.segments import (
     from_window,
     static_only,
 )
-from ins_fusion.core.calibration import CalibrationError, ImuCalibration
-from ins_fusion.core.config import NODE_NAME as FUSION_NODE
-from ins_fusion.core.params import PARAMETERS as FUSION_PARAMETERS
-from ins_fusion.core.units import STANDARD_GRAVITY_M_S2, deg_h, mg
+from ins_fusion.core.nav.calibration import CalibrationError, ImuCalibration
+from ins_fusion.core.nav.units import STANDARD_GRAVITY_M_S2, deg_h, mg
+from ins_fusion.core.settings.config import NODE_NAME as FUSION_NODE
+from ins_fusion.core.settings.params import PARAMETERS as FUSION_PARAMETERS
 
 STATIC_METHODS = ("six-position", "salychev", "known-attitude", "unknown-attitude")
 METHODS = (*STATIC_METHODS, "rate-table", "known-angle", "axes")
@@ -292,7 +292,7 @@ def _write_calibration(
     }
     header = (
         f"# IMU calibration written by gnss_ins calibrate {result.method}\n"
-        f"# ({METHOD_TITLES[result.method]}); format: ins_fusion/core/calibration.py.\n"
+        f"# ({METHOD_TITLES[result.method]}); format: ins_fusion/core/nav/calibration.py.\n"
         "# Use it with ins_fusion_node's calibration_file parameter (docs/calibration.md).\n"
     )
     body = yaml.safe_dump(

@@ -1,9 +1,9 @@
 """What the estimators know of the laboratory and of the sensor's slow errors.
 
 Site: local gravity and earth rate. Aalborg notes §4.2 use g_l^LL = 1.0017 g at φ = 57° and
-earth rate Ω = 7.292115e-5 rad/s (§10); here normal gravity at the latitude and height (core.earth,
-the Farrell formula of §5.2) unless a measured value is given. In imu_link terms a unit at rest
-reads the specific force +g along the local up (REP-145) and the earth rate
+earth rate Ω = 7.292115e-5 rad/s (§10); here normal gravity at the latitude and height
+(core.nav.earth, the Farrell formula of §5.2) unless a measured value is given. In imu_link terms a
+unit at rest reads the specific force +g along the local up (REP-145) and the earth rate
 Ω (0, cos φ, sin φ) in ENU.
 
 Bias instability: the Gauss-Markov part of the bias (stationary σ, correlation time τ) moves the
@@ -22,7 +22,7 @@ import numpy as np
 
 from gnss_ins_common.types import FloatArray, Vec3
 from ins_fusion.calibration_id.segments import Segment
-from ins_fusion.core.earth import EARTH_RATE_RAD_S, normal_gravity_m_s2
+from ins_fusion.core.nav.earth import EARTH_RATE_RAD_S, normal_gravity_m_s2
 
 
 @dataclass(frozen=True)

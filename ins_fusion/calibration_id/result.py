@@ -1,6 +1,6 @@
 """Estimates with their σ, and the calibration file the fusion node reads.
 
-The file is the ``imu_calibration`` section of ins_fusion/core/calibration.py (ImuCalibration):
+The file is the ``imu_calibration`` section of ins_fusion/core/nav/calibration.py (ImuCalibration):
 per triad in imu_link FLU, user units named by the key suffix, every value with its 1σ next to
 it, and the temperature range of the data. Only the terms a method estimates are written; with a
 base file the other terms are kept from it.
@@ -17,8 +17,8 @@ import numpy as np
 
 from gnss_ins_common.types import FloatArray
 from ins_fusion.calibration_id.segments import Segment
-from ins_fusion.core.calibration import ImuCalibration
-from ins_fusion.core.units import STANDARD_GRAVITY_M_S2, deg_s, mg
+from ins_fusion.core.nav.calibration import ImuCalibration
+from ins_fusion.core.nav.units import STANDARD_GRAVITY_M_S2, deg_s, mg
 
 
 class Quantity(Enum):

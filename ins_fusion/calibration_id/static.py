@@ -60,7 +60,7 @@ from ins_fusion.calibration_id.result import (
     Residual,
 )
 from ins_fusion.calibration_id.segments import Segment
-from ins_fusion.core.earth import EARTH_RATE_RAD_S
+from ins_fusion.core.nav.earth import EARTH_RATE_RAD_S
 
 AXES = "xyz"
 #: An axis counts as vertical within this angle [deg]; a six-position segment must be.

@@ -10,7 +10,8 @@ compare the compiled one with).
 numba checks a cached function against its own source file only, not against the functions it
 calls, which it compiles into it: after an update that changes a callee, a caller's cached code
 would keep the old callee. ``drop_stale_kernels`` (run at import) therefore keeps a digest of
-the package's sources beside the cache and empties the cache when they changed.
+the sources of the core and its sub-packages beside the cache and empties every sub-package's
+cache when they changed.
 
 Compiled code calls only compiled functions. ``compilable(f)`` marks a small helper (the
 earth model's and the quaternions' scalar formulas) that compiled code may call: for Python
@@ -37,12 +38,15 @@ SOURCE_DIGEST_FILE = "kernels.source-digest"
 
 
 def drop_stale_kernels(package: Path = Path(__file__).parent) -> bool:
-    """Remove numba's cache files of ``package`` (its ``__pycache__``) when its sources or
-    numba's version differ from those they were compiled from; True if it removed them. Does
-    nothing where the cache directory is not writable (numba then caches elsewhere or not)."""
+    """Remove numba's cache files of ``package`` and its sub-packages (each folder's
+    ``__pycache__``) when any of their sources or numba's version differ from those they were
+    compiled from (a kernel compiles in the callees of other folders); True if it removed them.
+    The digest is kept in ``package``'s ``__pycache__``. Does nothing where that is not writable
+    (numba then caches elsewhere or not)."""
     digest = hashlib.sha256(numba.__version__.encode())
-    for source in sorted(package.glob("*.py")):
-        digest.update(source.name.encode() + b"\0" + source.read_bytes())
+    for source in sorted(package.rglob("*.py")):
+        name = source.relative_to(package).as_posix()
+        digest.update(name.encode() + b"\0" + source.read_bytes())
     cache = package / "__pycache__"
     stamp = cache / SOURCE_DIGEST_FILE
     try:
@@ -52,7 +56,7 @@ def drop_stale_kernels(package: Path = Path(__file__).parent) -> bool:
         pass
     try:
         cache.mkdir(exist_ok=True)
-        for kernel in [*cache.glob("*.nbi"), *cache.glob("*.nbc")]:
+        for kernel in [*package.rglob("__pycache__/*.nbi"), *package.rglob("__pycache__/*.nbc")]:
             kernel.unlink(missing_ok=True)
         scratch = cache / f".{SOURCE_DIGEST_FILE}.{os.getpid()}"
         scratch.write_text(digest.hexdigest(), encoding="ascii")
@@ -90,7 +94,7 @@ def compilable(function: F) -> F:
 def kernel_array(values: Any) -> Any:
     """``values`` as a writable C-contiguous float64 array (copied only when it is not one):
     numba compiles a kernel anew for every array layout and for read-only arrays, so the
-    engine hands over arrays of one kind (core.warm_up compiles them)."""
+    engine hands over arrays of one kind (core.engine.warm_up compiles them)."""
     flags = getattr(values, "flags", None)
     if flags is not None and flags.c_contiguous and flags.writeable and values.dtype == np.float64:
         return values

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ins_fusion.bags.imu import ImuRecord
-from ins_fusion.core.units import DEG, mg, to_deg_h, to_deg_sqrt_h, to_m_s_sqrt_h
+from ins_fusion.core.nav.units import DEG, mg, to_deg_h, to_deg_sqrt_h, to_m_s_sqrt_h
 from ins_fusion.noise_id.allan import ONE_SIGMA, AllanCurve, equivalent_dof, overlapping_adev
 from ins_fusion.noise_id.likelihood import refine
 from ins_fusion.noise_id.record import RecordError, SampleClock

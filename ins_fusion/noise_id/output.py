@@ -1,7 +1,7 @@
 """The summary table of a noise report, and the ROS parameter file of ins_fusion_node with the
 identified imu_noise.* values.
 
-Parameter names and units are the node's own (ins_fusion.core.params.PARAMETERS):
+Parameter names and units are the node's own (ins_fusion.core.settings.params.PARAMETERS):
 imu_noise.gyro_arw [deg/sqrt(h)] and imu_noise.accel_vrw [m/s/sqrt(h)] (white-noise densities),
 imu_noise.gyro_bias_instability [deg/h] and imu_noise.accel_bias_instability [mg] (stationary σ
 of the Gauss-Markov biases), per imu_link axis, and one imu_noise.bias_correlation_time [s] for
@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from gnss_ins_common.params import ParameterValueError, validate
-from ins_fusion.core.params import PARAMETERS
+from ins_fusion.core.settings.params import PARAMETERS
 from ins_fusion.noise_id.analysis import (
     ACCEL,
     GYRO,

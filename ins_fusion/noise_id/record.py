@@ -14,7 +14,7 @@ import numpy as np
 
 from gnss_ins_common.types import FloatArray
 from ins_fusion.bags.imu import ImuRecord
-from ins_fusion.core.units import DEG, deg_s, mg
+from ins_fusion.core.nav.units import DEG, deg_s, mg
 
 #: Largest share of samples that may be missing (dropped packets); the series is joined at the
 #: gaps, which the Allan variance tolerates when they are rare.

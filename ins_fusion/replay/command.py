@@ -15,10 +15,10 @@ from typing import Any
 
 from gnss_ins_common.params import ParameterValueError, load_yaml, validate_all
 from ins_fusion.bags.bag_io import BagError
-from ins_fusion.core.calibration import CalibrationError
-from ins_fusion.core.config import NODE_NAME, FusionConfig
-from ins_fusion.core.engine import InsEngine
-from ins_fusion.core.params import PARAMETERS
+from ins_fusion.core.engine.engine import InsEngine
+from ins_fusion.core.nav.calibration import CalibrationError
+from ins_fusion.core.settings.config import NODE_NAME, FusionConfig
+from ins_fusion.core.settings.params import PARAMETERS
 from ins_fusion.replay import free_inertial
 from ins_fusion.replay.export import FORMATS, export
 from ins_fusion.replay.frames import IMU_FRAME, comparison_frame, is_imu_frame

@@ -31,7 +31,7 @@ from scipy.spatial.transform import Rotation
 
 from gnss_driver import geoid
 from gnss_ins_common.types import FloatArray
-from ins_fusion.core import solution_rows as cols
+from ins_fusion.core.output import solution_rows as cols
 from ins_fusion.replay.metrics import rpy_covariance, rpy_deg
 from ins_fusion.replay.run import SolutionTrack
 

@@ -4,7 +4,7 @@ Used for the GNSS antenna (withheld fixes, ins_fusion.replay.withheld) and for r
 the IMU (``header.frame_id`` = the IMU's frame, e.g. comma2k19's imu_link pose). A frame s is
 given by its origin r (lever arm, base_link FLU [m]) and its orientation q_base_s (REP-103 roll,
 pitch, yaw of s in base_link, the engine's ``imu_mounting_rpy_deg`` convention: z-y'-x''
-intrinsic, core.rotation.quat_from_euler). Per recorded solution, with R = R(q_enu_base):
+intrinsic, core.nav.rotation.quat_from_euler). Per recorded solution, with R = R(q_enu_base):
 
 - position  p_s = p_base + R r                                    (map ENU [m])
 - orientation q_enu_s = q_enu_base ⊗ q_base_s                        (s FLU in ENU)
@@ -26,7 +26,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from gnss_ins_common.types import FloatArray
-from ins_fusion.core.rotation import quat_from_euler
+from ins_fusion.core.nav.rotation import quat_from_euler
 from ins_fusion.replay.run import SolutionTrack
 
 #: REP-105 vehicle frame and the IMU driver's frame (imu400cc_node publishes in imu_link).
@@ -54,7 +54,8 @@ def lever_arm_covariance(cov_att_enu_rad2: FloatArray, arm_enu_m: FloatArray) ->
 
 def mounting_quat(rpy_rad: Sequence[float]) -> FloatArray:
     """q_base_s (x, y, z, w) of a frame with REP-103 roll, pitch, yaw [rad] in base_link, as the
-    engine builds its IMU mounting (core.rotation.mat_from_rpy_flu before the FLU/FRD change)."""
+    engine builds its IMU mounting (core.nav.rotation.mat_from_rpy_flu before the FLU/FRD
+    change)."""
     return np.asarray(quat_from_euler(rpy_rad[0], rpy_rad[1], rpy_rad[2]), dtype=np.float64)
 
 

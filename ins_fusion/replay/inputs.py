@@ -32,7 +32,7 @@ from ins_fusion.adapters.cdr_fields import CdrError
 from ins_fusion.adapters.messages_in import ImuSample
 from ins_fusion.bags.bag_io import BagError, BagReader
 from ins_fusion.bags.columns import read_topics
-from ins_fusion.core.measurements import (
+from ins_fusion.core.filter.records import (
     AttitudeMeasurement,
     GnssFixMeasurement,
     GnssVelocityMeasurement,

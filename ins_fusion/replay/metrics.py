@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from gnss_ins_common.types import BoolArray, FloatArray
-from ins_fusion.core import earth
+from ins_fusion.core.nav import earth
 from ins_fusion.replay.inputs import Reference, Series
 from ins_fusion.replay.outages import Outage, mask
 from ins_fusion.replay.run import SolutionTrack

@@ -20,7 +20,7 @@ from ins_fusion.bags.bag_io import BagWriter
 from ins_fusion.bags.messages import new_message
 from ins_fusion.bags.summary import BagSummary
 from ins_fusion.bags.topics import FIX_TYPE, INS_FIX, INS_ODOMETRY, ODOMETRY_TYPE
-from ins_fusion.core.engine import InsSolution
+from ins_fusion.core.engine.engine import InsSolution
 
 SMOOTHED_ODOMETRY_TOPIC, SMOOTHED_FIX_TOPIC = "/ins/smoothed/odometry", "/ins/smoothed/fix"
 

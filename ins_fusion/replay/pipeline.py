@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from ins_fusion.core.config import FusionConfig
+from ins_fusion.core.settings.config import FusionConfig
 from ins_fusion.replay.frames import comparison_frame, is_imu_frame, moved_track
 from ins_fusion.replay.inputs import ReplayInputs
 from ins_fusion.replay.metrics import Evaluation, evaluate

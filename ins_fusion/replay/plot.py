@@ -24,7 +24,7 @@ from matplotlib.figure import Figure
 from scipy.spatial.transform import Rotation
 
 from gnss_ins_common.types import FloatArray, Vec3
-from ins_fusion.core.measurements import AttitudeMeasurement, GnssFixMeasurement
+from ins_fusion.core.filter.records import AttitudeMeasurement, GnssFixMeasurement
 from ins_fusion.replay.inputs import Measurement
 from ins_fusion.replay.metrics import Evaluation, map_enu, rpy_covariance, rpy_deg, wrap_deg
 from ins_fusion.replay.outages import Outage, mask

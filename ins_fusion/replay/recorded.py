@@ -21,8 +21,8 @@ from gnss_ins_common.types import FloatArray
 from ins_fusion.adapters.messages_in import stamp_s
 from ins_fusion.bags.bag_io import BagReader
 from ins_fusion.bags.topics import INS_FIX, INS_ODOMETRY, TRUTH_ATTITUDE, TRUTH_FIX
-from ins_fusion.core import earth
-from ins_fusion.core.rotation import wrap_angle
+from ins_fusion.core.nav import earth
+from ins_fusion.core.nav.rotation import wrap_angle
 from ins_fusion.replay.metrics import map_enu
 
 

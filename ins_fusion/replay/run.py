@@ -4,8 +4,8 @@ The engine is fed exactly what ins_fusion_node would receive, in the bag's recei
 the GNSS messages (fix, velocity, attitude) stamped inside an injected outage. The fused base_link
 solution is recorded at ``output_rate`` (the node's publish rate): at the first IMU sample at or
 after each tick k / output_rate after the first IMU stamp. With ``smooth`` the run is also
-recorded for the RTS smoother (ins_fusion.core.smoothed_solution), whose backward pass gives the
-smoothed solution at every covariance step once the forward run is done.
+recorded for the RTS smoother (ins_fusion.core.engine.smoothed_solution), whose backward pass gives
+the smoothed solution at every covariance step once the forward run is done.
 """
 
 from __future__ import annotations
@@ -18,12 +18,12 @@ from typing import Any
 import numpy as np
 
 from gnss_ins_common.types import BoolArray, FloatArray
-from ins_fusion.core import solution_rows
 from ins_fusion.core.compiled import kernel_array
-from ins_fusion.core.config import FusionConfig
-from ins_fusion.core.engine import EngineStatus, InsEngine, InsSolution
-from ins_fusion.core.measurements import GnssFixMeasurement
-from ins_fusion.core.smoothed_solution import attach_recorder, smoothed_rows
+from ins_fusion.core.engine.engine import EngineStatus, InsEngine, InsSolution
+from ins_fusion.core.engine.smoothed_solution import attach_recorder, smoothed_rows
+from ins_fusion.core.filter.records import GnssFixMeasurement
+from ins_fusion.core.output import solution_rows
+from ins_fusion.core.settings.config import FusionConfig
 from ins_fusion.replay.inputs import Measurement, ReplayInputs
 from ins_fusion.replay.outages import Outage, in_any
 
@@ -36,7 +36,7 @@ _PROGRESS = 2048
 
 @dataclass(frozen=True)
 class SolutionTrack:
-    """Fused base_link solutions in time order, held as rows of core.solution_rows (``rows``;
+    """Fused base_link solutions in time order, held as rows of core.output.solution_rows (``rows``;
     ``solutions``: each InsSolution built when asked for; see InsSolution for frames and units),
     with the fields the evaluation uses stacked over time: t_s (n,), pos_enu_m (n, 3),
     quat_enu_flu_xyzw (n, 4), vel_enu_m_s (n, 3), cov_pos_enu_m2 / cov_vel_enu /
@@ -134,8 +134,8 @@ def run_fusion(
     smooth: bool = False,
 ) -> FusionRun:
     """Run a fresh engine configured by the flat parameter dict (validated against
-    ins_fusion.core.params.PARAMETERS) over ``inputs``; ``progress(done, total)`` counts IMU
-    samples; ``smooth``: also the RTS smoother's backward pass."""
+    ins_fusion.core.settings.params.PARAMETERS) over ``inputs``; ``progress(done, total)`` counts
+    IMU samples; ``smooth``: also the RTS smoother's backward pass."""
     config = FusionConfig.from_parameters(parameters)
     engine = InsEngine(config)
     recorder = attach_recorder(engine) if smooth else None

@@ -4,8 +4,8 @@
 way it would be written in config/ins_fusion.yaml (``1.5``, ``true``, ``[0.1, 0.2, 0.3]``);
 string parameters take the text as it is. Sweep values are separated by commas outside
 brackets, so list values work: ``imu_lever_arm=[0.8,0,1.6],[0.9,0,1.6]``. Each value is
-validated with gnss_ins_common.params.validate against ins_fusion.core.params.PARAMETERS, so the
-replay tool refuses exactly what ins_fusion_node refuses, with the same message.
+validated with gnss_ins_common.params.validate against ins_fusion.core.settings.params.PARAMETERS,
+so the replay tool refuses exactly what ins_fusion_node refuses, with the same message.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from typing import Any
 import yaml
 
 from gnss_ins_common.params import Param, ParameterValueError, validate, validate_all
-from ins_fusion.core.params import PARAMETERS
+from ins_fusion.core.settings.params import PARAMETERS
 
 SPECS: dict[str, Param] = {spec.name: spec for spec in PARAMETERS}
 

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gnss_ins_common.types import FloatArray
-from ins_fusion.core.measurements import GnssFixMeasurement
+from ins_fusion.core.filter.records import GnssFixMeasurement
 from ins_fusion.replay import metrics
 from ins_fusion.replay.frames import moved_track
 from ins_fusion.replay.metrics import Errors

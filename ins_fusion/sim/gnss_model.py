@@ -34,8 +34,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from gnss_ins_common.types import FloatArray, Vec3
-from ins_fusion.core import earth
-from ins_fusion.core.rotation import (
+from ins_fusion.core.nav import earth
+from ins_fusion.core.nav.rotation import (
     euler_from_quat,
     ned_to_enu,
     quat_enu_flu_from_nb,

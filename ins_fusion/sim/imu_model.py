@@ -20,7 +20,7 @@ kept and the per-sample std becomes density·sqrt(bandwidth), as measured on a b
 The sensor temperature (for the driver's temperature topic) starts at a seeded power-up value and
 drifts smoothly (first order) to a seeded settled value; it does not change the errors (Aalborg
 notes §1.2: no measurable bias change between 5 and 27 °C).
-Profiles are written in the user-facing units of the datasheets through core.units.
+Profiles are written in the user-facing units of the datasheets through core.nav.units.
 """
 
 from __future__ import annotations
@@ -34,8 +34,8 @@ import numpy as np
 from gnss_ins_common.axes import AxisMap
 from gnss_ins_common.types import FloatArray, Mat3, Vec3
 from imu400cc_driver.axes import DEFAULT_ACCEL_SIGN, DEFAULT_AXIS_SPEC
-from ins_fusion.core.calibration import mat3, vec3
-from ins_fusion.core.units import (
+from ins_fusion.core.nav.calibration import mat3, vec3
+from ins_fusion.core.nav.units import (
     DEG,
     STANDARD_GRAVITY_M_S2,
     deg_h,
@@ -106,7 +106,7 @@ class TriadErrors:
     def in_flu(self, axes: AxisMap, sign: float) -> TriadErrors:
         """These errors, given per device axis of a triad whose output is ``sign`` (±1) times
         ``axes.to_flu`` of the device output, per FLU axis: the same carry-over as a device-axis
-        calibration file (core.calibration, ``axes: device``)."""
+        calibration file (core.nav.calibration, ``axes: device``)."""
         scale_pos, scale_neg = axes.scale_pair_to_flu(self.scale_pos, self.scale_neg, sign)
         large_pos, large_neg = axes.scale_pair_to_flu(
             self.scale_large_pos, self.scale_large_neg, sign

@@ -28,14 +28,14 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from gnss_ins_common.types import FloatArray
-from ins_fusion.core import earth
-from ins_fusion.core.rotation import (
+from ins_fusion.core.nav import earth
+from ins_fusion.core.nav.rotation import (
     MAT_FLU_FRD,
     frd_to_flu,
     ned_to_enu,
     quat_enu_flu_from_nb,
 )
-from ins_fusion.core.strapdown import NavState
+from ins_fusion.core.nav.strapdown import NavState
 
 # --------------------------------------------------------------------------------------------
 # Smooth channels

@@ -23,7 +23,7 @@ from ins_fusion.bags.bag_io import BagError
 from ins_fusion.bags.imu import read_imu
 from ins_fusion.bags.summary import utc_text
 from ins_fusion.bags.topics import IMU_DATA
-from ins_fusion.core.units import deg_s, mg
+from ins_fusion.core.nav.units import deg_s, mg
 from ins_fusion.noise_id.allan import ONE_SIGMA
 from ins_fusion.noise_id.analysis import (
     AXES,

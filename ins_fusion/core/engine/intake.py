@@ -1,0 +1,159 @@
+"""The engine's intake of an IMU sample, compiled (core.compiled): checks, calibration, the
+interval's increment, the stop detector's and noise monitor's sample stores, the ZARU sums and,
+when nothing else is due first, the strapdown step of the nominal state, in one call.
+
+``take_sample`` does what an ordinary sample needs and returns a code for everything else, which
+core.engine.engine handles in Python: a rejected sample (non-finite, beyond the IMU's range, a
+duplicate stamp, one stamp in the past), a stream that starts or restarts, and an interval long
+enough to be a gap. Every counter and the per-sample scalars live in one array (S_* layout), so
+the compiled code and the engine read the same numbers.
+
+Frames: the input is imu_link FLU (REP-145); everything stored is imu FRD.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from gnss_ins_common.types import FloatArray
+from ins_fusion.core.compiled import jit
+from ins_fusion.core.filter.adaptation import block_push
+from ins_fusion.core.filter.propagation import advance
+from ins_fusion.core.measurements.stop_detector import ring_push
+from ins_fusion.core.nav.calibration import correct_sample
+from ins_fusion.core.nav.strapdown import integrate_sample
+
+#: Layout of the intake array: the last accepted sample's stamp [s] (NaN: none) and the running
+#: nominal interval [s] (inf: none yet); its rate (3) and specific force (3); the sums of the
+#: rates (3) and their count since the pseudo-measurement interval began (ZARU); the counters
+#: (samples taken, gaps, duplicates, out of order, beyond range, stamps back in a row); the
+#: range limits [rad/s, m/s²] and 1.0 when a calibration table applies; the sample just taken,
+#: calibrated (rate, force).
+S_LAST_T, S_NOMINAL_DT, S_LAST_RATE, S_LAST_FORCE, S_ZARU_SUM, S_ZARU_N = 0, 1, 2, 5, 8, 11
+S_SAMPLES, S_GAPS, S_DUPLICATES, S_OUT_OF_ORDER, S_IMPLAUSIBLE, S_BACK_RUN = 12, 13, 14, 15, 16, 17
+S_MAX_RATE, S_MAX_FORCE, S_CALIBRATED, S_RATE, S_FORCE, S_SIZE = 18, 19, 20, 21, 24, 27
+
+#: ``take_sample`` results below PUSHED: nothing more to do (the sample was counted and
+#: dropped), the stream restarts with this sample (a run of stamps in the past), it starts with
+#: this sample, the interval is a gap (counted; the engine bridges it).
+REJECTED, RESTART, FIRST, GAP, PUSHED = 0, 1, 2, 3, 4
+#: Flags added to PUSHED (and returned by ``record_sample``): the stop detector's ring is full,
+#: the nominal state was advanced.
+RING_FULL, STEPPED = 8, 16
+
+#: An IMU interval longer than this many nominal intervals is a gap (bridged, counted).
+GAP_FACTOR = 2.5
+#: IMU samples stamped before the last one, in a row, that make a new stream (a reset); fewer
+#: are skipped one by one.
+BACK_RUN_RESET = 10
+
+
+def new_intake(max_rate_rad_s: float, max_force_m_s2: float, calibrated: bool) -> FloatArray:
+    """A fresh intake array (S_* layout) with its limits; no sample yet."""
+    buf = np.zeros(S_SIZE)
+    buf[S_MAX_RATE], buf[S_MAX_FORCE] = max_rate_rad_s, max_force_m_s2
+    buf[S_CALIBRATED] = 1.0 if calibrated else 0.0
+    forget_stream(buf)
+    return buf
+
+
+def forget_stream(buf: FloatArray) -> None:
+    """No last sample, no nominal interval, no ZARU sums (start, reset); counters kept."""
+    buf[S_LAST_T] = math.nan
+    buf[S_NOMINAL_DT] = math.inf
+    buf[S_LAST_RATE : S_ZARU_N + 1] = 0.0
+
+
+@jit
+def take_sample(
+    buf: FloatArray,
+    table: FloatArray,
+    integrator: FloatArray,
+    ring: FloatArray,
+    block: FloatArray,
+    x: FloatArray,
+    r_bi: FloatArray,
+    inc: FloatArray,
+    t: float,
+    wx: float,
+    wy: float,
+    wz: float,
+    fx: float,
+    fy: float,
+    fz: float,
+    step: bool,
+) -> int:
+    """Take the sample (rate [rad/s], specific force [m/s²], imu_link FLU) stamped ``t`` [s]:
+    the checks and counters, the calibration (``table``: core.nav.calibration T_* layout, when
+    S_CALIBRATED), FLU -> FRD into S_RATE/S_FORCE; for an ordinary interval the increment into
+    ``inc`` (``integrator``: strapdown.SampleIntegrator.buffer), ``record_sample``, and with
+    ``step`` the nominal state ``x`` advanced (core.filter.propagation.advance; ``r_bi`` imu ->
+    body). Returns a code (module constants) plus flags."""
+    if not math.isfinite(t + wx + wy + wz + fx + fy + fz):
+        buf[S_GAPS] += 1.0  # a corrupt sample is a one-sample gap
+        return REJECTED
+    if (
+        max(abs(wx), abs(wy), abs(wz)) > buf[S_MAX_RATE]
+        or max(abs(fx), abs(fy), abs(fz)) > buf[S_MAX_FORCE]
+    ):
+        buf[S_GAPS] += 1.0  # beyond what the unit can measure: corrupt, a one-sample gap
+        buf[S_IMPLAUSIBLE] += 1.0
+        return REJECTED
+    last = buf[S_LAST_T]
+    code = PUSHED
+    if t <= last:  # False while there is no last sample (NaN)
+        if t == last:
+            buf[S_DUPLICATES] += 1.0
+            return REJECTED
+        # One sample in the past is a fault of that sample (skipped); a run of them is the
+        # clock that went back (a restarted recording, a reset device): start again.
+        buf[S_BACK_RUN] += 1.0
+        if buf[S_BACK_RUN] < BACK_RUN_RESET:
+            buf[S_OUT_OF_ORDER] += 1.0
+            return REJECTED
+        code = RESTART
+    buf[S_BACK_RUN] = 0.0
+    buf[S_SAMPLES] += 1.0
+    if buf[S_CALIBRATED] != 0.0:
+        wx, wy, wz, fx, fy, fz = correct_sample(table, wx, wy, wz, fx, fy, fz)
+    wy, wz, fy, fz = -wy, -wz, -fy, -fz  # FLU -> FRD
+    buf[S_RATE], buf[S_RATE + 1], buf[S_RATE + 2] = wx, wy, wz
+    buf[S_FORCE], buf[S_FORCE + 1], buf[S_FORCE + 2] = fx, fy, fz
+    if code == RESTART:
+        return RESTART
+    if math.isnan(last):
+        return FIRST
+    dt = t - last
+    nominal = buf[S_NOMINAL_DT]
+    if dt > GAP_FACTOR * nominal:
+        buf[S_GAPS] += 1.0
+        return GAP
+    integrate_sample(integrator, t, (wx, wy, wz, fx, fy, fz), inc)
+    buf[S_NOMINAL_DT] = dt if nominal == math.inf else nominal + 0.01 * (dt - nominal)
+    flags = record_sample(buf, ring, block, t)
+    if step:
+        advance(x, inc, r_bi, False, t)
+        flags += STEPPED
+    return code + flags
+
+
+@jit
+def record_sample(buf: FloatArray, ring: FloatArray, block: FloatArray, t: float) -> int:
+    """The sample in S_RATE/S_FORCE, stamped ``t`` [s], becomes the last one; into the stop
+    detector's ring (core.measurements.stop_detector.ring_push), the noise monitor's block
+    (core.filter.adaptation.block_push) and the ZARU sums. Returns the RING_FULL flag."""
+    wx, wy, wz = buf[S_RATE], buf[S_RATE + 1], buf[S_RATE + 2]
+    fx, fy, fz = buf[S_FORCE], buf[S_FORCE + 1], buf[S_FORCE + 2]
+    buf[S_LAST_T] = t
+    buf[S_LAST_RATE : S_LAST_RATE + 6] = buf[S_RATE : S_RATE + 6]
+    flags = 0
+    if ring_push(ring, t, wx, wy, wz, fx, fy, fz):
+        flags += RING_FULL
+    block_push(block, t, wx, wy, wz, fx, fy, fz)
+    buf[S_ZARU_SUM] += wx
+    buf[S_ZARU_SUM + 1] += wy
+    buf[S_ZARU_SUM + 2] += wz
+    buf[S_ZARU_N] += 1.0
+    return flags

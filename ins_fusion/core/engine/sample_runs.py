@@ -1,0 +1,432 @@
+"""Runs of ordinary IMU samples in one compiled call (core.compiled): the replay's fast path.
+
+An ordinary sample, once the filter runs, needs only the intake with its strapdown step
+(core.engine.intake.take_sample), a history entry with its checkpoint and the IMU noise densities in
+force and, at an output tick, the solution row (core.output.solution); now and then a covariance
+step (Propagator.advanced) and a pseudo-measurement epoch. ``take_run`` takes samples from arrays
+until one needs Python: any code of take_sample but an ordinary step (a gap, a restart, a full
+detector ring, a sample kept from the step because a measurement is due before it), a
+covariance step while the heading is unknown, a pseudo-measurement epoch unless the vehicle is
+moving (the heading known, the stop detector idle and the filter's speed vetoing a stop: then
+the kernel runs the epoch, its NHC through core.measurements.nhc.nhc_apply and the health check). It
+leaves that sample taken for the engine to finish as InsEngine.add_imu would, and hands back
+the ordinary samples' increments and states (each a checkpoint), a snapshot of the measured IMU
+noise at each of its changes (core.filter.adaptation.ImuNoiseMonitor.adopt) with the snapshot each
+sample saw, the covariance after each step or NHC with the one each checkpoint holds, the NHC
+updates to book, and the rows of their output ticks, computed with the same kernels in the
+same order: the same numbers to the bit. A filter found unusable at an epoch ends the run
+(RUN_PROBLEM) for the engine's reset. ``advance_run`` does the same as ``take_run`` for the
+history entries a re-propagation after a late measurement steps through, up to the next
+covariance step.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from gnss_ins_common.types import BoolArray, FloatArray, IntArray
+from ins_fusion.core.compiled import jit
+from ins_fusion.core.engine.intake import (
+    PUSHED,
+    REJECTED,
+    S_LAST_RATE,
+    S_ZARU_N,
+    S_ZARU_SUM,
+    STEPPED,
+    take_sample,
+)
+from ins_fusion.core.filter.adaptation import B_MEAN, B_VERSION
+from ins_fusion.core.filter.eskf import ErrorStateFilter, ProcessModel, _covariance_problem
+from ins_fusion.core.filter.propagation import ImuDensities, Propagator, advance, covariance_step
+from ins_fusion.core.filter.state import (
+    X_COV_DT,
+    X_HEADING_KNOWN,
+    X_MOUNTING,
+    X_NAV,
+    X_Q_SCALE,
+    X_SIZE,
+    X_T,
+    FilterState,
+    Geometry,
+    turned_arm,
+)
+from ins_fusion.core.filter.timeline import Record, RunEntries, Timeline
+from ins_fusion.core.measurements.nhc import nhc_apply
+from ins_fusion.core.measurements.stop_detector import StopDetector
+from ins_fusion.core.measurements.updates import Corrections
+from ins_fusion.core.nav.strapdown import INCREMENT_SIZE, NAV_SIZE, SampleIntegrator
+from ins_fusion.core.output.solution import STATE, WIDTH, SolutionBuilder, _fill_row, state_code
+from ins_fusion.core.output.solution_rows import RowBuffer
+from ins_fusion.core.settings.config import FusionConfig
+
+#: ``take_run``'s codes when the run ended without a sample for the engine to finish, and
+#: after a pseudo-measurement epoch that left the filter unusable (the engine resets it).
+RUN_DONE, RUN_PROBLEM = -1, -2
+#: Most covariances one run hands back (covariance steps and NHC updates).
+STEPS_PER_RUN = 8
+
+
+@jit
+def take_run(
+    stores: tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray],
+    r_bi: FloatArray,
+    samples: tuple[FloatArray, FloatArray, FloatArray, BoolArray],
+    span: tuple[int, int],
+    limits: tuple[float, float, float, float, float],
+    outs: tuple[FloatArray, FloatArray, FloatArray, IntArray, FloatArray],
+    row_model: tuple[FloatArray, FloatArray, IntArray, FloatArray, FloatArray, FloatArray],
+    origin: tuple[float, float, float],
+    filtering: tuple[FloatArray, ProcessModel, tuple[FloatArray, FloatArray]],
+    constants: tuple[tuple[int, int, int, int, int], float, float, float, int],
+    epochs: tuple[float, float, float, bool, bool],
+    steps: tuple[IntArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray],
+) -> tuple[int, int, int, int, int, int, int]:
+    """Take samples ``span`` = (start, stop) of ``samples`` (stamps [s], rates [rad/s] and
+    forces [m/s²] (n, 3) imu_link FLU, output tick after each sample) until one needs the
+    engine (module docstring).
+
+    ``stores``: the intake array, calibration table, sample integrator, detector ring, noise
+    monitor block and nominal state x (take_sample's arguments); ``limits``: the IMU time
+    offset [s] taken off each stamp, the stamp of the first pending measurement (inf: none),
+    of the next pseudo-measurement epoch, the covariance interval [s], degraded_after [s].
+    ``outs``: ``incs`` / ``xs`` the increment and state after each ordinary sample (rows 0 ..
+    m-1; row m the increment of the sample left to the engine), ``rows`` the solution rows of
+    the ticks (``row_model``: J, P, the solution states, base_link lever arm, arm_bi and the
+    ENU plane's rotation; ``origin`` as SolutionBuilder.row gives it), ``seen`` the noise
+    snapshot each ordinary sample saw (-1: the one in force at the start), ``snapshots`` the
+    noise monitor's version and B_MEAN numbers at each change.
+    ``filtering``: mat_bi, the filter's process model (ErrorStateFilter.process_model) and
+    the user's white-noise densities (ImuDensities.floor); ``constants``: StateLayout.columns,
+    the GNSS error's correlation time [s], NHC σ [m/s], the NHC's gate, the state size;
+    ``epochs``: the pseudo-measurement period [s], the stop detector's speed threshold [m/s],
+    nhc_min_speed [m/s], use_nhc, whether the detector is idle (no stop, no candidate).
+    ``steps`` receives the covariance each ordinary sample's checkpoint holds (-1: that of
+    ``row_model``), the covariance after each change (STEPS_PER_RUN, n, n), the last
+    transition (n, n) and white-noise densities (2, 3), the NHC of each epoch (rows: sample,
+    accepted, NIS) and (next epoch's stamp, start of its ZARU interval) [s].
+    Returns (next sample index, code of the sample left to the engine, RUN_DONE or
+    RUN_PROBLEM, m, rows written, snapshots written, covariances written, NHC updates)."""
+    buf, table, integrator, ring, block, x = stores
+    t_s, rate, force, ticks = samples
+    start, stop = span
+    offset_s, due_t, pseudo_t, interval_s, degraded_after_s = limits
+    incs, xs, rows, seen, snapshots = outs
+    J, P, states, base_arm_b, arm_bi, mat_enu_ecef = row_model
+    mat_bi, process, floor = filtering
+    columns, correlation_time_s, sigma_m_s, gate, size = constants
+    period_s, stop_speed_m_s, nhc_min_speed_m_s, use_nhc, detector_idle = epochs
+    held, covs, phi_out, white_out, nhcs, pseudo_out = steps
+    F, Q, _, misalignment_q, _, markov_idx, markov_q = process
+    has_mounting = columns[3] >= 0
+    arm_b = _base_arm(base_arm_b, x, has_mounting)
+    version = block[B_VERSION]
+    m = r = v = c = e = 0
+    for i in range(start, stop):
+        t = t_s[i] - offset_s
+        code = take_sample(
+            buf,
+            table,
+            integrator,
+            ring,
+            block,
+            x,
+            r_bi,
+            incs[m],
+            t,
+            rate[i, 0],
+            rate[i, 1],
+            rate[i, 2],
+            force[i, 0],
+            force[i, 1],
+            force[i, 2],
+            not due_t < t,
+        )
+        if code != REJECTED:
+            due = x[X_COV_DT] >= interval_s
+            epoch = t >= pseudo_t
+            if (
+                code != PUSHED + STEPPED
+                or c + 2 > len(covs)
+                or (due and x[X_HEADING_KNOWN] == 0.0)
+                or (epoch and not _moving_epoch(x, detector_idle, stop_speed_m_s))
+            ):
+                return i + 1, code, m, r, v, c, e
+            if block[B_VERSION] != version:
+                version = block[B_VERSION]
+                snapshots[v, 0] = version
+                snapshots[v, 1:] = block[B_MEAN : B_MEAN + 6]
+                v += 1
+            seen[m] = v - 1
+            if due:  # Propagator.advanced with the heading known
+                gyro, accel = _white_noise(block, floor, x[X_Q_SCALE])
+                model = (F, Q, gyro, misalignment_q, accel, markov_idx, markov_q)
+                P, phi = covariance_step(P, x, mat_bi, model, columns, correlation_time_s)
+                phi_out[:, :] = phi
+                white_out[0, :], white_out[1, :] = gyro, accel
+                covs[c] = P
+                c += 1
+            held[m] = c - 1
+            xs[m, :] = x
+            m += 1
+            if epoch:  # InsEngine._pseudo_epoch, moving (the detector decides no stop)
+                pseudo_t = (math.floor(t / period_s) + 1.0) * period_s
+                buf[S_ZARU_SUM : S_ZARU_N + 1] = 0.0
+                pseudo_out[0], pseudo_out[1] = pseudo_t, t
+                horizontal = math.hypot(x[X_NAV + 3], x[X_NAV + 4])
+                if use_nhc and horizontal > nhc_min_speed_m_s:  # FusedNhc.apply
+                    gyro, accel = _white_noise(block, floor, x[X_Q_SCALE])
+                    stepped, phi, accepted, nis, P = nhc_apply(
+                        P,
+                        x,
+                        t,
+                        (F, Q, gyro, misalignment_q, accel, markov_idx, markov_q),
+                        (mat_bi, arm_b),
+                        columns,
+                        (correlation_time_s, sigma_m_s, gate, size),
+                    )
+                    if stepped:
+                        phi_out[:, :] = phi
+                    white_out[0, :], white_out[1, :] = gyro, accel
+                    covs[c] = P
+                    c += 1
+                    nhcs[e, 0], nhcs[e, 1], nhcs[e, 2] = m - 1, accepted, nis
+                    e += 1
+                    arm_b = _base_arm(base_arm_b, x, has_mounting)
+                if (
+                    _covariance_problem(P) != -1
+                    or not np.isfinite(x[X_NAV : X_NAV + NAV_SIZE]).all()
+                ):
+                    return i + 1, RUN_PROBLEM, m, r, v, c, e
+        if ticks[i]:
+            row = rows[r]
+            rate_i = buf[S_LAST_RATE : S_LAST_RATE + 3]
+            mounting = (x[X_MOUNTING], x[X_MOUNTING + 1]) if has_mounting else (0.0, 0.0)
+            _fill_row(
+                row, J, x, P, states, arm_b, r_bi, arm_bi, rate_i, mounting, origin, mat_enu_ecef
+            )
+            row[STATE] = state_code(x, degraded_after_s)
+            r += 1
+    return stop, RUN_DONE, m, r, v, c, e
+
+
+@jit
+def _moving_epoch(x: FloatArray, detector_idle: bool, stop_speed_m_s: float) -> bool:
+    """Whether a pseudo-measurement epoch at state ``x`` can stay in the run: the heading is
+    known and StopDetector.evaluate would decide no stop without looking at the IMU (it is
+    idle and the filter's speed vetoes a stop: at or above ``stop_speed_m_s`` [m/s])."""
+    speed = math.hypot(math.hypot(x[X_NAV + 3], x[X_NAV + 4]), x[X_NAV + 5])
+    return x[X_HEADING_KNOWN] != 0.0 and detector_idle and speed >= stop_speed_m_s
+
+
+@jit
+def _base_arm(base_arm_b: FloatArray, x: FloatArray, has_mounting: bool) -> FloatArray:
+    """Geometry.arms(s)[1]: the base_link lever arm turned by the residual mounting in ``x``."""
+    pitch, yaw = x[X_MOUNTING], x[X_MOUNTING + 1]
+    if not has_mounting or (pitch == 0.0 and yaw == 0.0):
+        return base_arm_b
+    return turned_arm(base_arm_b, pitch, yaw)
+
+
+@jit
+def _white_noise(
+    block: FloatArray, floor: tuple[FloatArray, FloatArray], q_scale: float
+) -> tuple[FloatArray, FloatArray]:
+    """Propagator.white_noise of the densities in force (ImuDensities.current: the floor
+    raised to the noise monitor's estimate in ``block``, none before its first) [rad²/s,
+    m²/s³]."""
+    gyro = floor[0].copy()
+    accel = floor[1].copy()
+    if block[B_VERSION] != 0.0:
+        for k in range(3):
+            gyro[k] = np.maximum(gyro[k], block[B_MEAN + k])
+            accel[k] = np.maximum(accel[k], block[B_MEAN + 3 + k])
+    return gyro * q_scale, accel * q_scale
+
+
+@jit
+def advance_run(
+    x: FloatArray,
+    incs: FloatArray,
+    t_s: FloatArray,
+    r_bi: FloatArray,
+    interval_s: float,
+    xs: FloatArray,
+) -> int:
+    """Advance the nominal state ``x`` over the increments ``incs`` (n, INCREMENT_SIZE; no gap)
+    stamped ``t_s`` (core.filter.propagation.advance), its state after each into ``xs``, until the
+    covariance interval ``interval_s`` [s] is due; returns the increments taken."""
+    for i in range(len(t_s)):
+        advance(x, incs[i], r_bi, False, t_s[i])
+        xs[i, :] = x
+        if x[X_COV_DT] >= interval_s:
+            return i + 1
+    return len(t_s)
+
+
+class CompiledRuns:
+    """The engine's side of the two kernels: their arguments from the engine's stores, and the
+    history entries, checkpoints, NHC books and rows they return (InsEngine owns one; module
+    docstring)."""
+
+    def __init__(
+        self,
+        config: FusionConfig,
+        geometry: Geometry,
+        arrays: tuple[FloatArray, FloatArray],
+        sensors: tuple[SampleIntegrator, StopDetector, ImuDensities],
+        filtering: tuple[Propagator, SolutionBuilder, Timeline, Corrections],
+    ) -> None:
+        """``arrays``: the intake (core.engine.intake S_* layout) and calibration table."""
+        self._config = config
+        self._geometry = geometry
+        self._intake, self._table = arrays
+        self._integrator, self._detector, self._densities = sensors
+        self._propagator, self._output, self._timeline, self._corrections = filtering
+        self._epochs = (
+            1.0 / config.pseudo_measurement_rate_hz,
+            config.stop_detector.speed_m_s,
+            config.nhc_min_speed_m_s,
+            config.use_nhc,
+        )
+
+    def take(
+        self,
+        s: FilterState,
+        kf: ErrorStateFilter,
+        datum_deg: tuple[float, float, float],
+        pseudo_t_s: float,
+        samples: tuple[FloatArray, FloatArray, FloatArray, BoolArray],
+        span: tuple[int, int],
+        rows: RowBuffer,
+    ) -> tuple[int, int, FloatArray, tuple[float, float] | None]:
+        """``take_run`` over ``span`` of ``samples`` (the filter runs, no re-propagation due;
+        ``pseudo_t_s``: stamp of the next pseudo-measurement epoch [s]): the ordinary samples'
+        history entries appended to the timeline, the NHC of their epochs booked, their rows
+        to ``rows``. Returns (next sample index, code of the sample left to the engine,
+        RUN_DONE or RUN_PROBLEM, that sample's increment, (next pseudo-measurement epoch,
+        start of its ZARU interval) [s] when the run took an epoch)."""
+        start, stop = span
+        n = stop - start
+        incs, xs, out = np.empty((n, INCREMENT_SIZE)), np.empty((n, X_SIZE)), np.empty((n, WIDTH))
+        seen, snapshots = np.empty(n, dtype=np.int64), np.empty((n, 7))
+        held, covs = np.empty(n, dtype=np.int64), np.empty((STEPS_PER_RUN, *kf.P.shape))
+        # The filter's transition stays as it is unless a covariance step replaces it.
+        phi, white, nhcs = np.array(kf.phi), np.empty((2, 3)), np.empty((n, 3))
+        pseudo = np.array([pseudo_t_s, math.nan])
+        densities = self._densities
+        noise = densities.current()
+        (J, P, states, _, arm_bi, plane), _, origin = self._output.model(s, kf, datum_deg)
+        geometry, config = self._geometry, self._config
+        limits = (
+            config.imu_time_offset_s,
+            self._timeline.due_stamp(),
+            pseudo_t_s,
+            config.covariance_interval_s,
+            config.degraded_after_s,
+        )
+        stores = (
+            self._intake,
+            self._table,
+            self._integrator.buffer,
+            self._detector.ring,
+            densities.monitor.block,
+            s.x,
+        )
+        k, code, m, r, v, c, e = take_run(
+            stores,
+            geometry.r_bi,
+            samples,
+            span,
+            limits,
+            (incs, xs, out, seen, snapshots),
+            (J, P, states, geometry.base_arm_b, arm_bi, plane),
+            origin,
+            (geometry.mat_bi, kf.process_model(), densities.floor),
+            (
+                kf.layout.columns,
+                config.gnss_correlation_time_s,
+                config.nhc_sigma_m_s,
+                self._corrections.gate(2),
+                kf.layout.size,
+            ),
+            (*self._epochs, self._detector.idle),
+            (held, covs, phi, white, nhcs, pseudo),
+        )
+        # What ImuDensities.current read, Propagator.advanced, InsEngine._checkpoint and the
+        # NHC's books (FusedNhc.apply) did after each sample.
+        noises: list[tuple[FloatArray, FloatArray] | None] = [
+            densities.adopt(snapshot[0], snapshot[1:]) for snapshot in snapshots[:v]
+        ]
+        if m:
+            noises.append(noise)  # [-1]: the densities at the start
+            covariances = [*covs[:c], kf.P]  # [-1]: the covariance at the start
+            s.changed()
+            timeline, corrections = self._timeline, self._corrections
+            records: dict[int, list[Record]] = {}
+            gated = [(0, s.gated_runs)]
+            stamps = xs[:m, X_T].tolist()
+            for at, accepted, nis in nhcs[:e].tolist():  # (sample, accepted, NIS) in order
+                j = int(at)
+                records[j] = [timeline.record("nhc", stamps[j], None)]
+                corrections.book(s, "nhc", bool(accepted), nis, True)
+                if s.gated_runs is not gated[-1][1]:  # from the next entry on
+                    gated.append((j + 1, s.gated_runs))
+            seen_by = seen[:m].tolist()
+            timeline.extend_run(
+                RunEntries(
+                    stamps,
+                    (incs, xs),
+                    (noises, seen_by),
+                    (covariances, held[:m].tolist()),
+                    (s.gnss_white, gated),
+                    records,
+                )
+            )
+            s.imu_psd = noises[seen_by[-1]]  # the densities of the last entry
+            if c:  # what the last step left in the filter
+                kf.P, kf.phi = covariances[c - 1], phi
+                kf.set_white_noise(white[0], white[1])
+        rows.append(out[:r])
+        epoch = None if math.isnan(pseudo[1]) else (float(pseudo[0]), float(pseudo[1]))
+        return k, code, incs[m] if code != RUN_DONE else incs[0], epoch
+
+    def repropagate(self, s: FilterState, kf: ErrorStateFilter, k: int) -> int:
+        """Re-propagate history entries from ``k`` on while they have no gap, no measurement
+        and the same densities (``Timeline.plain_from``; ``advance_run`` up to each due
+        covariance step), as InsEngine._step and _checkpoint would one by one (no smoother
+        attached), and file them again as runs; returns the index of the next entry (``k``
+        when entry ``k`` is not such)."""
+        timeline = self._timeline
+        taken, noise = timeline.plain_from(k)
+        if not taken:
+            return k
+        incs = np.array(taken)
+        stamps = timeline.stamps(k, k + len(taken))
+        t_s = np.array(stamps)
+        interval_s = self._config.covariance_interval_s
+        done = 0
+        while done < len(taken):
+            xs = np.empty((len(taken) - done, X_SIZE))
+            count = advance_run(s.x, incs[done:], t_s[done:], self._geometry.r_bi, interval_s, xs)
+            s.imu_psd = noise  # what Propagator.advanced does after each step
+            s.changed()
+            last = None
+            P = kf.P
+            books = (s.gnss_white, [(0, s.gated_runs)])
+            if s.x[X_COV_DT] >= interval_s:  # the last one's checkpoint follows the step
+                self._propagator.propagate_covariance(s, kf)
+                last = (s.copy(), kf.P)
+            held = ([P], [0] * count)
+            run = RunEntries(
+                stamps[done : done + count],
+                (incs[done:], xs),
+                ([noise], [0] * count),
+                held,
+                books,
+                {},
+            )
+            timeline.refile(k + done, run, last)
+            done += count
+        return k + done

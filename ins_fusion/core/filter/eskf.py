@@ -1,0 +1,525 @@
+"""Error-state Kalman filter algebra: state layout, error dynamics, discretisation, updates.
+
+Error state (closed loop: estimated, injected into the nominal state and reset to zero after each
+update), with x_true = x_nominal + δx:
+
+    δp   position error, NED [m]            δv  velocity error, NED [m/s]
+    ψ    attitude error, NED [rad]: C_nb,true = (I + [ψ×]) C_nb,nominal
+    δb_g gyro bias error, imu FRD [rad/s]   δb_a accelerometer bias error, imu FRD [m/s²]
+    δs_g, δs_a optional scale-factor errors [fraction] (imu FRD)
+    ε_g  optional time-correlated GNSS position error, NED [m] (first-order Gauss-Markov)
+    δμ   optional residual IMU-to-vehicle mounting, pitch and yaw about base_link FRD y, z [rad]
+    δt_d optional residual IMU time offset [s]: how much later than the GNSS the IMU is stamped
+
+Sensor model (imu FRD axes i): ω̃ = (1 + s_g)∘ω + b_g + n_g, f̃ = (1 + s_a)∘f + b_a + n_a, with
+b and s first-order Gauss-Markov processes (Oslo notes §2 (3.15)/(3.16), §7 F1/G1;
+shared/reference/mems-noise-oslo-notes.md). The mechanization body frame b is base_link FRD,
+C_ni = C_nb R_bi with R_bi the imu -> base_link mounting. Linearised error dynamics (the
+"phi-angle" form of Shin 2001 / KF-GINS; the position terms of order v/R, Ω v/R and ∂g/∂φ,
+below 5e-6 s⁻¹ at car speeds, are left out: they change a position error of 1 m by < 0.1 mm in a
+20 s outage; test_fusion_eskf.py checks every block against finite differences of the
+strapdown):
+
+    δṗ = δv
+    δv̇ = -[f_n×]ψ + F_vv δv + (2g/(R+h)) δp_D e_D - C_ni (δb_a + diag(f_i) δs_a) - C_ni n_a
+    ψ̇ = -[ω_in×]ψ - ∂ω_en/∂v δv - C_ni (δb_g + diag(ω_i) δs_g) - C_ni n_g
+    δḃ = -δb/T + w_b,   E[w_b²] = 2σ_b²/T (and the same for the scale factors)
+    ε̇_g = -ε_g/T_g + w_g, E[w_g²] = 2σ_g²/T_g with σ_g² from the latest fix (gnss_variance)
+    δμ̇ = w_μ, δṫ_d = w_t: random constants with a small random walk (``CALIBRATION_WALK``)
+
+The gyro's misalignment m (σ_m per off-diagonal element, from a datasheet or a calibration),
+which has no states, adds a turn-rate-dependent white noise to n_g, per imu axis i:
+
+    E[n_m,i²] = T_m σ_m² Σ_{j≠i} ω_j²    [rad²/s], T_m = ``AXIS_ERROR_TIME_S``
+
+m is a constant, so the attitude error it makes in a turn grows as σ_m ω t; white noise of this
+density grows as σ_m ω √(T_m t): the two agree after T_m = 10 s, about a car's turn (a corner at
+10 °/s), and the GNSS corrects the attitude within that. Without it a tactical IMU's 1 mrad
+misalignment at 14 °/s (50 °/h) turns the attitude by several times its σ and the position
+leaves its fixes (docs/accuracy.md). Scale factors are states instead (δs_g): as noise of this
+kind they hid the gyro bias's signature in turns and lengthened outage drifts several times.
+
+Discretisation over an interval Δt: Φ = I + FΔt + (FΔt)²/2 and Q_d = (Φ Q_c Φᵀ + Q_c)Δt/2, both
+second-order accurate; propagated in steps of 1/134 s or 0.1 s for 10 s they agree with Van Loan's
+exact form to 0.5 % (test_fusion_eskf.py; Oslo notes "Implications" R2). The engine propagates P
+every ``covariance_interval`` (0.1 s, the pseudo-measurement period) with the interval's mean
+specific force, and always up to the stamp of a measurement before updating; per IMU sample
+instead gives the same errors and NEES at 1.6 times the CPU time (bench/bench_fusion_engine.py).
+
+Updates are Joseph form, (I - KH) P (I - KH)ᵀ + K R Kᵀ, with a chi-square gate on the
+normalised innovation squared. The product is taken as two rank-m corrections, A = P - K (H P)
+then A - (A Hᵀ) Kᵀ, which is the same formula in O(n²m) instead of the O(n³) of forming I - KH
+(m = 1-3 rows, n = 15-26 states). filterpy's ``KalmanFilter.update`` is not used on the hot
+path: it has no gate, builds an n×n I - KH for every scalar update and inverts S with ``inv``;
+the tests use filterpy's ``van_loan_discretization`` as the reference for the discretisation.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+from scipy.special import gammaincinv
+
+from gnss_ins_common.types import FloatArray, IntArray
+from ins_fusion.core.compiled import jit, kernel_array
+from ins_fusion.core.nav import earth
+from ins_fusion.core.nav.calibration import TriadCalibration
+from ins_fusion.core.settings.config import ImuNoise
+from ins_fusion.core.smoother.rts import SmootherHooks
+
+#: First index of each always-present block of the error state.
+POS, VEL, ATT, BG, BA = 0, 3, 6, 9, 12
+_CORE_SIZE = 15
+#: Random-walk densities of the self-calibration states: mounting [rad²/s] (0.01°/√s: a
+#: mounting that settles by a few hundredths of a degree per minute) and time offset [s²/s]
+#: (0.1 ms/√s: a clock mapping that wanders by about a millisecond per minute).
+CALIBRATION_WALK = {"mounting": math.radians(0.01) ** 2, "time_offset": 1e-4**2}
+#: Time [s] over which the white noise standing for the gyro's misalignment matches its effect
+#: in a steady turn (module docstring).
+AXIS_ERROR_TIME_S = 10.0
+
+
+@dataclass(frozen=True)
+class StateLayout:
+    """Named indices of the error state: the 15 core states, then the optional gyro and
+    accelerometer scale factors, the GNSS position error (NED [m], time-correlated part of the
+    receiver's error), the residual mounting (pitch, yaw [rad]) and the residual IMU time
+    offset [s]. An absent block has index None."""
+
+    gyro_scale: bool = False
+    accel_scale: bool = False
+    gnss_error: bool = False
+    mounting: bool = False
+    time_offset: bool = False
+    sg: int | None = field(init=False)
+    sa: int | None = field(init=False)
+    gp: int | None = field(init=False)
+    mt: int | None = field(init=False)
+    td: int | None = field(init=False)
+    size: int = field(init=False)
+    #: (sg, sa, gp, mt, td) for compiled code: -1 for an absent block.
+    columns: tuple[int, int, int, int, int] = field(init=False)
+
+    def __post_init__(self) -> None:
+        next_index = _CORE_SIZE
+        columns = []
+        for name, present, width in (
+            ("sg", self.gyro_scale, 3),
+            ("sa", self.accel_scale, 3),
+            ("gp", self.gnss_error, 3),
+            ("mt", self.mounting, 2),
+            ("td", self.time_offset, 1),
+        ):
+            object.__setattr__(self, name, next_index if present else None)
+            columns.append(next_index if present else -1)
+            next_index += width * present
+        object.__setattr__(self, "size", next_index)
+        sg, sa, gp, mt, td = columns
+        object.__setattr__(self, "columns", (sg, sa, gp, mt, td))
+
+
+def gyro_misalignment_variance(
+    noise: ImuNoise, calibration: TriadCalibration | None = None
+) -> FloatArray:
+    """Variance [rad²] of each off-diagonal element of the gyro's misalignment (row: sensing
+    axis, column: input axis; zero diagonal), which no state estimates (module docstring): a
+    calibration's own σ when it corrects a misalignment, else the datasheet's
+    ``gyro_misalignment``. Axis signs do not matter (squares): FLU and FRD give the same."""
+    if calibration is not None and np.any(calibration.misalignment_rad):
+        variance = np.square(calibration.misalignment_sigma_rad)
+    else:
+        variance = np.full((3, 3), noise.gyro_misalignment**2)
+    np.fill_diagonal(variance, 0.0)
+    return variance
+
+
+def chi2_threshold(probability: float, dof: int) -> float:
+    """Gate: normalised innovation squared accepted below this (chi-square quantile)."""
+    # scipy.stats.chi2.ppf's own formula; scipy.stats itself costs ~1 s of import.
+    return float(2.0 * gammaincinv(0.5 * dof, probability))
+
+
+#: ErrorStateFilter.process_model: F and Q buffers, gyro white noise, gyro misalignment noise,
+#: accelerometer white noise, Gauss-Markov indices and densities.
+ProcessModel = tuple[
+    FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, IntArray, FloatArray
+]
+
+
+class UpdateResult(NamedTuple):
+    """Outcome of one measurement update: accepted or gated, the normalised innovation
+    squared, and the error-state estimate to inject (None when gated)."""
+
+    accepted: bool
+    nis: float
+    dx: FloatArray | None
+
+
+class ErrorStateFilter:
+    """Covariance of the error state and its propagation and update (the mean is always zero
+    between updates: closed loop)."""
+
+    def __init__(
+        self,
+        layout: StateLayout,
+        noise: ImuNoise,
+        gnss_correlation_time_s: float = 60.0,
+        gyro_misalignment_var: FloatArray | None = None,
+    ) -> None:
+        """P starts at zero; set it before use. P arrays are replaced, never modified in place,
+        so a reference to ``P`` is a snapshot. ``gyro_misalignment_var``: from
+        ``gyro_misalignment_variance`` (None: from ``noise`` alone)."""
+        n = layout.size
+        self.layout = layout
+        self.P: FloatArray = np.zeros((n, n))
+        #: Largest variance of each error state after a fading (``scale``), inf: none; set by
+        #: the start to what is known of the state before any measurement (faded_covariance).
+        self.variance_ceiling: FloatArray = np.full(n, math.inf)
+        #: Transition matrix Φ of the last ``propagate`` (a new array per call).
+        self.phi: FloatArray = np.eye(n)
+        #: Observer of the covariance's changes (the RTS smoother's recorder), set by the engine.
+        self.recorder: SmootherHooks | None = None
+        # F and Q are rebuilt block by block through views; constant blocks are set once.
+        F = self._F = np.zeros((n, n))
+        F[POS : POS + 3, VEL : VEL + 3] = np.eye(3)
+        Q = self._Q = np.zeros((n, n))
+        #: Columns of the gyro and accelerometer scale factors (-1: not estimated).
+        self.scale_columns = layout.columns[:2]
+        # Gauss-Markov states: F = -1/T, continuous noise 2σ²/T.
+        t_b = noise.bias_correlation_time_s
+        markov = [(BG, t_b, noise.gyro_bias_instability), (BA, t_b, noise.accel_bias_instability)]
+        for start, sigma in (
+            (layout.sg, noise.gyro_scale_sigma),
+            (layout.sa, noise.accel_scale_sigma),
+        ):
+            if start is not None:
+                markov.append((start, t_b, (sigma, sigma, sigma)))
+        if layout.gp is not None:
+            markov.append((layout.gp, gnss_correlation_time_s, (0.0, 0.0, 0.0)))
+        walks = [(layout.mt, 2, CALIBRATION_WALK["mounting"])]
+        walks.append((layout.td, 1, CALIBRATION_WALK["time_offset"]))
+        for start, width, density in walks:
+            if start is not None:
+                Q[start : start + width, start : start + width] = np.eye(width) * density
+        self._markov_idx = np.concatenate([np.arange(m[0], m[0] + 3) for m in markov])
+        self._markov_q = np.array([2.0 * s * s / m[1] for m in markov for s in m[2]])
+        self._F[self._markov_idx, self._markov_idx] = np.repeat([-1.0 / m[1] for m in markov], 3)
+        # No GNSS error states (correlation time 0 = all white): no rate either.
+        self._gnss_rate = 2.0 / gnss_correlation_time_s if layout.gp is not None else 0.0
+        self._accel_psd = noise.accel_psd
+        self._gyro_psd = noise.gyro_psd
+        # Turn-rate-dependent gyro noise of the misalignment (module docstring).
+        if gyro_misalignment_var is None:
+            gyro_misalignment_var = gyro_misalignment_variance(noise)
+        self._gyro_misalignment_q = gyro_misalignment_var * AXIS_ERROR_TIME_S
+        self._gnss_variance: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    @property
+    def gnss_variance(self) -> tuple[float, float, float]:
+        """Stationary variance of the GNSS position error states per NED axis [m²]."""
+        return self._gnss_variance
+
+    @gnss_variance.setter
+    def gnss_variance(self, variance: tuple[float, float, float]) -> None:
+        self._gnss_variance = variance
+        if self.layout.gp is not None:
+            self._markov_q[-3:] = np.array(variance) * self._gnss_rate
+
+    def dynamics(
+        self,
+        mat_ni: FloatArray,
+        force_n: FloatArray,
+        force_i: FloatArray,
+        rate_i: FloatArray,
+        lat_rad: float,
+        height_m: float,
+        vel_ned_m_s: tuple[float, float, float],
+    ) -> FloatArray:
+        """The error-state matrix F (module docstring) for a rotation imu FRD -> NED, the
+        specific force in NED and the corrected force/rate in imu FRD [m/s², rad/s], position
+        and NED velocity. Returns an internal array, valid until the next call."""
+        inputs = (mat_ni, force_n, force_i, rate_i, lat_rad, height_m, vel_ned_m_s)
+        _fill_dynamics(self._F, *inputs, *self.scale_columns)
+        return self._F
+
+    def noise_density(self, mat_ni: FloatArray, rate_i: FloatArray) -> FloatArray:
+        """Continuous process noise Q_c = G Q Gᵀ [per second] for the rotation imu -> NED
+        and the corrected angular rate in imu FRD [rad/s]."""
+        _fill_noise(
+            self._Q,
+            mat_ni,
+            rate_i,
+            self._gyro_psd,
+            self._gyro_misalignment_q,
+            self._accel_psd,
+            self._markov_idx,
+            self._markov_q,
+        )
+        return self._Q
+
+    def propagate(
+        self,
+        dt_s: float,
+        mat_ni: FloatArray,
+        force_n: FloatArray,
+        force_i: FloatArray,
+        rate_i: FloatArray,
+        lat_rad: float,
+        height_m: float,
+        vel_ned_m_s: tuple[float, float, float],
+    ) -> None:
+        """Propagate P over an interval of dt_s [s] (one or a few IMU samples); arguments as
+        for ``dynamics`` (mean force and rate over the interval, state at its end)."""
+        inputs = (mat_ni, force_n, force_i, rate_i, lat_rad, height_m, vel_ned_m_s)
+        self.P, self.phi = propagate_kernel(
+            kernel_array(self.P),
+            self._F,
+            self._Q,
+            dt_s,
+            *inputs,
+            *self.scale_columns,
+            self._gyro_psd,
+            self._gyro_misalignment_q,
+            self._accel_psd,
+            self._markov_idx,
+            self._markov_q,
+        )
+
+    def process_model(self) -> ProcessModel:
+        """What ``propagate`` hands its kernel besides P and the interval: the F and Q buffers
+        (filled in place), the white-noise densities in force, the gyro misalignment's noise
+        and the Gauss-Markov states' indices and densities (propagation.covariance_step)."""
+        return (
+            self._F,
+            self._Q,
+            self._gyro_psd,
+            self._gyro_misalignment_q,
+            self._accel_psd,
+            self._markov_idx,
+            self._markov_q,
+        )
+
+    def set_white_noise(self, gyro_psd: FloatArray, accel_psd: FloatArray) -> None:
+        """White-noise power densities per imu axis from now on: gyro [rad²/s] (ARW²),
+        accelerometer [m²/s³] (VRW²)."""
+        self._gyro_psd = gyro_psd
+        self._accel_psd = accel_psd
+
+    def scale(self, factor: float) -> None:
+        """Multiply the covariance by ``factor`` (fading memory: every state less certain), no
+        state's variance beyond its ``variance_ceiling`` (``faded_covariance``)."""
+        self.P = faded_covariance(self.P, factor, self.variance_ceiling)
+
+    def add_noise(self, start: int, cov: FloatArray) -> None:
+        """Add a 3x3 covariance to the diagonal block of the states at ``start`` (noise the
+        continuous model does not hold, e.g. a bridged IMU gap). P is replaced, not changed in
+        place: the engine's history holds references to earlier P."""
+        P = self.P.copy()
+        P[start : start + 3, start : start + 3] += cov
+        self.P = P
+
+    def widen(self, z: FloatArray, H: FloatArray, R: FloatArray, start: int) -> None:
+        """Add to the 3x3 block of P at ``start`` what makes the innovation z fit: the excess
+        of each z_i² over S_ii, mapped into that block by the pseudo-inverse of its columns of
+        H, so that the new S_ii = max(S_ii, z_i²) when they have full row rank."""
+        excess = np.maximum(np.square(z) - np.diagonal(H @ self.P @ H.T + R), 0.0)
+        G = np.linalg.pinv(H[:, start : start + 3])
+        self.add_noise(start, (G * excess) @ G.T)
+
+    def update(self, z: FloatArray, H: FloatArray, R: FloatArray, threshold: float) -> UpdateResult:
+        """Gated Joseph-form update with innovation z = measured - predicted, z ≈ H δx + v."""
+        accepted, nis, dx, P = joseph_update(
+            kernel_array(self.P),
+            kernel_array(z),
+            kernel_array(H),
+            kernel_array(R),
+            float(threshold),
+        )
+        if not accepted:
+            return UpdateResult(False, nis, None)
+        self.P = P
+        return UpdateResult(True, nis, dx)
+
+    def problem(self) -> str | None:
+        """Why the covariance is unusable (non-finite, negative variance), or None."""
+        worst = _covariance_problem(kernel_array(self.P))
+        if worst == -2:
+            return "non-finite covariance"
+        if worst >= 0:
+            return f"negative variance in state {worst}"
+        return None
+
+
+def faded_covariance(P: FloatArray, factor: float, ceiling: FloatArray) -> FloatArray:
+    """P faded by ``factor`` (fading memory: factor x P), as noise added to P, (factor - 1) P,
+    whose rows and columns are scaled down (D A D, D diagonal <= 1) for the states whose variance
+    would otherwise end above ``ceiling``: such a state ends at its ceiling, one already there
+    gets nothing. The result stays positive semi-definite and never below P (what the RTS
+    smoother's noise step needs).
+
+    A fading multiplies every variance; repeated over a long run of inconsistent measurements
+    (an IMU at rest under a moving antenna: issue 38) it multiplied the bias variances without
+    bound until the state overflowed. A bias, a scale factor, a mounting angle cannot be less
+    known than before the first measurement, so their prior variance bounds them."""
+    added = P * (factor - 1.0)
+    room = np.maximum(ceiling - np.diagonal(P), 0.0)
+    growth = np.maximum(np.diagonal(added), np.finfo(float).tiny)
+    shrink = np.sqrt(np.minimum(1.0, room / growth))
+    if bool(np.all(shrink == 1.0)):
+        return P * factor
+    return P + shrink[:, None] * added * shrink[None, :]
+
+
+@jit
+def _fill_dynamics(
+    F: FloatArray,
+    mat_ni: FloatArray,
+    force_n: FloatArray,
+    force_i: FloatArray,
+    rate_i: FloatArray,
+    lat_rad: float,
+    height_m: float,
+    vel_ned_m_s: tuple[float, float, float],
+    sg: int,
+    sa: int,
+) -> None:
+    """The state-dependent blocks of F (ErrorStateFilter.dynamics; ``sg``, ``sa``: columns of
+    the scale factors, -1 when not estimated)."""
+    vn, ve, vd = vel_ned_m_s
+    sin_lat = math.sin(lat_rad)
+    r_m, r_n = earth.radii_from_sin(sin_lat)
+    rmh, rnh = r_m + height_m, r_n + height_m
+    tan_lat = math.tan(lat_rad)
+    cos_lat = math.cos(lat_rad)
+    w_ie_n, w_ie_d = earth.EARTH_RATE_RAD_S * cos_lat, -earth.EARTH_RATE_RAD_S * sin_lat
+    # ω_en = (a v_E, b v_N, c v_E): ∂ω_en/∂v = [[0, a, 0], [b, 0, 0], [0, c, 0]].
+    a, b, c = 1.0 / rnh, -1.0 / rmh, -tan_lat / rnh
+    wx, wy, wz = w_ie_n + a * ve, b * vn, w_ie_d + c * ve  # ω_in
+    cx, cy, cz = wx + w_ie_n, wy, wz + w_ie_d  # 2ω_ie + ω_en
+    fx, fy, fz = force_n[0], force_n[1], force_n[2]
+    # δv̇: [v×] ∂ω_en/∂v - [(2ω_ie + ω_en)×]; -[f_n×]; ψ̇: -∂ω_en/∂v; -[ω_in×].
+    blocks = (
+        (VEL, VEL, ((-vd * b, ve * c + cz, -cy), (-cz, vd * a - vn * c, cx))),
+        (VEL, ATT, ((0.0, fz, -fy), (-fz, 0.0, fx))),
+        (ATT, VEL, ((0.0, -a, 0.0), (-b, 0.0, 0.0))),
+        (ATT, ATT, ((0.0, wz, -wy), (-wz, 0.0, wx))),
+    )
+    for row, col, (first, second) in blocks:
+        for j in range(3):
+            F[row, col + j] = first[j]
+            F[row + 1, col + j] = second[j]
+    F[VEL + 2, VEL], F[VEL + 2, VEL + 1], F[VEL + 2, VEL + 2] = vn * b + cy, -ve * a - cx, 0.0
+    F[VEL + 2, ATT], F[VEL + 2, ATT + 1], F[VEL + 2, ATT + 2] = fy, -fx, 0.0
+    F[ATT + 2, VEL], F[ATT + 2, VEL + 1], F[ATT + 2, VEL + 2] = 0.0, -c, 0.0
+    F[ATT + 2, ATT], F[ATT + 2, ATT + 1], F[ATT + 2, ATT + 2] = wy, -wx, 0.0
+    F[VEL + 2, POS + 2] = (
+        2.0 * earth.normal_gravity_from_sin_cos(sin_lat, cos_lat, height_m) / math.sqrt(rmh * rnh)
+    )
+    for i in range(3):
+        for j in range(3):
+            F[VEL + i, BA + j] = -mat_ni[i, j]
+            F[ATT + i, BG + j] = -mat_ni[i, j]
+            if sg >= 0:
+                F[ATT + i, sg + j] = mat_ni[i, j] * -rate_i[j]
+            if sa >= 0:
+                F[VEL + i, sa + j] = mat_ni[i, j] * -force_i[j]
+
+
+@jit
+def _fill_noise(
+    Q: FloatArray,
+    mat_ni: FloatArray,
+    rate_i: FloatArray,
+    gyro_psd: FloatArray,
+    gyro_misalignment_q: FloatArray,
+    accel_psd: FloatArray,
+    markov_idx: IntArray,
+    markov_q: FloatArray,
+) -> None:
+    """The state-dependent blocks of Q_c (ErrorStateFilter.noise_density)."""
+    Q[VEL : VEL + 3, VEL : VEL + 3] = (mat_ni * accel_psd) @ mat_ni.T
+    turn_psd = gyro_misalignment_q @ (rate_i * rate_i)
+    Q[ATT : ATT + 3, ATT : ATT + 3] = (mat_ni * (gyro_psd + turn_psd)) @ mat_ni.T
+    for k in range(len(markov_idx)):
+        Q[markov_idx[k], markov_idx[k]] = markov_q[k]
+
+
+@jit
+def propagate_kernel(
+    P: FloatArray,
+    F: FloatArray,
+    Q: FloatArray,
+    dt_s: float,
+    mat_ni: FloatArray,
+    force_n: FloatArray,
+    force_i: FloatArray,
+    rate_i: FloatArray,
+    lat_rad: float,
+    height_m: float,
+    vel_ned_m_s: tuple[float, float, float],
+    sg: int,
+    sa: int,
+    gyro_psd: FloatArray,
+    gyro_misalignment_q: FloatArray,
+    accel_psd: FloatArray,
+    markov_idx: IntArray,
+    markov_q: FloatArray,
+) -> tuple[FloatArray, FloatArray]:
+    """(P, Φ) after an interval (ErrorStateFilter.propagate); F and Q are filled in place."""
+    _fill_dynamics(F, mat_ni, force_n, force_i, rate_i, lat_rad, height_m, vel_ned_m_s, sg, sa)
+    _fill_noise(Q, mat_ni, rate_i, gyro_psd, gyro_misalignment_q, accel_psd, markov_idx, markov_q)
+    f_dt = F * dt_s
+    phi = np.eye(len(P)) + f_dt + 0.5 * (f_dt @ f_dt)
+    q = Q * (0.5 * dt_s)
+    # Φ P Φᵀ + (Φ Q_c Φᵀ + Q_c)Δt/2 = Φ (P + Q_cΔt/2) Φᵀ + Q_cΔt/2.
+    P_new = phi @ (P + q) @ phi.T
+    P_new += q
+    return P_new, phi
+
+
+@jit
+def _covariance_problem(P: FloatArray) -> int:
+    """-1 for a usable covariance; -2 when an element is not finite, else the state of the
+    most negative variance when one is negative."""
+    worst, lowest = -1, 0.0
+    for i in range(P.shape[0]):
+        for j in range(P.shape[1]):
+            if not math.isfinite(P[i, j]):
+                return -2
+        if P[i, i] < lowest:
+            worst, lowest = i, P[i, i]
+    return worst
+
+
+@jit
+def projected_variance(H: FloatArray, P: FloatArray) -> FloatArray:
+    """diag(H P Hᵀ): the variance of each row of H δx."""
+    HP = H @ P
+    out = np.zeros(len(H))
+    for i in range(len(H)):
+        for j in range(H.shape[1]):
+            out[i] += HP[i, j] * H[i, j]
+    return out
+
+
+@jit
+def joseph_update(
+    P: FloatArray, z: FloatArray, H: FloatArray, R: FloatArray, threshold: float
+) -> tuple[bool, float, FloatArray, FloatArray]:
+    """(accepted, NIS, δx, new P) of ErrorStateFilter.update; a singular S gives NIS inf."""
+    PHt = P @ H.T
+    S = H @ PHt + R
+    try:
+        s_inv = np.linalg.inv(S)  # 1-3 rows: one inverse is cheaper than two solves
+    except Exception:  # singular (numba cannot name LinAlgError)
+        return False, math.inf, z, P
+    nis = float(z @ s_inv @ z)
+    if not nis <= threshold:  # also rejects NaN
+        return False, nis, z, P
+    K = PHt @ s_inv
+    A = P - K @ (H @ P)  # (I - KH) P
+    P_new = A - (A @ H.T) @ K.T + K @ R @ K.T  # A (I - KH)ᵀ + K R Kᵀ
+    return True, nis, K @ z, 0.5 * (P_new + P_new.T)

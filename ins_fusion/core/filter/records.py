@@ -1,0 +1,106 @@
+"""The records the filter takes in and linearises about: the measurements as the ROS messages
+give them (GNSS fix, GNSS velocity, attitude; ENU/FLU, REP-103) and the nominal state predicted
+to a measurement's stamp (``Prediction``; NED/FRD). Their models: core.measurements.models."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from gnss_ins_common.navsat import HEIGHT_UNKNOWN_VARIANCE_M2
+from gnss_ins_common.types import FloatArray
+from ins_fusion.core.compiled import compilable
+from ins_fusion.core.filter.eskf import StateLayout
+
+
+def _array(value: object, shape: tuple[int, ...]) -> FloatArray:
+    out = np.asarray(value, dtype=np.float64).reshape(shape)
+    out.setflags(write=False)
+    return out
+
+
+@compilable
+def height_measured(height_m: float, var_up_m2: float) -> bool:
+    """Does a fix measure its height [m] with this vertical variance [m²]? Not when the height
+    is not finite or the variance is not below HEIGHT_UNKNOWN_VARIANCE_M2 (or NaN): a 2-D fix
+    (gnss_ins_common.navsat), of which only the horizontal position is used."""
+    return math.isfinite(height_m) and var_up_m2 < HEIGHT_UNKNOWN_VARIANCE_M2
+
+
+@dataclass(frozen=True)
+class GnssFixMeasurement:
+    """Antenna position (gnss/fix): WGS-84 latitude/longitude [deg], ellipsoidal height [m],
+    ENU covariance [m²] (3, 3); ``valid`` False for no-fix messages (ignored and counted).
+
+    A 2-D fix (``height_measured`` false) is kept as height NaN with the vertical variance
+    HEIGHT_UNKNOWN_VARIANCE_M2 and no vertical correlation: its model has the horizontal rows
+    only, and it never starts the filter nor sets the datum."""
+
+    t_s: float
+    lat_deg: float
+    lon_deg: float
+    height_m: float
+    cov_enu_m2: FloatArray
+    valid: bool = True
+
+    def __post_init__(self) -> None:
+        cov = np.array(self.cov_enu_m2, dtype=np.float64).reshape(3, 3)
+        if not height_measured(self.height_m, float(cov[2, 2])):
+            object.__setattr__(self, "height_m", math.nan)
+            cov[2, :] = cov[:, 2] = 0.0
+            cov[2, 2] = HEIGHT_UNKNOWN_VARIANCE_M2
+        object.__setattr__(self, "cov_enu_m2", _array(cov, (3, 3)))
+
+    @property
+    def height_known(self) -> bool:
+        """Whether the height is measured (a 3-D fix)."""
+        return height_measured(self.height_m, float(self.cov_enu_m2[2, 2]))
+
+
+@dataclass(frozen=True)
+class GnssVelocityMeasurement:
+    """Antenna velocity (gnss/vel) in ENU [m/s] with its covariance [m²/s²] (3, 3); a vertical
+    variance >= core.measurements.models.UNKNOWN_VELOCITY_VARIANCE (or NaN) means 'vertical
+    unknown'."""
+
+    t_s: float
+    vel_enu_m_s: FloatArray
+    cov_enu_m2_s2: FloatArray
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "vel_enu_m_s", _array(self.vel_enu_m_s, (3,)))
+        object.__setattr__(self, "cov_enu_m2_s2", _array(self.cov_enu_m2_s2, (3, 3)))
+
+
+@dataclass(frozen=True)
+class AttitudeMeasurement:
+    """Orientation (gnss/attitude): quaternion (x, y, z, w) of the receiver's vehicle frame
+    (FLU) in ENU and the covariance of its roll, pitch, yaw errors about the FLU axes [rad²]
+    (3, 3); a variance >= core.measurements.models.UNKNOWN_ANGLE_VARIANCE marks an angle as not
+    measured (heading-only receivers)."""
+
+    t_s: float
+    quat_enu_flu_xyzw: FloatArray
+    cov_rpy_rad2: FloatArray
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "quat_enu_flu_xyzw", _array(self.quat_enu_flu_xyzw, (4,)))
+        object.__setattr__(self, "cov_rpy_rad2", _array(self.cov_rpy_rad2, (3, 3)))
+
+
+@dataclass(frozen=True)
+class Prediction:
+    """Nominal state at a measurement stamp: IMU position (lat, lon [rad], h [m]), NED
+    velocity [m/s], body (base_link FRD) -> NED rotation, corrected body rate ω_ib [rad/s] in
+    base_link FRD and in imu FRD."""
+
+    lat_rad: float
+    lon_rad: float
+    height_m: float
+    vel_ned_m_s: FloatArray
+    mat_nb: FloatArray
+    rate_b: FloatArray
+    rate_i: FloatArray
+    layout: StateLayout = field(default_factory=StateLayout)

@@ -1,0 +1,164 @@
+"""The GNSS position update with the covariance step before it in one compiled call.
+
+A fix is the engine's largest update and, arriving late, is applied again in every
+re-propagation through its stamp. The general way (InsEngine._apply: the covariance step and
+the prediction, Corrections._gnss_position: the white/correlated split of the fix's covariance
+``gnss_noise._position_noise``, the model ``measurements._position_model``, diag(H P Hᵀ),
+Corrections.update with the Joseph update and the injection, the white-noise monitor's push
+``adaptation.white_push_fix``) is seven kernels with Python between them. ``position_apply``
+runs the same kernels in the same order in one call, so the numbers are the same to the bit,
+and ``FusedPosition`` keeps the books (NIS, process-noise adaptation, gated runs, counters, the
+last fix used). Taken only where the general way would do nothing else: a valid fix, the
+heading known, no time-offset state, no smoother, no gate recovery possible; and when the
+split asks for a restart of the correlated error states, the kernel stops after the covariance
+step and the general way goes on from there (a new variance of theirs it sets itself).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from gnss_ins_common.types import FloatArray
+from ins_fusion.core.compiled import jit, kernel_array
+from ins_fusion.core.filter.adaptation import white_push_fix
+from ins_fusion.core.filter.eskf import ErrorStateFilter, ProcessModel, projected_variance
+from ins_fusion.core.filter.propagation import Propagator
+from ins_fusion.core.filter.records import GnssFixMeasurement, height_measured
+from ins_fusion.core.filter.state import (
+    X_GNSS_ERROR,
+    X_GNSS_REPORTED,
+    X_GNSS_VARIANCE,
+    FilterState,
+    Geometry,
+)
+from ins_fusion.core.measurements.gnss_noise import (
+    NOISE_MOVED,
+    NOISE_RESTART,
+    GnssNoise,
+    _position_noise,
+    shrink_correlated,
+)
+from ins_fusion.core.measurements.models import _position_model
+from ins_fusion.core.measurements.nhc import FusedUpdate, step_to, update_and_restart
+from ins_fusion.core.measurements.updates import Corrections
+from ins_fusion.core.settings.config import FusionConfig
+
+_KIND = "gnss_position"
+
+
+@jit
+def position_apply(
+    P: FloatArray,
+    x: FloatArray,
+    white: FloatArray,
+    measured: tuple[float, float, float, float, FloatArray],
+    process: ProcessModel,
+    geometry: tuple[FloatArray, FloatArray],
+    columns: tuple[int, int, int, int, int],
+    noise: tuple[float, FloatArray, float, FloatArray],
+    constants: tuple[float, float, int],
+) -> tuple[bool, FloatArray, int, FloatArray, bool, float]:
+    """The fix ``measured`` = (stamp [s], latitude, longitude [rad], height [m], ENU
+    covariance [m²]) on the error covariance ``P`` and the nominal state ``x`` (X_* layout,
+    changed in place; heading known): ``step_to`` the stamp, the white/correlated split
+    (``noise``: GnssNoise.settings) with the new variance of the correlated error states when
+    it moved (``shrink_correlated``), the model of the antenna (``geometry``: rotation imu ->
+    body, lever arm of the antenna from the IMU [m], body FRD), diag(H P Hᵀ),
+    ``update_and_restart`` and the push of the white-noise monitor's values ``white`` (in
+    place). ``constants``: GNSS correlation time [s], the gate of the fix's rows (3, a 2-D fix
+    2: ``height_measured``), state size.
+    Returns (stepped, Φ of the step (P when none), what the split asked of the correlated
+    error states (gnss_noise.NOISE_*), the new P, accepted, NIS); NOISE_RESTART: nothing
+    after the covariance step was made."""
+    t_m, fix_lat, fix_lon, fix_height, cov_enu = measured
+    mat_bi, arm_b = geometry
+    scale_sq, white_var_ned, white_fraction, share = noise
+    correlation_time_s, threshold, size = constants
+    stepped, phi, P, prediction = step_to(P, x, t_m, process, mat_bi, columns, correlation_time_s)
+    lat, lon, height, _, mat_nb, _, _ = prediction
+    gp = columns[2]
+    vertical = height_measured(fix_height, cov_enu[2, 2])
+    R, correlated, reported, action = _position_noise(
+        cov_enu,
+        scale_sq,
+        white_var_ned,
+        white_fraction,
+        share,
+        (gp >= 0, vertical),
+        (x[X_GNSS_REPORTED], x[X_GNSS_REPORTED + 1], x[X_GNSS_REPORTED + 2]),
+        (x[X_GNSS_VARIANCE], x[X_GNSS_VARIANCE + 1], x[X_GNSS_VARIANCE + 2]),
+    )
+    if action == NOISE_RESTART:
+        return stepped, phi, action, P, False, math.nan
+    if action == NOISE_MOVED:
+        _, P, _ = shrink_correlated(P, x, correlated, gp)
+    error = (x[X_GNSS_ERROR], x[X_GNSS_ERROR + 1], x[X_GNSS_ERROR + 2])
+    z, H, R = _position_model(
+        lat, lon, height, mat_nb, fix_lat, fix_lon, fix_height, arm_b, R, error, size, gp, vertical
+    )
+    predicted = projected_variance(H, P)
+    accepted, nis, dx, P_new = update_and_restart(P, x, (z, H, R), threshold, columns)
+    white_push_fix(white, t_m, z, H, dx, accepted, P_new, predicted, reported)
+    return stepped, phi, action, P_new, accepted, nis
+
+
+class FusedPosition(FusedUpdate):
+    """The engine's side of ``position_apply`` (InsEngine._apply uses it where ``usable``)."""
+
+    def __init__(
+        self,
+        config: FusionConfig,
+        geometry: Geometry,
+        filtering: tuple[Propagator, Corrections, GnssNoise],
+    ) -> None:
+        propagator, corrections, self._noise = filtering
+        super().__init__(config, geometry, propagator, corrections)
+
+    def usable(self, s: FilterState, kf: ErrorStateFilter, fix: GnssFixMeasurement) -> bool:
+        """Whether the general way would do what ``apply`` does (or go on where it stops)."""
+        if kf.recorder is not None or kf.layout.td is not None or not s.heading_known:
+            return False
+        if not (fix.valid and np.isfinite(fix.cov_enu_m2).all()):
+            return False
+        recover = self._config.gate_recovery_count
+        ready = s.gnss_white.ready  # else a gated fix is no reason for a recovery
+        return not recover or not ready or s.gated_runs.get(_KIND, 0) + 1 < recover
+
+    def apply(
+        self, s: FilterState, kf: ErrorStateFilter, fix: GnssFixMeasurement, live: bool
+    ) -> bool:
+        """What InsEngine._apply does for a GNSS position record where ``usable`` (``live``:
+        counted); False: only the covariance step was made (see ``position_apply``)."""
+        kf.set_white_noise(*self._propagator.white_noise(s))  # read only by a step
+        geometry, corrections = self._geometry, self._corrections
+        rows = 3 if fix.height_known else 2
+        white = s.gnss_white.values.copy()
+        stepped, phi, action, P, accepted, nis = position_apply(
+            kernel_array(kf.P),
+            s.x,
+            white,
+            (
+                fix.t_s,
+                math.radians(fix.lat_deg),
+                math.radians(fix.lon_deg),
+                fix.height_m,
+                kernel_array(fix.cov_enu_m2),
+            ),
+            kf.process_model(),
+            (geometry.mat_bi, kernel_array(geometry.arms(s)[0])),
+            kf.layout.columns,
+            self._noise.settings(s),
+            (self._correlation_time_s, corrections.gate(rows), kf.layout.size),
+        )
+        self._taken(kf, stepped, phi, P)
+        if action == NOISE_RESTART:
+            return False
+        if action == NOISE_MOVED:  # the kernel set it in the state (set_correlated_variance)
+            kf.gnss_variance = s.gnss_variance
+        self._booked(s, _KIND, (accepted, nis), live, rows)
+        s.gnss_white = s.gnss_white.with_values(white)
+        if accepted:
+            s.last_position_t_s = max(s.last_position_t_s, fix.t_s)
+        return True

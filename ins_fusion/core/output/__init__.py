@@ -1,0 +1,1 @@
+"""The engine's output: the solution, its rows and the numbers the messages carry."""

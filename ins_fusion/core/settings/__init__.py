@@ -1,0 +1,1 @@
+"""The engine's parameters (one table) and its typed configuration."""
