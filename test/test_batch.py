@@ -141,7 +141,15 @@ def test_an_interrupted_batch_completes_when_run_again(bags, singles, tmp_path, 
     out = tmp_path / "fleet"
     argv = [*_bag_arguments(bags), *OPTIONS, "--no-plot", "--workers", "1"]
     command = [sys.executable, "-m", "ins_fusion.tools.cli", "batch", *argv, "--out", str(out)]
-    batch = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    batch = subprocess.Popen(
+        command,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        # As from a terminal: under `make test` this session runs as a background job, whose
+        # children inherit SIGINT ignored (and Python then installs no KeyboardInterrupt).
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
     try:
         deadline = time.monotonic() + 120.0
         while not _done_times(out) and time.monotonic() < deadline:
