@@ -297,8 +297,10 @@ def _utc_now() -> str:
 
 def python_main(module: str, *args: str) -> list[str]:
     """``module.main()`` with ARGS, run by this interpreter: works for venv, pip and colcon
-    installs alike, with no need for the console scripts on PATH."""
-    return [sys.executable, "-c", f"import sys; from {module} import main; sys.exit(main())", *args]
+    installs alike, with no need for the console scripts on PATH; a Ctrl-C while it imports ends
+    it quietly (gnss_ins_common.quiet_start)."""
+    program = f"import sys; from gnss_ins_common.quiet_start import run; sys.exit(run({module!r}))"
+    return [sys.executable, "-c", program, *args]
 
 
 def gnss_ins_command(*args: str) -> list[str]:

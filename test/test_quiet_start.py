@@ -1,0 +1,73 @@
+"""gnss_ins_common.quiet_start: how launch starts its processes (runtime.processes.python_main).
+A Ctrl-C while the program still imports ends it with status 130 and no traceback; afterwards
+the program's own Ctrl-C handling is Python's as usual; a SIGINT ignored (a background job)
+stays ignored."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from ins_fusion.runtime.processes import python_main
+
+#: A program whose import takes a while and whose main waits for Ctrl-C and says so.
+SLOW_PROGRAM = """
+import time
+time.sleep({import_s})
+
+def main():
+    print("imported", flush=True)
+    try:
+        time.sleep(30)
+    except KeyboardInterrupt:
+        print("main saw Ctrl-C", flush=True)
+        return 3
+    return 0
+"""
+
+
+def _start(tmp_path: Path, import_s: float, sigint: object) -> subprocess.Popen[str]:
+    (tmp_path / "slow_program.py").write_text(SLOW_PROGRAM.format(import_s=import_s))
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), *sys.path])}
+    return subprocess.Popen(
+        python_main("slow_program"),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+        # The SIGINT disposition a terminal (SIG_DFL) or a background job (SIG_IGN) gives.
+        preexec_fn=lambda: signal.signal(signal.SIGINT, sigint),  # type: ignore[arg-type]
+    )
+
+
+def test_a_ctrl_c_during_the_import_ends_quietly(tmp_path):
+    process = _start(tmp_path, 5.0, signal.SIG_DFL)
+    time.sleep(1.0)
+    process.send_signal(signal.SIGINT)
+    stdout, stderr = process.communicate(timeout=20)
+    assert process.returncode == 130
+    assert "Traceback" not in stderr and stdout == ""
+
+
+def test_after_the_import_the_program_handles_ctrl_c_itself(tmp_path):
+    process = _start(tmp_path, 0.0, signal.SIG_DFL)
+    assert process.stdout is not None and process.stdout.readline() == "imported\n"
+    process.send_signal(signal.SIGINT)
+    stdout, _ = process.communicate(timeout=20)
+    assert (process.returncode, stdout) == (3, "main saw Ctrl-C\n")
+
+
+def test_an_ignored_sigint_stays_ignored(tmp_path):
+    process = _start(tmp_path, 2.0, signal.SIG_IGN)
+    time.sleep(0.5)
+    process.send_signal(signal.SIGINT)  # during the import
+    assert process.stdout is not None and process.stdout.readline() == "imported\n"
+    process.send_signal(signal.SIGINT)  # in main
+    time.sleep(0.5)
+    assert process.poll() is None
+    process.terminate()
+    process.communicate(timeout=20)
