@@ -62,8 +62,8 @@ class ManagedSerialDriver(LifecycleNode):
         ``before_close(port)``: what to send the device before its port is closed."""
         self._before_close = before_close
         if autostart:
-            self.trigger_configure()
-            self.trigger_activate()
+            if self.trigger_configure() == _SUCCESS:
+                self.trigger_activate()
         else:
             self.get_logger().info("unconfigured: waiting for the configure transition")
 
