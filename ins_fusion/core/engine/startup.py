@@ -247,31 +247,24 @@ class Startup:
                 np.eye(3) * noise.accel_scale_sigma**2
             )
         kf.P = P
-        kf.variance_ceiling = self._variance_ceiling(layout.size, np.diagonal(P))
+        kf.variance_ceiling = self._variance_ceiling(np.diagonal(P))
         self._gnss_noise.restart_position(state, kf, fix)
         return state, kf
 
-    def _variance_ceiling(self, size: int, initial: FloatArray) -> FloatArray:
-        """Largest variance of each error state (ErrorStateFilter.variance_ceiling): for the
-        biases, scale factors, mounting and time offset their prior (datasheet or calibration;
-        the start's own variance if larger), for the attitude an unknown angle's; none for
-        position, velocity and the correlated GNSS error."""
-        config, layout = self._config, self._layout
-        noise = config.imu_noise
-        ceiling = np.full(size, math.inf)
-        ceiling[ATT : ATT + 3] = UNKNOWN_YAW_VARIANCE
-        ceiling[BG : BG + 3] = self._gyro_bias_variance()
-        ceiling[BA : BA + 3] = self._accel_bias_variance()
-        if layout.mt is not None:
-            ceiling[layout.mt : layout.mt + 2] = config.mounting_sigma_rad**2
-        if layout.td is not None:
-            ceiling[layout.td] = config.time_offset_sigma_s**2
-        if layout.sg is not None:
-            ceiling[layout.sg : layout.sg + 3] = noise.gyro_scale_sigma**2
-        if layout.sa is not None:
-            ceiling[layout.sa : layout.sa + 3] = noise.accel_scale_sigma**2
-        bounded: FloatArray = np.maximum(ceiling, initial)
-        return bounded
+    def _variance_ceiling(self, initial: FloatArray) -> FloatArray:
+        """Largest variance of each error state (ErrorStateFilter.variance_ceiling) from the
+        initial covariance's diagonal, which holds the priors (datasheet or calibration) of the
+        accelerometer biases, scale factors, mounting and time offset: the gyro biases their
+        prior too (the start's variance if larger: a levelled start measured them), the attitude
+        an unknown angle's; none for position, velocity and the correlated GNSS error."""
+        ceiling = initial.copy()
+        ceiling[:ATT] = math.inf
+        ceiling[ATT : ATT + 3] = np.maximum(ceiling[ATT : ATT + 3], UNKNOWN_YAW_VARIANCE)
+        ceiling[BG : BG + 3] = np.maximum(ceiling[BG : BG + 3], self._gyro_bias_variance())
+        gp = self._layout.gp
+        if gp is not None:
+            ceiling[gp : gp + 3] = math.inf
+        return ceiling
 
     def _gyro_bias_variance(self) -> FloatArray:
         noise = self._config.imu_noise
