@@ -20,8 +20,8 @@ import time
 time.sleep({import_s})
 
 def main():
-    print("imported", flush=True)
-    try:
+    try:  # the print inside: a Ctrl-C right after it is still main's
+        print("imported", flush=True)
         time.sleep(30)
     except KeyboardInterrupt:
         print("main saw Ctrl-C", flush=True)
@@ -58,8 +58,8 @@ def test_a_ctrl_c_during_the_import_ends_quietly(tmp_path):
 
 
 def test_after_the_import_the_program_handles_ctrl_c_itself(tmp_path):
-    """The same status and output as the program started without the wrapper (main catching
-    KeyboardInterrupt: 3 where Python installed its handler)."""
+    """The same status and output as the program started without the wrapper: main catches
+    the KeyboardInterrupt and returns 3."""
     outcomes = []
     for wrapped in (True, False):
         process = _start(tmp_path, 0.0, signal.SIG_DFL, wrapped)
@@ -67,8 +67,7 @@ def test_after_the_import_the_program_handles_ctrl_c_itself(tmp_path):
         process.send_signal(signal.SIGINT)
         stdout, _ = process.communicate(timeout=20)
         outcomes.append((process.returncode, stdout))
-    assert outcomes[0] == outcomes[1]
-    assert outcomes[0] in ((3, "main saw Ctrl-C\n"), (-signal.SIGINT, ""))
+    assert outcomes[0] == outcomes[1] == (3, "main saw Ctrl-C\n")
 
 
 def test_an_ignored_sigint_stays_ignored(tmp_path):
