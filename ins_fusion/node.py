@@ -1,7 +1,9 @@
 """ins_fusion_node: GNSS-aided INS on ROS 2, a thin layer over ``ins_fusion.core.engine.engine``.
 
 Subscribes ``imu/data_raw`` (sensor_msgs/Imu), ``gnss/fix`` (NavSatFix), ``gnss/vel``
-(TwistWithCovarianceStamped, ENU) and ``gnss/attitude`` (Imu orientation); publishes
+(TwistWithCovarianceStamped, ENU), ``gnss/attitude`` (Imu orientation) and, with ``speed.use``,
+``vehicle/speed`` (TwistWithCovarianceStamped) or ``vehicle/odometry`` (nav_msgs/Odometry): the
+forward speed, twist.linear.x; publishes
 ``ins/odometry`` (nav_msgs/Odometry in ``map`` = ENU tangent plane at the datum, child
 ``base_link``), ``ins/fix`` (NavSatFix of base_link), ``ins/imu`` (orientation of base_link with
 bias-corrected rates), ``/diagnostics`` and TF (ins_fusion.adapters.tf_frames: the odometry's
@@ -105,6 +107,9 @@ class InsFusionNode(Node):
         endpoints.subscription(NavSatFix, "gnss/fix", self._on_fix, 20)
         endpoints.subscription(TwistWithCovarianceStamped, "gnss/vel", self._on_velocity, 20)
         endpoints.subscription(Imu, "gnss/attitude", self._on_attitude, 20)
+        if config.use_speed:  # the forward speed: either message (docs/fusion.md)
+            endpoints.subscription(TwistWithCovarianceStamped, "vehicle/speed", self._on_speed, 50)
+            endpoints.subscription(Odometry, "vehicle/odometry", self._on_speed, 50)
         endpoints.subscription(Temperature, "imu/temperature", self._on_temperature, 10)
         self._temperature_c = math.nan
         self._odom_pub = endpoints.publisher(Odometry, "ins/odometry", 50)
@@ -159,6 +164,10 @@ class InsFusionNode(Node):
     def _on_velocity(self, msg: TwistWithCovarianceStamped) -> None:
         self._take_held()
         self.engine.add_gnss_velocity(messages_in.velocity_measurement(msg))
+
+    def _on_speed(self, msg: TwistWithCovarianceStamped | Odometry) -> None:
+        self._take_held()
+        self.engine.add_vehicle_speed(messages_in.speed_measurement(msg))
 
     def _on_attitude(self, msg: Imu) -> None:
         self._take_held()

@@ -39,6 +39,7 @@ def test_the_only_candidate_of_each_role_is_taken_and_said() -> None:
         "fix": "/leica/gnss/fix",
         "vel": "/leica/gnss/vel",
         "attitude": "/adu5/gnss/attitude",
+        "speed": "/vehicle/speed",  # absent: optional, never chosen, nothing said
     }
     assert notes == [
         f"no /gnss/fix: fix from /leica/gnss/fix, the bag's only {FIX_TYPE}",
@@ -113,3 +114,17 @@ def test_a_namespaced_bag_replays_like_the_plain_one(
     _renamed(plain, tmp_path / "two", {**names, "/ground_truth/fix": "/rover2/gnss/fix"})
     with pytest.raises(InputError, match="/leica/gnss/fix, /rover2/gnss/fix"):
         load_bag(tmp_path / "two")
+
+
+def test_the_vehicle_speed_is_never_taken_from_another_topic_of_its_type() -> None:
+    """A bag's other TwistWithCovarianceStamped (here a wheel odometry's twist under another
+    name) is not the vehicle speed unless named: reading a GNSS velocity as a forward speed
+    would corrupt the filter."""
+    available = {
+        "/imu/data_raw": IMU_TYPE,
+        "/gnss/vel": VELOCITY_TYPE,
+        "/wheels/twist": VELOCITY_TYPE,
+    }
+    topics, notes = choose_topics(DEFAULT_TOPICS, available, "/ground_truth")
+    assert topics.speed == "/vehicle/speed"
+    assert not [note for note in notes if "speed" in note]

@@ -32,6 +32,7 @@ from ins_fusion.core.filter.records import (
     AttitudeMeasurement,
     GnssFixMeasurement,
     GnssVelocityMeasurement,
+    VehicleSpeedMeasurement,
 )
 
 
@@ -144,6 +145,16 @@ def velocity_from_fields(
     [m/s] and the linear 3x3 block of the 6x6 covariance [m²/s²] (a huge vertical variance =
     vertical not measured)."""
     return GnssVelocityMeasurement(t_s, np.array(linear), covariance[:3, :3])
+
+
+def speed_measurement(msg: Any) -> VehicleSpeedMeasurement:
+    """geometry_msgs/TwistWithCovarianceStamped (vehicle/speed) or nav_msgs/Odometry (wheel
+    odometry, its twist in base_link) -> the forward speed twist.linear.x [m/s] and its variance
+    covariance[0] [m²/s²] (<= 0 or NaN: not given)."""
+    twist = msg.twist
+    return VehicleSpeedMeasurement(
+        stamp_s(msg), float(twist.twist.linear.x), float(twist.covariance[0])
+    )
 
 
 def attitude_measurement(msg: Any) -> AttitudeMeasurement:

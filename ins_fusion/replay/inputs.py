@@ -36,10 +36,13 @@ from ins_fusion.core.filter.records import (
     AttitudeMeasurement,
     GnssFixMeasurement,
     GnssVelocityMeasurement,
+    VehicleSpeedMeasurement,
 )
 from ins_fusion.replay.topics import (
+    ALSO_TYPES,
     DEFAULT_REFERENCE,
     DEFAULT_TOPICS,
+    OPTIONAL_ROLES,
     REFERENCE_TYPES,
     SENSOR_TYPES,
     TopicChoiceError,
@@ -48,7 +51,9 @@ from ins_fusion.replay.topics import (
     choose_topics,
 )
 
-Measurement = GnssFixMeasurement | GnssVelocityMeasurement | AttitudeMeasurement
+Measurement = (
+    GnssFixMeasurement | GnssVelocityMeasurement | AttitudeMeasurement | VehicleSpeedMeasurement
+)
 
 
 class InputError(Exception):
@@ -132,18 +137,37 @@ class ReplayInputs:
         """First IMU stamp [s]: time 0 of outage windows and of the report's times."""
         return float(self.imu.t_s[0])
 
+    def roles_read(self) -> dict[str, str]:
+        """{role: topic} of the inputs: every role but an optional one (the vehicle speed)
+        whose topic gave nothing."""
+        given = {role for _, role, _ in self.measurements}
+        return {
+            role: topic
+            for role, topic in self.topics.by_role().items()
+            if role not in OPTIONAL_ROLES or role in given
+        }
+
+    @property
+    def has_speed(self) -> bool:
+        """Whether the inputs hold vehicle speed readings (the engine then uses them)."""
+        return any(role == "speed" for _, role, _ in self.measurements)
+
     @property
     def duration_s(self) -> float:
         """Last minus first IMU stamp [s]."""
         return float(self.imu.t_s[-1] - self.imu.t_s[0])
 
 
-def _check_types(available: dict[str, str], wanted: dict[str, tuple[str, str]], path: Path) -> None:
-    """Each wanted topic present in the bag must have its expected type."""
+def _check_types(
+    available: dict[str, str], wanted: dict[str, tuple[str, tuple[str, ...]]], path: Path
+) -> None:
+    """Each wanted topic present in the bag must have one of its expected types."""
     for topic, (role, expected) in wanted.items():
         actual = available.get(topic)
-        if actual is not None and actual != expected:
-            raise InputError(f"{path}: {role} topic {topic} is {actual}, expected {expected}")
+        if actual is not None and actual not in expected:
+            raise InputError(
+                f"{path}: {role} topic {topic} is {actual}, expected {' or '.join(expected)}"
+            )
 
 
 def load_bag(
@@ -179,12 +203,15 @@ def load_bag(
             ref_topics = {f"{prefix}/{s}": s for s in REFERENCE_TYPES}
             _check_types(
                 available,
-                {t: (f"{r!r}", SENSOR_TYPES[r]) for t, r in roles.items()},
+                {
+                    t: (f"{r!r}", (SENSOR_TYPES[r], *ALSO_TYPES.get(r, ())))
+                    for t, r in roles.items()
+                },
                 path,
             )
             _check_types(
                 available,
-                {t: (f"reference {s!r}", REFERENCE_TYPES[s]) for t, s in ref_topics.items()},
+                {t: (f"reference {s!r}", (REFERENCE_TYPES[s],)) for t, s in ref_topics.items()},
                 path,
             )
             if topics.imu not in available or reader.topics[topics.imu].count == 0:
@@ -234,6 +261,7 @@ _CONVERTERS: dict[str, Callable[[Any], Measurement]] = {
     "fix": messages_in.fix_measurement,
     "vel": messages_in.velocity_measurement,
     "attitude": messages_in.attitude_measurement,
+    "speed": messages_in.speed_measurement,
 }
 
 
@@ -253,15 +281,26 @@ def _velocities(payloads: Sequence[bytes]) -> list[Measurement]:
     ]
 
 
+def _speeds(payloads: Sequence[bytes]) -> list[Measurement]:
+    """``messages_in.speed_measurement`` of a whole TwistWithCovarianceStamped topic."""
+    t_s, linear, cov = cdr_fields.twist_columns(payloads)
+    return [
+        VehicleSpeedMeasurement(t, x, c)
+        for t, x, c in zip(t_s.tolist(), linear[:, 0].tolist(), cov[:, 0].tolist(), strict=True)
+    ]
+
+
 #: Roles whose whole topic is decoded from the bytes (rosbags deserializes ~60 µs a message),
 #: for messages of the expected type; another type goes through rosbags and _CONVERTERS.
 _FIELD_DECODERS: dict[str, Callable[[Sequence[bytes]], list[Measurement]]] = {
     "fix": _fixes,
     "vel": _velocities,
+    "speed": _speeds,
 }
 _FIELD_TYPES = {
     "fix": "sensor_msgs/msg/NavSatFix",
     "vel": "geometry_msgs/msg/TwistWithCovarianceStamped",
+    "speed": "geometry_msgs/msg/TwistWithCovarianceStamped",
 }
 
 #: Reference stamps and values of a whole topic from the serialized messages: position

@@ -51,7 +51,7 @@ def build_report(
     aligned = np.flatnonzero(track.aligned)
     report: Report = {
         "bag": inputs.bag,
-        "topics": inputs.topics.by_role(),
+        "topics": inputs.roles_read(),
         "parameters": dict(parameters),
         "imu_samples": len(inputs.imu),
         "duration_s": inputs.duration_s,
@@ -290,6 +290,11 @@ def _calibration_lines(report: Report) -> list[str]:
             f"IMU time offset  {1e3 * cal['time_offset_s']:.1f} ms (residual "
             f"{1e3 * cal['time_offset_residual_s']:.1f} ± {1e3 * cal['time_offset_sigma_s']:.1f}"
             f" ms 1σ)  ->  imu_time_offset: {cal['time_offset_s']:.4f}"
+        )
+    if cal.get("speed_scale_error_pct") is not None:
+        lines.append(
+            f"vehicle speed scale error  {cal['speed_scale_error_pct']:.2f} ± "
+            f"{cal['speed_scale_sigma_pct']:.2f} % (1σ; measured / true - 1)"
         )
     if cal.get("imu_mounting_pitch_deg") is not None:
         rpy = ", ".join(f"{cal[f'imu_mounting_{a}_deg']:.2f}" for a in ("roll", "pitch", "yaw"))

@@ -135,17 +135,20 @@ def run_fusion(
 ) -> FusionRun:
     """Run a fresh engine configured by the flat parameter dict (validated against
     ins_fusion.core.settings.params.PARAMETERS) over ``inputs``; ``progress(done, total)`` counts
-    IMU samples; ``smooth``: also the RTS smoother's backward pass."""
+    IMU samples; ``smooth``: also the RTS smoother's backward pass. Inputs with a vehicle speed
+    turn ``speed.use`` on."""
+    if inputs.has_speed:
+        parameters = {**parameters, "speed.use": True}
     config = FusionConfig.from_parameters(parameters)
     engine = InsEngine(config)
     recorder = attach_recorder(engine) if smooth else None
     start = time.perf_counter()
     t0 = inputs.t0_s
     kept: list[tuple[int, str, Measurement]] = []
-    dropped = {"fix": 0, "vel": 0, "attitude": 0}
+    dropped = {"fix": 0, "vel": 0, "attitude": 0}  # a GNSS outage's; the speed goes on
     withheld: list[GnssFixMeasurement] = []
     for item in inputs.measurements:
-        if in_any(item[2].t_s - t0, outages):
+        if item[1] in dropped and in_any(item[2].t_s - t0, outages):
             dropped[item[1]] += 1
             if isinstance(item[2], GnssFixMeasurement):
                 withheld.append(item[2])
@@ -156,6 +159,8 @@ def run_fusion(
         "vel": engine.add_gnss_velocity,
         "attitude": engine.add_attitude,
     }
+    if inputs.has_speed:
+        feed["speed"] = engine.add_vehicle_speed
     imu = inputs.imu
     t_s, rate, force = (kernel_array(v) for v in (imu.t_s, imu.rate_flu_rad_s, imu.force_flu_m_s2))
     ticks = output_ticks(t_s, t0, config.output_rate_hz)

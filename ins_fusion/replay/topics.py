@@ -17,7 +17,9 @@ from ins_fusion.bags.topics import (
     IMU_DATA,
     IMU_TYPE,
     INS_FIX,
+    ODOMETRY_TYPE,
     TRUTH_PREFIX,
+    VEHICLE_SPEED,
     VELOCITY_TYPE,
 )
 
@@ -29,7 +31,13 @@ SENSOR_TYPES: dict[str, str] = {
     "fix": FIX_TYPE,
     "vel": VELOCITY_TYPE,
     "attitude": ATTITUDE_TYPE,
+    "speed": VELOCITY_TYPE,
 }
+#: Other message types a role takes: wheel odometry's twist as the vehicle speed.
+ALSO_TYPES: dict[str, tuple[str, ...]] = {"speed": (ODOMETRY_TYPE,)}
+#: Roles used only when their topic is in the bag or named: never chosen among the bag's
+#: topics of their type, and no note when absent (a bag without a speed is the usual case).
+OPTIONAL_ROLES = frozenset({"speed"})
 #: Reference topic suffixes -> expected message type.
 REFERENCE_TYPES: dict[str, str] = {
     "fix": FIX_TYPE,
@@ -50,6 +58,7 @@ class TopicMap:
     fix: str = GNSS_FIX
     vel: str = GNSS_VEL
     attitude: str = GNSS_ATTITUDE
+    speed: str = VEHICLE_SPEED
     #: Roles the user named (``parse``): their topics must be in the bag.
     named: tuple[str, ...] = field(default=(), compare=False)
 
@@ -107,7 +116,7 @@ def choose_topics(
     chosen: dict[str, str] = {}
     notes: list[str] = []
     for role, default in topics.by_role().items():
-        if role in topics.named or default in available:
+        if role in topics.named or default in available or role in OPTIONAL_ROLES:
             continue
         wanted = SENSOR_TYPES[role]
         candidates = sorted(

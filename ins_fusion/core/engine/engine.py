@@ -65,8 +65,9 @@ from ins_fusion.core.filter.records import (
     AttitudeMeasurement,
     GnssFixMeasurement,
     GnssVelocityMeasurement,
+    VehicleSpeedMeasurement,
 )
-from ins_fusion.core.filter.status import MEASUREMENT_NAMES, EngineStatus
+from ins_fusion.core.filter.status import MEASUREMENT_NAMES, SPEED_KIND, EngineStatus
 from ins_fusion.core.nav.calibration import ImuCalibration
 from ins_fusion.core.nav.strapdown import INCREMENT_SIZE
 from ins_fusion.core.output.solution import InsSolution, self_calibration, unpack
@@ -84,6 +85,7 @@ __all__ = [
     "ImuCalibration",
     "InsEngine",
     "InsSolution",
+    "VehicleSpeedMeasurement",
 ]
 
 
@@ -197,6 +199,13 @@ class InsEngine(EngineLoop):
             self._latest.gnss_speed = (vel.t_s, horizontal)
         if self.config.use_gnss_velocity or self.config.use_course_heading:
             self._add("gnss_velocity", vel.t_s, vel)
+
+    def add_vehicle_speed(self, speed: VehicleSpeedMeasurement) -> None:
+        """Forward speed of the measuring point (vehicle/speed) at its stamp; only with
+        ``speed.use`` (the filter then has the speed scale state)."""
+        if not self.config.use_speed:
+            raise ValueError("a vehicle speed was given to an engine without speed.use")
+        self._add(SPEED_KIND, speed.t_s, speed)
 
     def add_attitude(self, att: AttitudeMeasurement) -> None:
         """Orientation from the attitude receiver (gnss/attitude) at its epoch."""

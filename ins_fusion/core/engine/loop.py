@@ -46,12 +46,13 @@ from ins_fusion.core.filter.state import (
     Geometry,
     LatestInputs,
 )
-from ins_fusion.core.filter.status import new_counters
+from ins_fusion.core.filter.status import SPEED_KIND, new_counters
 from ins_fusion.core.filter.timeline import Checkpoint, Entry, Gap, Record, Timeline
 from ins_fusion.core.measurements.fused import FusedUpdates
 from ins_fusion.core.measurements.gnss_noise import GnssNoise
 from ins_fusion.core.measurements.stop_detector import GNSS_SPEED_MAX_AGE_S, StopDetector
 from ins_fusion.core.measurements.updates import Corrections
+from ins_fusion.core.measurements.vehicle_speed import SpeedUpdate
 from ins_fusion.core.nav.calibration import T_SIZE as CALIBRATION_SIZE
 from ins_fusion.core.nav.calibration import ImuCalibration
 from ins_fusion.core.nav.strapdown import NAV_SIZE, SampleIntegrator, increment
@@ -86,15 +87,17 @@ class EngineLoop:
             config.gnss_correlation_time_s > 0.0,
             config.estimate_mounting,
             config.estimate_time_offset,
+            config.use_speed and config.speed_scale_sigma > 0.0,
         )
         geometry = self._geometry = Geometry(config, self.layout)
         self.datum: tuple[float, float, float] | None = config.datum_deg
-        self._counters = new_counters()
+        self._counters = new_counters(config.use_speed)
         self._latest = LatestInputs()
         gnss_noise = GnssNoise(config, self.layout)
         self._densities = ImuDensities(noise.gyro_psd, noise.accel_psd)
         self._propagator = Propagator(config, geometry, self._densities)
         self._corrections = Corrections(config, geometry, gnss_noise, self._counters, self._latest)
+        self._corrections.handlers[SPEED_KIND] = SpeedUpdate(config, geometry, self._corrections)
         self._fused = FusedUpdates(
             config, geometry, self._propagator, self._corrections, gnss_noise
         )

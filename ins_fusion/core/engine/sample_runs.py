@@ -38,7 +38,7 @@ from ins_fusion.core.engine.intake import (
     take_sample,
 )
 from ins_fusion.core.filter.adaptation import B_MEAN, B_VERSION
-from ins_fusion.core.filter.eskf import ErrorStateFilter, ProcessModel, _covariance_problem
+from ins_fusion.core.filter.eskf import Columns, ErrorStateFilter, ProcessModel, _covariance_problem
 from ins_fusion.core.filter.propagation import ImuDensities, Propagator, advance, covariance_step
 from ins_fusion.core.filter.state import (
     X_COV_DT,
@@ -79,7 +79,7 @@ def take_run(
     row_model: tuple[FloatArray, FloatArray, IntArray, FloatArray, FloatArray, FloatArray],
     origin: tuple[float, float, float],
     filtering: tuple[FloatArray, ProcessModel, tuple[FloatArray, FloatArray]],
-    constants: tuple[tuple[int, int, int, int, int], float, float, float, int],
+    constants: tuple[Columns, float, float, float, int],
     epochs: tuple[float, float, float, bool, bool],
     steps: tuple[IntArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray],
 ) -> tuple[int, int, int, int, int, int, int]:

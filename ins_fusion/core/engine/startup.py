@@ -238,6 +238,8 @@ class Startup:
             P[mt : mt + 2, mt : mt + 2] = np.eye(2) * config.mounting_sigma_rad**2
         if layout.td is not None:
             P[layout.td, layout.td] = config.time_offset_sigma_s**2
+        if layout.ks is not None:
+            P[layout.ks, layout.ks] = config.speed_scale_sigma**2
         if layout.sg is not None:
             P[layout.sg : layout.sg + 3, layout.sg : layout.sg + 3] = (
                 np.eye(3) * noise.gyro_scale_sigma**2

@@ -53,7 +53,7 @@ def warm_up() -> float:
         return 0.0
     start = time.perf_counter()
     config = FusionConfig.from_parameters({})
-    layout = StateLayout(True, True, True, True, True)  # every block: every branch typed
+    layout = StateLayout(True, True, True, True, True, True)  # every block: every branch typed
     zero = (0.0, 0.0, 0.0)
     nav = NavState(1.0, 0.2, 40.0, np.zeros(3), np.array((0.0, 0.0, 0.0, 1.0)))
     s = FilterState(0.0, nav, zero, True)

@@ -10,6 +10,7 @@ update), with x_true = x_nominal + δx:
     ε_g  optional time-correlated GNSS position error, NED [m] (first-order Gauss-Markov)
     δμ   optional residual IMU-to-vehicle mounting, pitch and yaw about base_link FRD y, z [rad]
     δt_d optional residual IMU time offset [s]: how much later than the GNSS the IMU is stamped
+    δk_s optional scale error of the vehicle speed [fraction]: measured = (1 + k_s) true
 
 Sensor model (imu FRD axes i): ω̃ = (1 + s_g)∘ω + b_g + n_g, f̃ = (1 + s_a)∘f + b_a + n_a, with
 b and s first-order Gauss-Markov processes (Oslo notes §2 (3.15)/(3.16), §7 F1/G1;
@@ -25,7 +26,8 @@ strapdown):
     ψ̇ = -[ω_in×]ψ - ∂ω_en/∂v δv - C_ni (δb_g + diag(ω_i) δs_g) - C_ni n_g
     δḃ = -δb/T + w_b,   E[w_b²] = 2σ_b²/T (and the same for the scale factors)
     ε̇_g = -ε_g/T_g + w_g, E[w_g²] = 2σ_g²/T_g with σ_g² from the latest fix (gnss_variance)
-    δμ̇ = w_μ, δṫ_d = w_t: random constants with a small random walk (``CALIBRATION_WALK``)
+    δμ̇ = w_μ, δṫ_d = w_t, δk̇_s = w_k: random constants with a small random walk
+    (``CALIBRATION_WALK``)
 
 The gyro's misalignment m (σ_m per off-diagonal element, from a datasheet or a calibration),
 which has no states, adds a turn-rate-dependent white noise to n_g, per imu axis i:
@@ -74,9 +76,17 @@ from ins_fusion.core.smoother.rts import SmootherHooks
 POS, VEL, ATT, BG, BA = 0, 3, 6, 9, 12
 _CORE_SIZE = 15
 #: Random-walk densities of the self-calibration states: mounting [rad²/s] (0.01°/√s: a
-#: mounting that settles by a few hundredths of a degree per minute) and time offset [s²/s]
-#: (0.1 ms/√s: a clock mapping that wanders by about a millisecond per minute).
-CALIBRATION_WALK = {"mounting": math.radians(0.01) ** 2, "time_offset": 1e-4**2}
+#: mounting that settles by a few hundredths of a degree per minute), time offset [s²/s]
+#: (0.1 ms/√s: a clock mapping that wanders by about a millisecond per minute) and speed scale
+#: [1/s] (1e-5/√s: a tyre whose radius changes by 0.01 % in 100 s as it warms).
+CALIBRATION_WALK = {
+    "mounting": math.radians(0.01) ** 2,
+    "time_offset": 1e-4**2,
+    "speed_scale": 1e-5**2,
+}
+
+#: StateLayout.columns: the first column of each optional block (-1: absent), for compiled code.
+Columns = tuple[int, int, int, int, int, int]
 #: Time [s] over which the white noise standing for the gyro's misalignment matches its effect
 #: in a steady turn (module docstring).
 AXIS_ERROR_TIME_S = 10.0
@@ -86,22 +96,24 @@ AXIS_ERROR_TIME_S = 10.0
 class StateLayout:
     """Named indices of the error state: the 15 core states, then the optional gyro and
     accelerometer scale factors, the GNSS position error (NED [m], time-correlated part of the
-    receiver's error), the residual mounting (pitch, yaw [rad]) and the residual IMU time
-    offset [s]. An absent block has index None."""
+    receiver's error), the residual mounting (pitch, yaw [rad]), the residual IMU time
+    offset [s] and the vehicle speed's scale error [fraction]. An absent block has index None."""
 
     gyro_scale: bool = False
     accel_scale: bool = False
     gnss_error: bool = False
     mounting: bool = False
     time_offset: bool = False
+    speed_scale: bool = False
     sg: int | None = field(init=False)
     sa: int | None = field(init=False)
     gp: int | None = field(init=False)
     mt: int | None = field(init=False)
     td: int | None = field(init=False)
+    ks: int | None = field(init=False)
     size: int = field(init=False)
-    #: (sg, sa, gp, mt, td) for compiled code: -1 for an absent block.
-    columns: tuple[int, int, int, int, int] = field(init=False)
+    #: (sg, sa, gp, mt, td, ks) for compiled code: -1 for an absent block.
+    columns: Columns = field(init=False)
 
     def __post_init__(self) -> None:
         next_index = _CORE_SIZE
@@ -112,13 +124,14 @@ class StateLayout:
             ("gp", self.gnss_error, 3),
             ("mt", self.mounting, 2),
             ("td", self.time_offset, 1),
+            ("ks", self.speed_scale, 1),
         ):
             object.__setattr__(self, name, next_index if present else None)
             columns.append(next_index if present else -1)
             next_index += width * present
         object.__setattr__(self, "size", next_index)
-        sg, sa, gp, mt, td = columns
-        object.__setattr__(self, "columns", (sg, sa, gp, mt, td))
+        sg, sa, gp, mt, td, ks = columns
+        object.__setattr__(self, "columns", (sg, sa, gp, mt, td, ks))
 
 
 def gyro_misalignment_variance(
@@ -201,6 +214,7 @@ class ErrorStateFilter:
             markov.append((layout.gp, gnss_correlation_time_s, (0.0, 0.0, 0.0)))
         walks = [(layout.mt, 2, CALIBRATION_WALK["mounting"])]
         walks.append((layout.td, 1, CALIBRATION_WALK["time_offset"]))
+        walks.append((layout.ks, 1, CALIBRATION_WALK["speed_scale"]))
         for start, width, density in walks:
             if start is not None:
                 Q[start : start + width, start : start + width] = np.eye(width) * density

@@ -16,7 +16,14 @@ import numpy as np
 from gnss_ins_common.types import FloatArray, Vec3
 from ins_fusion.core.compiled import jit, kernel_array
 from ins_fusion.core.filter.adaptation import ImuNoiseMonitor
-from ins_fusion.core.filter.eskf import ATT, VEL, ErrorStateFilter, ProcessModel, propagate_kernel
+from ins_fusion.core.filter.eskf import (
+    ATT,
+    VEL,
+    Columns,
+    ErrorStateFilter,
+    ProcessModel,
+    propagate_kernel,
+)
 from ins_fusion.core.filter.records import Prediction
 from ins_fusion.core.filter.state import (
     X_ACCEL_LP,
@@ -192,7 +199,7 @@ def covariance_step(
     x: FloatArray,
     mat_bi: FloatArray,
     process: ProcessModel,
-    columns: tuple[int, int, int, int, int],
+    columns: Columns,
     correlation_time_s: float,
 ) -> tuple[FloatArray, FloatArray]:
     """(P, Φ) over the interval accumulated in ``x`` (``covariance_interval``, which restarts
@@ -200,7 +207,7 @@ def covariance_step(
     error in ``x`` decayed over it when ``columns`` (StateLayout.columns) hold that block
     (``correlation_time_s``: its correlation time [s])."""
     F, Q, gyro_psd, misalignment_q, accel_psd, markov_idx, markov_q = process
-    sg, sa, gp, _, _ = columns
+    sg, sa, gp, _, _, _ = columns
     dt, mat_ni, force_n, force_i, rate_i, lat, height, vel = covariance_interval(x, mat_bi)
     P_new, phi = propagate_kernel(
         P,

@@ -1,6 +1,7 @@
 """The records the filter takes in and linearises about: the measurements as the ROS messages
-give them (GNSS fix, GNSS velocity, attitude; ENU/FLU, REP-103) and the nominal state predicted
-to a measurement's stamp (``Prediction``; NED/FRD). Their models: core.measurements.models."""
+give them (GNSS fix, GNSS velocity, attitude, vehicle speed; ENU/FLU, REP-103) and the nominal
+state predicted to a measurement's stamp (``Prediction``; NED/FRD). Their models:
+core.measurements.models and core.measurements.vehicle_speed."""
 
 from __future__ import annotations
 
@@ -88,6 +89,17 @@ class AttitudeMeasurement:
     def __post_init__(self) -> None:
         object.__setattr__(self, "quat_enu_flu_xyzw", _array(self.quat_enu_flu_xyzw, (4,)))
         object.__setattr__(self, "cov_rpy_rad2", _array(self.cov_rpy_rad2, (3, 3)))
+
+
+@dataclass(frozen=True)
+class VehicleSpeedMeasurement:
+    """Forward speed of the vehicle at the speed's measuring point (vehicle/speed: an odometer,
+    a DMI, the CAN bus): base_link x [m/s], negative when reversing, and its variance
+    [m²/s²] (NaN or <= 0: not given; FusionConfig.speed_sigma_m_s applies)."""
+
+    t_s: float
+    speed_m_s: float
+    variance_m2_s2: float
 
 
 @dataclass(frozen=True)

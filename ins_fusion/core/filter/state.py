@@ -16,7 +16,16 @@ import numpy as np
 from gnss_ins_common.types import FloatArray, Quat, Vec3
 from ins_fusion.core.compiled import compilable, jit
 from ins_fusion.core.filter.adaptation import WhiteNoiseMonitor
-from ins_fusion.core.filter.eskf import ATT, BA, BG, POS, VEL, ErrorStateFilter, StateLayout
+from ins_fusion.core.filter.eskf import (
+    ATT,
+    BA,
+    BG,
+    POS,
+    VEL,
+    Columns,
+    ErrorStateFilter,
+    StateLayout,
+)
 from ins_fusion.core.filter.records import (
     AttitudeMeasurement,
     GnssFixMeasurement,
@@ -52,13 +61,15 @@ UNKNOWN_YAW_VARIANCE = (math.pi / 2.0) ** 2
 #: error estimate, its stationary variance and the reported variance at its last restart (NED,
 #: m, m²), the residual mounting (pitch, yaw [rad]), the residual IMU time offset [s], the
 #: running NIS mean and process-noise scale (core.filter.adaptation), the stamp of the last GNSS
-#: position used [s] and 1.0 while the heading is known.
+#: position used [s], 1.0 while the heading is known, and the vehicle speed's scale error
+#: (measured / true - 1).
 X_NAV, X_BG, X_BA, X_SG, X_SA = 0, 10, 13, 16, 19
 X_PREV, X_HAS_PREV = 22, 29
 X_RATE_B, X_RATE_I, X_ACCEL_N, X_ACCEL_LP, X_RATE_LP = 30, 33, 36, 39, 42
 X_COV_DT, X_COV_DTH, X_COV_DV, X_COV_VEL0, X_T = 45, 46, 49, 52, 55
 X_GNSS_ERROR, X_GNSS_VARIANCE, X_GNSS_REPORTED, X_MOUNTING, X_TIME_OFFSET = 56, 59, 62, 65, 67
-X_NIS_MEAN, X_Q_SCALE, X_LAST_POSITION_T, X_HEADING_KNOWN, X_SIZE = 68, 69, 70, 71, 72
+X_NIS_MEAN, X_Q_SCALE, X_LAST_POSITION_T, X_HEADING_KNOWN, X_SPEED_SCALE = 68, 69, 70, 71, 72
+X_SIZE = 73
 
 
 class _Vec3Field:
@@ -113,6 +124,7 @@ class FilterState:
     nis_mean = _ScalarField(X_NIS_MEAN)
     q_scale = _ScalarField(X_Q_SCALE)
     last_position_t_s = _ScalarField(X_LAST_POSITION_T)
+    speed_scale = _ScalarField(X_SPEED_SCALE)
 
     def __init__(self, t_s: float, nav: NavState, gyro_bias: Vec3, heading_known: bool) -> None:
         zero: Vec3 = (0.0, 0.0, 0.0)
@@ -238,8 +250,8 @@ class LatestInputs:
 class Geometry:
     """The configured sensor geometry in the engine's body frame (base_link FRD): the IMU
     mounting rotation imu FRD -> body (``mat_bi``, also row-major ``r_bi`` for the kernels),
-    the lever arms from the IMU to the antenna and to the base_link origin [m], and the
-    attitude receiver's mounting."""
+    the lever arms from the IMU to the antenna, to the base_link origin and to the speed's
+    measuring point [m], and the attitude receiver's mounting."""
 
     def __init__(self, config: FusionConfig, layout: StateLayout) -> None:
         self.estimates_mounting = layout.mt is not None
@@ -248,6 +260,7 @@ class Geometry:
         imu_arm_b = flu_to_frd_array(config.imu_lever_arm_flu_m)
         self.antenna_arm_b = flu_to_frd_array(config.gnss_lever_arm_flu_m) - imu_arm_b
         self.base_arm_b = -imu_arm_b
+        self.speed_arm_b = flu_to_frd_array(config.speed_lever_arm_flu_m) - imu_arm_b
         self.arm_bi = skew(self.base_arm_b) @ self.mat_bi
         # Orientation of base_link from that of the attitude receiver's frame a: q_ea ⊗ q_ab.
         q_ba = quat_from_euler(*config.attitude_mounting_rpy_rad)
@@ -271,6 +284,14 @@ class Geometry:
         )
         self._arms_cache = (mounting, arms)
         return arms
+
+    def speed_arm(self, s: FilterState) -> FloatArray:
+        """The lever arm from the IMU to the speed's measuring point [m] (body FRD), turned
+        by the residual mounting as ``arms``."""
+        mounting = s.mounting
+        if not self.estimates_mounting or mounting == (0.0, 0.0):
+            return self.speed_arm_b
+        return turned_arm(self.speed_arm_b, *mounting)
 
     def measured_mat_nb(self, att: AttitudeMeasurement) -> FloatArray:
         """Base_link FRD -> NED rotation from an attitude measurement and its mounting."""
@@ -331,12 +352,12 @@ def inject(s: FilterState, kf: ErrorStateFilter, dx: FloatArray) -> None:
 
 
 @jit
-def inject_nominal(x: FloatArray, dx: FloatArray, columns: tuple[int, int, int, int, int]) -> None:
+def inject_nominal(x: FloatArray, dx: FloatArray, columns: Columns) -> None:
     """The part of ``inject`` kept in ``x`` (X_* layout): attitude (the error rotation applied
     on the NED side), position (a NED offset), velocity, the biases and the optional blocks
-    whose ``columns`` (StateLayout.columns: sg, sa, gp, mt, td) are not -1: scale factors,
-    correlated GNSS error, residual mounting and time offset."""
-    sg, sa, gp, mt, td = columns
+    whose ``columns`` (StateLayout.columns: sg, sa, gp, mt, td, ks) are not -1: scale factors,
+    correlated GNSS error, residual mounting, time offset and speed scale."""
+    sg, sa, gp, mt, td, ks = columns
     q_err = quat_from_rotvec(dx[ATT], dx[ATT + 1], dx[ATT + 2])
     q = quat_normalize(
         quat_multiply(q_err, (x[X_NAV + 6], x[X_NAV + 7], x[X_NAV + 8], x[X_NAV + 9]))
@@ -361,6 +382,8 @@ def inject_nominal(x: FloatArray, dx: FloatArray, columns: tuple[int, int, int, 
         x[X_MOUNTING + 1] += dx[mt + 1]
     if td >= 0:
         x[X_TIME_OFFSET] += dx[td]
+    if ks >= 0:
+        x[X_SPEED_SCALE] += dx[ks]
 
 
 def decouple_yaw(kf: ErrorStateFilter, yaw_variance: float = UNKNOWN_YAW_VARIANCE) -> None:

@@ -14,7 +14,10 @@ MEASUREMENT_NAMES = (
     "zaru",
     "nhc",
     "course_heading",
+    "vehicle_speed",
 )
+#: The kind counted only when the engine uses the vehicle speed (FusionConfig.use_speed).
+SPEED_KIND = "vehicle_speed"
 #: Counters kept per measurement kind ('rejected' includes 'gated' and 'too_old').
 COUNTERS = ("used", "rejected", "gated", "too_old", "duplicates", "recoveries")
 
@@ -22,9 +25,11 @@ Counters = dict[str, dict[str, int]]
 """{measurement kind: {counter: n}} (MEASUREMENT_NAMES x COUNTERS)."""
 
 
-def new_counters() -> Counters:
-    """All counters of all measurement kinds at zero."""
-    return {name: dict.fromkeys(COUNTERS, 0) for name in MEASUREMENT_NAMES}
+def new_counters(speed: bool = False) -> Counters:
+    """Every counter of every measurement kind at zero; the vehicle speed's only with
+    ``speed`` (an engine without it reports what it did before there was one)."""
+    kinds = MEASUREMENT_NAMES if speed else tuple(k for k in MEASUREMENT_NAMES if k != SPEED_KIND)
+    return {name: dict.fromkeys(COUNTERS, 0) for name in kinds}
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from gnss_ins_common.types import FloatArray, Quat
 from ins_fusion.core.compiled import jit, kernel_array
-from ins_fusion.core.filter.eskf import ErrorStateFilter, ProcessModel
+from ins_fusion.core.filter.eskf import Columns, ErrorStateFilter, ProcessModel
 from ins_fusion.core.filter.records import AttitudeMeasurement
 from ins_fusion.core.filter.state import X_MOUNTING, FilterState, base_mat_nb
 from ins_fusion.core.measurements.models import attitude_model
@@ -32,7 +32,7 @@ def attitude_apply(
     measured: tuple[float, Quat, FloatArray],
     process: ProcessModel,
     geometry: tuple[FloatArray, Quat],
-    columns: tuple[int, int, int, int, int],
+    columns: Columns,
     constants: tuple[float, tuple[float, float, float], int],
 ) -> tuple[bool, FloatArray, int, bool, float, FloatArray]:
     """The attitude ``measured`` = (stamp [s], REP-103 orientation (x, y, z, w) of the

@@ -23,7 +23,7 @@ import numpy as np
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core.compiled import jit, kernel_array
 from ins_fusion.core.filter.adaptation import white_push_fix
-from ins_fusion.core.filter.eskf import ErrorStateFilter, ProcessModel, projected_variance
+from ins_fusion.core.filter.eskf import Columns, ErrorStateFilter, ProcessModel, projected_variance
 from ins_fusion.core.filter.propagation import Propagator
 from ins_fusion.core.filter.records import GnssFixMeasurement, height_measured
 from ins_fusion.core.filter.state import (
@@ -56,7 +56,7 @@ def position_apply(
     measured: tuple[float, float, float, float, FloatArray],
     process: ProcessModel,
     geometry: tuple[FloatArray, FloatArray],
-    columns: tuple[int, int, int, int, int],
+    columns: Columns,
     noise: tuple[float, FloatArray, float, FloatArray],
     constants: tuple[float, float, int],
 ) -> tuple[bool, FloatArray, int, FloatArray, bool, float]:

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core.compiled import jit, kernel_array
-from ins_fusion.core.filter.eskf import ErrorStateFilter, ProcessModel
+from ins_fusion.core.filter.eskf import Columns, ErrorStateFilter, ProcessModel
 from ins_fusion.core.filter.records import GnssVelocityMeasurement
 from ins_fusion.core.filter.state import FilterState
 from ins_fusion.core.measurements.models import _velocity_model
@@ -32,7 +32,7 @@ def velocity_apply(
     measured: tuple[float, FloatArray, FloatArray],
     process: ProcessModel,
     geometry: tuple[FloatArray, FloatArray],
-    columns: tuple[int, int, int, int, int],
+    columns: Columns,
     constants: tuple[float, tuple[float, float, float], int],
 ) -> tuple[bool, FloatArray, int, bool, float, FloatArray]:
     """The GNSS velocity ``measured`` = (stamp [s], ENU velocity [m/s], its covariance

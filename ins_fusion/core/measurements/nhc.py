@@ -20,7 +20,7 @@ from typing import Any
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core.compiled import jit, kernel_array
 from ins_fusion.core.filter.adaptation import adapt_process_noise
-from ins_fusion.core.filter.eskf import ErrorStateFilter, ProcessModel, joseph_update
+from ins_fusion.core.filter.eskf import Columns, ErrorStateFilter, ProcessModel, joseph_update
 from ins_fusion.core.filter.propagation import Propagator, covariance_step, predicted_state
 from ins_fusion.core.filter.state import (
     X_COV_DT,
@@ -47,7 +47,7 @@ def step_to(
     t_m: float,
     process: ProcessModel,
     mat_bi: FloatArray,
-    columns: tuple[int, int, int, int, int],
+    columns: Columns,
     correlation_time_s: float,
 ) -> tuple[bool, FloatArray, FloatArray, Predicted]:
     """What InsEngine._apply does before a model (heading known, no smoother): the covariance
@@ -67,7 +67,7 @@ def update_and_restart(
     x: FloatArray,
     model: tuple[FloatArray, FloatArray, FloatArray],
     threshold: float,
-    columns: tuple[int, int, int, int, int],
+    columns: Columns,
 ) -> tuple[bool, float, FloatArray, FloatArray]:
     """The gated Joseph update of ``model`` (z, H, R), the injection into ``x`` when accepted
     and the covariance interval going on from the corrected velocity (what Corrections.update
@@ -88,7 +88,7 @@ def update_rows(
     rows: int,
     model: tuple[FloatArray, FloatArray, FloatArray],
     gates: tuple[float, float, float],
-    columns: tuple[int, int, int, int, int],
+    columns: Columns,
 ) -> tuple[bool, float, FloatArray]:
     """``update_and_restart`` of a model of ``rows`` rows (1-3) at the gate of that many
     (``gates``: of 1, 2 and 3 rows); a model without rows (nothing measured) updates nothing,
@@ -116,7 +116,7 @@ def nhc_apply(
     t_m: float,
     process: ProcessModel,
     geometry: tuple[FloatArray, FloatArray],
-    columns: tuple[int, int, int, int, int],
+    columns: Columns,
     constants: tuple[float, float, float, int],
 ) -> tuple[bool, FloatArray, bool, float, FloatArray]:
     """The NHC at stamp ``t_m`` [s] on the error covariance ``P`` and the nominal state ``x``
@@ -127,7 +127,7 @@ def nhc_apply(
     correlation time [s], NHC σ [m/s], gate, state size.
     Returns (stepped, Φ of the step (P when none), accepted, NIS, the new P)."""
     mat_bi, arm_b = geometry
-    sg, _, _, mt, _ = columns
+    sg, _, _, mt, _, _ = columns
     correlation_time_s, sigma_m_s, threshold, size = constants
     stepped, phi, P, prediction = step_to(P, x, t_m, process, mat_bi, columns, correlation_time_s)
     _, _, _, vel_m, mat_nb, rate_b, rate_i_m = prediction

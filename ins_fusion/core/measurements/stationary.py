@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core.compiled import jit, kernel_array
-from ins_fusion.core.filter.eskf import ErrorStateFilter, ProcessModel
+from ins_fusion.core.filter.eskf import Columns, ErrorStateFilter, ProcessModel
 from ins_fusion.core.filter.state import X_BG, FilterState
 from ins_fusion.core.measurements.models import zaru_model, zupt_model
 from ins_fusion.core.measurements.nhc import FusedUpdate, step_to, update_and_restart
@@ -29,7 +29,7 @@ def zupt_apply(
     t_m: float,
     process: ProcessModel,
     mat_bi: FloatArray,
-    columns: tuple[int, int, int, int, int],
+    columns: Columns,
     constants: tuple[float, float, float, int],
 ) -> tuple[bool, FloatArray, bool, float, FloatArray]:
     """The ZUPT at stamp ``t_m`` [s] on the error covariance ``P`` and the nominal state ``x``
@@ -51,7 +51,7 @@ def zaru_apply(
     measured: tuple[float, FloatArray, FloatArray],
     process: ProcessModel,
     mat_bi: FloatArray,
-    columns: tuple[int, int, int, int, int],
+    columns: Columns,
     constants: tuple[float, float, int],
 ) -> tuple[bool, FloatArray, bool, float, FloatArray]:
     """The ZARU ``measured`` = (stamp [s], mean calibrated rate over the rest [rad/s], imu FRD,

@@ -31,7 +31,7 @@ from ins_fusion.core.filter.records import (
     Prediction,
 )
 from ins_fusion.core.filter.state import X_BG, FilterState, Geometry, LatestInputs, inject
-from ins_fusion.core.filter.status import MEASUREMENT_NAMES, Counters
+from ins_fusion.core.filter.status import Counters
 from ins_fusion.core.measurements.gnss_noise import NOISE_MOVED, NOISE_RESTART, GnssNoise
 from ins_fusion.core.measurements.heading import fast_enough, heading_from_course, set_heading
 from ins_fusion.core.measurements.models import (
@@ -83,7 +83,7 @@ class Corrections:
         self._latest = latest
         self._gates = {dof: chi2_threshold(config.gate_probability, dof) for dof in (1, 2, 3)}
         self._gyro_psd = config.imu_noise.gyro_psd
-        self.nis = dict.fromkeys(MEASUREMENT_NAMES, math.nan)
+        self.nis = dict.fromkeys(counters, math.nan)
         self.fading = 1.0
         self.handlers: dict[str, Handler] = {
             "gnss_position": self._gnss_position,
@@ -178,7 +178,7 @@ class Corrections:
         if not (fix.valid and np.isfinite(fix.cov_enu_m2).all()):
             self.reject("gnss_position", live)
             return
-        if not s.heading_known and self._too_fast_to_align(pred, live, "gnss_position"):
+        if not s.heading_known and self.too_fast_to_align(pred, live, "gnss_position"):
             return
         noise = self._gnss_noise
         white, correlated, reported, action = noise.position_noise(s, fix)
@@ -217,7 +217,7 @@ class Corrections:
                 if applied and live:
                     self._counters["course_heading"]["used"] += 1
                 return
-            if self._too_fast_to_align(pred, live, "gnss_velocity"):
+            if self.too_fast_to_align(pred, live, "gnss_velocity"):
                 return
         if not config.use_gnss_velocity:
             return
@@ -287,7 +287,7 @@ class Corrections:
         )
         self.update(s, kf, "nhc", model, live)
 
-    def _too_fast_to_align(self, pred: Prediction, live: bool, kind: str) -> bool:
+    def too_fast_to_align(self, pred: Prediction, live: bool, kind: str) -> bool:
         """Heading unknown and moving: GNSS updates would need the yaw; count them rejected."""
         if float(np.hypot(pred.vel_ned_m_s[0], pred.vel_ned_m_s[1])) < _ALIGN_MAX_SPEED_M_S:
             return False

@@ -284,7 +284,8 @@ def self_calibration(
     ``time_offset_s`` = imu_time_offset + the estimated residual, with the residual and its
     σ [s]; the residual mounting pitch and yaw about base_link FRD y, z and their σ [deg];
     ``imu_mounting_{roll,pitch,yaw}_deg``: the imu_mounting_rpy_deg that holds them (REP-103,
-    for the configuration)."""
+    for the configuration); with ``use_speed`` the vehicle speed's scale error (measured /
+    true - 1) and its σ [%]."""
     values = dict.fromkeys(
         (
             "time_offset_s",
@@ -300,6 +301,8 @@ def self_calibration(
         ),
         math.nan,
     )
+    if config.use_speed:  # only then: an engine without a speed reports as before there was one
+        values["speed_scale_error_pct"] = values["speed_scale_sigma_pct"] = math.nan
     if s is None or kf is None:
         return values
     layout = kf.layout
@@ -307,6 +310,9 @@ def self_calibration(
         values["time_offset_residual_s"] = s.time_offset
         values["time_offset_s"] = config.imu_time_offset_s + s.time_offset
         values["time_offset_sigma_s"] = math.sqrt(max(kf.P[layout.td, layout.td], 0.0))
+    if layout.ks is not None:
+        values["speed_scale_error_pct"] = 100.0 * s.speed_scale
+        values["speed_scale_sigma_pct"] = 100.0 * math.sqrt(max(kf.P[layout.ks, layout.ks], 0.0))
     if layout.mt is not None:
         mt = layout.mt
         pitch, yaw = s.mounting

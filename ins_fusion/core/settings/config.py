@@ -112,6 +112,10 @@ class FusionConfig:
     zaru_sigma_rad_s: float
     nhc_sigma_m_s: float
     nhc_min_speed_m_s: float
+    use_speed: bool
+    speed_lever_arm_flu_m: Vec3
+    speed_sigma_m_s: float
+    speed_scale_sigma: float
     stop_detector: StopDetectorConfig
     alignment_duration_s: float
     course_speed_m_s: float
@@ -172,6 +176,10 @@ class FusionConfig:
             zaru_sigma_rad_s=deg_s(p["zaru_sigma"]),
             nhc_sigma_m_s=p["nhc_sigma"],
             nhc_min_speed_m_s=p["nhc_min_speed"],
+            use_speed=p["speed.use"],
+            speed_lever_arm_flu_m=_vec(p["speed.lever_arm"]),
+            speed_sigma_m_s=p["speed.sigma"],
+            speed_scale_sigma=p["speed.scale_sigma"] / 100.0,
             stop_detector=StopDetectorConfig(
                 window_s=p["stop_detector.window"],
                 accel_variance=p["stop_detector.accel_variance"],

@@ -322,6 +322,37 @@ PARAMETERS: tuple[Param, ...] = (
         0.0,
         100.0,
     ),
+    # Vehicle speed (odometer, DMI, CAN; docs/fusion.md "Vehicle speed").
+    Param(
+        "speed.use",
+        False,
+        "use vehicle/speed (forward speed of the measuring point, base_link x) with a speed "
+        "scale state; gnss_ins replay turns it on when the bag holds the speed topic",
+    ),
+    _vector(
+        "speed.lever_arm",
+        [0.0, 0.0, 0.0],
+        "measuring point of the speed in base_link FLU [m] (a single wheel's hub, or the "
+        "centre of the wheels whose mean speed is measured)",
+        -50.0,
+        50.0,
+    ),
+    Param(
+        "speed.sigma",
+        0.05,
+        "least noise sigma of one speed measurement [m/s]; a larger variance in the message "
+        "is used instead",
+        1e-4,
+        10.0,
+    ),
+    Param(
+        "speed.scale_sigma",
+        2.0,
+        "initial sigma of the speed's scale error (tyre radius, load, pressure) [%]; 0 = the "
+        "speed is taken as exact, no scale state",
+        0.0,
+        50.0,
+    ),
     # Stop detector (NTNU §7; hysteresis and minimum duration ours).
     Param("stop_detector.window", 1.0, "variance window [s]", 0.1, 10.0),
     Param(
