@@ -39,6 +39,7 @@ from ins_fusion.core.engine.engine import InsEngine
 from ins_fusion.core.output.solution import COV_VEL, QUAT, WIDTH
 from ins_fusion.core.settings.config import FusionConfig
 from ins_fusion.node import MAX_HELD, InsFusionNode
+from ins_fusion.sim import odometer_model
 from ins_fusion.sim.drive import SimulationConfig
 from ins_fusion.tools.simulate import write_bag
 
@@ -83,8 +84,9 @@ def _truth(bag: Path) -> np.ndarray:
     return np.array(rows)
 
 
-def _play(bag: Path) -> None:
-    """Play the bag's sensor topics at RATE times real time, once the node subscribes."""
+def _play(bag: Path, *more: str) -> None:
+    """Play the bag's sensor topics (and ``more``) at RATE times real time, once the node
+    subscribes."""
     played = [
         Path(sys.executable).parent / "gnss_ins",
         "play",
@@ -97,6 +99,7 @@ def _play(bag: Path) -> None:
         "/gnss/fix",
         "/gnss/vel",
         "/gnss/attitude",
+        *more,
     ]
     player = subprocess.run(played, capture_output=True, text=True, timeout=120)
     assert player.returncode == 0, player.stderr
@@ -415,3 +418,37 @@ def test_an_imu_that_falls_silent_is_reported_within_a_second_and_its_return_too
     finally:
         node.destroy_node()
         collector.node.destroy_node()
+
+
+def test_with_speed_use_the_node_fuses_the_vehicle_speed_and_reports_its_scale(tmp_path):
+    """speed.use: vehicle/speed from a simulated DMI (2 % scale error, on the left rear
+    wheel, speed.lever_arm given) played with the other sensors: the speed readings are used
+    and the scale estimate is on /diagnostics; vehicle/odometry (nav_msgs/Odometry) is subscribed
+    as well (its conversion: test_fusion_vehicle_speed.py)."""
+    bag = tmp_path / "drive_speed"
+    config = SimulationConfig(
+        scenario="figure_eight", duration_s=DURATION_S, seed=4, odometer=odometer_model.DMI
+    )
+    write_bag(config, bag)
+    node = InsFusionNode(
+        parameter_overrides=overrides(
+            **{"speed.use": True, "speed.lever_arm": [0.0, 0.8, 0.33], "output_rate": 20.0}
+        )
+    )
+    collector = Collector({"/diagnostics": DiagnosticArray})
+    try:
+        with spinning(node, collector.node):
+            _play(bag, "/vehicle/speed")
+            assert wait_for(lambda: collector.count("/diagnostics") > 0, 5.0)
+            # wheel odometry's topic is subscribed too, as nav_msgs/Odometry
+            subscribed = collector.node.get_subscriptions_info_by_topic("/vehicle/odometry")
+    finally:
+        node.destroy_node()
+        collector.node.destroy_node()
+    assert [info.topic_type for info in subscribed] == ["nav_msgs/msg/Odometry"]
+    counters = node.engine.status().measurements["vehicle_speed"]
+    assert counters["used"] > 0.5 * (DURATION_S - STANDSTILL_S) * 20
+    statuses = [diagnostic_values(array) for array in collector.get("/diagnostics")]
+    values = [v for v in statuses if v["state"] != "no_imu"][-1]
+    scale, sigma = (float(values[f"calibration.speed_scale_{k}_pct"]) for k in ("error", "sigma"))
+    assert abs(scale - 2.0) < 3.0 * sigma + 0.1

@@ -12,10 +12,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from geometry_msgs.msg import TwistWithCovarianceStamped
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from nav_msgs.msg import Odometry
 
 from gnss_ins_common.params import load_yaml
+from ins_fusion.adapters import messages_in
 from ins_fusion.core.engine.engine import InsEngine, VehicleSpeedMeasurement
 from ins_fusion.core.filter.eskf import ATT, BG, VEL, StateLayout
 from ins_fusion.core.measurements.vehicle_speed import speed_model, speed_variance
@@ -125,6 +128,18 @@ def test_a_straight_drive_at_10_m_s_reads_10_m_s_times_the_scale():
     wheel_left_frd = np.array((0.0, -0.8, 0.0))
     speed = _predicted_speed(mat_nb, east, left_turn_frd, left_turn_frd, wheel_left_frd, (0, 0), 0)
     assert speed == pytest.approx(10.0 - 0.16)
+
+
+def test_both_message_types_give_the_forward_speed_and_its_variance():
+    twist = TwistWithCovarianceStamped()
+    odometry = Odometry()
+    for message in (twist, odometry):
+        message.header.stamp.sec, message.header.stamp.nanosec = 12, 500_000_000
+        message.twist.twist.linear.x = -1.25  # reversing
+        message.twist.covariance[0] = 0.0025
+        assert messages_in.speed_measurement(message) == VehicleSpeedMeasurement(
+            12.5, -1.25, 0.0025
+        )
 
 
 def test_an_engine_without_speed_use_refuses_a_speed_reading():
