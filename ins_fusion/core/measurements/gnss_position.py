@@ -157,7 +157,7 @@ class FusedPosition(FusedUpdate):
             return False
         if action == NOISE_MOVED:  # the kernel set it in the state (set_correlated_variance)
             kf.gnss_variance = s.gnss_variance
-        self._booked(s, _KIND, (accepted, nis), live, rows)
+        self._booked(s, _KIND, (accepted, nis), rows, live)
         s.gnss_white = s.gnss_white.with_values(white)
         if accepted:
             s.last_position_t_s = max(s.last_position_t_s, fix.t_s)
