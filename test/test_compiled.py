@@ -17,7 +17,7 @@ from gnss_ins_common.params import validate_all
 from ins_fusion.core.compiled import jit
 from ins_fusion.core.engine import intake, sample_runs
 from ins_fusion.core.engine.warm_up import warm_up
-from ins_fusion.core.filter import adaptation, eskf, propagation, state
+from ins_fusion.core.filter import adaptation, propagation, state, update_algebra
 from ins_fusion.core.measurements import (
     attitude,
     gnss_noise,
@@ -110,15 +110,15 @@ _KERNELS = (
     propagation.advance,
     propagation.covariance_step,
     propagation.predicted_state,
-    eskf.joseph_update,
+    update_algebra.joseph_update,
     solution._fill_row,
     state.inject_nominal,
     gnss_noise._position_noise,
     gnss_noise.shrink_correlated,
     models._position_model,
     models._velocity_model,
-    eskf.projected_variance,
-    eskf._covariance_problem,
+    update_algebra.projected_variance,
+    update_algebra.covariance_problem,
     adaptation.white_push_fix,
     output_numbers.output_numbers,
     sample_runs.take_run,

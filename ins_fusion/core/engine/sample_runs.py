@@ -38,7 +38,7 @@ from ins_fusion.core.engine.intake import (
     take_sample,
 )
 from ins_fusion.core.filter.adaptation import B_MEAN, B_VERSION
-from ins_fusion.core.filter.eskf import ErrorStateFilter, ProcessModel, _covariance_problem
+from ins_fusion.core.filter.eskf import ErrorStateFilter, ProcessModel
 from ins_fusion.core.filter.propagation import (
     ImuDensities,
     Propagator,
@@ -59,6 +59,7 @@ from ins_fusion.core.filter.state import (
     mounted_arm,
 )
 from ins_fusion.core.filter.timeline import Record, RunEntries, Timeline
+from ins_fusion.core.filter.update_algebra import covariance_problem
 from ins_fusion.core.measurements.nhc import nhc_apply
 from ins_fusion.core.measurements.stop_detector import StopDetector
 from ins_fusion.core.measurements.updates import Corrections
@@ -201,7 +202,7 @@ def take_run(
                     e += 1
                     arm_b = mounted_arm(base_arm_b, x, has_mounting)
                 if (
-                    _covariance_problem(P) != -1
+                    covariance_problem(P) != -1
                     or not np.isfinite(x[X_NAV : X_NAV + NAV_SIZE]).all()
                 ):
                     return i + 1, RUN_PROBLEM, m, r, v, c, e

@@ -19,7 +19,7 @@ from typing import Any
 
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core.compiled import jit, kernel_array
-from ins_fusion.core.filter.eskf import ErrorStateFilter, ProcessModel, joseph_update
+from ins_fusion.core.filter.eskf import ErrorStateFilter, ProcessModel
 from ins_fusion.core.filter.propagation import Propagator, covariance_step, predicted_state
 from ins_fusion.core.filter.state import (
     X_COV_DT,
@@ -30,6 +30,7 @@ from ins_fusion.core.filter.state import (
     Geometry,
     inject_nominal,
 )
+from ins_fusion.core.filter.update_algebra import joseph_update
 from ins_fusion.core.measurements.models import nhc_model
 from ins_fusion.core.measurements.updates import Corrections
 from ins_fusion.core.settings.config import FusionConfig

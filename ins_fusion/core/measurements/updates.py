@@ -16,14 +16,7 @@ import numpy as np
 
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core.filter.adaptation import adapt_process_noise, fading_factor
-from ins_fusion.core.filter.eskf import (
-    ATT,
-    POS,
-    VEL,
-    ErrorStateFilter,
-    chi2_threshold,
-    projected_variance,
-)
+from ins_fusion.core.filter.eskf import ATT, POS, VEL, ErrorStateFilter
 from ins_fusion.core.filter.records import (
     AttitudeMeasurement,
     GnssFixMeasurement,
@@ -32,6 +25,7 @@ from ins_fusion.core.filter.records import (
 )
 from ins_fusion.core.filter.state import X_BG, FilterState, Geometry, LatestInputs, inject
 from ins_fusion.core.filter.status import MEASUREMENT_NAMES, Counters
+from ins_fusion.core.filter.update_algebra import chi2_threshold, projected_variance
 from ins_fusion.core.measurements.gnss_noise import NOISE_MOVED, NOISE_RESTART, GnssNoise
 from ins_fusion.core.measurements.heading import fast_enough, heading_from_course, set_heading
 from ins_fusion.core.measurements.models import (
