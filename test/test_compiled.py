@@ -17,7 +17,7 @@ from gnss_ins_common.params import validate_all
 from ins_fusion.core.compiled import jit
 from ins_fusion.core.engine import intake, sample_runs
 from ins_fusion.core.engine.warm_up import warm_up
-from ins_fusion.core.filter import adaptation, eskf, propagation, state
+from ins_fusion.core.filter import adaptation, propagation, state, update_algebra
 from ins_fusion.core.measurements import (
     attitude,
     gnss_noise,
@@ -27,6 +27,7 @@ from ins_fusion.core.measurements import (
     nhc,
     stationary,
     stop_detector,
+    vehicle_speed,
 )
 from ins_fusion.core.nav import strapdown
 from ins_fusion.core.output import output_numbers, solution
@@ -110,15 +111,15 @@ _KERNELS = (
     propagation.advance,
     propagation.covariance_step,
     propagation.predicted_state,
-    eskf.joseph_update,
+    update_algebra.joseph_update,
     solution._fill_row,
     state.inject_nominal,
     gnss_noise._position_noise,
     gnss_noise.shrink_correlated,
     models._position_model,
     models._velocity_model,
-    eskf.projected_variance,
-    eskf._covariance_problem,
+    update_algebra.projected_variance,
+    update_algebra.covariance_problem,
     adaptation.white_push_fix,
     output_numbers.output_numbers,
     sample_runs.take_run,
@@ -132,8 +133,10 @@ _KERNELS = (
     stationary.zaru_apply,
     models.zupt_model,
     models.zaru_model,
+    vehicle_speed.speed_model,
 )
 _REAL = Path(__file__).parent / "fixtures" / "comma2k19" / "comma2k19_ex1_seg40"
+_REAL_SPEED = _REAL.with_name("comma2k19_ex1_seg40_speed")
 
 
 def test_warm_up_types_every_kernel_the_drives_use(drive: Path) -> None:
@@ -146,7 +149,7 @@ def test_warm_up_types_every_kernel_the_drives_use(drive: Path) -> None:
     signatures = {kernel: list(kernel.signatures) for kernel in _KERNELS}
     assert all(len(s) == 1 for s in signatures.values()), signatures
     all_states = {**PARAMETER_SETS["all_states"], "gnss_noise.correlation_time": 0.0}
-    for bag, values in ((drive, all_states), (drive, {}), (_REAL, {})):
+    for bag, values in ((drive, all_states), (drive, {}), (_REAL, {}), (_REAL_SPEED, {})):
         run = run_fusion(load_bag(bag, TopicMap()), validate_all(PARAMETERS, values), OUTAGES)
         assert len(run.track.rows) > 1000
     assert {kernel: list(kernel.signatures) for kernel in _KERNELS} == signatures

@@ -32,10 +32,10 @@ from ins_fusion.core.filter.eskf import (
     VEL,
     ErrorStateFilter,
     StateLayout,
-    chi2_threshold,
     gyro_misalignment_variance,
 )
 from ins_fusion.core.filter.records import GnssFixMeasurement, GnssVelocityMeasurement, Prediction
+from ins_fusion.core.filter.update_algebra import chi2_threshold
 from ins_fusion.core.measurements.models import (
     attitude,
     euler_jacobian,

@@ -38,8 +38,14 @@ from ins_fusion.core.engine.intake import (
     take_sample,
 )
 from ins_fusion.core.filter.adaptation import B_MEAN, B_VERSION
-from ins_fusion.core.filter.eskf import Columns, ErrorStateFilter, ProcessModel, _covariance_problem
-from ins_fusion.core.filter.propagation import ImuDensities, Propagator, advance, covariance_step
+from ins_fusion.core.filter.eskf import Columns, ErrorStateFilter, ProcessModel
+from ins_fusion.core.filter.propagation import (
+    ImuDensities,
+    Propagator,
+    advance,
+    covariance_step,
+    monitored_white_noise,
+)
 from ins_fusion.core.filter.state import (
     X_COV_DT,
     X_HEADING_KNOWN,
@@ -50,9 +56,10 @@ from ins_fusion.core.filter.state import (
     X_T,
     FilterState,
     Geometry,
-    turned_arm,
+    mounted_arm,
 )
 from ins_fusion.core.filter.timeline import Record, RunEntries, Timeline
+from ins_fusion.core.filter.update_algebra import covariance_problem
 from ins_fusion.core.measurements.nhc import nhc_apply
 from ins_fusion.core.measurements.stop_detector import StopDetector
 from ins_fusion.core.measurements.updates import Corrections
@@ -120,7 +127,7 @@ def take_run(
     held, covs, phi_out, white_out, nhcs, pseudo_out = steps
     F, Q, _, misalignment_q, _, markov_idx, markov_q = process
     has_mounting = columns[3] >= 0
-    arm_b = _base_arm(base_arm_b, x, has_mounting)
+    arm_b = mounted_arm(base_arm_b, x, has_mounting)
     version = block[B_VERSION]
     m = r = v = c = e = 0
     for i in range(start, stop):
@@ -160,7 +167,7 @@ def take_run(
                 v += 1
             seen[m] = v - 1
             if due:  # Propagator.advanced with the heading known
-                gyro, accel = _white_noise(block, floor, x[X_Q_SCALE])
+                gyro, accel = monitored_white_noise(block, floor, x[X_Q_SCALE])
                 model = (F, Q, gyro, misalignment_q, accel, markov_idx, markov_q)
                 P, phi = covariance_step(P, x, mat_bi, model, columns, correlation_time_s)
                 phi_out[:, :] = phi
@@ -176,7 +183,7 @@ def take_run(
                 pseudo_out[0], pseudo_out[1] = pseudo_t, t
                 horizontal = math.hypot(x[X_NAV + 3], x[X_NAV + 4])
                 if use_nhc and horizontal > nhc_min_speed_m_s:  # FusedNhc.apply
-                    gyro, accel = _white_noise(block, floor, x[X_Q_SCALE])
+                    gyro, accel = monitored_white_noise(block, floor, x[X_Q_SCALE])
                     stepped, phi, accepted, nis, P = nhc_apply(
                         P,
                         x,
@@ -193,9 +200,9 @@ def take_run(
                     c += 1
                     nhcs[e, 0], nhcs[e, 1], nhcs[e, 2] = m - 1, accepted, nis
                     e += 1
-                    arm_b = _base_arm(base_arm_b, x, has_mounting)
+                    arm_b = mounted_arm(base_arm_b, x, has_mounting)
                 if (
-                    _covariance_problem(P) != -1
+                    covariance_problem(P) != -1
                     or not np.isfinite(x[X_NAV : X_NAV + NAV_SIZE]).all()
                 ):
                     return i + 1, RUN_PROBLEM, m, r, v, c, e
@@ -218,31 +225,6 @@ def _moving_epoch(x: FloatArray, detector_idle: bool, stop_speed_m_s: float) -> 
     idle and the filter's speed vetoes a stop: at or above ``stop_speed_m_s`` [m/s])."""
     speed = math.hypot(math.hypot(x[X_NAV + 3], x[X_NAV + 4]), x[X_NAV + 5])
     return x[X_HEADING_KNOWN] != 0.0 and detector_idle and speed >= stop_speed_m_s
-
-
-@jit
-def _base_arm(base_arm_b: FloatArray, x: FloatArray, has_mounting: bool) -> FloatArray:
-    """Geometry.arms(s)[1]: the base_link lever arm turned by the residual mounting in ``x``."""
-    pitch, yaw = x[X_MOUNTING], x[X_MOUNTING + 1]
-    if not has_mounting or (pitch == 0.0 and yaw == 0.0):
-        return base_arm_b
-    return turned_arm(base_arm_b, pitch, yaw)
-
-
-@jit
-def _white_noise(
-    block: FloatArray, floor: tuple[FloatArray, FloatArray], q_scale: float
-) -> tuple[FloatArray, FloatArray]:
-    """Propagator.white_noise of the densities in force (ImuDensities.current: the floor
-    raised to the noise monitor's estimate in ``block``, none before its first) [rad²/s,
-    m²/s³]."""
-    gyro = floor[0].copy()
-    accel = floor[1].copy()
-    if block[B_VERSION] != 0.0:
-        for k in range(3):
-            gyro[k] = np.maximum(gyro[k], block[B_MEAN + k])
-            accel[k] = np.maximum(accel[k], block[B_MEAN + 3 + k])
-    return gyro * q_scale, accel * q_scale
 
 
 @jit
@@ -370,7 +352,7 @@ class CompiledRuns:
             for at, accepted, nis in nhcs[:e].tolist():  # (sample, accepted, NIS) in order
                 j = int(at)
                 records[j] = [timeline.record("nhc", stamps[j], None)]
-                corrections.book(s, "nhc", bool(accepted), nis, True)
+                corrections.book(s, "nhc", (bool(accepted), nis), 2, True)
                 if s.gated_runs is not gated[-1][1]:  # from the next entry on
                     gated.append((j + 1, s.gated_runs))
             seen_by = seen[:m].tolist()

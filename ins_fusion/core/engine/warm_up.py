@@ -1,162 +1,150 @@
 """Readying the engine's compiled kernels (core.compiled) before the first IMU sample.
 
 numba compiles a kernel at its first call (once per install, ~30 s for all of them, then from
-its on-disk cache in ~0.3 s). ``warm_up`` makes those first calls with the argument types the
-engine passes, so that neither happens on a live sample: InsEngine calls it when it is built,
-``make venv`` once after the install. A kernel called later with other argument types would
-compile again (test_compiled.py checks that a drive adds no signature).
+its on-disk cache in ~0.3 s), for the argument types of that call. ``warm_up`` makes those
+first calls through the engine's own code, so that neither happens on a live sample and no
+kernel's arguments are written out a second time: a short synthetic drive (``synthetic_drive``:
+a standstill, a start, a drive, late GNSS data and an IMU gap) through two engines, one with
+every optional error state (the vehicle speed's too) and the smoother's recorder attached
+(every update the general way, sample by sample) and one with the defaults fed as a replay
+feeds it (compiled runs, the fused updates, re-propagations), and the output kernel on a row of
+each. InsEngine calls it when it is built, ``make venv`` once after the install. A kernel called
+later with other argument types would compile again (test_compiled.py checks that a drive adds
+no signature).
 """
 
 from __future__ import annotations
 
 import math
 import time
+from collections.abc import Iterator
 
 import numpy as np
 
-from ins_fusion.core.engine.intake import new_intake, record_sample, take_sample
-from ins_fusion.core.engine.sample_runs import STEPS_PER_RUN, advance_run, take_run
-from ins_fusion.core.filter.adaptation import ImuNoiseMonitor
-from ins_fusion.core.filter.eskf import ErrorStateFilter, StateLayout, projected_variance
-from ins_fusion.core.filter.propagation import advance, covariance_step, predicted_state
-from ins_fusion.core.filter.records import GnssFixMeasurement, GnssVelocityMeasurement, Prediction
-from ins_fusion.core.filter.state import X_COV_DT, X_SIZE, FilterState, Geometry, inject_nominal
-from ins_fusion.core.measurements.attitude import attitude_apply
-from ins_fusion.core.measurements.gnss_noise import GnssNoise
-from ins_fusion.core.measurements.gnss_position import position_apply
-from ins_fusion.core.measurements.gnss_velocity import velocity_apply
-from ins_fusion.core.measurements.models import (
-    attitude,
-    gnss_position,
-    gnss_velocity,
-    nhc,
-    zaru,
-    zupt,
+from gnss_ins_common.types import BoolArray, FloatArray
+from ins_fusion.core.filter.records import (
+    AttitudeMeasurement,
+    GnssFixMeasurement,
+    GnssVelocityMeasurement,
+    VehicleSpeedMeasurement,
 )
-from ins_fusion.core.measurements.nhc import nhc_apply
-from ins_fusion.core.measurements.stationary import zaru_apply, zupt_apply
-from ins_fusion.core.measurements.stop_detector import StopDetector, window_statistics
-from ins_fusion.core.nav.calibration import ImuCalibration
-from ins_fusion.core.nav.strapdown import INCREMENT_SIZE, NavState, SampleIntegrator, increment
+from ins_fusion.core.nav import earth
+from ins_fusion.core.nav.units import STANDARD_GRAVITY_M_S2
 from ins_fusion.core.output.output_numbers import NUMBERS, output_numbers
-from ins_fusion.core.output.solution import WIDTH, SolutionBuilder
+from ins_fusion.core.output.solution_rows import RowBuffer
 from ins_fusion.core.settings.config import FusionConfig
+
+#: The synthetic drive (``synthetic_drive``): IMU and GNSS rates [Hz], how late the GNSS data
+#: arrive [s], the standstill, acceleration and cruise [s], the forward acceleration [m/s²].
+_IMU_HZ, _GNSS_HZ, _GNSS_LATENCY_S = 100.0, 10.0, 0.05
+_STILL_S, _ACCELERATE_S, _CRUISE_S, _ACCEL_M_S2 = 3.0, 2.0, 2.0, 2.0
+#: Samples left out in the cruise: an IMU gap the engine bridges.
+_GAP_SAMPLES = 3
+#: Where the drive starts: latitude, longitude [deg], height [m].
+_ORIGIN = (57.0, 10.0, 40.0)
+#: Parameters of the two engines: a short levelling for both; every optional error state.
+_QUICK = {"alignment.duration": 1.0}
+_EVERY_STATE = {
+    **_QUICK,
+    "self_calibration.mounting": True,
+    "self_calibration.time_offset": True,
+    "imu_noise.gyro_scale_sigma": 0.001,
+    "imu_noise.accel_scale_sigma": 0.001,
+    "speed.use": True,
+}
+
+#: A measurement of the drive.
+Measurement = (
+    GnssFixMeasurement | GnssVelocityMeasurement | AttitudeMeasurement | VehicleSpeedMeasurement
+)
 
 _ready = False
 
 
 def warm_up() -> float:
     """Compile or load every kernel once per process; returns the seconds it took (0 when
-    done already)."""
+    done already or under way: the engines it builds call it too)."""
     global _ready
     if _ready:
         return 0.0
-    start = time.perf_counter()
-    config = FusionConfig.from_parameters({})
-    layout = StateLayout(True, True, True, True, True, True)  # every block: every branch typed
-    zero = (0.0, 0.0, 0.0)
-    nav = NavState(1.0, 0.2, 40.0, np.zeros(3), np.array((0.0, 0.0, 0.0, 1.0)))
-    s = FilterState(0.0, nav, zero, True)
-    integrator = SampleIntegrator()
-    integrator.push(0.0, zero, (0.0, 0.0, -9.8))
-    detector = StopDetector(config.stop_detector, np.eye(3))
-    detector.push(0.0, zero, (0.0, 0.0, -9.8))
-    window_statistics(detector.ring, np.eye(3))
-    monitor = ImuNoiseMonitor()
-    intake = new_intake(10.0, 100.0, True)
-    table = ImuCalibration().table
-    r_bi = np.eye(3).ravel()
-    stores = (intake, table, integrator.buffer, detector.ring, monitor.block, s.x, r_bi)
-    for t in (0.0, 0.01):  # the first sample, then an interval with the calibration
-        take_sample(*stores, np.empty(INCREMENT_SIZE), t, *zero, *zero, True)
-    record_sample(intake, detector.ring, monitor.block, 0.02)
-    advance(s.x, increment(0.01, zero, (0.0, 0.0, -0.098)), np.eye(3).ravel(), False, 0.01)
-    kf = ErrorStateFilter(layout, config.imu_noise, config.gnss_correlation_time_s or 60.0)
-    kf.P = np.eye(layout.size) * 1e-2
-    s.x[X_COV_DT] = 0.01
-    geometry_of = Geometry(config, layout)
-    mat_bi = geometry_of.mat_bi
-    kf.P, kf.phi = covariance_step(kf.P, s.x, mat_bi, kf.process_model(), layout.columns, 60.0)
-    kf.update(np.zeros(3), np.eye(3, layout.size), np.eye(3), math.inf)
-    constants = (60.0, 0.1, math.inf, layout.size)
-    geometry = (mat_bi, np.zeros(3))
-    nhc_apply(kf.P, s.x, 0.015, kf.process_model(), geometry, layout.columns, constants)
-    zupt_apply(kf.P, s.x, 0.015, kf.process_model(), mat_bi, layout.columns, constants)
-    rest, gate = (0.015, np.zeros(3), np.ones(3)), (60.0, 1.0, layout.size)
-    zaru_apply(kf.P, s.x, rest, kf.process_model(), mat_bi, layout.columns, gate)
-    measured = (0.015, np.zeros(3), np.eye(3))
-    gates = (60.0, (1.0, 1.0, 1.0), layout.size)
-    velocity_apply(kf.P, s.x, measured, kf.process_model(), geometry, layout.columns, gates)
-    attitude_apply(
-        kf.P,
-        s.x,
-        (0.015, (0.0, 0.0, 0.0, 1.0), np.eye(3)),
-        kf.process_model(),
-        (mat_bi, geometry_of.q_a_base),
-        layout.columns,
-        gates,
-    )
-    gnss_noise = GnssNoise(config, layout)
-    gnss_noise.set_correlated_variance(s, kf, np.ones(3))
-    position_apply(
-        kf.P,
-        s.x,
-        s.gnss_white.values.copy(),
-        (0.015, 1.0, 0.2, 40.0, np.eye(3)),
-        kf.process_model(),
-        geometry,
-        layout.columns,
-        gnss_noise.settings(s),
-        (60.0, 1.0, layout.size),
-    )
-    kf.problem()
-    inject_nominal(s.x, np.zeros(layout.size), layout.columns)
-    prediction = Prediction(*predicted_state(s.x, 0.015), layout=layout)
-    nhc(prediction, np.zeros(3), np.eye(3), 0.1, (0.0, 0.0))
-    attitude(prediction, np.eye(3), np.eye(3), 0.0, (0.0, 0.0))
-    zupt(prediction, 0.1)
-    zaru(prediction, (np.zeros(3), s.x[:3]), mat_bi, np.ones(3), True)
-    fix = GnssFixMeasurement(0.015, 57.0, 10.0, 40.0, np.eye(3))
-    white, _, reported, _ = GnssNoise(config, layout).position_noise(s, fix)
-    z, H, _ = gnss_position(prediction, fix, np.zeros(3), white, zero)
-    predicted = projected_variance(H, kf.P)
-    s.gnss_white.pushed_fix(0.015, z, H, None, kf.P, predicted, reported)
-    gnss_velocity(prediction, GnssVelocityMeasurement(0.015, np.zeros(3), np.eye(3)), z, np.eye(3))
-    output = SolutionBuilder(geometry_of, layout)
-    row = output.row(s, kf, (57.0, 10.0, 40.0), np.zeros(3), "navigating")
-    output_numbers(row, 1e-5, np.empty(NUMBERS))
-    model = output.model(s, kf, (57.0, 10.0, 40.0))
-    series = (np.zeros(1), np.zeros((1, 3)), np.zeros((1, 3)), np.zeros(1, dtype=np.bool_))
-    limits = (0.0, math.inf, math.inf, 0.01, 1.0)
-    advance_run(s.x, np.zeros((0, INCREMENT_SIZE)), np.zeros(0), r_bi, 0.01, np.empty((0, X_SIZE)))
-    (J, P, states, arm_b, arm_bi, plane), _, origin = model
-    take_run(
-        stores[:6],
-        r_bi,
-        series,
-        (0, 0),
-        limits,
-        (
-            np.empty((1, INCREMENT_SIZE)),
-            np.empty((1, X_SIZE)),
-            np.empty((1, WIDTH)),
-            np.empty(1, dtype=np.int64),
-            np.empty((1, 7)),
-        ),
-        (J, P, states, arm_b, arm_bi, plane),
-        origin,
-        (mat_bi, kf.process_model(), (config.imu_noise.gyro_psd, config.imu_noise.accel_psd)),
-        (layout.columns, 60.0, 0.1, math.inf, layout.size),
-        (0.1, 0.5, 1.0, True, True),
-        (
-            np.empty(1, dtype=np.int64),
-            np.empty((STEPS_PER_RUN, *kf.P.shape)),
-            np.empty(kf.P.shape),
-            np.empty((2, 3)),
-            np.empty((1, 3)),
-            np.array([math.inf, math.nan]),
-        ),
-    )
-    assert s.x.shape == (X_SIZE,)
     _ready = True
+    start = time.perf_counter()
+    try:
+        _drive_engines()
+    except BaseException:
+        _ready = False
+        raise
     return time.perf_counter() - start
+
+
+def _drive_engines() -> None:
+    """The synthetic drive through both engines (module docstring) and the output kernel."""
+    # engine imports this module: imported here, when the first engine is being built.
+    from ins_fusion.core.engine.engine import InsEngine
+    from ins_fusion.core.engine.smoothed_solution import attach_recorder
+
+    imu, measurements = synthetic_drive()
+    for parameters, smooth in ((_EVERY_STATE, True), (_QUICK, False)):
+        config = FusionConfig.from_parameters(parameters)
+        engine = InsEngine(config)
+        if smooth:
+            attach_recorder(engine)
+        rows = RowBuffer()
+        start = 0
+        for index, measurement in measurements:
+            engine.add_imu_series(*imu, (start, index), rows)
+            if isinstance(measurement, GnssFixMeasurement):
+                engine.add_gnss_fix(measurement)
+            elif isinstance(measurement, GnssVelocityMeasurement):
+                engine.add_gnss_velocity(measurement)
+            elif isinstance(measurement, AttitudeMeasurement):
+                engine.add_attitude(measurement)
+            elif config.use_speed:
+                engine.add_vehicle_speed(measurement)
+            start = index
+        engine.add_imu_series(*imu, (start, len(imu[0])), rows)
+        row = engine.solution_row()
+        assert row is not None  # the filter runs from the standstill on
+        output_numbers(row, 1e-6, np.empty(NUMBERS))  # as the node and a fused bag call it
+
+
+def synthetic_drive() -> tuple[
+    tuple[FloatArray, FloatArray, FloatArray, BoolArray], list[tuple[int, Measurement]]
+]:
+    """A level vehicle facing east: a standstill, a forward acceleration and a cruise. Returns
+    the IMU samples (stamps [s], rates [rad/s] and specific forces [m/s²] imu_link FLU, output
+    ticks) and the GNSS fixes, velocities, attitudes and vehicle speeds each with the index of
+    the IMU sample before which it arrives."""
+    n = round((_STILL_S + _ACCELERATE_S + _CRUISE_S) * _IMU_HZ)
+    t_s = np.arange(n) / _IMU_HZ
+    accelerating = (t_s >= _STILL_S) & (t_s < _STILL_S + _ACCELERATE_S)
+    force = np.zeros((n, 3))
+    force[:, 0] = np.where(accelerating, _ACCEL_M_S2, 0.0)
+    force[:, 2] = STANDARD_GRAVITY_M_S2
+    gap = n - round(_CRUISE_S * _IMU_HZ / 2)
+    kept = np.ones(n, dtype=np.bool_)
+    kept[gap : gap + _GAP_SAMPLES] = False
+    ticks = np.arange(n) % 2 == 0
+    imu = (t_s[kept], np.zeros((int(kept.sum()), 3)), force[kept], ticks[kept])
+    measurements = [
+        (int(np.searchsorted(imu[0], t + _GNSS_LATENCY_S)), measurement)
+        for t in np.arange(0.0, t_s[-1] - _GNSS_LATENCY_S, 1.0 / _GNSS_HZ)
+        for measurement in _epoch(float(t))
+    ]
+    return imu, measurements
+
+
+def _epoch(t: float) -> Iterator[Measurement]:
+    """The fix, velocity, attitude and vehicle speed of the drive at ``t`` [s]."""
+    moving = min(max(t - _STILL_S, 0.0), _ACCELERATE_S)
+    speed = _ACCEL_M_S2 * moving
+    east = 0.5 * _ACCEL_M_S2 * moving**2 + speed * max(t - _STILL_S - _ACCELERATE_S, 0.0)
+    lat, lon, height = earth.displace(
+        math.radians(_ORIGIN[0]), math.radians(_ORIGIN[1]), _ORIGIN[2], 0.0, east, 0.0
+    )
+    yield GnssFixMeasurement(
+        t, math.degrees(lat), math.degrees(lon), height, np.diag([0.01, 0.01, 0.04])
+    )
+    yield GnssVelocityMeasurement(t, np.array([speed, 0.0, 0.0]), np.eye(3) * 1e-4)
+    yield AttitudeMeasurement(t, np.array([0.0, 0.0, 0.0, 1.0]), np.eye(3) * 1e-4)
+    yield VehicleSpeedMeasurement(t, speed, 1e-4)

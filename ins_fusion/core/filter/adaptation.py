@@ -37,7 +37,7 @@ import numpy as np
 
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core.compiled import compilable, jit
-from ins_fusion.core.filter.eskf import projected_variance
+from ins_fusion.core.filter.update_algebra import projected_variance
 
 #: A squared difference above this many times the running mean is clipped to it.
 _CLIP = 9.0

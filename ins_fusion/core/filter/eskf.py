@@ -1,4 +1,4 @@
-"""Error-state Kalman filter algebra: state layout, error dynamics, discretisation, updates.
+"""Error-state Kalman filter: state layout, error dynamics, discretisation, the filter object.
 
 Error state (closed loop: estimated, injected into the nominal state and reset to zero after each
 update), with x_true = x_nominal + δx:
@@ -47,26 +47,25 @@ exact form to 0.5 % (test_fusion_eskf.py; Oslo notes "Implications" R2). The eng
 every ``covariance_interval`` (0.1 s, the pseudo-measurement period) with the interval's mean
 specific force, and always up to the stamp of a measurement before updating; per IMU sample
 instead gives the same errors and NEES at 1.6 times the CPU time (bench/bench_fusion_engine.py).
-
-Updates are Joseph form, (I - KH) P (I - KH)ᵀ + K R Kᵀ, with a chi-square gate on the
-normalised innovation squared. The product is taken as two rank-m corrections, A = P - K (H P)
-then A - (A Hᵀ) Kᵀ, which is the same formula in O(n²m) instead of the O(n³) of forming I - KH
-(m = 1-3 rows, n = 15-26 states). filterpy's ``KalmanFilter.update`` is not used on the hot
-path: it has no gate, builds an n×n I - KH for every scalar update and inverts S with ``inv``;
-the tests use filterpy's ``van_loan_discretization`` as the reference for the discretisation.
+The gated update and its algebra: core.filter.update_algebra.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import NamedTuple
 
 import numpy as np
-from scipy.special import gammaincinv
 
 from gnss_ins_common.types import FloatArray, IntArray
 from ins_fusion.core.compiled import jit, kernel_array
+from ins_fusion.core.filter.update_algebra import (
+    UpdateResult,
+    covariance_problem,
+    faded_covariance,
+    joseph_update,
+    widening,
+)
 from ins_fusion.core.nav import earth
 from ins_fusion.core.nav.calibration import TriadCalibration
 from ins_fusion.core.settings.config import ImuNoise
@@ -149,26 +148,11 @@ def gyro_misalignment_variance(
     return variance
 
 
-def chi2_threshold(probability: float, dof: int) -> float:
-    """Gate: normalised innovation squared accepted below this (chi-square quantile)."""
-    # scipy.stats.chi2.ppf's own formula; scipy.stats itself costs ~1 s of import.
-    return float(2.0 * gammaincinv(0.5 * dof, probability))
-
-
 #: ErrorStateFilter.process_model: F and Q buffers, gyro white noise, gyro misalignment noise,
 #: accelerometer white noise, Gauss-Markov indices and densities.
 ProcessModel = tuple[
     FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, IntArray, FloatArray
 ]
-
-
-class UpdateResult(NamedTuple):
-    """Outcome of one measurement update: accepted or gated, the normalised innovation
-    squared, and the error-state estimate to inject (None when gated)."""
-
-    accepted: bool
-    nis: float
-    dx: FloatArray | None
 
 
 class ErrorStateFilter:
@@ -339,9 +323,7 @@ class ErrorStateFilter:
         """Add to the 3x3 block of P at ``start`` what makes the innovation z fit: the excess
         of each z_i² over S_ii, mapped into that block by the pseudo-inverse of its columns of
         H, so that the new S_ii = max(S_ii, z_i²) when they have full row rank."""
-        excess = np.maximum(np.square(z) - np.diagonal(H @ self.P @ H.T + R), 0.0)
-        G = np.linalg.pinv(H[:, start : start + 3])
-        self.add_noise(start, (G * excess) @ G.T)
+        self.add_noise(start, widening(self.P, z, H, R, start))
 
     def update(self, z: FloatArray, H: FloatArray, R: FloatArray, threshold: float) -> UpdateResult:
         """Gated Joseph-form update with innovation z = measured - predicted, z ≈ H δx + v."""
@@ -359,32 +341,12 @@ class ErrorStateFilter:
 
     def problem(self) -> str | None:
         """Why the covariance is unusable (non-finite, negative variance), or None."""
-        worst = _covariance_problem(kernel_array(self.P))
+        worst = covariance_problem(kernel_array(self.P))
         if worst == -2:
             return "non-finite covariance"
         if worst >= 0:
             return f"negative variance in state {worst}"
         return None
-
-
-def faded_covariance(P: FloatArray, factor: float, ceiling: FloatArray) -> FloatArray:
-    """P faded by ``factor`` (fading memory: factor x P), as noise added to P, (factor - 1) P,
-    whose rows and columns are scaled down (D A D, D diagonal <= 1) for the states whose variance
-    would otherwise end above ``ceiling``: such a state ends at its ceiling, one already there
-    gets nothing. The result stays positive semi-definite and never below P (what the RTS
-    smoother's noise step needs).
-
-    A fading multiplies every variance; repeated over a long run of inconsistent measurements
-    (an IMU at rest under a moving antenna: issue 38) it multiplied the bias variances without
-    bound until the state overflowed. A bias, a scale factor, a mounting angle cannot be less
-    known than before the first measurement, so their prior variance bounds them."""
-    added = P * (factor - 1.0)
-    room = np.maximum(ceiling - np.diagonal(P), 0.0)
-    growth = np.maximum(np.diagonal(added), np.finfo(float).tiny)
-    shrink = np.sqrt(np.minimum(1.0, room / growth))
-    if bool(np.all(shrink == 1.0)):
-        return P * factor
-    return P + shrink[:, None] * added * shrink[None, :]
 
 
 @jit
@@ -492,48 +454,3 @@ def propagate_kernel(
     P_new = phi @ (P + q) @ phi.T
     P_new += q
     return P_new, phi
-
-
-@jit
-def _covariance_problem(P: FloatArray) -> int:
-    """-1 for a usable covariance; -2 when an element is not finite, else the state of the
-    most negative variance when one is negative."""
-    worst, lowest = -1, 0.0
-    for i in range(P.shape[0]):
-        for j in range(P.shape[1]):
-            if not math.isfinite(P[i, j]):
-                return -2
-        if P[i, i] < lowest:
-            worst, lowest = i, P[i, i]
-    return worst
-
-
-@jit
-def projected_variance(H: FloatArray, P: FloatArray) -> FloatArray:
-    """diag(H P Hᵀ): the variance of each row of H δx."""
-    HP = H @ P
-    out = np.zeros(len(H))
-    for i in range(len(H)):
-        for j in range(H.shape[1]):
-            out[i] += HP[i, j] * H[i, j]
-    return out
-
-
-@jit
-def joseph_update(
-    P: FloatArray, z: FloatArray, H: FloatArray, R: FloatArray, threshold: float
-) -> tuple[bool, float, FloatArray, FloatArray]:
-    """(accepted, NIS, δx, new P) of ErrorStateFilter.update; a singular S gives NIS inf."""
-    PHt = P @ H.T
-    S = H @ PHt + R
-    try:
-        s_inv = np.linalg.inv(S)  # 1-3 rows: one inverse is cheaper than two solves
-    except Exception:  # singular (numba cannot name LinAlgError)
-        return False, math.inf, z, P
-    nis = float(z @ s_inv @ z)
-    if not nis <= threshold:  # also rejects NaN
-        return False, nis, z, P
-    K = PHt @ s_inv
-    A = P - K @ (H @ P)  # (I - KH) P
-    P_new = A - (A @ H.T) @ K.T + K @ R @ K.T  # A (I - KH)ᵀ + K R Kᵀ
-    return True, nis, K @ z, 0.5 * (P_new + P_new.T)

@@ -14,8 +14,8 @@ import math
 import numpy as np
 
 from gnss_ins_common.types import FloatArray, Vec3
-from ins_fusion.core.compiled import jit, kernel_array
-from ins_fusion.core.filter.adaptation import ImuNoiseMonitor
+from ins_fusion.core.compiled import compilable, jit, kernel_array
+from ins_fusion.core.filter.adaptation import B_MEAN, B_VERSION, ImuNoiseMonitor
 from ins_fusion.core.filter.eskf import (
     ATT,
     VEL,
@@ -84,11 +84,39 @@ class ImuDensities:
         """The floor, raised where ``measured`` (the monitor's psd) is above it."""
         if measured is not self._measured:
             self._measured = measured
-            self._effective = (
-                np.maximum(self.floor[0], measured[0]),
-                np.maximum(self.floor[1], measured[1]),
-            )
+            self._effective = densities_in_force(self.floor, measured[0], measured[1])
         return self._effective
+
+
+@compilable
+def densities_in_force(
+    floor: tuple[FloatArray, FloatArray], gyro_psd: FloatArray, accel_psd: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """The user's white-noise densities ``floor`` (gyro [rad²/s], accelerometer [m²/s³] per imu
+    axis) raised where the measured ones ``gyro_psd``, ``accel_psd`` are above them."""
+    return np.maximum(floor[0], gyro_psd), np.maximum(floor[1], accel_psd)
+
+
+@compilable
+def white_noise(
+    densities: tuple[FloatArray, FloatArray], q_scale: float
+) -> tuple[FloatArray, FloatArray]:
+    """The IMU white-noise densities of a covariance step (gyro [rad²/s], accelerometer
+    [m²/s³] per imu axis): ``densities`` (those in force) times the process-noise scale."""
+    return densities[0] * q_scale, densities[1] * q_scale
+
+
+@compilable
+def monitored_white_noise(
+    block: FloatArray, floor: tuple[FloatArray, FloatArray], q_scale: float
+) -> tuple[FloatArray, FloatArray]:
+    """``white_noise`` of the densities in force while the IMU noise monitor's ``block``
+    (core.filter.adaptation B_* layout) holds its latest estimate: ``floor`` raised to it
+    (ImuDensities.current; the floor before its first estimate), inside compiled runs."""
+    if block[B_VERSION] == 0.0:
+        return white_noise(floor, q_scale)
+    measured = densities_in_force(floor, block[B_MEAN : B_MEAN + 3], block[B_MEAN + 3 : B_MEAN + 6])
+    return white_noise(measured, q_scale)
 
 
 def bridge(
@@ -302,10 +330,9 @@ class Propagator:
             decouple_yaw(kf)
 
     def white_noise(self, s: FilterState) -> tuple[FloatArray, FloatArray]:
-        """The IMU white-noise densities of a covariance step from ``s`` (gyro [rad²/s],
-        accelerometer [m²/s³] per imu axis): those in force times the process-noise scale."""
-        gyro_psd, accel_psd = s.imu_psd or self._densities.floor
-        return gyro_psd * s.q_scale, accel_psd * s.q_scale
+        """``white_noise`` of a covariance step from ``s``: the densities in force at it (the
+        user's when none was measured) [rad²/s, m²/s³]."""
+        return white_noise(s.imu_psd or self._densities.floor, s.q_scale)
 
     @staticmethod
     def predict(s: FilterState, kf: ErrorStateFilter, t_m: float) -> Prediction:

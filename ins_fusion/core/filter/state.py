@@ -270,28 +270,23 @@ class Geometry:
         self._arms_cache: tuple[tuple[float, float], tuple[FloatArray, FloatArray]] | None = None
 
     def arms(self, s: FilterState) -> tuple[FloatArray, FloatArray]:
-        """(antenna, base_link origin) lever arms from the IMU [m] in the engine's body frame:
-        the configured arms (vehicle axes) turned by the residual mounting, (I + [μ×]) l."""
+        """(antenna, base_link origin) lever arms from the IMU [m] in the engine's body frame
+        at the residual mounting of ``s`` (``mounted_arm``)."""
         mounting = s.mounting
-        if not self.estimates_mounting or mounting == (0.0, 0.0):
-            return self.antenna_arm_b, self.base_arm_b
         cached = self._arms_cache
-        if cached is not None and cached[0] == mounting:
-            return cached[1]
-        arms = (
-            turned_arm(self.antenna_arm_b, *mounting),
-            turned_arm(self.base_arm_b, *mounting),
-        )
-        self._arms_cache = (mounting, arms)
-        return arms
+        if cached is None or cached[0] != mounting:
+            x, estimated = s.x, self.estimates_mounting
+            arms = (
+                mounted_arm(self.antenna_arm_b, x, estimated),
+                mounted_arm(self.base_arm_b, x, estimated),
+            )
+            cached = self._arms_cache = (mounting, arms)
+        return cached[1]
 
     def speed_arm(self, s: FilterState) -> FloatArray:
         """The lever arm from the IMU to the speed's measuring point [m] (body FRD), turned
-        by the residual mounting as ``arms``."""
-        mounting = s.mounting
-        if not self.estimates_mounting or mounting == (0.0, 0.0):
-            return self.speed_arm_b
-        return turned_arm(self.speed_arm_b, *mounting)
+        by the residual mounting as ``arms`` (``mounted_arm``)."""
+        return mounted_arm(self.speed_arm_b, s.x, self.estimates_mounting)
 
     def measured_mat_nb(self, att: AttitudeMeasurement) -> FloatArray:
         """Base_link FRD -> NED rotation from an attitude measurement and its mounting."""
@@ -318,9 +313,14 @@ def base_mat_nb(quat_enu_flu_a: Quat, q_a_base: Quat) -> FloatArray:
 
 
 @compilable
-def turned_arm(arm_b: FloatArray, pitch: float, yaw: float) -> FloatArray:
-    """A lever arm [m] (body FRD) turned by the residual mounting μ = (0, pitch, yaw) [rad]:
-    (I + [μ×]) l (Geometry.arms; also inside core.engine.sample_runs' compiled runs)."""
+def mounted_arm(arm_b: FloatArray, x: FloatArray, estimates_mounting: bool) -> FloatArray:
+    """A configured lever arm [m] (body FRD, vehicle axes) at the nominal state ``x`` (X_*
+    layout): turned by the residual mounting μ = (0, pitch, yaw) [rad] when it is estimated,
+    (I + [μ×]) l; ``arm_b`` itself while μ is zero or not estimated (Geometry.arms, and inside
+    core.engine.sample_runs' compiled runs)."""
+    pitch, yaw = x[X_MOUNTING], x[X_MOUNTING + 1]
+    if not estimates_mounting or (pitch == 0.0 and yaw == 0.0):
+        return arm_b
     a0, a1, a2 = arm_b[0], arm_b[1], arm_b[2]
     return np.array((a0 + (pitch * a2 - yaw * a1), a1 + yaw * a0, a2 - pitch * a0))
 

@@ -82,4 +82,4 @@ class FusedAttitude(FusedUpdate):
             (geometry.mat_bi, geometry.q_a_base),
             (self._correlation_time_s, self._gates, kf.layout.size),
         )
-        self._sensor_taken((s, kf), _KIND, result, live, adapting=False)
+        self._sensor_taken((s, kf), _KIND, result, live)

@@ -23,7 +23,7 @@ import numpy as np
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core.compiled import jit, kernel_array
 from ins_fusion.core.filter.adaptation import white_push_fix
-from ins_fusion.core.filter.eskf import Columns, ErrorStateFilter, ProcessModel, projected_variance
+from ins_fusion.core.filter.eskf import Columns, ErrorStateFilter, ProcessModel
 from ins_fusion.core.filter.propagation import Propagator
 from ins_fusion.core.filter.records import GnssFixMeasurement, height_measured
 from ins_fusion.core.filter.state import (
@@ -33,6 +33,7 @@ from ins_fusion.core.filter.state import (
     FilterState,
     Geometry,
 )
+from ins_fusion.core.filter.update_algebra import projected_variance
 from ins_fusion.core.measurements.gnss_noise import (
     NOISE_MOVED,
     NOISE_RESTART,
@@ -157,7 +158,7 @@ class FusedPosition(FusedUpdate):
             return False
         if action == NOISE_MOVED:  # the kernel set it in the state (set_correlated_variance)
             kf.gnss_variance = s.gnss_variance
-        self._booked(s, _KIND, (accepted, nis), live, rows)
+        self._booked(s, _KIND, (accepted, nis), rows, live)
         s.gnss_white = s.gnss_white.with_values(white)
         if accepted:
             s.last_position_t_s = max(s.last_position_t_s, fix.t_s)

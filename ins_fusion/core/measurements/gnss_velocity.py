@@ -74,4 +74,4 @@ class FusedVelocity(FusedUpdate):
             (geometry.mat_bi, kernel_array(geometry.arms(s)[0])),
             (self._correlation_time_s, self._gates, kf.layout.size),
         )
-        self._sensor_taken((s, kf), _KIND, result, live, adapting=True)
+        self._sensor_taken((s, kf), _KIND, result, live)

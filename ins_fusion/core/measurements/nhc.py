@@ -19,8 +19,7 @@ from typing import Any
 
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core.compiled import jit, kernel_array
-from ins_fusion.core.filter.adaptation import adapt_process_noise
-from ins_fusion.core.filter.eskf import Columns, ErrorStateFilter, ProcessModel, joseph_update
+from ins_fusion.core.filter.eskf import Columns, ErrorStateFilter, ProcessModel
 from ins_fusion.core.filter.propagation import Propagator, covariance_step, predicted_state
 from ins_fusion.core.filter.state import (
     X_COV_DT,
@@ -31,6 +30,7 @@ from ins_fusion.core.filter.state import (
     Geometry,
     inject_nominal,
 )
+from ins_fusion.core.filter.update_algebra import joseph_update
 from ins_fusion.core.measurements.models import nhc_model
 from ins_fusion.core.measurements.updates import Corrections
 from ins_fusion.core.settings.config import FusionConfig
@@ -195,18 +195,16 @@ class FusedUpdate:
         kind: str,
         result: tuple[bool, FloatArray, int, bool, float, FloatArray],
         live: bool,
-        adapting: bool,
     ) -> None:
         """What a sensor's kernel ``result`` (stepped, Φ, rows (0: unusable), accepted, NIS,
-        new P) leaves in the filter and the books (``adapting``: the process-noise
-        adaptation of a GNSS update)."""
+        new P) leaves in the filter and the books."""
         s, kf = state
         stepped, phi, rows, accepted, nis, P = result
         self._taken(kf, stepped, phi, P)
         if rows == 0:
             self._corrections.reject(kind, live)
             return
-        self._booked(s, kind, (accepted, nis), live, rows if adapting else 0)
+        self._booked(s, kind, (accepted, nis), rows, live)
 
     @staticmethod
     def _taken(kf: ErrorStateFilter, stepped: bool, phi: FloatArray, P: FloatArray) -> None:
@@ -217,23 +215,13 @@ class FusedUpdate:
         kf.P = P
 
     def _booked(
-        self,
-        s: FilterState,
-        kind: str,
-        result: tuple[bool, float],
-        live: bool,
-        adapting_rows: int = 0,
+        self, s: FilterState, kind: str, result: tuple[bool, float], rows: int, live: bool
     ) -> None:
-        """The books of an update of ``kind`` a kernel made (``result``: accepted, NIS), as
-        Corrections.update keeps them without a recovery: the process-noise adaptation of a
-        GNSS update of ``adapting_rows`` rows (0: none), the state changed when accepted,
-        Corrections.book."""
-        accepted, nis = result
-        if adapting_rows and math.isfinite(nis):
-            s.nis_mean, s.q_scale = adapt_process_noise(s.nis_mean, s.q_scale, nis / adapting_rows)
-        if accepted:
+        """After an update of ``kind`` with ``rows`` rows a kernel made (``result``: accepted,
+        NIS): the state changed when accepted, and its books (Corrections.book)."""
+        if result[0]:
             s.changed()
-        self._corrections.book(s, kind, accepted, nis, live)
+        self._corrections.book(s, kind, result, rows, live)
 
 
 class FusedNhc(FusedUpdate):
@@ -252,4 +240,4 @@ class FusedNhc(FusedUpdate):
             (self._correlation_time_s, self._config.nhc_sigma_m_s, self._gates[1], kf.layout.size),
         )
         self._taken(kf, stepped, phi, P)
-        self._booked(s, "nhc", (accepted, nis), live)
+        self._booked(s, "nhc", (accepted, nis), 2, live)

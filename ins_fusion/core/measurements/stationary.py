@@ -81,7 +81,7 @@ class FusedStationary(FusedUpdate):
             (self._correlation_time_s, self._config.zupt_sigma_m_s, self._gates[2], kf.layout.size),
         )
         self._taken(kf, stepped, phi, P)
-        self._booked(s, "zupt", (accepted, nis), live)
+        self._booked(s, "zupt", (accepted, nis), 3, live)
 
     def zaru(
         self,
@@ -101,4 +101,4 @@ class FusedStationary(FusedUpdate):
             (self._correlation_time_s, self._gates[2], kf.layout.size),
         )
         self._taken(kf, stepped, phi, P)
-        self._booked(s, "zaru", (accepted, nis), live)
+        self._booked(s, "zaru", (accepted, nis), 3, live)

@@ -16,14 +16,7 @@ import numpy as np
 
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core.filter.adaptation import adapt_process_noise, fading_factor
-from ins_fusion.core.filter.eskf import (
-    ATT,
-    POS,
-    VEL,
-    ErrorStateFilter,
-    chi2_threshold,
-    projected_variance,
-)
+from ins_fusion.core.filter.eskf import ATT, POS, VEL, ErrorStateFilter
 from ins_fusion.core.filter.records import (
     AttitudeMeasurement,
     GnssFixMeasurement,
@@ -32,6 +25,7 @@ from ins_fusion.core.filter.records import (
 )
 from ins_fusion.core.filter.state import X_BG, FilterState, Geometry, LatestInputs, inject
 from ins_fusion.core.filter.status import Counters
+from ins_fusion.core.filter.update_algebra import chi2_threshold, projected_variance
 from ins_fusion.core.measurements.gnss_noise import NOISE_MOVED, NOISE_RESTART, GnssNoise
 from ins_fusion.core.measurements.heading import fast_enough, heading_from_course, set_heading
 from ins_fusion.core.measurements.models import (
@@ -104,16 +98,14 @@ class Corrections:
             H = H.copy()
             H[:, ATT + 2] = 0.0
         result = kf.update(z, H, R, self._gates[len(z)])
-        self.nis[kind] = result.nis  # as first tested, also when a recovery follows
-        if kind in _ADAPTING_KINDS and math.isfinite(result.nis):
-            s.nis_mean, s.q_scale = adapt_process_noise(s.nis_mean, s.q_scale, result.nis / len(z))
-        gated = not result.accepted and math.isfinite(result.nis)
-        runs = s.gated_runs
+        nis = result.nis  # booked as first tested, also when a recovery follows
+        gated = not result.accepted and math.isfinite(nis)
         recover = self._config.gate_recovery_count
         block = _RECOVERY_BLOCKS.get(kind)
         if kind == "gnss_position" and not s.gnss_white.ready:
             block = None  # the receiver's noise is not learnt yet: it, not the state, may be off
-        if gated and recover and block is not None and runs.get(kind, 0) + 1 >= recover:
+        recovered = False
+        if gated and recover and block is not None and s.gated_runs.get(kind, 0) + 1 >= recover:
             # The filter has rejected this sensor `recover` times running: its state, not the
             # sensor, is the likelier culprit (a state that went wrong and a covariance too
             # small to admit the fix, e.g. IMU noise far above the model). Grow the whole
@@ -130,10 +122,8 @@ class Corrections:
             if kf.recorder is not None:  # smoother hook: the recovery's noise
                 kf.recorder.on_noise(P_before, kf.P)
             result = kf.update(z, H, R, math.inf)
-            gated = False
-            if live:
-                self._counters[kind]["recoveries"] += 1
-        self._count(s, kind, gated, result.accepted, live)
+            recovered = True
+        self.book(s, kind, (result.accepted, nis), len(z), live, recovered)
         if result.dx is not None:
             inject(s, kf, result.dx)
         return result.dx
@@ -142,20 +132,32 @@ class Corrections:
         """The gate on the NIS of a measurement of ``dof`` rows."""
         return self._gates[dof]
 
-    def book(self, s: FilterState, kind: str, accepted: bool, nis: float, live: bool) -> None:
-        """The books of an update of ``kind`` made elsewhere (core.measurements.nhc) without a gate
-        recovery: its NIS and, as ``update`` keeps them, its runs of gated updates and its
-        counters."""
+    def book(
+        self,
+        s: FilterState,
+        kind: str,
+        outcome: tuple[bool, float],
+        rows: int,
+        live: bool,
+        recovered: bool = False,
+    ) -> None:
+        """The books of an update of ``kind`` with ``rows`` rows, made by ``update`` or by a
+        compiled update (core.measurements: no gate recovery there): its NIS (``outcome``:
+        accepted, NIS as first tested), the process-noise adaptation of a GNSS update, the runs
+        of gated updates in ``s`` and, ``live``, its counters (``recovered``: a gate recovery
+        admitted it)."""
+        accepted, nis = outcome
         self.nis[kind] = nis
-        self._count(s, kind, not accepted and math.isfinite(nis), accepted, live)
-
-    def _count(self, s: FilterState, kind: str, gated: bool, accepted: bool, live: bool) -> None:
-        """The runs of gated updates of ``kind`` in ``s`` and (``live``) its counters."""
+        if kind in _ADAPTING_KINDS and math.isfinite(nis):
+            s.nis_mean, s.q_scale = adapt_process_noise(s.nis_mean, s.q_scale, nis / rows)
+        gated = not (accepted or recovered) and math.isfinite(nis)
         runs = s.gated_runs
         if gated or runs.get(kind, 0):
             s.gated_runs = {**runs, kind: runs.get(kind, 0) + 1 if gated else 0}
         if live:
             counters = self._counters[kind]
+            if recovered:
+                counters["recoveries"] += 1
             if accepted:
                 counters["used"] += 1
             else:
