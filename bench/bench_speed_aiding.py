@@ -13,12 +13,13 @@ drive with its CAN speed and on simulated IMU400CC drives with a survey DMI.
 2. Simulated: `gnss_ins simulate --speed` drives (test pattern, 900 s, IMU400CC, Leica RTK, ADU5,
    the DMI on the left rear wheel: 2 % scale error, 500 pulses/m, 20 Hz) replayed with the
    defaults and `speed.lever_arm` = the DMI's hub (0, 0.8, 0.33) m as a user measures it; five 60 s
-   outages. The scale estimate after 300 s and at the end, and each outage's largest horizontal
-   error as a share of the distance driven in it.
+   outages. The scale estimate after 300 s and at the end, each outage's largest horizontal
+   error as a share of the distance driven in it, and that error's along-track part (what the
+   speed holds) and cross-track part (the heading: the gyro's) at its worst.
 3. Slip: the same drive with the wheels slipping from 1 m/s² of braking (the simulator's default
    is 3 m/s²): readings the slip spoils (more than 3σ below the same drive's reading without
-   slip), how many speed readings the gate rejects, and the trajectory against the same drive
-   without slip.
+   slip), how many speed readings are rejected (``speed.max_accel``) or gated, and the trajectory
+   against the same drive without slip.
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ from gnss_ins_common.types import FloatArray
 from ins_fusion.core.settings.config import NODE_NAME
 from ins_fusion.core.settings.params import PARAMETERS
 from ins_fusion.replay.inputs import ReplayInputs, load_bag
+from ins_fusion.replay.metrics import Evaluation
 from ins_fusion.replay.outages import Outage
 from ins_fusion.replay.pipeline import replay
 from ins_fusion.replay.topics import DEFAULT_REFERENCE, TopicMap
@@ -169,6 +171,22 @@ def distance_m(inputs: ReplayInputs, outage: Outage) -> float:
     return float(np.trapezoid(speed, t[inside]))
 
 
+def along_cross(evaluation: Evaluation, outage: Outage) -> tuple[float, float]:
+    """|Along-track| and |cross-track| horizontal error [m] at an outage's largest horizontal
+    error, along the direction of the reference's last metre of travel before it."""
+    errors, path = evaluation.position, evaluation.reference_enu_m[:, :2]
+    inside = np.flatnonzero((errors.t_rel_s >= outage.start_s) & (errors.t_rel_s < outage.end_s))
+    k = int(inside[np.argmax(np.hypot(*errors.error[inside, :2].T))])
+    j = k - 1
+    while j > 0 and np.hypot(*(path[k] - path[j])) < 1.0:
+        j -= 1
+    direction = (path[k] - path[j]) / max(float(np.hypot(*(path[k] - path[j]))), 1e-9)
+    east, north = errors.error[k, :2]
+    return abs(east * direction[0] + north * direction[1]), abs(
+        east * direction[1] - north * direction[0]
+    )
+
+
 def simulated_drives(directory: Path) -> None:
     params = validate_all(PARAMETERS, {"speed.lever_arm": DMI_LEVER_ARM})
     print(
@@ -178,16 +196,24 @@ def simulated_drives(directory: Path) -> None:
     print()
     print(
         "| seed | speed | scale at 300 s % (3σ) | scale at the end % (3σ) | largest error per"
-        " outage, % of the distance | worst % | horiz RMS m | NEES (in 3σ) |"
+        " outage, % of the distance | worst % | along / cross-track there, worst % |"
+        " horiz RMS m | NEES (in 3σ) |"
     )
-    print("|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|")
     for seed in SIM_SEEDS:
         inputs = load_bag(simulate(directory, seed), TopicMap(), DEFAULT_REFERENCE)
         for aided, data in (("no", without_speed(inputs)), ("yes", inputs)):
-            report = replay(data, params, SIM_OUTAGES, DEFAULT_REFERENCE).report
+            result = replay(data, params, SIM_OUTAGES, DEFAULT_REFERENCE)
+            report = result.report
+            assert result.evaluation is not None
+            distances = [distance_m(inputs, outage) for outage in SIM_OUTAGES]
             shares = [
-                100.0 * o["horizontal_error_max_m"] / distance_m(inputs, outage)
-                for o, outage in zip(report["outages"], SIM_OUTAGES, strict=True)
+                100.0 * o["horizontal_error_max_m"] / d
+                for o, d in zip(report["outages"], distances, strict=True)
+            ]
+            parts = [
+                [100.0 * e / d for e in along_cross(result.evaluation, outage)]
+                for outage, d in zip(SIM_OUTAGES, distances, strict=True)
             ]
             scales = []
             if aided == "yes":
@@ -202,7 +228,9 @@ def simulated_drives(directory: Path) -> None:
                 f"| {seed} | {aided} | {scales[0] if scales else '-'} |"
                 f" {scales[1] if scales else '-'} | "
                 + ", ".join(f"{s:.2f}" for s in shares)
-                + f" | {max(shares):.2f} | {_f(report['position_error_m']['horizontal_rms'], 3)}"
+                + f" | {max(shares):.2f} | {max(a for a, _ in parts):.2f} /"
+                f" {max(c for _, c in parts):.2f}"
+                f" | {_f(report['position_error_m']['horizontal_rms'], 3)}"
                 f" | {_nees(nees)} |"
             )
             sys.stdout.flush()
@@ -231,8 +259,8 @@ def slip(directory: Path) -> None:
     print(f"## Slip from {SLIP_THRESHOLD_M_S2} m/s² of braking (seed {seed})")
     print()
     print(
-        "| drive | readings spoilt | speed readings gated | horiz RMS m | largest outage error m"
-        " | NEES (in 3σ) |"
+        "| drive | readings spoilt | speed readings rejected (gated) | horiz RMS m"
+        " | largest outage error m | NEES (in 3σ) |"
     )
     print("|---|---|---|---|---|---|")
     clean = load_bag(simulate(directory, seed), TopicMap(), DEFAULT_REFERENCE)
@@ -241,10 +269,11 @@ def slip(directory: Path) -> None:
     for label, inputs, spoilt in (("no slip", clean, 0), ("slip", slipping, spoiled)):
         report = replay(inputs, params, SIM_OUTAGES, DEFAULT_REFERENCE).report
         worst = max(e for e, _ in outage_rows(report))
+        speed = report["measurements"]["vehicle_speed"]
         nees = report["nees"]
         print(
             f"| {label} | {spoilt} |"
-            f" {report['measurements']['vehicle_speed']['gated']} |"
+            f" {speed['rejected']} ({speed['gated']}) |"
             f" {_f(report['position_error_m']['horizontal_rms'], 3)} | {_f(worst)} |"
             f" {_nees(nees)} |"
         )

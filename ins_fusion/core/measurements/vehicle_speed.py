@@ -16,10 +16,13 @@ H: δv -> g a C_nbᵀ, ψ -> g a C_nbᵀ [v×], gyro errors -> g a (-[r×]) dω_
 δμ_z -> +g v_b,y, δk_s -> the predicted forward speed, with g = 1 + k̂_s and a = e_xᵀ (I - [μ×])
 the vehicle's forward axis in the body frame (v_b = C_nbᵀ v + ω_b × r).
 
-The update is gated (chi-square, 1 degree of freedom) and never recovered by widening the
-covariance: a wheel that slips or locks under hard braking breaks the model, and the gate is
-what keeps such readings out. While the heading is unknown only readings near standstill are
-used (the yaw enters the forward direction).
+A wheel that slips under braking (or spins under traction) breaks the model. Readings taken
+while the IMU measures a forward acceleration beyond ``speed.max_accel`` (low-passed over
+0.1 s) are not used (counted rejected): tyre slip grows with the longitudinal force, so that
+is where it happens. The update is gated (chi-square, 1 degree of freedom) and never recovered
+by widening the covariance: the gate keeps out what slip remains (a locked wheel, ice). While
+the heading is unknown only readings near standstill are used (the yaw enters the forward
+direction).
 """
 
 from __future__ import annotations
@@ -111,6 +114,7 @@ class SpeedUpdate:
 
     def __init__(self, config: FusionConfig, geometry: Geometry, corrections: Corrections) -> None:
         self._least_sigma_m_s = config.speed_sigma_m_s
+        self._max_accel_m_s2 = config.speed_max_accel_m_s2
         self._geometry = geometry
         self._corrections = corrections
 
@@ -127,6 +131,10 @@ class SpeedUpdate:
             corrections.reject(SPEED_KIND, live)
             return
         if not s.heading_known and corrections.too_fast_to_align(pred, live, SPEED_KIND):
+            return
+        forward_accel = float(pred.mat_nb[:, 0] @ np.asarray(s.accel_lp))
+        if abs(forward_accel) > self._max_accel_m_s2:  # the tyres may slip: not used
+            corrections.reject(SPEED_KIND, live)
             return
         reading = (measured.speed_m_s, speed_variance(measured, self._least_sigma_m_s))
         geometry = self._geometry

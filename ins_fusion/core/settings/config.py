@@ -116,6 +116,7 @@ class FusionConfig:
     speed_lever_arm_flu_m: Vec3
     speed_sigma_m_s: float
     speed_scale_sigma: float
+    speed_max_accel_m_s2: float
     stop_detector: StopDetectorConfig
     alignment_duration_s: float
     course_speed_m_s: float
@@ -180,6 +181,7 @@ class FusionConfig:
             speed_lever_arm_flu_m=_vec(p["speed.lever_arm"]),
             speed_sigma_m_s=p["speed.sigma"],
             speed_scale_sigma=p["speed.scale_sigma"] / 100.0,
+            speed_max_accel_m_s2=p["speed.max_accel"],
             stop_detector=StopDetectorConfig(
                 window_s=p["stop_detector.window"],
                 accel_variance=p["stop_detector.accel_variance"],

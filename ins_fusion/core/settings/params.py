@@ -353,6 +353,14 @@ PARAMETERS: tuple[Param, ...] = (
         0.0,
         50.0,
     ),
+    Param(
+        "speed.max_accel",
+        1.5,
+        "speed readings are not used while the IMU measures a forward acceleration or braking "
+        "beyond this [m/s^2] (the tyres may slip)",
+        0.1,
+        100.0,
+    ),
     # Stop detector (NTNU §7; hysteresis and minimum duration ours).
     Param("stop_detector.window", 1.0, "variance window [s]", 0.1, 10.0),
     Param(
