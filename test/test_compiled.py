@@ -139,6 +139,16 @@ _REAL = Path(__file__).parent / "fixtures" / "comma2k19" / "comma2k19_ex1_seg40"
 _REAL_SPEED = _REAL.with_name("comma2k19_ex1_seg40_speed")
 
 
+def _callee_specialised(signatures: list[tuple[object, ...]]) -> bool:
+    """Two signatures that differ only where one has a literal (numba's Literal type)."""
+    if len(signatures) != 2:
+        return False
+    first, second = (tuple(str(t) for t in s) for s in signatures)
+    return len(first) == len(second) and all(
+        a == b or "Literal" in a or "Literal" in b for a, b in zip(first, second, strict=True)
+    )
+
+
 def test_warm_up_types_every_kernel_the_drives_use(drive: Path) -> None:
     """After core.engine.warm_up, drives (simulated with every optional state, the real segment) add
     no compilation: a live sample never waits for the compiler."""
@@ -147,7 +157,10 @@ def test_warm_up_types_every_kernel_the_drives_use(drive: Path) -> None:
     warm_up()
     assert all(hasattr(kernel, "py_func") for kernel in _KERNELS)  # compiled, not Python
     signatures = {kernel: list(kernel.signatures) for kernel in _KERNELS}
-    assert all(len(s) == 1 for s in signatures.values()), signatures
+    # One set of argument types each; compiled afresh (an empty cache), a kernel that another
+    # kernel calls also gets the caller's specialisation (a literal flag or column: advance,
+    # attitude_model, zaru_model), which a process loading the cache does not list.
+    assert all(len(s) == 1 or _callee_specialised(s) for s in signatures.values()), signatures
     all_states = {**PARAMETER_SETS["all_states"], "gnss_noise.correlation_time": 0.0}
     for bag, values in ((drive, all_states), (drive, {}), (_REAL, {}), (_REAL_SPEED, {})):
         run = run_fusion(load_bag(bag, TopicMap()), validate_all(PARAMETERS, values), OUTAGES)
