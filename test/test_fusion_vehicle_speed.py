@@ -19,6 +19,9 @@ from nav_msgs.msg import Odometry
 
 from gnss_ins_common.params import load_yaml
 from ins_fusion.adapters import messages_in
+from ins_fusion.bags.bag_io import BagReader, BagWriter
+from ins_fusion.bags.messages import new_message
+from ins_fusion.bags.topics import ODOMETRY_TYPE
 from ins_fusion.core.engine.engine import InsEngine, VehicleSpeedMeasurement
 from ins_fusion.core.filter.eskf import ATT, BG, VEL, StateLayout
 from ins_fusion.core.measurements.vehicle_speed import speed_model, speed_variance
@@ -225,3 +228,30 @@ def test_replay_uses_the_bags_speed_and_says_so_in_its_report(tmp_path, capsys):
     # low-passed over 0.1 s, reads more than speed.max_accel (counted rejected, not gated).
     assert counters["used"] > 0.85 * 4974 and counters["gated"] < 0.02 * 4974
     assert "vehicle_speed" in out and "vehicle speed scale error" in out
+
+
+def test_wheel_odometry_in_a_bag_is_the_same_speed_under_topics_speed(tmp_path, capsys):
+    """The fixture's speed rewritten as nav_msgs/Odometry on another topic and named with
+    ``--topics speed=``: the replay reads the same readings (through rosbags) and gives the same
+    report as from the TwistWithCovarianceStamped."""
+    bag = tmp_path / "odometry"
+    with BagReader(SPEED_BAG) as reader, BagWriter(bag) as writer:
+        for message in reader.messages(deserialize=True):
+            if message.topic != "/vehicle/speed":
+                writer.add_topic(message.topic, reader.topics[message.topic].msgtype)
+                writer.write(message.topic, message.log_time_ns, message.message)
+                continue
+            odometry = new_message(ODOMETRY_TYPE)
+            odometry.header = message.message.header
+            odometry.child_frame_id = "base_link"
+            odometry.twist = message.message.twist
+            writer.write("/wheels/odometry", message.log_time_ns, odometry)
+    reports = []
+    for path, topics in ((SPEED_BAG, []), (bag, ["--topics", "speed=/wheels/odometry"])):
+        report_path = tmp_path / f"{path.name}.json"
+        assert cli.main(["replay", str(path), "--report", str(report_path), *topics]) == 0
+        reports.append(json.loads(report_path.read_text()))
+    capsys.readouterr()
+    assert reports[1]["topics"]["speed"] == "/wheels/odometry"
+    for key in ("measurements", "self_calibration", "position_error_m", "nees"):
+        assert reports[1][key] == reports[0][key], key
