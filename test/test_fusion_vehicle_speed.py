@@ -255,3 +255,18 @@ def test_wheel_odometry_in_a_bag_is_the_same_speed_under_topics_speed(tmp_path, 
     assert reports[1]["topics"]["speed"] == "/wheels/odometry"
     for key in ("measurements", "self_calibration", "position_error_m", "nees"):
         assert reports[1][key] == reports[0][key], key
+
+
+def test_the_speed_time_offset_is_taken_off_every_speed_stamp(can_inputs):
+    """speed.time_offset -0.036 s (the fixture's CAN speed leads the reference by 36 ms) gives
+    the same run as the readings stamped 36 ms later."""
+    outages = (Outage(25.0, 15.0),)
+    later = [
+        (k, role, dataclasses.replace(m, t_s=m.t_s + 0.036) if role == "speed" else m)
+        for k, role, m in can_inputs.measurements
+    ]
+    shifted = replay(
+        dataclasses.replace(can_inputs, measurements=later), {}, outages, DEFAULT_REFERENCE
+    )
+    offset = replay(can_inputs, {"speed.time_offset": -0.036}, outages, DEFAULT_REFERENCE)
+    assert np.array_equal(shifted.run.track.rows, offset.run.track.rows)

@@ -46,6 +46,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 
@@ -201,11 +202,14 @@ class InsEngine(EngineLoop):
             self._add("gnss_velocity", vel.t_s, vel)
 
     def add_vehicle_speed(self, speed: VehicleSpeedMeasurement) -> None:
-        """Forward speed of the measuring point (vehicle/speed) at its stamp; only with
-        ``speed.use`` (the filter then has the speed scale state)."""
-        if not self.config.use_speed:
+        """Forward speed of the measuring point (vehicle/speed) at its stamp less
+        ``speed.time_offset``; only with ``speed.use`` (the filter then has the speed scale
+        state)."""
+        config = self.config
+        if not config.use_speed:
             raise ValueError("a vehicle speed was given to an engine without speed.use")
-        self._add(SPEED_KIND, speed.t_s, speed)
+        t_s = speed.t_s - config.speed_time_offset_s
+        self._add(SPEED_KIND, t_s, speed if t_s == speed.t_s else replace(speed, t_s=t_s))
 
     def add_attitude(self, att: AttitudeMeasurement) -> None:
         """Orientation from the attitude receiver (gnss/attitude) at its epoch."""

@@ -117,6 +117,7 @@ class FusionConfig:
     speed_sigma_m_s: float
     speed_scale_sigma: float
     speed_max_accel_m_s2: float
+    speed_time_offset_s: float
     stop_detector: StopDetectorConfig
     alignment_duration_s: float
     course_speed_m_s: float
@@ -182,6 +183,7 @@ class FusionConfig:
             speed_sigma_m_s=p["speed.sigma"],
             speed_scale_sigma=p["speed.scale_sigma"] / 100.0,
             speed_max_accel_m_s2=p["speed.max_accel"],
+            speed_time_offset_s=p["speed.time_offset"],
             stop_detector=StopDetectorConfig(
                 window_s=p["stop_detector.window"],
                 accel_variance=p["stop_detector.accel_variance"],

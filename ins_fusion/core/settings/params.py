@@ -354,6 +354,14 @@ PARAMETERS: tuple[Param, ...] = (
         50.0,
     ),
     Param(
+        "speed.time_offset",
+        0.0,
+        "how much later than the GNSS epochs the speed readings are stamped [s]; subtracted "
+        "from every speed stamp (a CAN bus logged with its receive times: their latency)",
+        -1.0,
+        1.0,
+    ),
+    Param(
         "speed.max_accel",
         1.5,
         "speed readings are not used while the IMU measures a forward acceleration or braking "
