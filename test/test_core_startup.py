@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from ins_fusion.core.engine.startup import Startup
-from ins_fusion.core.filter.eskf import ATT, BA, BG, StateLayout
+from ins_fusion.core.filter.eskf import ATT, BA, BG, ErrorStateFilter, StateLayout
 from ins_fusion.core.filter.records import GnssFixMeasurement
-from ins_fusion.core.filter.state import UNKNOWN_YAW_VARIANCE, Geometry, LatestInputs
+from ins_fusion.core.filter.state import UNKNOWN_YAW_VARIANCE, FilterState, Geometry, LatestInputs
 from ins_fusion.core.filter.status import new_counters
 from ins_fusion.core.measurements.gnss_noise import GnssNoise
 from ins_fusion.core.nav import earth
@@ -71,14 +71,18 @@ def _fix(t: float) -> GnssFixMeasurement:
     return GnssFixMeasurement(t, LAT_DEG, LON_DEG, HEIGHT_M, np.diag([0.04, 0.04, 0.09]))
 
 
-def test_a_levelled_standstill_gives_the_first_state() -> None:
-    layout = StateLayout(False, False, True, False, False)
+def _started(layout: StateLayout) -> tuple[FilterState, ErrorStateFilter]:
+    """The first state and filter after 2 s of levelling with a fix at its end."""
     startup, latest = _startup(layout)
     _level(startup, 2.0)
     latest.fix = _fix(2.0)
     started = startup.try_start(2.0, True)
     assert started is not None
-    s, kf = started
+    return started
+
+
+def test_a_levelled_standstill_gives_the_first_state() -> None:
+    s, kf = _started(StateLayout(False, False, True, False, False))
     roll, pitch, _ = euler_rad(s.mat_nb)
     assert abs(roll - ROLL) < 1e-9 and abs(pitch - PITCH) < 1e-9
     assert not s.heading_known
@@ -110,13 +114,8 @@ def test_the_variance_ceiling_bounds_what_a_fading_may_grow(optional: bool) -> N
     """No ceiling on position, velocity and the correlated GNSS error; the attitude at least an
     unknown angle's variance; the accelerometer bias at its datasheet prior (turn-on² +
     instability²); the gyro bias at least its prior."""
-    layout = StateLayout(optional, optional, optional, optional, optional)
-    startup, latest = _startup(layout)
-    _level(startup, 2.0)
-    latest.fix = _fix(2.0)
-    started = startup.try_start(2.0, True)
-    assert started is not None
-    ceiling = started[1].variance_ceiling
+    layout = StateLayout(*[optional] * 5)
+    ceiling = _started(layout)[1].variance_ceiling
     assert np.all(np.isinf(ceiling[:ATT]))
     assert np.all(ceiling[ATT : ATT + 3] >= UNKNOWN_YAW_VARIANCE)
     noise = FusionConfig.from_parameters(PARAMETERS).imu_noise
