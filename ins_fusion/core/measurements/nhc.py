@@ -1,10 +1,17 @@
-"""The non-holonomic constraint (NHC) with the covariance step before it in one compiled call.
+"""The non-holonomic constraint (NHC): its model, its handler and its compiled update with the
+covariance step before it; and what every compiled update of core.measurements shares
+(``step_to``, ``update_and_restart``, ``update_rows``, the ``FusedUpdate`` base).
+
+The model (``nhc``, compiled ``nhc_model``): no lateral or vertical velocity of base_link's
+origin in the vehicle frame. The handler (``NhcUpdate``) builds it and calls Corrections.update
+(core.measurements.gate), never with a gate recovery. The stop detector files an NHC at every
+pseudo-measurement epoch while the vehicle moves with the heading known.
 
 The NHC is the engine's most frequent update (every pseudo-measurement epoch while driving,
 again in every re-propagation through it). Applied the general way (InsEngine._apply) it is
 five kernels with Python between them: the covariance step to the epoch
 (Propagator.propagate_covariance), the prediction (Propagator.predict), the model
-(measurements.nhc), the gated Joseph update (ErrorStateFilter.update) and the injection
+(``nhc_model``), the gated Joseph update (ErrorStateFilter.update) and the injection
 (state.inject). ``nhc_apply`` runs the same kernels in the same order in one call, so the numbers
 are the same to the bit; ``FusedNhc`` gives it its arguments and keeps the books
 (Corrections.book). While the heading is known (the NHC is filed only then) and without the
@@ -17,10 +24,13 @@ import math
 from collections.abc import Callable
 from typing import Any
 
+import numpy as np
+
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core.compiled import jit, kernel_array
-from ins_fusion.core.filter.eskf import Columns, ErrorStateFilter, ProcessModel
+from ins_fusion.core.filter.eskf import ATT, VEL, Columns, ErrorStateFilter, ProcessModel
 from ins_fusion.core.filter.propagation import Propagator, covariance_step, predicted_state
+from ins_fusion.core.filter.records import Prediction
 from ins_fusion.core.filter.state import (
     X_COV_DT,
     X_COV_VEL0,
@@ -31,13 +41,92 @@ from ins_fusion.core.filter.state import (
     inject_nominal,
 )
 from ins_fusion.core.filter.update_algebra import joseph_update
-from ins_fusion.core.measurements.models import nhc_model
-from ins_fusion.core.measurements.updates import Corrections
+from ins_fusion.core.measurements.common import Model, gyro_error_columns
+from ins_fusion.core.measurements.gate import Corrections
+from ins_fusion.core.nav.rotation import skew
 from ins_fusion.core.settings.config import FusionConfig
 
 #: What ``predicted_state`` gives: latitude, longitude [rad], height [m], NED velocity [m/s],
 #: C_nb, corrected rate in body and imu FRD [rad/s].
 Predicted = tuple[float, float, float, FloatArray, FloatArray, FloatArray, FloatArray]
+
+
+def nhc(
+    pred: Prediction,
+    arm_b: FloatArray,
+    mat_bi: FloatArray,
+    sigma_m_s: float,
+    mounting_rad: tuple[float, float] = (0.0, 0.0),
+) -> Model:
+    """No lateral or vertical velocity of the point ``arm_b`` (base_link origin) in the
+    vehicle frame: v_b = C_nbᵀ v + ω_b × r in base_link, turned into the vehicle frame by the
+    residual mounting μ = (pitch, yaw) about base_link FRD y and z, C_vb = I - [μ×]:
+    lateral v_b,y - μ_z v_b,x, vertical v_b,z + μ_y v_b,x. H: δv -> C_nbᵀ, ψ -> C_nbᵀ [v×],
+    gyro errors -> -[r×] dω_b (``gyro_error_columns``), δμ_y -> +v_b,x
+    (vertical), δμ_z -> -v_b,x (lateral) (the mounting's second-order terms in H left out).
+    Compiled (``nhc_model``)."""
+    layout = pred.layout
+    return nhc_model(
+        pred.mat_nb,
+        pred.vel_ned_m_s,
+        pred.rate_b,
+        pred.rate_i,
+        arm_b,
+        mat_bi,
+        sigma_m_s,
+        mounting_rad,
+        layout.size,
+        layout.columns[0],
+        layout.columns[3],
+    )
+
+
+@jit
+def nhc_model(
+    mat_nb: FloatArray,
+    vel: FloatArray,
+    rate_b: FloatArray,
+    rate_i: FloatArray,
+    arm_b: FloatArray,
+    mat_bi: FloatArray,
+    sigma_m_s: float,
+    mounting_rad: tuple[float, float],
+    size: int,
+    sg: int,
+    mt: int,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """``nhc``'s model from the prediction's arrays and the layout's size and columns (-1:
+    state not estimated)."""
+    c_bn = np.ascontiguousarray(mat_nb.T)
+    v_b = c_bn @ vel + skew(rate_b) @ arm_b
+    H = np.zeros((3, size))
+    H[:, VEL : VEL + 3] = c_bn
+    H[:, ATT : ATT + 3] = c_bn @ skew(vel)
+    gyro_error_columns(H, -skew(arm_b), mat_bi, rate_i, sg)
+    pitch, yaw = mounting_rad
+    forward = v_b[0]
+    predicted = np.array((v_b[1] - yaw * forward, v_b[2] + pitch * forward))
+    if mt >= 0:
+        H[1, mt + 1] = -forward
+        H[2, mt] = forward
+    return -predicted, H[1:].copy(), np.eye(2) * sigma_m_s**2
+
+
+class NhcUpdate:
+    """The engine's handler of NHC records (core.measurements.gate.Handler; no payload): the
+    model of the base_link origin with the residual mounting and the gated update."""
+
+    def __init__(self, config: FusionConfig, geometry: Geometry, corrections: Corrections) -> None:
+        self._sigma_m_s = config.nhc_sigma_m_s
+        self._geometry = geometry
+        self._corrections = corrections
+
+    def __call__(
+        self, s: FilterState, kf: ErrorStateFilter, pred: Prediction, _: None, live: bool
+    ) -> None:
+        geometry = self._geometry
+        model = nhc(pred, geometry.arms(s)[1], geometry.mat_bi, self._sigma_m_s, s.mounting)
+        self._corrections.update(s, kf, "nhc", model, live)
 
 
 @jit
