@@ -33,10 +33,11 @@ from ins_fusion.core.measurements.common import (
     Model,
     euler_jacobian,
     mounting_skew,
+    step_to,
+    update_rows,
 )
-from ins_fusion.core.measurements.gate import Corrections
+from ins_fusion.core.measurements.gate import Corrections, FusedUpdate
 from ins_fusion.core.measurements.heading import set_heading
-from ins_fusion.core.measurements.nhc import FusedUpdate, step_to, update_rows
 from ins_fusion.core.nav.rotation import as_quat, euler_rad, wrap_angle
 
 _KIND = "attitude"

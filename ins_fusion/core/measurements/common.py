@@ -1,6 +1,9 @@
-"""What the measurement models of several kinds share: the form of a model, the variances that
-mark a component as not measured, ENU <-> NED covariances, the residual mounting, the gyro-error
+"""What the measurement kinds share. Their models: the form of a model, the variances that mark
+a component as not measured, ENU <-> NED covariances, the residual mounting, the gyro-error
 columns of H, the Euler-angle Jacobian and the IMU time-offset terms of a GNSS measurement.
+Their compiled updates: the covariance step and the prediction to the stamp (``step_to``) and
+the gated Joseph update with the injection (``update_and_restart``, ``update_rows``), the
+kernels each ``<kind>_apply`` is made of (their books: core.measurements.gate.FusedUpdate).
 
 Every model returns (z, H, R) with the innovation z = measured - predicted, so that
 z ≈ H δx + v for the error state of core.filter.eskf (x_true = x_nominal + δx, C_true = (I + [ψ×])
@@ -18,9 +21,11 @@ import math
 import numpy as np
 
 from gnss_ins_common.types import FloatArray
-from ins_fusion.core.compiled import compilable
-from ins_fusion.core.filter.eskf import BG, ErrorStateFilter
-from ins_fusion.core.filter.state import FilterState
+from ins_fusion.core.compiled import compilable, jit
+from ins_fusion.core.filter.eskf import BG, Columns, ErrorStateFilter, ProcessModel
+from ins_fusion.core.filter.propagation import covariance_step, predicted_state
+from ins_fusion.core.filter.state import X_COV_DT, X_COV_VEL0, X_NAV, FilterState, inject_nominal
+from ins_fusion.core.filter.update_algebra import joseph_update
 from ins_fusion.core.nav.rotation import skew
 
 #: A variance at or above this marks a component as not measured: GNSS vertical velocity [m²/s²]
@@ -113,3 +118,77 @@ def late_imu(
     if float(np.linalg.norm(rate_n[:rows])) >= min_rate:
         H[:, td] = rate_n[:rows]
     return z - shift, H, R
+
+
+#: What ``predicted_state`` gives: latitude, longitude [rad], height [m], NED velocity [m/s],
+#: C_nb, corrected rate in body and imu FRD [rad/s].
+Predicted = tuple[float, float, float, FloatArray, FloatArray, FloatArray, FloatArray]
+
+
+@jit
+def step_to(
+    P: FloatArray,
+    x: FloatArray,
+    t_m: float,
+    process: ProcessModel,
+    mat_bi: FloatArray,
+    columns: Columns,
+    correlation_time_s: float,
+) -> tuple[bool, FloatArray, FloatArray, Predicted]:
+    """What InsEngine._apply does before a model (heading known, no smoother): the covariance
+    step over the interval accumulated in ``x`` when there is one (``covariance_step``) and
+    the prediction to ``t_m`` [s]. Returns (stepped, Φ of the step (P when none), the new P,
+    the prediction)."""
+    stepped = not x[X_COV_DT] <= 0.0  # as Propagator.propagate_covariance decides
+    phi = P
+    if stepped:
+        P, phi = covariance_step(P, x, mat_bi, process, columns, correlation_time_s)
+    return stepped, phi, P, predicted_state(x, t_m)
+
+
+@jit
+def update_and_restart(
+    P: FloatArray,
+    x: FloatArray,
+    model: tuple[FloatArray, FloatArray, FloatArray],
+    threshold: float,
+    columns: Columns,
+) -> tuple[bool, float, FloatArray, FloatArray]:
+    """The gated Joseph update of ``model`` (z, H, R), the injection into ``x`` when accepted
+    and the covariance interval going on from the corrected velocity (what Corrections.update
+    and InsEngine._apply do after the model; heading known). Returns (accepted, NIS, δx (z
+    when rejected), new P (P when rejected))."""
+    z, H, R = model
+    accepted, nis, dx, P_new = joseph_update(P, z, H, R, threshold)
+    if accepted:
+        inject_nominal(x, dx, columns)
+    restart_interval(x)
+    return accepted, nis, dx, P_new
+
+
+@jit
+def update_rows(
+    P: FloatArray,
+    x: FloatArray,
+    rows: int,
+    model: tuple[FloatArray, FloatArray, FloatArray],
+    gates: tuple[float, float, float],
+    columns: Columns,
+) -> tuple[bool, float, FloatArray]:
+    """``update_and_restart`` of a model of ``rows`` rows (1-3) at the gate of that many
+    (``gates``: of 1, 2 and 3 rows); a model without rows (nothing measured) updates nothing,
+    and the covariance interval goes on from the velocity all the same. Returns (accepted,
+    NIS (NaN without rows), new P)."""
+    if rows == 0:
+        restart_interval(x)
+        return False, math.nan, P
+    accepted, nis, _, P_new = update_and_restart(P, x, model, gates[rows - 1], columns)
+    return accepted, nis, P_new
+
+
+@jit
+def restart_interval(x: FloatArray) -> None:
+    """The covariance interval in ``x`` goes on from the current velocity (after an update,
+    as InsEngine._apply)."""
+    for k in range(3):
+        x[X_COV_VEL0 + k] = x[X_NAV + 3 + k]

@@ -5,7 +5,9 @@ innovation's NIS (threshold core.filter.update_algebra.chi2_threshold), the Jose
 feedback of the estimate into the nominal state and, after ``gate_recovery_count`` gated
 updates of a sensor in a row, the recovery that grows the covariance until the measurement
 fits. ``Corrections.book`` keeps the books of an update, made here or by a compiled update of
-core.measurements: NIS, the process-noise adaptation, the runs of gated updates, the counters.
+core.measurements: NIS, the process-noise adaptation, the runs of gated updates, the counters;
+``FusedUpdate``, the base of each kind's compiled update on the engine's side, what such an
+update leaves in the filter and in those books.
 
 The handlers, one per kind, are in the kind's module (gnss_position, gnss_velocity, attitude,
 stationary, nhc, vehicle_speed), registered in ``Corrections.handlers`` by core.engine.loop.
@@ -22,10 +24,12 @@ from typing import Any
 import numpy as np
 
 from gnss_ins_common.types import FloatArray
+from ins_fusion.core.compiled import kernel_array
 from ins_fusion.core.filter.adaptation import adapt_process_noise, fading_factor
 from ins_fusion.core.filter.eskf import ATT, POS, VEL, ErrorStateFilter
+from ins_fusion.core.filter.propagation import Propagator
 from ins_fusion.core.filter.records import Prediction
-from ins_fusion.core.filter.state import FilterState, inject
+from ins_fusion.core.filter.state import FilterState, Geometry, inject
 from ins_fusion.core.filter.status import Counters
 from ins_fusion.core.filter.update_algebra import chi2_threshold
 from ins_fusion.core.measurements.common import Model
@@ -150,3 +154,89 @@ class Corrections:
             return False
         self.reject(kind, live)
         return True
+
+
+class FusedUpdate:
+    """The base of each kind's compiled update on the engine's side (``Fused<Kind>`` in the
+    kind's module): what it reads (the configuration, the geometry, the propagator's white-noise
+    densities, the gates) and what its kernel leaves in the filter and in the books."""
+
+    def __init__(
+        self,
+        config: FusionConfig,
+        geometry: Geometry,
+        propagator: Propagator,
+        corrections: Corrections,
+    ) -> None:
+        self._config = config
+        self._geometry = geometry
+        self._propagator = propagator
+        self._corrections = corrections
+        self._correlation_time_s = config.gnss_correlation_time_s
+        self._gates = (corrections.gate(1), corrections.gate(2), corrections.gate(3))
+
+    def _kernel(
+        self,
+        kernel: Callable[..., Any],
+        state: tuple[FilterState, ErrorStateFilter],
+        measured: Any,
+        geometry: Any,
+        constants: Any,
+    ) -> Any:
+        """``kernel``(P, x, ``measured``, process model, ``geometry``, columns, ``constants``)
+        on the ``state``'s filter (its white noise set first: read only by a step)."""
+        s, kf = state
+        kf.set_white_noise(*self._propagator.white_noise(s))
+        return kernel(
+            kernel_array(kf.P),
+            s.x,
+            measured,
+            kf.process_model(),
+            geometry,
+            kf.layout.columns,
+            constants,
+        )
+
+    def _sensor_usable(self, s: FilterState, kf: ErrorStateFilter, kind: str) -> bool:
+        """Whether the general way would apply a sensor's update of ``kind`` just as its
+        kernel does: the heading known, no smoother (its recorder hears each step), no
+        time-offset state (its terms) and no gate recovery possible (fewer gated updates in a
+        row than the recovery needs)."""
+        if kf.recorder is not None or kf.layout.td is not None or not s.heading_known:
+            return False
+        recover = self._config.gate_recovery_count
+        return not recover or s.gated_runs.get(kind, 0) + 1 < recover
+
+    def _sensor_taken(
+        self,
+        state: tuple[FilterState, ErrorStateFilter],
+        kind: str,
+        result: tuple[bool, FloatArray, int, bool, float, FloatArray],
+        live: bool,
+    ) -> None:
+        """What a sensor's kernel ``result`` (stepped, Φ, rows (0: unusable), accepted, NIS,
+        new P) leaves in the filter and the books."""
+        s, kf = state
+        stepped, phi, rows, accepted, nis, P = result
+        self._taken(kf, stepped, phi, P)
+        if rows == 0:
+            self._corrections.reject(kind, live)
+            return
+        self._booked(s, kind, (accepted, nis), rows, live)
+
+    @staticmethod
+    def _taken(kf: ErrorStateFilter, stepped: bool, phi: FloatArray, P: FloatArray) -> None:
+        """What the kernel leaves in the filter: Φ of its covariance step (when it made one)
+        and the new P."""
+        if stepped:
+            kf.phi = phi
+        kf.P = P
+
+    def _booked(
+        self, s: FilterState, kind: str, result: tuple[bool, float], rows: int, live: bool
+    ) -> None:
+        """After an update of ``kind`` with ``rows`` rows a kernel made (``result``: accepted,
+        NIS): the state changed when accepted, and its books (Corrections.book)."""
+        if result[0]:
+            s.changed()
+        self._corrections.book(s, kind, result, rows, live)

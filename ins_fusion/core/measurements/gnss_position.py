@@ -40,8 +40,8 @@ from ins_fusion.core.filter.state import (
     Geometry,
 )
 from ins_fusion.core.filter.update_algebra import projected_variance
-from ins_fusion.core.measurements.common import Model, late_imu
-from ins_fusion.core.measurements.gate import Corrections
+from ins_fusion.core.measurements.common import Model, late_imu, step_to, update_and_restart
+from ins_fusion.core.measurements.gate import Corrections, FusedUpdate
 from ins_fusion.core.measurements.gnss_noise import (
     NOISE_MOVED,
     NOISE_RESTART,
@@ -49,7 +49,6 @@ from ins_fusion.core.measurements.gnss_noise import (
     _position_noise,
     shrink_correlated,
 )
-from ins_fusion.core.measurements.nhc import FusedUpdate, step_to, update_and_restart
 from ins_fusion.core.nav import earth
 from ins_fusion.core.nav.rotation import skew
 from ins_fusion.core.settings.config import FusionConfig

@@ -12,9 +12,9 @@ and again in every re-propagation through its stamp. The general way (InsEngine.
 Propagator.propagate_covariance and predict, ``VelocityUpdate`` with the model
 ``velocity_model``, Corrections.update with the Joseph update and the injection) is five
 kernels with Python between them; ``velocity_apply`` runs the same kernels in the same order in
-one call (the NHC's ``step_to`` and ``update_and_restart``), so the numbers are the same to the
-bit, and ``FusedVelocity`` keeps the books (NIS, process-noise adaptation, gated runs,
-counters). Taken only where the general way would do nothing else: the heading known, velocity
+one call (``step_to`` and ``update_rows`` of core.measurements.common), so the numbers are the
+same to the bit, and ``FusedVelocity`` keeps the books (NIS, process-noise adaptation, gated
+runs, counters). Taken only where the general way would do nothing else: the heading known, velocity
 updates on, no time-offset state (its terms), no smoother (its recorder hears each step), and
 no gate recovery possible (fewer gated updates in a row than the recovery needs).
 """
@@ -36,11 +36,12 @@ from ins_fusion.core.measurements.common import (
     gyro_error_columns,
     late_imu,
     ned_cov,
+    step_to,
+    update_rows,
 )
-from ins_fusion.core.measurements.gate import Corrections
+from ins_fusion.core.measurements.gate import Corrections, FusedUpdate
 from ins_fusion.core.measurements.gnss_noise import GnssNoise
 from ins_fusion.core.measurements.heading import fast_enough, heading_from_course
-from ins_fusion.core.measurements.nhc import FusedUpdate, step_to, update_rows
 from ins_fusion.core.nav.rotation import skew
 from ins_fusion.core.settings.config import FusionConfig
 

@@ -27,9 +27,8 @@ from ins_fusion.core.compiled import jit, kernel_array
 from ins_fusion.core.filter.eskf import BG, VEL, Columns, ErrorStateFilter, ProcessModel
 from ins_fusion.core.filter.records import Prediction
 from ins_fusion.core.filter.state import X_BG, FilterState, Geometry
-from ins_fusion.core.measurements.common import Model
-from ins_fusion.core.measurements.gate import Corrections
-from ins_fusion.core.measurements.nhc import FusedUpdate, step_to, update_and_restart
+from ins_fusion.core.measurements.common import Model, step_to, update_and_restart
+from ins_fusion.core.measurements.gate import Corrections, FusedUpdate
 from ins_fusion.core.nav.levelling import earth_rate_body_rad_s, unknown_earth_rate_rad_s
 from ins_fusion.core.settings.config import FusionConfig
 
