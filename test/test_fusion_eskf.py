@@ -1,5 +1,5 @@
-"""Error-state filter algebra (core.filter.eskf, core.measurements.models) against independent
-references.
+"""Error-state filter algebra (core.filter.eskf) and the measurement models (core.measurements)
+against independent references.
 
 - F against finite differences of the strapdown mechanization itself: perturb the true state
   by each error state in turn, mechanize both with the same raw IMU data, and compare the
@@ -36,14 +36,12 @@ from ins_fusion.core.filter.eskf import (
 )
 from ins_fusion.core.filter.records import GnssFixMeasurement, GnssVelocityMeasurement, Prediction
 from ins_fusion.core.filter.update_algebra import chi2_threshold
-from ins_fusion.core.measurements.models import (
-    attitude,
-    euler_jacobian,
-    gnss_position,
-    gnss_velocity,
-    nhc,
-    zupt,
-)
+from ins_fusion.core.measurements.attitude import attitude
+from ins_fusion.core.measurements.common import euler_jacobian
+from ins_fusion.core.measurements.gnss_position import gnss_position
+from ins_fusion.core.measurements.gnss_velocity import gnss_velocity
+from ins_fusion.core.measurements.nhc import nhc
+from ins_fusion.core.measurements.stationary import zupt
 from ins_fusion.core.nav import earth
 from ins_fusion.core.nav.calibration import ImuCalibration
 from ins_fusion.core.nav.rotation import MAT_ENU_NED, euler_rad, quat_from_euler

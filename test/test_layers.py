@@ -126,7 +126,7 @@ def test_imports_only_run_downward_and_rclpy_only_in_ros_modules():
         ("ins_fusion.core.engine.engine", "from ins_fusion.tools.cli import main", "layer 14"),
         (
             "ins_fusion.core.filter.state",
-            "from ins_fusion.core.measurements.models import nhc",
+            "from ins_fusion.core.measurements.nhc import nhc",
             "ins_fusion.core.measurements",
         ),
         (

@@ -26,7 +26,8 @@ than the latest IMU sample wait for it. Duplicates (same kind and stamp) are ign
 measurements older than the history are rejected and counted as ``too_old``; a backwards IMU
 stamp resets the engine.
 
-Updates (core.measurements.updates; GNSS noise split core.measurements.gnss_noise) and adaptation
+Updates (the gate core.measurements.gate; each kind's model and handler in its module of
+core.measurements; GNSS noise split core.measurements.gnss_noise) and adaptation
 (core.filter.adaptation, docs/fusion.md): the IMU white noise is measured from the samples and
 raises the process noise above the user's densities; the GNSS white share is measured from
 consecutive innovations; the GNSS normalised innovations scale the process noise while they stay too

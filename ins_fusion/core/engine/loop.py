@@ -48,10 +48,15 @@ from ins_fusion.core.filter.state import (
 )
 from ins_fusion.core.filter.status import SPEED_KIND, new_counters
 from ins_fusion.core.filter.timeline import Checkpoint, Entry, Gap, Record, Timeline
+from ins_fusion.core.measurements.attitude import AttitudeUpdate
 from ins_fusion.core.measurements.fused import FusedUpdates
+from ins_fusion.core.measurements.gate import Corrections
 from ins_fusion.core.measurements.gnss_noise import GnssNoise
+from ins_fusion.core.measurements.gnss_position import PositionUpdate
+from ins_fusion.core.measurements.gnss_velocity import VelocityUpdate
+from ins_fusion.core.measurements.nhc import NhcUpdate
+from ins_fusion.core.measurements.stationary import ZaruUpdate, ZuptUpdate
 from ins_fusion.core.measurements.stop_detector import GNSS_SPEED_MAX_AGE_S, StopDetector
-from ins_fusion.core.measurements.updates import Corrections
 from ins_fusion.core.measurements.vehicle_speed import SpeedUpdate
 from ins_fusion.core.nav.calibration import T_SIZE as CALIBRATION_SIZE
 from ins_fusion.core.nav.calibration import ImuCalibration
@@ -96,8 +101,20 @@ class EngineLoop:
         gnss_noise = GnssNoise(config, self.layout)
         self._densities = ImuDensities(noise.gyro_psd, noise.accel_psd)
         self._propagator = Propagator(config, geometry, self._densities)
-        self._corrections = Corrections(config, geometry, gnss_noise, self._counters, self._latest)
-        self._corrections.handlers[SPEED_KIND] = SpeedUpdate(config, geometry, self._corrections)
+        corrections = self._corrections = Corrections(config, self._counters)
+        corrections.handlers.update(  # the handler of each kind (core.measurements.<kind>)
+            {
+                "gnss_position": PositionUpdate(geometry, gnss_noise, corrections),
+                "gnss_velocity": VelocityUpdate(
+                    config, (geometry, gnss_noise, self._latest), corrections
+                ),
+                "attitude": AttitudeUpdate(geometry, corrections),
+                "zupt": ZuptUpdate(config, corrections),
+                "zaru": ZaruUpdate(config, geometry, corrections),
+                "nhc": NhcUpdate(config, geometry, corrections),
+                SPEED_KIND: SpeedUpdate(config, geometry, corrections),
+            }
+        )
         self._fused = FusedUpdates(
             config, geometry, self._propagator, self._corrections, gnss_noise
         )

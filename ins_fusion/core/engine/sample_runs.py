@@ -60,9 +60,9 @@ from ins_fusion.core.filter.state import (
 )
 from ins_fusion.core.filter.timeline import Record, RunEntries, Timeline
 from ins_fusion.core.filter.update_algebra import covariance_problem
+from ins_fusion.core.measurements.gate import Corrections
 from ins_fusion.core.measurements.nhc import nhc_apply
 from ins_fusion.core.measurements.stop_detector import StopDetector
-from ins_fusion.core.measurements.updates import Corrections
 from ins_fusion.core.nav.strapdown import INCREMENT_SIZE, NAV_SIZE, SampleIntegrator
 from ins_fusion.core.output.solution import STATE, WIDTH, SolutionBuilder, _fill_row, state_code
 from ins_fusion.core.output.solution_rows import RowBuffer

@@ -32,6 +32,7 @@ from ins_fusion.core.filter.records import (
 )
 from ins_fusion.core.filter.state import UNKNOWN_YAW_VARIANCE, FilterState, Geometry, LatestInputs
 from ins_fusion.core.filter.status import Counters
+from ins_fusion.core.measurements.common import UNKNOWN_ANGLE_VARIANCE
 from ins_fusion.core.measurements.gnss_noise import GnssNoise
 from ins_fusion.core.measurements.heading import (
     ALIGN_FIX_MAX_AGE_S,
@@ -39,7 +40,6 @@ from ins_fusion.core.measurements.heading import (
     fast_enough,
     velocity_variance,
 )
-from ins_fusion.core.measurements.models import UNKNOWN_ANGLE_VARIANCE
 from ins_fusion.core.nav import earth
 from ins_fusion.core.nav.calibration import ImuCalibration
 from ins_fusion.core.nav.levelling import (

@@ -348,7 +348,7 @@ def predicted_state(
     """The nominal state of ``x`` (X_* layout) carried to t_m [s] with its NED acceleration
     and body rate (constant over less than an IMU interval): latitude, longitude [rad],
     height [m], NED velocity [m/s], body -> NED rotation, corrected rate in body and imu FRD
-    [rad/s] (core.measurements.models.Prediction's fields)."""
+    [rad/s] (core.filter.records.Prediction's fields)."""
     dt = t_m - x[X_T]
     n = X_NAV
     mat_nb = mat_from_quat(x[n + 6], x[n + 7], x[n + 8], x[n + 9])

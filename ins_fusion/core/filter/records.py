@@ -1,7 +1,7 @@
 """The records the filter takes in and linearises about: the measurements as the ROS messages
 give them (GNSS fix, GNSS velocity, attitude, vehicle speed; ENU/FLU, REP-103) and the nominal
-state predicted to a measurement's stamp (``Prediction``; NED/FRD). Their models:
-core.measurements.models and core.measurements.vehicle_speed."""
+state predicted to a measurement's stamp (``Prediction``; NED/FRD). Their models: each
+kind's module of core.measurements (gnss_position, gnss_velocity, attitude, vehicle_speed)."""
 
 from __future__ import annotations
 
@@ -63,7 +63,7 @@ class GnssFixMeasurement:
 @dataclass(frozen=True)
 class GnssVelocityMeasurement:
     """Antenna velocity (gnss/vel) in ENU [m/s] with its covariance [m²/s²] (3, 3); a vertical
-    variance >= core.measurements.models.UNKNOWN_VELOCITY_VARIANCE (or NaN) means 'vertical
+    variance >= core.measurements.common.UNKNOWN_VELOCITY_VARIANCE (or NaN) means 'vertical
     unknown'."""
 
     t_s: float
@@ -79,7 +79,7 @@ class GnssVelocityMeasurement:
 class AttitudeMeasurement:
     """Orientation (gnss/attitude): quaternion (x, y, z, w) of the receiver's vehicle frame
     (FLU) in ENU and the covariance of its roll, pitch, yaw errors about the FLU axes [rad²]
-    (3, 3); a variance >= core.measurements.models.UNKNOWN_ANGLE_VARIANCE marks an angle as not
+    (3, 3); a variance >= core.measurements.common.UNKNOWN_ANGLE_VARIANCE marks an angle as not
     measured (heading-only receivers)."""
 
     t_s: float

@@ -14,12 +14,12 @@ from ins_fusion.core.filter.eskf import ErrorStateFilter
 from ins_fusion.core.filter.propagation import Propagator
 from ins_fusion.core.filter.state import FilterState, Geometry
 from ins_fusion.core.measurements.attitude import FusedAttitude
+from ins_fusion.core.measurements.gate import Corrections
 from ins_fusion.core.measurements.gnss_noise import GnssNoise
 from ins_fusion.core.measurements.gnss_position import FusedPosition
 from ins_fusion.core.measurements.gnss_velocity import FusedVelocity
 from ins_fusion.core.measurements.nhc import FusedNhc
 from ins_fusion.core.measurements.stationary import FusedStationary
-from ins_fusion.core.measurements.updates import Corrections
 from ins_fusion.core.settings.config import FusionConfig
 
 #: The pseudo-measurements: fused while the heading is known and no smoother is attached.

@@ -13,7 +13,7 @@ from ins_fusion.core.compiled import jit, kernel_array
 from ins_fusion.core.filter.eskf import POS, ErrorStateFilter, StateLayout
 from ins_fusion.core.filter.records import GnssFixMeasurement
 from ins_fusion.core.filter.state import X_GNSS_ERROR, X_GNSS_VARIANCE, FilterState, restart_block
-from ins_fusion.core.measurements.models import ned_cov
+from ins_fusion.core.measurements.common import ned_cov
 from ins_fusion.core.nav.rotation import MAT_ENU_NED
 from ins_fusion.core.settings.config import FusionConfig
 

@@ -1,10 +1,16 @@
-"""The GNSS position update with the covariance step before it in one compiled call.
+"""The GNSS position update: its model, its handler and its compiled update with the covariance
+step before it (the noise split of the fix's covariance is core.measurements.gnss_noise).
+
+The model (``gnss_position``, compiled ``position_model``) is the antenna's position with the
+estimated time-correlated receiver error; the handler (``PositionUpdate``) splits the fix's
+covariance into white and correlated parts, builds the model, adds the IMU time-offset terms
+when that state is estimated and calls Corrections.update (core.measurements.gate).
 
 A fix is the engine's largest update and, arriving late, is applied again in every
 re-propagation through its stamp. The general way (InsEngine._apply: the covariance step and
-the prediction, Corrections._gnss_position: the white/correlated split of the fix's covariance
-``gnss_noise._position_noise``, the model ``measurements._position_model``, diag(H P Hᵀ),
-Corrections.update with the Joseph update and the injection, the white-noise monitor's push
+the prediction, ``PositionUpdate``: the white/correlated split of the fix's covariance
+``gnss_noise._position_noise``, the model ``position_model``, diag(H P Hᵀ), Corrections.update
+with the Joseph update and the injection, the white-noise monitor's push
 ``adaptation.white_push_fix``) is seven kernels with Python between them. ``position_apply``
 runs the same kernels in the same order in one call, so the numbers are the same to the bit,
 and ``FusedPosition`` keeps the books (NIS, process-noise adaptation, gated runs, counters, the
@@ -23,9 +29,9 @@ import numpy as np
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core.compiled import jit, kernel_array
 from ins_fusion.core.filter.adaptation import white_push_fix
-from ins_fusion.core.filter.eskf import Columns, ErrorStateFilter, ProcessModel
+from ins_fusion.core.filter.eskf import ATT, POS, Columns, ErrorStateFilter, ProcessModel
 from ins_fusion.core.filter.propagation import Propagator
-from ins_fusion.core.filter.records import GnssFixMeasurement, height_measured
+from ins_fusion.core.filter.records import GnssFixMeasurement, Prediction, height_measured
 from ins_fusion.core.filter.state import (
     X_GNSS_ERROR,
     X_GNSS_REPORTED,
@@ -34,6 +40,8 @@ from ins_fusion.core.filter.state import (
     Geometry,
 )
 from ins_fusion.core.filter.update_algebra import projected_variance
+from ins_fusion.core.measurements.common import Model, late_imu, step_to, update_and_restart
+from ins_fusion.core.measurements.gate import Corrections, FusedUpdate
 from ins_fusion.core.measurements.gnss_noise import (
     NOISE_MOVED,
     NOISE_RESTART,
@@ -41,12 +49,125 @@ from ins_fusion.core.measurements.gnss_noise import (
     _position_noise,
     shrink_correlated,
 )
-from ins_fusion.core.measurements.models import _position_model
-from ins_fusion.core.measurements.nhc import FusedUpdate, step_to, update_and_restart
-from ins_fusion.core.measurements.updates import Corrections
+from ins_fusion.core.nav import earth
+from ins_fusion.core.nav.rotation import skew
 from ins_fusion.core.settings.config import FusionConfig
 
 _KIND = "gnss_position"
+#: The IMU time offset is observed only above this speed of the antenna [m/s] (``late_imu``).
+_TIME_OFFSET_MIN_SPEED_M_S = 1.0
+
+
+def gnss_position(
+    pred: Prediction,
+    meas: GnssFixMeasurement,
+    lever_b: FloatArray,
+    white_cov_ned: FloatArray,
+    gnss_error_ned: tuple[float, float, float],
+) -> Model:
+    """Antenna position p + C_nb l plus the estimated time-correlated receiver error ε_g (when
+    it is a state). H: δp -> I, ψ -> -[(C_nb l)×], δε_g -> I; R: the white part of the
+    receiver's covariance. North and east rows only for a 2-D fix. Compiled
+    (``position_model``)."""
+    return position_model(
+        pred.lat_rad,
+        pred.lon_rad,
+        pred.height_m,
+        pred.mat_nb,
+        math.radians(meas.lat_deg),
+        math.radians(meas.lon_deg),
+        meas.height_m,
+        lever_b,
+        white_cov_ned,
+        gnss_error_ned,
+        pred.layout.size,
+        pred.layout.columns[2],
+        meas.height_known,
+    )
+
+
+@jit
+def position_model(
+    lat_rad: float,
+    lon_rad: float,
+    height_m: float,
+    mat_nb: FloatArray,
+    fix_lat_rad: float,
+    fix_lon_rad: float,
+    fix_height_m: float,
+    lever_b: FloatArray,
+    white_cov_ned: FloatArray,
+    gnss_error_ned: tuple[float, float, float],
+    size: int,
+    gp: int,
+    vertical: bool,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """``gnss_position``'s model from the predicted IMU position (lat, lon [rad], h [m]) and
+    attitude, the fix's position and the layout's size and GNSS error column (-1: none);
+    without ``vertical`` (a 2-D fix) the north and east rows only."""
+    arm_n = mat_nb @ lever_b
+    r_m, r_n = earth.radii_from_sin(math.sin(lat_rad))
+    offset = (
+        (fix_lat_rad - lat_rad) * (r_m + height_m),
+        (fix_lon_rad - lon_rad) * (r_n + height_m) * math.cos(lat_rad),
+        height_m - fix_height_m,
+    )
+    H = np.zeros((3, size))
+    z = np.empty(3)
+    for k in range(3):
+        H[k, POS + k] = 1.0
+        if gp >= 0:
+            H[k, gp + k] = 1.0
+        z[k] = offset[k] - arm_n[k] - gnss_error_ned[k]
+    H[:, ATT : ATT + 3] = -skew(arm_n)
+    rows = 3 if vertical else 2
+    return z[:rows].copy(), H[:rows].copy(), white_cov_ned[:rows, :rows].copy()
+
+
+class PositionUpdate:
+    """The engine's handler of GNSS fixes (core.measurements.gate.Handler): an invalid fix is
+    rejected, the noise split (``GnssNoise.position_noise``) with the restart or new variance of
+    the correlated error states it asks for, the model, its time-offset terms (``late_imu``),
+    the gated update and the white-noise monitor's push."""
+
+    def __init__(self, geometry: Geometry, gnss_noise: GnssNoise, corrections: Corrections) -> None:
+        self._geometry = geometry
+        self._noise = gnss_noise
+        self._corrections = corrections
+
+    def __call__(
+        self,
+        s: FilterState,
+        kf: ErrorStateFilter,
+        pred: Prediction,
+        fix: GnssFixMeasurement,
+        live: bool,
+    ) -> None:
+        corrections = self._corrections
+        if not (fix.valid and np.isfinite(fix.cov_enu_m2).all()):
+            corrections.reject(_KIND, live)
+            return
+        if not s.heading_known and corrections.too_fast_to_align(pred, live, _KIND):
+            return
+        noise = self._noise
+        white, correlated, reported, action = noise.position_noise(s, fix)
+        if action == NOISE_RESTART:
+            noise.restart_error(s, kf, correlated, reported)
+        elif action == NOISE_MOVED:  # the white/correlated split moved
+            noise.set_correlated_variance(s, kf, correlated)
+        antenna_b = self._geometry.arms(s)[0]
+        model = gnss_position(pred, fix, antenna_b, white, s.gnss_error)
+        if kf.layout.td is not None:
+            antenna_rate_n = pred.vel_ned_m_s + pred.mat_nb @ (skew(s.rate_lp) @ antenna_b)
+            model = late_imu(
+                s, kf, model, antenna_rate_n, _TIME_OFFSET_MIN_SPEED_M_S, np.array(s.accel_lp)
+            )
+        z, H, _ = model
+        predicted = projected_variance(H, kf.P)
+        dx = corrections.update(s, kf, _KIND, model, live)
+        s.gnss_white = s.gnss_white.pushed_fix(fix.t_s, z, H, dx, kf.P, predicted, reported)
+        if dx is not None:
+            s.last_position_t_s = max(s.last_position_t_s, fix.t_s)
 
 
 @jit
@@ -96,7 +217,7 @@ def position_apply(
     if action == NOISE_MOVED:
         _, P, _ = shrink_correlated(P, x, correlated, gp)
     error = (x[X_GNSS_ERROR], x[X_GNSS_ERROR + 1], x[X_GNSS_ERROR + 2])
-    z, H, R = _position_model(
+    z, H, R = position_model(
         lat, lon, height, mat_nb, fix_lat, fix_lon, fix_height, arm_b, R, error, size, gp, vertical
     )
     predicted = projected_variance(H, P)

@@ -11,8 +11,8 @@ from gnss_ins_common.types import FloatArray
 from ins_fusion.core.filter.eskf import VEL, ErrorStateFilter
 from ins_fusion.core.filter.records import GnssFixMeasurement, GnssVelocityMeasurement
 from ins_fusion.core.filter.state import FilterState, Geometry, decouple_yaw, restart_block
+from ins_fusion.core.measurements.common import ned_cov
 from ins_fusion.core.measurements.gnss_noise import GnssNoise
-from ins_fusion.core.measurements.models import ned_cov
 from ins_fusion.core.nav.rotation import (
     MAT_ENU_NED,
     as_quat,

@@ -1,112 +1,120 @@
-"""The non-holonomic constraint (NHC) with the covariance step before it in one compiled call.
+"""The non-holonomic constraint (NHC): its model, its handler and its compiled update with the
+covariance step before it.
+
+The model (``nhc``, compiled ``nhc_model``): no lateral or vertical velocity of base_link's
+origin in the vehicle frame. The handler (``NhcUpdate``) builds it and calls Corrections.update
+(core.measurements.gate), never with a gate recovery. The stop detector files an NHC at every
+pseudo-measurement epoch while the vehicle moves with the heading known.
 
 The NHC is the engine's most frequent update (every pseudo-measurement epoch while driving,
 again in every re-propagation through it). Applied the general way (InsEngine._apply) it is
 five kernels with Python between them: the covariance step to the epoch
 (Propagator.propagate_covariance), the prediction (Propagator.predict), the model
-(measurements.nhc), the gated Joseph update (ErrorStateFilter.update) and the injection
-(state.inject). ``nhc_apply`` runs the same kernels in the same order in one call, so the numbers
-are the same to the bit; ``FusedNhc`` gives it its arguments and keeps the books
-(Corrections.book). While the heading is known (the NHC is filed only then) and without the
-smoother (its recorder is told of the steps in between); else the general way.
+(``nhc_model``), the gated Joseph update (ErrorStateFilter.update) and the injection
+(state.inject). ``nhc_apply`` runs the same kernels in the same order in one call (the steps
+every compiled update shares, core.measurements.common: ``step_to``, ``update_and_restart``), so
+the numbers are the same to the bit; ``FusedNhc`` gives it its arguments and keeps the books
+(core.measurements.gate: FusedUpdate, Corrections.book). While the heading is known (the NHC is
+filed only then) and without the smoother (its recorder is told of the steps in between); else
+the general way.
 """
 
 from __future__ import annotations
 
-import math
-from collections.abc import Callable
-from typing import Any
+import numpy as np
 
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core.compiled import jit, kernel_array
-from ins_fusion.core.filter.eskf import Columns, ErrorStateFilter, ProcessModel
-from ins_fusion.core.filter.propagation import Propagator, covariance_step, predicted_state
-from ins_fusion.core.filter.state import (
-    X_COV_DT,
-    X_COV_VEL0,
-    X_MOUNTING,
-    X_NAV,
-    FilterState,
-    Geometry,
-    inject_nominal,
+from ins_fusion.core.filter.eskf import ATT, VEL, Columns, ErrorStateFilter, ProcessModel
+from ins_fusion.core.filter.records import Prediction
+from ins_fusion.core.filter.state import X_MOUNTING, FilterState, Geometry
+from ins_fusion.core.measurements.common import (
+    Model,
+    gyro_error_columns,
+    step_to,
+    update_and_restart,
 )
-from ins_fusion.core.filter.update_algebra import joseph_update
-from ins_fusion.core.measurements.models import nhc_model
-from ins_fusion.core.measurements.updates import Corrections
+from ins_fusion.core.measurements.gate import Corrections, FusedUpdate
+from ins_fusion.core.nav.rotation import skew
 from ins_fusion.core.settings.config import FusionConfig
 
-#: What ``predicted_state`` gives: latitude, longitude [rad], height [m], NED velocity [m/s],
-#: C_nb, corrected rate in body and imu FRD [rad/s].
-Predicted = tuple[float, float, float, FloatArray, FloatArray, FloatArray, FloatArray]
 
-
-@jit
-def step_to(
-    P: FloatArray,
-    x: FloatArray,
-    t_m: float,
-    process: ProcessModel,
+def nhc(
+    pred: Prediction,
+    arm_b: FloatArray,
     mat_bi: FloatArray,
-    columns: Columns,
-    correlation_time_s: float,
-) -> tuple[bool, FloatArray, FloatArray, Predicted]:
-    """What InsEngine._apply does before a model (heading known, no smoother): the covariance
-    step over the interval accumulated in ``x`` when there is one (``covariance_step``) and
-    the prediction to ``t_m`` [s]. Returns (stepped, Φ of the step (P when none), the new P,
-    the prediction)."""
-    stepped = not x[X_COV_DT] <= 0.0  # as Propagator.propagate_covariance decides
-    phi = P
-    if stepped:
-        P, phi = covariance_step(P, x, mat_bi, process, columns, correlation_time_s)
-    return stepped, phi, P, predicted_state(x, t_m)
+    sigma_m_s: float,
+    mounting_rad: tuple[float, float] = (0.0, 0.0),
+) -> Model:
+    """No lateral or vertical velocity of the point ``arm_b`` (base_link origin) in the
+    vehicle frame: v_b = C_nbᵀ v + ω_b × r in base_link, turned into the vehicle frame by the
+    residual mounting μ = (pitch, yaw) about base_link FRD y and z, C_vb = I - [μ×]:
+    lateral v_b,y - μ_z v_b,x, vertical v_b,z + μ_y v_b,x. H: δv -> C_nbᵀ, ψ -> C_nbᵀ [v×],
+    gyro errors -> -[r×] dω_b (``gyro_error_columns``), δμ_y -> +v_b,x
+    (vertical), δμ_z -> -v_b,x (lateral) (the mounting's second-order terms in H left out).
+    Compiled (``nhc_model``)."""
+    layout = pred.layout
+    return nhc_model(
+        pred.mat_nb,
+        pred.vel_ned_m_s,
+        pred.rate_b,
+        pred.rate_i,
+        arm_b,
+        mat_bi,
+        sigma_m_s,
+        mounting_rad,
+        layout.size,
+        layout.columns[0],
+        layout.columns[3],
+    )
 
 
 @jit
-def update_and_restart(
-    P: FloatArray,
-    x: FloatArray,
-    model: tuple[FloatArray, FloatArray, FloatArray],
-    threshold: float,
-    columns: Columns,
-) -> tuple[bool, float, FloatArray, FloatArray]:
-    """The gated Joseph update of ``model`` (z, H, R), the injection into ``x`` when accepted
-    and the covariance interval going on from the corrected velocity (what Corrections.update
-    and InsEngine._apply do after the model; heading known). Returns (accepted, NIS, δx (z
-    when rejected), new P (P when rejected))."""
-    z, H, R = model
-    accepted, nis, dx, P_new = joseph_update(P, z, H, R, threshold)
-    if accepted:
-        inject_nominal(x, dx, columns)
-    restart_interval(x)
-    return accepted, nis, dx, P_new
+def nhc_model(
+    mat_nb: FloatArray,
+    vel: FloatArray,
+    rate_b: FloatArray,
+    rate_i: FloatArray,
+    arm_b: FloatArray,
+    mat_bi: FloatArray,
+    sigma_m_s: float,
+    mounting_rad: tuple[float, float],
+    size: int,
+    sg: int,
+    mt: int,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """``nhc``'s model from the prediction's arrays and the layout's size and columns (-1:
+    state not estimated)."""
+    c_bn = np.ascontiguousarray(mat_nb.T)
+    v_b = c_bn @ vel + skew(rate_b) @ arm_b
+    H = np.zeros((3, size))
+    H[:, VEL : VEL + 3] = c_bn
+    H[:, ATT : ATT + 3] = c_bn @ skew(vel)
+    gyro_error_columns(H, -skew(arm_b), mat_bi, rate_i, sg)
+    pitch, yaw = mounting_rad
+    forward = v_b[0]
+    predicted = np.array((v_b[1] - yaw * forward, v_b[2] + pitch * forward))
+    if mt >= 0:
+        H[1, mt + 1] = -forward
+        H[2, mt] = forward
+    return -predicted, H[1:].copy(), np.eye(2) * sigma_m_s**2
 
 
-@jit
-def update_rows(
-    P: FloatArray,
-    x: FloatArray,
-    rows: int,
-    model: tuple[FloatArray, FloatArray, FloatArray],
-    gates: tuple[float, float, float],
-    columns: Columns,
-) -> tuple[bool, float, FloatArray]:
-    """``update_and_restart`` of a model of ``rows`` rows (1-3) at the gate of that many
-    (``gates``: of 1, 2 and 3 rows); a model without rows (nothing measured) updates nothing,
-    and the covariance interval goes on from the velocity all the same. Returns (accepted,
-    NIS (NaN without rows), new P)."""
-    if rows == 0:
-        restart_interval(x)
-        return False, math.nan, P
-    accepted, nis, _, P_new = update_and_restart(P, x, model, gates[rows - 1], columns)
-    return accepted, nis, P_new
+class NhcUpdate:
+    """The engine's handler of NHC records (core.measurements.gate.Handler; no payload): the
+    model of the base_link origin with the residual mounting and the gated update."""
 
+    def __init__(self, config: FusionConfig, geometry: Geometry, corrections: Corrections) -> None:
+        self._sigma_m_s = config.nhc_sigma_m_s
+        self._geometry = geometry
+        self._corrections = corrections
 
-@jit
-def restart_interval(x: FloatArray) -> None:
-    """The covariance interval in ``x`` goes on from the current velocity (after an update,
-    as InsEngine._apply)."""
-    for k in range(3):
-        x[X_COV_VEL0 + k] = x[X_NAV + 3 + k]
+    def __call__(
+        self, s: FilterState, kf: ErrorStateFilter, pred: Prediction, _: None, live: bool
+    ) -> None:
+        geometry = self._geometry
+        model = nhc(pred, geometry.arms(s)[1], geometry.mat_bi, self._sigma_m_s, s.mounting)
+        self._corrections.update(s, kf, "nhc", model, live)
 
 
 @jit
@@ -137,91 +145,6 @@ def nhc_apply(
     )
     accepted, nis, _, P_new = update_and_restart(P, x, model, threshold, columns)
     return stepped, phi, accepted, nis, P_new
-
-
-class FusedUpdate:
-    """What the engine's side of a fused update reads: the configuration, the geometry, the
-    propagator (its white-noise densities) and the corrections (gates, books)."""
-
-    def __init__(
-        self,
-        config: FusionConfig,
-        geometry: Geometry,
-        propagator: Propagator,
-        corrections: Corrections,
-    ) -> None:
-        self._config = config
-        self._geometry = geometry
-        self._propagator = propagator
-        self._corrections = corrections
-        self._correlation_time_s = config.gnss_correlation_time_s
-        self._gates = (corrections.gate(1), corrections.gate(2), corrections.gate(3))
-
-    def _kernel(
-        self,
-        kernel: Callable[..., Any],
-        state: tuple[FilterState, ErrorStateFilter],
-        measured: Any,
-        geometry: Any,
-        constants: Any,
-    ) -> Any:
-        """``kernel``(P, x, ``measured``, process model, ``geometry``, columns, ``constants``)
-        on the ``state``'s filter (its white noise set first: read only by a step)."""
-        s, kf = state
-        kf.set_white_noise(*self._propagator.white_noise(s))
-        return kernel(
-            kernel_array(kf.P),
-            s.x,
-            measured,
-            kf.process_model(),
-            geometry,
-            kf.layout.columns,
-            constants,
-        )
-
-    def _sensor_usable(self, s: FilterState, kf: ErrorStateFilter, kind: str) -> bool:
-        """Whether the general way would apply a sensor's update of ``kind`` just as its
-        kernel does: the heading known, no smoother (its recorder hears each step), no
-        time-offset state (its terms) and no gate recovery possible (fewer gated updates in a
-        row than the recovery needs)."""
-        if kf.recorder is not None or kf.layout.td is not None or not s.heading_known:
-            return False
-        recover = self._config.gate_recovery_count
-        return not recover or s.gated_runs.get(kind, 0) + 1 < recover
-
-    def _sensor_taken(
-        self,
-        state: tuple[FilterState, ErrorStateFilter],
-        kind: str,
-        result: tuple[bool, FloatArray, int, bool, float, FloatArray],
-        live: bool,
-    ) -> None:
-        """What a sensor's kernel ``result`` (stepped, Φ, rows (0: unusable), accepted, NIS,
-        new P) leaves in the filter and the books."""
-        s, kf = state
-        stepped, phi, rows, accepted, nis, P = result
-        self._taken(kf, stepped, phi, P)
-        if rows == 0:
-            self._corrections.reject(kind, live)
-            return
-        self._booked(s, kind, (accepted, nis), rows, live)
-
-    @staticmethod
-    def _taken(kf: ErrorStateFilter, stepped: bool, phi: FloatArray, P: FloatArray) -> None:
-        """What the kernel leaves in the filter: Φ of its covariance step (when it made one)
-        and the new P."""
-        if stepped:
-            kf.phi = phi
-        kf.P = P
-
-    def _booked(
-        self, s: FilterState, kind: str, result: tuple[bool, float], rows: int, live: bool
-    ) -> None:
-        """After an update of ``kind`` with ``rows`` rows a kernel made (``result``: accepted,
-        NIS): the state changed when accepted, and its books (Corrections.book)."""
-        if result[0]:
-            s.changed()
-        self._corrections.book(s, kind, result, rows, live)
 
 
 class FusedNhc(FusedUpdate):

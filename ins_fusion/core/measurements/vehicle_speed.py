@@ -8,7 +8,7 @@ along base_link x, with a scale error k_s (tyre radius, load, pressure) estimate
 
 with v the NED velocity of the IMU point, ω_b the corrected body rate, r the lever arm from
 the IMU to P (base_link FRD) and μ the residual mounting (pitch, yaw) when estimated, as the
-NHC takes it (core.measurements.models.nhc). With the NHC (no lateral or vertical velocity) it
+NHC takes it (core.measurements.nhc). With the NHC (no lateral or vertical velocity) it
 completes the velocity in the vehicle frame: what an outage lacks most, the along-track speed.
 
 Linearised in the error state (C_true = (I + [ψ×]) C, ω_true = ω - R_bi (δb_g + ...)):
@@ -37,8 +37,8 @@ from ins_fusion.core.filter.eskf import ATT, VEL, Columns, ErrorStateFilter
 from ins_fusion.core.filter.records import Prediction, VehicleSpeedMeasurement
 from ins_fusion.core.filter.state import FilterState, Geometry
 from ins_fusion.core.filter.status import SPEED_KIND
-from ins_fusion.core.measurements.models import Model, gyro_error_columns
-from ins_fusion.core.measurements.updates import Corrections
+from ins_fusion.core.measurements.common import Model, gyro_error_columns
+from ins_fusion.core.measurements.gate import Corrections
 from ins_fusion.core.nav.rotation import skew
 from ins_fusion.core.settings.config import FusionConfig
 
@@ -110,7 +110,7 @@ def vehicle_speed(
 
 
 class SpeedUpdate:
-    """The engine's handler of vehicle speed readings (core.measurements.updates.Handler)."""
+    """The engine's handler of vehicle speed readings (core.measurements.gate.Handler)."""
 
     def __init__(self, config: FusionConfig, geometry: Geometry, corrections: Corrections) -> None:
         self._least_sigma_m_s = config.speed_sigma_m_s

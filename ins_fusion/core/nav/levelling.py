@@ -30,7 +30,7 @@ def level(mean_force_frd_m_s2: FloatArray) -> tuple[float, float]:
 @compilable
 def earth_rate_body_rad_s(mat_nb: FloatArray, lat_rad: float, heading_known: bool) -> FloatArray:
     """Earth rate seen by a resting body (FRD) [rad/s]; only the vertical part without heading.
-    Also inside the compiled ZARU model (core.measurements.models.zaru_model)."""
+    Also inside the compiled ZARU model (core.measurements.stationary.zaru_model)."""
     north, _, down = earth.earth_rate_from_sin_cos(math.sin(lat_rad), math.cos(lat_rad))
     rate_b: FloatArray = mat_nb.T @ np.array((north if heading_known else 0.0, 0.0, down))
     return rate_b

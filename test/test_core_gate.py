@@ -1,6 +1,6 @@
-"""core.measurements.updates.Corrections on its own: the gated update in closed form (a direct
+"""core.measurements.gate.Corrections on its own: the gated update in closed form (a direct
 velocity measurement on an uncorrelated covariance), the counters, the runs of gated updates, the
-gate recovery of a sensor and none for a pseudo-measurement, and ``reject``."""
+gate recovery of a sensor and none for a pseudo-measurement, ``reject`` and ``count_used``."""
 
 from __future__ import annotations
 
@@ -11,11 +11,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ins_fusion.core.filter.eskf import VEL, ErrorStateFilter, StateLayout
-from ins_fusion.core.filter.state import FilterState, Geometry, LatestInputs
+from ins_fusion.core.filter.state import FilterState
 from ins_fusion.core.filter.status import new_counters
 from ins_fusion.core.filter.update_algebra import chi2_threshold
-from ins_fusion.core.measurements.gnss_noise import GnssNoise
-from ins_fusion.core.measurements.updates import Corrections
+from ins_fusion.core.measurements.gate import Corrections
 from ins_fusion.core.nav.strapdown import NavState
 from ins_fusion.core.settings.config import FusionConfig
 
@@ -27,9 +26,7 @@ RECOVER = 3
 def _setup(recover: int = RECOVER) -> tuple[Corrections, FilterState, ErrorStateFilter]:
     config = FusionConfig.from_parameters({"gate_recovery_count": recover})
     counters = new_counters()
-    corrections = Corrections(
-        config, Geometry(config, LAYOUT), GnssNoise(config, LAYOUT), counters, LatestInputs()
-    )
+    corrections = Corrections(config, counters)
     nav = NavState(1.0, 0.2, 40.0, np.array([5.0, 0.0, 0.0]), np.array([0.0, 0.0, 0.0, 1.0]))
     s = FilterState(0.0, nav, (0.0, 0.0, 0.0), True)
     kf = ErrorStateFilter(LAYOUT, config.imu_noise)
@@ -134,6 +131,18 @@ def test_reject_counts_only_live_measurements() -> None:
     assert corrections._counters["attitude"] == {
         **dict.fromkeys(corrections._counters["attitude"], 0),
         "rejected": 1,
+    }
+
+
+def test_count_used_counts_only_live_measurements() -> None:
+    """A measurement used outside an update (a heading set from it) is counted used, live."""
+    corrections, _, _ = _setup()
+    corrections.count_used("course_heading", False)
+    assert corrections._counters["course_heading"]["used"] == 0
+    corrections.count_used("course_heading", True)
+    assert corrections._counters["course_heading"] == {
+        **dict.fromkeys(corrections._counters["course_heading"], 0),
+        "used": 1,
     }
 
 
