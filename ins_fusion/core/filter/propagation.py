@@ -36,14 +36,19 @@ from ins_fusion.core.filter.state import (
     X_COV_VEL0,
     X_GNSS_ERROR,
     X_HAS_PREV,
+    X_HEIGHT,
+    X_LAT,
+    X_LON,
     X_NAV,
     X_PREV,
+    X_QUAT,
     X_RATE_B,
     X_RATE_I,
     X_RATE_LP,
     X_SA,
     X_SG,
     X_T,
+    X_VEL,
     FilterState,
     Geometry,
     decouple_yaw,
@@ -166,7 +171,7 @@ def advance(x: FloatArray, inc: FloatArray, r_bi: FloatArray, bridged: bool, t: 
         r0, r1, r2 = r_bi[3 * row], r_bi[3 * row + 1], r_bi[3 * row + 2]
         inc_b[1 + row] = r0 * ti0 + r1 * ti1 + r2 * ti2
         inc_b[4 + row] = r0 * vi0 + r1 * vi1 + r2 * vi2
-    v0 = x[X_NAV + 3 : X_NAV + 6].copy()
+    v0 = x[X_VEL : X_VEL + 3].copy()
     use_prev = not bridged and x[X_HAS_PREV] != 0.0
     mechanize(x[X_NAV : X_NAV + NAV_SIZE], inc_b, x[X_PREV : X_PREV + INCREMENT_SIZE], use_prev)
     inv_dt = 1.0 / dt
@@ -174,7 +179,7 @@ def advance(x: FloatArray, inc: FloatArray, r_bi: FloatArray, bridged: bool, t: 
     # model: their noise would otherwise make H noisy and the estimate wander.
     k = min(1.0, dt / _ACCEL_SMOOTHING_S)
     for axis in range(3):
-        an = (x[X_NAV + 3 + axis] - v0[axis]) * inv_dt
+        an = (x[X_VEL + axis] - v0[axis]) * inv_dt
         rb = inc_b[1 + axis] * inv_dt
         x[X_ACCEL_N + axis] = an
         x[X_RATE_B + axis] = rb
@@ -206,11 +211,11 @@ def covariance_interval(
     restarts (accumulators zero, its start velocity the current one)."""
     dt = x[X_COV_DT]
     inv_dt = 1.0 / dt
-    lat, height = x[X_NAV], x[X_NAV + 2]
-    vel = x[X_NAV + 3 : X_NAV + 6].copy()
+    lat, height = x[X_LAT], x[X_HEIGHT]
+    vel = x[X_VEL : X_VEL + 3].copy()
     force_n = (vel - x[X_COV_VEL0 : X_COV_VEL0 + 3]) * inv_dt
     force_n[2] -= earth.normal_gravity_from_sin_cos(math.sin(lat), math.cos(lat), height)
-    mat_nb = mat_from_quat(x[X_NAV + 6], x[X_NAV + 7], x[X_NAV + 8], x[X_NAV + 9])
+    mat_nb = mat_from_quat(x[X_QUAT], x[X_QUAT + 1], x[X_QUAT + 2], x[X_QUAT + 3])
     force_i = x[X_COV_DV : X_COV_DV + 3] * inv_dt
     rate_i = x[X_COV_DTH : X_COV_DTH + 3] * inv_dt
     x[X_COV_DT] = 0.0
@@ -350,17 +355,16 @@ def predicted_state(
     height [m], NED velocity [m/s], body -> NED rotation, corrected rate in body and imu FRD
     [rad/s] (core.measurements.models.Prediction's fields)."""
     dt = t_m - x[X_T]
-    n = X_NAV
-    mat_nb = mat_from_quat(x[n + 6], x[n + 7], x[n + 8], x[n + 9])
-    vel = x[n + 3 : n + 6].copy()
+    mat_nb = mat_from_quat(x[X_QUAT], x[X_QUAT + 1], x[X_QUAT + 2], x[X_QUAT + 3])
+    vel = x[X_VEL : X_VEL + 3].copy()
     rate_b = x[X_RATE_B : X_RATE_B + 3].copy()
     rate_i = x[X_RATE_I : X_RATE_I + 3].copy()
     if dt == 0.0:
-        return x[n], x[n + 1], x[n + 2], vel, mat_nb, rate_b, rate_i
+        return x[X_LAT], x[X_LON], x[X_HEIGHT], vel, mat_nb, rate_b, rate_i
     vel_m = vel + x[X_ACCEL_N : X_ACCEL_N + 3] * dt
     mean_vel = 0.5 * (vel + vel_m)
     lat, lon, height = earth.displace(
-        x[n], x[n + 1], x[n + 2], mean_vel[0] * dt, mean_vel[1] * dt, mean_vel[2] * dt
+        x[X_LAT], x[X_LON], x[X_HEIGHT], mean_vel[0] * dt, mean_vel[1] * dt, mean_vel[2] * dt
     )
     r = rate_b * dt
     rotation = np.array(((0.0, -r[2], r[1]), (r[2], 0.0, -r[0]), (-r[1], r[0], 0.0)))  # [r×]

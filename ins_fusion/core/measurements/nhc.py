@@ -25,7 +25,7 @@ from ins_fusion.core.filter.state import (
     X_COV_DT,
     X_COV_VEL0,
     X_MOUNTING,
-    X_NAV,
+    X_VEL,
     FilterState,
     Geometry,
     inject_nominal,
@@ -106,7 +106,7 @@ def restart_interval(x: FloatArray) -> None:
     """The covariance interval in ``x`` goes on from the current velocity (after an update,
     as InsEngine._apply)."""
     for k in range(3):
-        x[X_COV_VEL0 + k] = x[X_NAV + 3 + k]
+        x[X_COV_VEL0 + k] = x[X_VEL + k]
 
 
 @jit
