@@ -126,7 +126,9 @@ def test_a_straight_drive_at_10_m_s_reads_10_m_s_times_the_scale():
     )
     left_turn_frd = np.array((0.0, 0.0, -0.2))  # FRD z down: a left turn is negative
     wheel_left_frd = np.array((0.0, -0.8, 0.0))
-    speed = _predicted_speed(mat_nb, east, left_turn_frd, left_turn_frd, wheel_left_frd, (0, 0), 0)
+    speed = _predicted_speed(
+        mat_nb, east, left_turn_frd, left_turn_frd, wheel_left_frd, (0.0, 0.0), 0.0
+    )
     assert speed == pytest.approx(10.0 - 0.16)
 
 
