@@ -17,19 +17,21 @@ from ins_fusion.core.filter.state import X_LAYOUT, FilterState, _ScalarField, _V
 from ins_fusion.core.nav import calibration, strapdown
 from ins_fusion.core.nav.strapdown import NavState
 
-#: (module, constant prefix, table) of every layout.
-TABLES: list[tuple[ModuleType, str, layout.Layout]] = [
-    (strapdown, "NAV_", strapdown.NAV_LAYOUT),
-    (state, "X_", state.X_LAYOUT),
-    (intake, "S_", intake.S_LAYOUT),
-    (adaptation, "B_", adaptation.B_LAYOUT),
-    (adaptation, "W_", adaptation.W_LAYOUT),
-    (calibration, "T_", calibration.T_LAYOUT),
+#: (module, constant prefix, table, name of its size) of every layout.
+TABLES: list[tuple[ModuleType, str, layout.Layout, str]] = [
+    (strapdown, "NAV_", strapdown.NAV_LAYOUT, "NAV_SIZE"),
+    (strapdown, "INC_", strapdown.INCREMENT_LAYOUT, "INCREMENT_SIZE"),
+    (state, "X_", state.X_LAYOUT, "X_SIZE"),
+    (intake, "S_", intake.S_LAYOUT, "S_SIZE"),
+    (adaptation, "B_", adaptation.B_LAYOUT, "B_SIZE"),
+    (adaptation, "W_", adaptation.W_LAYOUT, "W_SIZE"),
+    (calibration, "T_", calibration.T_LAYOUT, "T_SIZE"),
 ]
 
 #: The offsets as they were numbered by hand before the tables (and the sizes).
 HAND_NUMBERED = {
     "NAV_": {"LAT": 0, "LON": 1, "HEIGHT": 2, "VEL": 3, "QUAT": 6, "SIZE": 10},
+    "INC_": {"DT": 0, "ANGLE": 1, "VEL": 4, "SIZE": 7},
     "X_": {
         **{"NAV": 0, "BG": 10, "BA": 13, "SG": 16, "SA": 19, "PREV": 22, "HAS_PREV": 29},
         **{"RATE_B": 30, "RATE_I": 33, "ACCEL_N": 36, "ACCEL_LP": 39, "RATE_LP": 42},
@@ -65,9 +67,9 @@ def test_offsets_of_a_table() -> None:
         layout.offsets((("a", 1), ("b", 0)))
 
 
-@pytest.mark.parametrize(("module", "prefix", "table"), TABLES, ids=[t[1] for t in TABLES])
+@pytest.mark.parametrize(("module", "prefix", "table", "size"), TABLES, ids=[t[1] for t in TABLES])
 def test_table_is_contiguous_and_its_constants_are_its_offsets(
-    module: ModuleType, prefix: str, table: layout.Layout
+    module: ModuleType, prefix: str, table: layout.Layout, size: str
 ) -> None:
     end = 0
     for name, (start, width) in layout.fields(table).items():
@@ -76,9 +78,9 @@ def test_table_is_contiguous_and_its_constants_are_its_offsets(
         assert getattr(module, prefix + name.upper()) == start
         assert type(getattr(module, prefix + name.upper())) is int  # a numba constant
         end = start + width
-    assert getattr(module, prefix + "SIZE") == end == layout.offsets(table)[-1]
+    assert getattr(module, size) == end == layout.offsets(table)[-1]
     # Every constant of the prefix is a field, the size or (X_) a field of the navigation.
-    named = {prefix + name.upper() for name, _ in table} | {prefix + "SIZE"}
+    named = {prefix + name.upper() for name, _ in table} | ({size} & {prefix + "SIZE"})
     if prefix == "X_":
         named |= {f"X_{name.upper()}" for name, _ in strapdown.NAV_LAYOUT}
     constants = {
@@ -87,14 +89,15 @@ def test_table_is_contiguous_and_its_constants_are_its_offsets(
     assert constants == named
 
 
-@pytest.mark.parametrize(("module", "prefix", "table"), TABLES, ids=[t[1] for t in TABLES])
+@pytest.mark.parametrize(("module", "prefix", "table", "size"), TABLES, ids=[t[1] for t in TABLES])
 def test_offsets_are_the_hand_numbered_ones(
-    module: ModuleType, prefix: str, table: layout.Layout
+    module: ModuleType, prefix: str, table: layout.Layout, size: str
 ) -> None:
     numbers = {name.upper(): start for name, (start, _) in layout.fields(table).items()}
     numbers["SIZE"] = layout.offsets(table)[-1]
     assert numbers == HAND_NUMBERED[prefix]
-    assert {key: getattr(module, prefix + key) for key in numbers} == HAND_NUMBERED[prefix]
+    constants = {key: getattr(module, prefix + key) for key in numbers if key != "SIZE"}
+    assert {**constants, "SIZE": getattr(module, size)} == HAND_NUMBERED[prefix]
 
 
 def test_navigation_fields_of_the_state() -> None:

@@ -56,7 +56,15 @@ from ins_fusion.core.filter.state import (
 from ins_fusion.core.filter.timeline import Gap
 from ins_fusion.core.nav import earth
 from ins_fusion.core.nav.rotation import mat_from_quat
-from ins_fusion.core.nav.strapdown import INCREMENT_SIZE, NAV_SIZE, increment, mechanize
+from ins_fusion.core.nav.strapdown import (
+    INC_ANGLE,
+    INC_DT,
+    INC_VEL,
+    INCREMENT_SIZE,
+    NAV_SIZE,
+    increment,
+    mechanize,
+)
 from ins_fusion.core.settings.config import FusionConfig
 
 #: Time constant of the smoothed acceleration and rate of the time-offset model [s].
@@ -158,19 +166,19 @@ def advance(x: FloatArray, inc: FloatArray, r_bi: FloatArray, bridged: bool, t: 
     correct it with the estimated biases and scale factors, turn it into base_link FRD with
     ``r_bi`` (row-major imu -> body), mechanize, and update the derived rates, the low-passed
     acceleration and rate and the covariance interval; stamp ``t`` [s]."""
-    dt = inc[0]
-    ti0 = (inc[1] - x[X_BG] * dt) / (1.0 + x[X_SG])
-    ti1 = (inc[2] - x[X_BG + 1] * dt) / (1.0 + x[X_SG + 1])
-    ti2 = (inc[3] - x[X_BG + 2] * dt) / (1.0 + x[X_SG + 2])
-    vi0 = (inc[4] - x[X_BA] * dt) / (1.0 + x[X_SA])
-    vi1 = (inc[5] - x[X_BA + 1] * dt) / (1.0 + x[X_SA + 1])
-    vi2 = (inc[6] - x[X_BA + 2] * dt) / (1.0 + x[X_SA + 2])
+    dt = inc[INC_DT]
+    ti0 = (inc[INC_ANGLE] - x[X_BG] * dt) / (1.0 + x[X_SG])
+    ti1 = (inc[INC_ANGLE + 1] - x[X_BG + 1] * dt) / (1.0 + x[X_SG + 1])
+    ti2 = (inc[INC_ANGLE + 2] - x[X_BG + 2] * dt) / (1.0 + x[X_SG + 2])
+    vi0 = (inc[INC_VEL] - x[X_BA] * dt) / (1.0 + x[X_SA])
+    vi1 = (inc[INC_VEL + 1] - x[X_BA + 1] * dt) / (1.0 + x[X_SA + 1])
+    vi2 = (inc[INC_VEL + 2] - x[X_BA + 2] * dt) / (1.0 + x[X_SA + 2])
     inc_b = np.empty(INCREMENT_SIZE)
-    inc_b[0] = dt
+    inc_b[INC_DT] = dt
     for row in range(3):
         r0, r1, r2 = r_bi[3 * row], r_bi[3 * row + 1], r_bi[3 * row + 2]
-        inc_b[1 + row] = r0 * ti0 + r1 * ti1 + r2 * ti2
-        inc_b[4 + row] = r0 * vi0 + r1 * vi1 + r2 * vi2
+        inc_b[INC_ANGLE + row] = r0 * ti0 + r1 * ti1 + r2 * ti2
+        inc_b[INC_VEL + row] = r0 * vi0 + r1 * vi1 + r2 * vi2
     v0 = x[X_VEL : X_VEL + 3].copy()
     use_prev = not bridged and x[X_HAS_PREV] != 0.0
     mechanize(x[X_NAV : X_NAV + NAV_SIZE], inc_b, x[X_PREV : X_PREV + INCREMENT_SIZE], use_prev)
@@ -180,7 +188,7 @@ def advance(x: FloatArray, inc: FloatArray, r_bi: FloatArray, bridged: bool, t: 
     k = min(1.0, dt / _ACCEL_SMOOTHING_S)
     for axis in range(3):
         an = (x[X_VEL + axis] - v0[axis]) * inv_dt
-        rb = inc_b[1 + axis] * inv_dt
+        rb = inc_b[INC_ANGLE + axis] * inv_dt
         x[X_ACCEL_N + axis] = an
         x[X_RATE_B + axis] = rb
         lp = x[X_ACCEL_LP + axis]

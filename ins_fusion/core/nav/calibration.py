@@ -75,7 +75,7 @@ _ZERO33: Mat3 = (_ZERO3, _ZERO3, _ZERO3)
 
 #: Layout of ImuCalibration.table, the numbers ``correct_sample`` reads (matrices row-major).
 T_LAYOUT = (
-    ("inverses", 2 * 64 * 9),  # per triad (gyro, then accelerometer) TriadCalibration.inverses
+    ("inverses", 2 * 64 * 9),  # the 64 3x3 TriadCalibration.inverses per triad (gyro, accel.)
     ("bias", 2 * 3),  # the two biases (gyro, then accelerometer)
     ("large", 2),  # the two large-input thresholds
     ("g", 9),  # G

@@ -94,8 +94,13 @@ class NavState:
 
 
 #: An IMU increment, the output integrated over one interval in the FRD body frame, is an array
-#: [dt [s], dθ (3) [rad], dv (3) [m/s]] (``increment``): the compiled code takes arrays.
-INCREMENT_SIZE = 7
+#: (``increment``): the compiled code takes arrays.
+INCREMENT_LAYOUT = (
+    ("dt", 1),  # the interval [s]
+    ("angle", 3),  # angle increment dθ = ∫ω_ib dt [rad]
+    ("vel", 3),  # velocity increment dv = ∫f dt [m/s]
+)
+INC_DT, INC_ANGLE, INC_VEL, INCREMENT_SIZE = offsets(INCREMENT_LAYOUT)
 
 
 def increment(dt_s: float, dtheta_rad: Sequence[float], dvel_m_s: Sequence[float]) -> FloatArray:
@@ -244,7 +249,7 @@ def mechanize(nav: FloatArray, inc: FloatArray, prev: FloatArray, use_prev: bool
     the latitude step (≤ 2e-8 rad at 40 m/s, so the expansion errs by < 1e-16), and the radii of
     the start serve the whole interval (they change by < 1e-10 relative over a sample).
     """
-    dt = inc[0]
+    dt = inc[INC_DT]
     lat, lon, height = nav[NAV_LAT], nav[NAV_LON], nav[NAV_HEIGHT]
     vn, ve, vd = nav[NAV_VEL], nav[NAV_VEL + 1], nav[NAV_VEL + 2]
     qx, qy, qz, qw = nav[NAV_QUAT], nav[NAV_QUAT + 1], nav[NAV_QUAT + 2], nav[NAV_QUAT + 3]
@@ -252,8 +257,8 @@ def mechanize(nav: FloatArray, inc: FloatArray, prev: FloatArray, use_prev: bool
     # Specific-force increment in b(k-1): rotation compensation to third order plus sculling;
     # rotation vector with coning. Linear rate and specific force over both intervals (equal dt
     # gives the usual 1/12 coefficient). Cross products written out.
-    tx, ty, tz = inc[1], inc[2], inc[3]
-    ux, uy, uz = inc[4], inc[5], inc[6]
+    tx, ty, tz = inc[INC_ANGLE], inc[INC_ANGLE + 1], inc[INC_ANGLE + 2]
+    ux, uy, uz = inc[INC_VEL], inc[INC_VEL + 1], inc[INC_VEL + 2]
     r1x, r1y, r1z = ty * uz - tz * uy, tz * ux - tx * uz, tx * uy - ty * ux  # dθ × dv
     r2x, r2y, r2z = ty * r1z - tz * r1y, tz * r1x - tx * r1z, tx * r1y - ty * r1x  # dθ × (dθ × dv)
     dvb_x = ux + 0.5 * r1x + r2x / 6.0
@@ -261,9 +266,9 @@ def mechanize(nav: FloatArray, inc: FloatArray, prev: FloatArray, use_prev: bool
     dvb_z = uz + 0.5 * r1z + r2z / 6.0
     rx, ry, rz = tx, ty, tz
     if use_prev:
-        k = dt * dt / (6.0 * prev[0] * (dt + prev[0]))
-        px, py, pz = prev[1], prev[2], prev[3]
-        wx, wy, wz = prev[4], prev[5], prev[6]
+        k = dt * dt / (6.0 * prev[INC_DT] * (dt + prev[INC_DT]))
+        px, py, pz = prev[INC_ANGLE], prev[INC_ANGLE + 1], prev[INC_ANGLE + 2]
+        wx, wy, wz = prev[INC_VEL], prev[INC_VEL + 1], prev[INC_VEL + 2]
         # sculling dθ_prev × dv + dv_prev × dθ; coning dθ_prev × dθ
         dvb_x += k * (py * uz - pz * uy + wy * tz - wz * ty)
         dvb_y += k * (pz * ux - px * uz + wz * tx - wx * tz)
