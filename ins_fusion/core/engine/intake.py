@@ -21,19 +21,51 @@ from gnss_ins_common.types import FloatArray
 from ins_fusion.core.compiled import jit
 from ins_fusion.core.filter.adaptation import block_push
 from ins_fusion.core.filter.propagation import advance
+from ins_fusion.core.layout import offsets
 from ins_fusion.core.measurements.stop_detector import ring_push
 from ins_fusion.core.nav.calibration import correct_sample
 from ins_fusion.core.nav.strapdown import integrate_sample
 
-#: Layout of the intake array: the last accepted sample's stamp [s] (NaN: none) and the running
-#: nominal interval [s] (inf: none yet); its rate (3) and specific force (3); the sums of the
-#: rates (3) and their count since the pseudo-measurement interval began (ZARU); the counters
-#: (samples taken, gaps, duplicates, out of order, beyond range, stamps back in a row); the
-#: range limits [rad/s, m/s²] and 1.0 when a calibration table applies; the sample just taken,
-#: calibrated (rate, force).
-S_LAST_T, S_NOMINAL_DT, S_LAST_RATE, S_LAST_FORCE, S_ZARU_SUM, S_ZARU_N = 0, 1, 2, 5, 8, 11
-S_SAMPLES, S_GAPS, S_DUPLICATES, S_OUT_OF_ORDER, S_IMPLAUSIBLE, S_BACK_RUN = 12, 13, 14, 15, 16, 17
-S_MAX_RATE, S_MAX_FORCE, S_CALIBRATED, S_RATE, S_FORCE, S_SIZE = 18, 19, 20, 21, 24, 27
+#: Layout of the intake array (rates and specific forces calibrated, imu FRD).
+S_LAYOUT = (
+    ("last_t", 1),  # the last accepted sample's stamp [s] (NaN: none)
+    ("nominal_dt", 1),  # the running nominal interval [s] (inf: none yet)
+    ("last_rate", 3),  # the last accepted sample's rate [rad/s]
+    ("last_force", 3),  # its specific force [m/s²]
+    ("zaru_sum", 3),  # sum of the rates since the pseudo-measurement interval began (ZARU)
+    ("zaru_n", 1),  # their count
+    ("samples", 1),  # counter: samples taken
+    ("gaps", 1),  # counter: gaps
+    ("duplicates", 1),  # counter: duplicates
+    ("out_of_order", 1),  # counter: out of order
+    ("implausible", 1),  # counter: beyond range
+    ("back_run", 1),  # stamps back in a row
+    ("max_rate", 1),  # range limit of the rate [rad/s] (imu_link FLU, as received)
+    ("max_force", 1),  # range limit of the specific force [m/s²] (likewise)
+    ("calibrated", 1),  # 1.0 when a calibration table applies
+    ("rate", 3),  # the sample just taken: rate [rad/s]
+    ("force", 3),  # the sample just taken: specific force [m/s²]
+)
+(
+    S_LAST_T,
+    S_NOMINAL_DT,
+    S_LAST_RATE,
+    S_LAST_FORCE,
+    S_ZARU_SUM,
+    S_ZARU_N,
+    S_SAMPLES,
+    S_GAPS,
+    S_DUPLICATES,
+    S_OUT_OF_ORDER,
+    S_IMPLAUSIBLE,
+    S_BACK_RUN,
+    S_MAX_RATE,
+    S_MAX_FORCE,
+    S_CALIBRATED,
+    S_RATE,
+    S_FORCE,
+    S_SIZE,
+) = offsets(S_LAYOUT)
 
 #: ``take_sample`` results below PUSHED: nothing more to do (the sample was counted and
 #: dropped), the stream restarts with this sample (a run of stamps in the past), it starts with

@@ -42,6 +42,7 @@ from ins_fusion.core.filter.state import (
     X_COV_VEL0,
     X_NAV,
     X_SIZE,
+    X_VEL,
     FilterState,
     Geometry,
     LatestInputs,
@@ -322,7 +323,7 @@ class EngineLoop:
         self._propagator.propagate_covariance(s, kf)
         self._corrections.handlers[kind](s, kf, self._propagator.predict(s, kf, t_m), payload, live)
         x = s.x  # the covariance interval goes on from the corrected velocity
-        x[X_COV_VEL0 : X_COV_VEL0 + 3] = x[X_NAV + 3 : X_NAV + 6]
+        x[X_COV_VEL0 : X_COV_VEL0 + 3] = x[X_VEL : X_VEL + 3]
 
     def _step(
         self,
@@ -341,7 +342,7 @@ class EngineLoop:
         assert s is not None and kf is not None
         cfg = self.config
         x = s.x  # navigation at X_NAV (core.nav.strapdown.NAV_SIZE): position, velocity, attitude
-        vn, ve, vd = x[X_NAV + 3], x[X_NAV + 4], x[X_NAV + 5]
+        vn, ve, vd = x[X_VEL], x[X_VEL + 1], x[X_VEL + 2]
         horizontal = math.hypot(vn, ve)
         speed = math.hypot(horizontal, vd)
         stationary = self._detector.evaluate(t, self._recent_gnss_speed(t), speed)

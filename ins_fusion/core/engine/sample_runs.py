@@ -54,6 +54,7 @@ from ins_fusion.core.filter.state import (
     X_Q_SCALE,
     X_SIZE,
     X_T,
+    X_VEL,
     FilterState,
     Geometry,
     mounted_arm,
@@ -181,7 +182,7 @@ def take_run(
                 pseudo_t = (math.floor(t / period_s) + 1.0) * period_s
                 buf[S_ZARU_SUM : S_ZARU_N + 1] = 0.0
                 pseudo_out[0], pseudo_out[1] = pseudo_t, t
-                horizontal = math.hypot(x[X_NAV + 3], x[X_NAV + 4])
+                horizontal = math.hypot(x[X_VEL], x[X_VEL + 1])
                 if use_nhc and horizontal > nhc_min_speed_m_s:  # FusedNhc.apply
                     gyro, accel = monitored_white_noise(block, floor, x[X_Q_SCALE])
                     stepped, phi, accepted, nis, P = nhc_apply(
@@ -223,7 +224,7 @@ def _moving_epoch(x: FloatArray, detector_idle: bool, stop_speed_m_s: float) -> 
     """Whether a pseudo-measurement epoch at state ``x`` can stay in the run: the heading is
     known and StopDetector.evaluate would decide no stop without looking at the IMU (it is
     idle and the filter's speed vetoes a stop: at or above ``stop_speed_m_s`` [m/s])."""
-    speed = math.hypot(math.hypot(x[X_NAV + 3], x[X_NAV + 4]), x[X_NAV + 5])
+    speed = math.hypot(math.hypot(x[X_VEL], x[X_VEL + 1]), x[X_VEL + 2])
     return x[X_HEADING_KNOWN] != 0.0 and detector_idle and speed >= stop_speed_m_s
 
 

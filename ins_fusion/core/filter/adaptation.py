@@ -38,18 +38,40 @@ import numpy as np
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core.compiled import compilable, jit
 from ins_fusion.core.filter.update_algebra import projected_variance
+from ins_fusion.core.layout import offsets
 
 #: A squared difference above this many times the running mean is clipped to it.
 _CLIP = 9.0
 #: Differences needed before an estimate is reported.
 _MIN_COUNT = 10
-#: Layout of ImuNoiseMonitor.block, all the monitor keeps (``block_push`` updates it): the open
-#: block's start [s] (NaN: none), sums of ω (3) and f (3) and count; the block length τ [s];
-#: the means of the last two closed blocks (older first, 6 each) and how many are held (0-2);
-#: the running mean squares (gyro 3, accelerometer 3) and their counts; the running mean's
-#: time constant [s]; the estimate's version (+1 whenever ``psd`` changes).
-B_START, B_SUM, B_N, B_TAU, B_PREV, B_HELD = 0, 1, 7, 8, 9, 21
-B_MEAN, B_GYRO_N, B_ACCEL_N, B_WINDOW, B_VERSION, B_SIZE = 22, 28, 29, 30, 31, 32
+#: Layout of ImuNoiseMonitor.block, all the monitor keeps (``block_push`` updates it).
+B_LAYOUT = (
+    ("start", 1),  # the open block's start [s] (NaN: none)
+    ("sum", 6),  # its sums of ω (3) and f (3)
+    ("n", 1),  # and their count
+    ("tau", 1),  # the block length τ [s]
+    ("prev", 2 * 6),  # the means of the last two closed blocks (older first, 6 each)
+    ("held", 1),  # how many of those are held (0-2)
+    ("mean", 6),  # the running mean squares (gyro 3, accelerometer 3)
+    ("gyro_n", 1),  # the gyro's count
+    ("accel_n", 1),  # the accelerometer's count
+    ("window", 1),  # the running mean's time constant [s]
+    ("version", 1),  # the estimate's version (+1 whenever ``psd`` changes)
+)
+(
+    B_START,
+    B_SUM,
+    B_N,
+    B_TAU,
+    B_PREV,
+    B_HELD,
+    B_MEAN,
+    B_GYRO_N,
+    B_ACCEL_N,
+    B_WINDOW,
+    B_VERSION,
+    B_SIZE,
+) = offsets(B_LAYOUT)
 
 
 @compilable
@@ -173,12 +195,28 @@ def block_push(
     block[B_N] += 1.0
 
 
-#: Layout of WhiteNoiseMonitor.values, all the monitor keeps (``white_push`` updates it): the
-#: running mean of the normalised squares (3) and their count (``push_square``); the previous
-#: fix's stamp [s] (NaN: none), its residual [m] (3), H P⁺ Hᵀ diagonal and reported variance
-#: [m²] (3 each); the time constant [epochs] and the longest interval differenced [s].
-W_MEAN, W_COUNT, W_LAST_T, W_RESIDUAL, W_UPDATED, W_REPORTED = 0, 3, 4, 5, 8, 11
-W_WINDOW, W_MAX_INTERVAL, W_SIZE = 14, 15, 16
+#: Layout of WhiteNoiseMonitor.values, all the monitor keeps (``white_push`` updates it).
+W_LAYOUT = (
+    ("mean", 3),  # the running mean of the normalised squares
+    ("count", 1),  # their count (``push_square``)
+    ("last_t", 1),  # the previous fix's stamp [s] (NaN: none)
+    ("residual", 3),  # its residual [m]
+    ("updated", 3),  # its H P⁺ Hᵀ diagonal [m²]
+    ("reported", 3),  # its reported variance [m²]
+    ("window", 1),  # the time constant [epochs]
+    ("max_interval", 1),  # the longest interval differenced [s]
+)
+(
+    W_MEAN,
+    W_COUNT,
+    W_LAST_T,
+    W_RESIDUAL,
+    W_UPDATED,
+    W_REPORTED,
+    W_WINDOW,
+    W_MAX_INTERVAL,
+    W_SIZE,
+) = offsets(W_LAYOUT)
 
 
 class WhiteNoiseMonitor:

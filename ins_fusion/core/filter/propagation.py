@@ -36,14 +36,19 @@ from ins_fusion.core.filter.state import (
     X_COV_VEL0,
     X_GNSS_ERROR,
     X_HAS_PREV,
+    X_HEIGHT,
+    X_LAT,
+    X_LON,
     X_NAV,
     X_PREV,
+    X_QUAT,
     X_RATE_B,
     X_RATE_I,
     X_RATE_LP,
     X_SA,
     X_SG,
     X_T,
+    X_VEL,
     FilterState,
     Geometry,
     decouple_yaw,
@@ -51,7 +56,15 @@ from ins_fusion.core.filter.state import (
 from ins_fusion.core.filter.timeline import Gap
 from ins_fusion.core.nav import earth
 from ins_fusion.core.nav.rotation import mat_from_quat
-from ins_fusion.core.nav.strapdown import INCREMENT_SIZE, NAV_SIZE, increment, mechanize
+from ins_fusion.core.nav.strapdown import (
+    INC_ANGLE,
+    INC_DT,
+    INC_VEL,
+    INCREMENT_SIZE,
+    NAV_SIZE,
+    increment,
+    mechanize,
+)
 from ins_fusion.core.settings.config import FusionConfig
 
 #: Time constant of the smoothed acceleration and rate of the time-offset model [s].
@@ -153,20 +166,20 @@ def advance(x: FloatArray, inc: FloatArray, r_bi: FloatArray, bridged: bool, t: 
     correct it with the estimated biases and scale factors, turn it into base_link FRD with
     ``r_bi`` (row-major imu -> body), mechanize, and update the derived rates, the low-passed
     acceleration and rate and the covariance interval; stamp ``t`` [s]."""
-    dt = inc[0]
-    ti0 = (inc[1] - x[X_BG] * dt) / (1.0 + x[X_SG])
-    ti1 = (inc[2] - x[X_BG + 1] * dt) / (1.0 + x[X_SG + 1])
-    ti2 = (inc[3] - x[X_BG + 2] * dt) / (1.0 + x[X_SG + 2])
-    vi0 = (inc[4] - x[X_BA] * dt) / (1.0 + x[X_SA])
-    vi1 = (inc[5] - x[X_BA + 1] * dt) / (1.0 + x[X_SA + 1])
-    vi2 = (inc[6] - x[X_BA + 2] * dt) / (1.0 + x[X_SA + 2])
+    dt = inc[INC_DT]
+    ti0 = (inc[INC_ANGLE] - x[X_BG] * dt) / (1.0 + x[X_SG])
+    ti1 = (inc[INC_ANGLE + 1] - x[X_BG + 1] * dt) / (1.0 + x[X_SG + 1])
+    ti2 = (inc[INC_ANGLE + 2] - x[X_BG + 2] * dt) / (1.0 + x[X_SG + 2])
+    vi0 = (inc[INC_VEL] - x[X_BA] * dt) / (1.0 + x[X_SA])
+    vi1 = (inc[INC_VEL + 1] - x[X_BA + 1] * dt) / (1.0 + x[X_SA + 1])
+    vi2 = (inc[INC_VEL + 2] - x[X_BA + 2] * dt) / (1.0 + x[X_SA + 2])
     inc_b = np.empty(INCREMENT_SIZE)
-    inc_b[0] = dt
+    inc_b[INC_DT] = dt
     for row in range(3):
         r0, r1, r2 = r_bi[3 * row], r_bi[3 * row + 1], r_bi[3 * row + 2]
-        inc_b[1 + row] = r0 * ti0 + r1 * ti1 + r2 * ti2
-        inc_b[4 + row] = r0 * vi0 + r1 * vi1 + r2 * vi2
-    v0 = x[X_NAV + 3 : X_NAV + 6].copy()
+        inc_b[INC_ANGLE + row] = r0 * ti0 + r1 * ti1 + r2 * ti2
+        inc_b[INC_VEL + row] = r0 * vi0 + r1 * vi1 + r2 * vi2
+    v0 = x[X_VEL : X_VEL + 3].copy()
     use_prev = not bridged and x[X_HAS_PREV] != 0.0
     mechanize(x[X_NAV : X_NAV + NAV_SIZE], inc_b, x[X_PREV : X_PREV + INCREMENT_SIZE], use_prev)
     inv_dt = 1.0 / dt
@@ -174,8 +187,8 @@ def advance(x: FloatArray, inc: FloatArray, r_bi: FloatArray, bridged: bool, t: 
     # model: their noise would otherwise make H noisy and the estimate wander.
     k = min(1.0, dt / _ACCEL_SMOOTHING_S)
     for axis in range(3):
-        an = (x[X_NAV + 3 + axis] - v0[axis]) * inv_dt
-        rb = inc_b[1 + axis] * inv_dt
+        an = (x[X_VEL + axis] - v0[axis]) * inv_dt
+        rb = inc_b[INC_ANGLE + axis] * inv_dt
         x[X_ACCEL_N + axis] = an
         x[X_RATE_B + axis] = rb
         lp = x[X_ACCEL_LP + axis]
@@ -206,11 +219,11 @@ def covariance_interval(
     restarts (accumulators zero, its start velocity the current one)."""
     dt = x[X_COV_DT]
     inv_dt = 1.0 / dt
-    lat, height = x[X_NAV], x[X_NAV + 2]
-    vel = x[X_NAV + 3 : X_NAV + 6].copy()
+    lat, height = x[X_LAT], x[X_HEIGHT]
+    vel = x[X_VEL : X_VEL + 3].copy()
     force_n = (vel - x[X_COV_VEL0 : X_COV_VEL0 + 3]) * inv_dt
     force_n[2] -= earth.normal_gravity_from_sin_cos(math.sin(lat), math.cos(lat), height)
-    mat_nb = mat_from_quat(x[X_NAV + 6], x[X_NAV + 7], x[X_NAV + 8], x[X_NAV + 9])
+    mat_nb = mat_from_quat(x[X_QUAT], x[X_QUAT + 1], x[X_QUAT + 2], x[X_QUAT + 3])
     force_i = x[X_COV_DV : X_COV_DV + 3] * inv_dt
     rate_i = x[X_COV_DTH : X_COV_DTH + 3] * inv_dt
     x[X_COV_DT] = 0.0
@@ -350,17 +363,16 @@ def predicted_state(
     height [m], NED velocity [m/s], body -> NED rotation, corrected rate in body and imu FRD
     [rad/s] (core.filter.records.Prediction's fields)."""
     dt = t_m - x[X_T]
-    n = X_NAV
-    mat_nb = mat_from_quat(x[n + 6], x[n + 7], x[n + 8], x[n + 9])
-    vel = x[n + 3 : n + 6].copy()
+    mat_nb = mat_from_quat(x[X_QUAT], x[X_QUAT + 1], x[X_QUAT + 2], x[X_QUAT + 3])
+    vel = x[X_VEL : X_VEL + 3].copy()
     rate_b = x[X_RATE_B : X_RATE_B + 3].copy()
     rate_i = x[X_RATE_I : X_RATE_I + 3].copy()
     if dt == 0.0:
-        return x[n], x[n + 1], x[n + 2], vel, mat_nb, rate_b, rate_i
+        return x[X_LAT], x[X_LON], x[X_HEIGHT], vel, mat_nb, rate_b, rate_i
     vel_m = vel + x[X_ACCEL_N : X_ACCEL_N + 3] * dt
     mean_vel = 0.5 * (vel + vel_m)
     lat, lon, height = earth.displace(
-        x[n], x[n + 1], x[n + 2], mean_vel[0] * dt, mean_vel[1] * dt, mean_vel[2] * dt
+        x[X_LAT], x[X_LON], x[X_HEIGHT], mean_vel[0] * dt, mean_vel[1] * dt, mean_vel[2] * dt
     )
     r = rate_b * dt
     rotation = np.array(((0.0, -r[2], r[1]), (r[2], 0.0, -r[0]), (-r[1], r[0], 0.0)))  # [r×]

@@ -31,6 +31,7 @@ from ins_fusion.core.filter.records import (
     GnssFixMeasurement,
     GnssVelocityMeasurement,
 )
+from ins_fusion.core.layout import offsets
 from ins_fusion.core.nav import earth
 from ins_fusion.core.nav.rotation import (
     as_quat,
@@ -44,32 +45,88 @@ from ins_fusion.core.nav.rotation import (
     quat_normalize,
     skew,
 )
-from ins_fusion.core.nav.strapdown import NavState
+from ins_fusion.core.nav.strapdown import (
+    INCREMENT_SIZE,
+    NAV_HEIGHT,
+    NAV_LAT,
+    NAV_LON,
+    NAV_QUAT,
+    NAV_SIZE,
+    NAV_VEL,
+    NavState,
+)
 from ins_fusion.core.settings.config import FusionConfig
 
 #: Yaw variance standing for 'heading unknown' [rad²].
 UNKNOWN_YAW_VARIANCE = (math.pi / 2.0) ** 2
 
 
-#: Layout of FilterState.x, the per-sample numbers the compiled time update advances
-#: (core.filter.propagation.advance): navigation (strapdown.NAV_SIZE), gyro and accelerometer bias
-#: and scale (imu FRD), the previous corrected increment (body FRD; X_HAS_PREV 1.0 when there is
-#: one), the corrected rate in body and imu FRD, the NED acceleration, the low-passed NED
-#: acceleration and body rate, the covariance interval (duration, imu FRD angle and velocity
-#: increments, NED velocity at its start) and the stamp [s]; then the filter's bookkeeping that
-#: a rollback restores with them (FilterState's fields of the same names): the correlated GNSS
-#: error estimate, its stationary variance and the reported variance at its last restart (NED,
-#: m, m²), the residual mounting (pitch, yaw [rad]), the residual IMU time offset [s], the
-#: running NIS mean and process-noise scale (core.filter.adaptation), the stamp of the last GNSS
-#: position used [s], 1.0 while the heading is known, and the vehicle speed's scale error
-#: (measured / true - 1).
-X_NAV, X_BG, X_BA, X_SG, X_SA = 0, 10, 13, 16, 19
-X_PREV, X_HAS_PREV = 22, 29
-X_RATE_B, X_RATE_I, X_ACCEL_N, X_ACCEL_LP, X_RATE_LP = 30, 33, 36, 39, 42
-X_COV_DT, X_COV_DTH, X_COV_DV, X_COV_VEL0, X_T = 45, 46, 49, 52, 55
-X_GNSS_ERROR, X_GNSS_VARIANCE, X_GNSS_REPORTED, X_MOUNTING, X_TIME_OFFSET = 56, 59, 62, 65, 67
-X_NIS_MEAN, X_Q_SCALE, X_LAST_POSITION_T, X_HEADING_KNOWN, X_SPEED_SCALE = 68, 69, 70, 71, 72
-X_SIZE = 73
+#: Layout of FilterState.x: the per-sample numbers the compiled time update advances
+#: (core.filter.propagation.advance), from "nav" to "t"; then the filter's bookkeeping that a
+#: rollback restores with them (FilterState's fields of the same names), from "gnss_error".
+X_LAYOUT = (
+    ("nav", NAV_SIZE),  # navigation (core.nav.strapdown.NAV_LAYOUT; X_LAT ... X_QUAT below)
+    ("bg", 3),  # gyro bias, imu FRD [rad/s]
+    ("ba", 3),  # accelerometer bias, imu FRD [m/s²]
+    ("sg", 3),  # gyro scale factor error, imu FRD [fraction]
+    ("sa", 3),  # accelerometer scale factor error, imu FRD [fraction]
+    ("prev", INCREMENT_SIZE),  # the previous corrected increment (body FRD; strapdown.increment)
+    ("has_prev", 1),  # 1.0 when there is a previous increment
+    ("rate_b", 3),  # corrected angular rate, body FRD [rad/s]
+    ("rate_i", 3),  # corrected angular rate, imu FRD [rad/s]
+    ("accel_n", 3),  # acceleration, NED [m/s²]
+    ("accel_lp", 3),  # low-passed acceleration, NED [m/s²]
+    ("rate_lp", 3),  # low-passed angular rate, body FRD [rad/s]
+    ("cov_dt", 1),  # covariance interval: its duration [s]
+    ("cov_dth", 3),  # its angle increment, imu FRD [rad]
+    ("cov_dv", 3),  # its velocity increment, imu FRD [m/s]
+    ("cov_vel0", 3),  # the velocity at its start, NED [m/s]
+    ("t", 1),  # stamp [s]
+    ("gnss_error", 3),  # correlated GNSS error estimate, NED [m]
+    ("gnss_variance", 3),  # its stationary variance, NED [m²]
+    ("gnss_reported", 3),  # the reported variance at its last restart, NED [m²]
+    ("mounting", 2),  # residual mounting: pitch, yaw [rad]
+    ("time_offset", 1),  # residual IMU time offset [s]
+    ("nis_mean", 1),  # running NIS mean (core.filter.adaptation)
+    ("q_scale", 1),  # process-noise scale (core.filter.adaptation)
+    ("last_position_t", 1),  # stamp of the last GNSS position used [s]
+    ("heading_known", 1),  # 1.0 while the heading is known
+    ("speed_scale", 1),  # the vehicle speed's scale error (measured / true - 1)
+)
+(
+    X_NAV,
+    X_BG,
+    X_BA,
+    X_SG,
+    X_SA,
+    X_PREV,
+    X_HAS_PREV,
+    X_RATE_B,
+    X_RATE_I,
+    X_ACCEL_N,
+    X_ACCEL_LP,
+    X_RATE_LP,
+    X_COV_DT,
+    X_COV_DTH,
+    X_COV_DV,
+    X_COV_VEL0,
+    X_T,
+    X_GNSS_ERROR,
+    X_GNSS_VARIANCE,
+    X_GNSS_REPORTED,
+    X_MOUNTING,
+    X_TIME_OFFSET,
+    X_NIS_MEAN,
+    X_Q_SCALE,
+    X_LAST_POSITION_T,
+    X_HEADING_KNOWN,
+    X_SPEED_SCALE,
+    X_SIZE,
+) = offsets(X_LAYOUT)
+#: The navigation's fields in FilterState.x: latitude, longitude [rad], height [m], NED velocity
+#: (3) [m/s], body (FRD) -> NED quaternion (4, scalar last).
+X_LAT, X_LON, X_HEIGHT = X_NAV + NAV_LAT, X_NAV + NAV_LON, X_NAV + NAV_HEIGHT
+X_VEL, X_QUAT = X_NAV + NAV_VEL, X_NAV + NAV_QUAT
 
 
 class _Vec3Field:
@@ -198,7 +255,11 @@ class FilterState:
         if nav is None:
             x = self.x
             nav = self._nav = NavState(
-                float(x[0]), float(x[1]), float(x[2]), x[3:6].copy(), x[6:10].copy()
+                float(x[X_LAT]),
+                float(x[X_LON]),
+                float(x[X_HEIGHT]),
+                x[X_VEL : X_VEL + 3].copy(),
+                x[X_QUAT : X_QUAT + 4].copy(),
             )
         return nav
 
@@ -211,9 +272,9 @@ class FilterState:
 
     def set_nav(self, nav: NavState) -> None:
         x = self.x
-        x[0], x[1], x[2] = nav.lat_rad, nav.lon_rad, nav.height_m
-        x[3:6] = nav.vel_ned_m_s
-        x[6:10] = nav.quat_nb
+        x[X_LAT], x[X_LON], x[X_HEIGHT] = nav.lat_rad, nav.lon_rad, nav.height_m
+        x[X_VEL : X_VEL + 3] = nav.vel_ned_m_s
+        x[X_QUAT : X_QUAT + 4] = nav.quat_nb
         self._nav = nav
         self._mat_nb = None
 
@@ -360,15 +421,15 @@ def inject_nominal(x: FloatArray, dx: FloatArray, columns: Columns) -> None:
     sg, sa, gp, mt, td, ks = columns
     q_err = quat_from_rotvec(dx[ATT], dx[ATT + 1], dx[ATT + 2])
     q = quat_normalize(
-        quat_multiply(q_err, (x[X_NAV + 6], x[X_NAV + 7], x[X_NAV + 8], x[X_NAV + 9]))
+        quat_multiply(q_err, (x[X_QUAT], x[X_QUAT + 1], x[X_QUAT + 2], x[X_QUAT + 3]))
     )
     lat, lon, height = earth.displace(
-        x[X_NAV], x[X_NAV + 1], x[X_NAV + 2], dx[POS], dx[POS + 1], dx[POS + 2]
+        x[X_LAT], x[X_LON], x[X_HEIGHT], dx[POS], dx[POS + 1], dx[POS + 2]
     )
-    x[X_NAV], x[X_NAV + 1], x[X_NAV + 2] = lat, lon, height
-    x[X_NAV + 6], x[X_NAV + 7], x[X_NAV + 8], x[X_NAV + 9] = q
+    x[X_LAT], x[X_LON], x[X_HEIGHT] = lat, lon, height
+    x[X_QUAT], x[X_QUAT + 1], x[X_QUAT + 2], x[X_QUAT + 3] = q
     for k in range(3):
-        x[X_NAV + 3 + k] += dx[VEL + k]
+        x[X_VEL + k] += dx[VEL + k]
         x[X_BG + k] += dx[BG + k]
         x[X_BA + k] += dx[BA + k]
         if sg >= 0:

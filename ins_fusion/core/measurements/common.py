@@ -24,7 +24,7 @@ from gnss_ins_common.types import FloatArray
 from ins_fusion.core.compiled import compilable, jit
 from ins_fusion.core.filter.eskf import BG, Columns, ErrorStateFilter, ProcessModel
 from ins_fusion.core.filter.propagation import covariance_step, predicted_state
-from ins_fusion.core.filter.state import X_COV_DT, X_COV_VEL0, X_NAV, FilterState, inject_nominal
+from ins_fusion.core.filter.state import X_COV_DT, X_COV_VEL0, X_VEL, FilterState, inject_nominal
 from ins_fusion.core.filter.update_algebra import joseph_update
 from ins_fusion.core.nav.rotation import skew
 
@@ -191,4 +191,4 @@ def restart_interval(x: FloatArray) -> None:
     """The covariance interval in ``x`` goes on from the current velocity (after an update,
     as InsEngine._apply)."""
     for k in range(3):
-        x[X_COV_VEL0 + k] = x[X_NAV + 3 + k]
+        x[X_COV_VEL0 + k] = x[X_VEL + k]

@@ -67,15 +67,20 @@ import yaml
 from gnss_ins_common.axes import AxisMap
 from gnss_ins_common.types import FloatArray, Mat3, Vec3
 from ins_fusion.core.compiled import compilable, jit
+from ins_fusion.core.layout import offsets
 from ins_fusion.core.nav.units import STANDARD_GRAVITY_M_S2, deg_s, mg, percent
 
 _ZERO3: Vec3 = (0.0, 0.0, 0.0)
 _ZERO33: Mat3 = (_ZERO3, _ZERO3, _ZERO3)
 
-#: Layout of ImuCalibration.table, the numbers ``correct_sample`` reads: per triad (gyro, then
-#: accelerometer) the 64 matrices of TriadCalibration.inverses, then the two biases, the two
-#: large-input thresholds and G, row-major.
-T_INVERSES, T_BIAS, T_LARGE, T_G, T_SIZE = 0, 1152, 1158, 1160, 1169
+#: Layout of ImuCalibration.table, the numbers ``correct_sample`` reads (matrices row-major).
+T_LAYOUT = (
+    ("inverses", 2 * 64 * 9),  # the 64 3x3 TriadCalibration.inverses per triad (gyro, accel.)
+    ("bias", 2 * 3),  # the two biases (gyro, then accelerometer)
+    ("large", 2),  # the two large-input thresholds
+    ("g", 9),  # G
+)
+T_INVERSES, T_BIAS, T_LARGE, T_G, T_SIZE = offsets(T_LAYOUT)
 
 
 class CalibrationError(ValueError):

@@ -24,6 +24,7 @@ import numpy as np
 
 from gnss_ins_common.types import FloatArray, Vec3
 from ins_fusion.core.compiled import compilable, jit
+from ins_fusion.core.layout import offsets
 from ins_fusion.core.nav import earth
 from ins_fusion.core.nav.rotation import (
     euler_from_quat,
@@ -93,8 +94,13 @@ class NavState:
 
 
 #: An IMU increment, the output integrated over one interval in the FRD body frame, is an array
-#: [dt [s], dθ (3) [rad], dv (3) [m/s]] (``increment``): the compiled code takes arrays.
-INCREMENT_SIZE = 7
+#: (``increment``): the compiled code takes arrays.
+INCREMENT_LAYOUT = (
+    ("dt", 1),  # the interval [s]
+    ("angle", 3),  # angle increment dθ = ∫ω_ib dt [rad]
+    ("vel", 3),  # velocity increment dv = ∫f dt [m/s]
+)
+INC_DT, INC_ANGLE, INC_VEL, INCREMENT_SIZE = offsets(INCREMENT_LAYOUT)
 
 
 def increment(dt_s: float, dtheta_rad: Sequence[float], dvel_m_s: Sequence[float]) -> FloatArray:
@@ -201,9 +207,16 @@ def _velocity_change(
     )
 
 
-#: Layout of the navigation array ``mechanize`` advances: latitude, longitude [rad], height [m],
-#: NED velocity (3) [m/s], body (FRD) -> NED quaternion (4, scalar last).
-NAV_SIZE = 10
+#: Layout of the navigation array ``mechanize`` advances (NavState's numbers; FilterState.x
+#: holds it at core.filter.state.X_NAV).
+NAV_LAYOUT = (
+    ("lat", 1),  # WGS-84 geodetic latitude [rad]
+    ("lon", 1),  # longitude [rad]
+    ("height", 1),  # ellipsoidal height [m]
+    ("vel", 3),  # velocity relative to the earth, NED [m/s]
+    ("quat", 4),  # body (FRD) -> NED unit quaternion, scalar last (x, y, z, w)
+)
+NAV_LAT, NAV_LON, NAV_HEIGHT, NAV_VEL, NAV_QUAT, NAV_SIZE = offsets(NAV_LAYOUT)
 
 
 def propagate(state: NavState, inc: FloatArray, prev: FloatArray | None = None) -> NavState:
@@ -213,11 +226,17 @@ def propagate(state: NavState, inc: FloatArray, prev: FloatArray | None = None) 
     sculling corrections; pass None for the first sample or after a data gap.
     """
     nav = np.empty(NAV_SIZE)
-    nav[0], nav[1], nav[2] = state.lat_rad, state.lon_rad, state.height_m
-    nav[3:6] = state.vel_ned_m_s
-    nav[6:10] = state.quat_nb
+    nav[NAV_LAT], nav[NAV_LON], nav[NAV_HEIGHT] = state.lat_rad, state.lon_rad, state.height_m
+    nav[NAV_VEL : NAV_VEL + 3] = state.vel_ned_m_s
+    nav[NAV_QUAT : NAV_QUAT + 4] = state.quat_nb
     mechanize(nav, inc, inc if prev is None else prev, prev is not None)
-    return NavState(float(nav[0]), float(nav[1]), float(nav[2]), nav[3:6], nav[6:10])
+    return NavState(
+        float(nav[NAV_LAT]),
+        float(nav[NAV_LON]),
+        float(nav[NAV_HEIGHT]),
+        nav[NAV_VEL : NAV_VEL + 3],
+        nav[NAV_QUAT : NAV_QUAT + 4],
+    )
 
 
 @jit
@@ -230,16 +249,16 @@ def mechanize(nav: FloatArray, inc: FloatArray, prev: FloatArray, use_prev: bool
     the latitude step (≤ 2e-8 rad at 40 m/s, so the expansion errs by < 1e-16), and the radii of
     the start serve the whole interval (they change by < 1e-10 relative over a sample).
     """
-    dt = inc[0]
-    lat, lon, height = nav[0], nav[1], nav[2]
-    vn, ve, vd = nav[3], nav[4], nav[5]
-    qx, qy, qz, qw = nav[6], nav[7], nav[8], nav[9]
+    dt = inc[INC_DT]
+    lat, lon, height = nav[NAV_LAT], nav[NAV_LON], nav[NAV_HEIGHT]
+    vn, ve, vd = nav[NAV_VEL], nav[NAV_VEL + 1], nav[NAV_VEL + 2]
+    qx, qy, qz, qw = nav[NAV_QUAT], nav[NAV_QUAT + 1], nav[NAV_QUAT + 2], nav[NAV_QUAT + 3]
 
     # Specific-force increment in b(k-1): rotation compensation to third order plus sculling;
     # rotation vector with coning. Linear rate and specific force over both intervals (equal dt
     # gives the usual 1/12 coefficient). Cross products written out.
-    tx, ty, tz = inc[1], inc[2], inc[3]
-    ux, uy, uz = inc[4], inc[5], inc[6]
+    tx, ty, tz = inc[INC_ANGLE], inc[INC_ANGLE + 1], inc[INC_ANGLE + 2]
+    ux, uy, uz = inc[INC_VEL], inc[INC_VEL + 1], inc[INC_VEL + 2]
     r1x, r1y, r1z = ty * uz - tz * uy, tz * ux - tx * uz, tx * uy - ty * ux  # dθ × dv
     r2x, r2y, r2z = ty * r1z - tz * r1y, tz * r1x - tx * r1z, tx * r1y - ty * r1x  # dθ × (dθ × dv)
     dvb_x = ux + 0.5 * r1x + r2x / 6.0
@@ -247,9 +266,9 @@ def mechanize(nav: FloatArray, inc: FloatArray, prev: FloatArray, use_prev: bool
     dvb_z = uz + 0.5 * r1z + r2z / 6.0
     rx, ry, rz = tx, ty, tz
     if use_prev:
-        k = dt * dt / (6.0 * prev[0] * (dt + prev[0]))
-        px, py, pz = prev[1], prev[2], prev[3]
-        wx, wy, wz = prev[4], prev[5], prev[6]
+        k = dt * dt / (6.0 * prev[INC_DT] * (dt + prev[INC_DT]))
+        px, py, pz = prev[INC_ANGLE], prev[INC_ANGLE + 1], prev[INC_ANGLE + 2]
+        wx, wy, wz = prev[INC_VEL], prev[INC_VEL + 1], prev[INC_VEL + 2]
         # sculling dθ_prev × dv + dv_prev × dθ; coning dθ_prev × dθ
         dvb_x += k * (py * uz - pz * uy + wy * tz - wz * ty)
         dvb_y += k * (pz * ux - px * uz + wz * tx - wx * tz)
@@ -283,10 +302,10 @@ def mechanize(nav: FloatArray, inc: FloatArray, prev: FloatArray, use_prev: bool
     height_mid = height - 0.5 * dt * vd_bar
     d_lat = 0.5 * dt * vn_bar / (r_meridian + height_mid)
     sin_mid, cos_mid = sin_lat + cos_lat * d_lat, cos_lat - sin_lat * d_lat
-    nav[0] = lat + 2.0 * d_lat
-    nav[1] = lon + dt * ve_bar / ((r_prime_vertical + height_mid) * cos_mid)
-    nav[2] = height - dt * vd_bar
-    nav[3], nav[4], nav[5] = vn_new, ve_new, vd_new
+    nav[NAV_LAT] = lat + 2.0 * d_lat
+    nav[NAV_LON] = lon + dt * ve_bar / ((r_prime_vertical + height_mid) * cos_mid)
+    nav[NAV_HEIGHT] = height - dt * vd_bar
+    nav[NAV_VEL], nav[NAV_VEL + 1], nav[NAV_VEL + 2] = vn_new, ve_new, vd_new
 
     # Attitude: body rotation (with coning) and NED-frame rotation over dt at the midpoint.
     w_en = earth.transport_rate_from(
@@ -297,4 +316,4 @@ def mechanize(nav: FloatArray, inc: FloatArray, prev: FloatArray, use_prev: bool
     q_bb = quat_from_rotvec(rx, ry, rz)
     q_nn = quat_from_rotvec(-w_n * dt, -w_en[1] * dt, -w_d * dt)
     quat_new = quat_normalize(quat_multiply(q_nn, quat_multiply(quat, q_bb)))
-    nav[6], nav[7], nav[8], nav[9] = quat_new
+    nav[NAV_QUAT], nav[NAV_QUAT + 1], nav[NAV_QUAT + 2], nav[NAV_QUAT + 3] = quat_new

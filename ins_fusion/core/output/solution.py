@@ -21,10 +21,14 @@ from ins_fusion.core.filter.state import (
     X_BA,
     X_BG,
     X_HEADING_KNOWN,
+    X_HEIGHT,
     X_LAST_POSITION_T,
-    X_NAV,
+    X_LAT,
+    X_LON,
+    X_QUAT,
     X_SG,
     X_T,
+    X_VEL,
     FilterState,
     Geometry,
     mounting_rpy_from,
@@ -219,7 +223,7 @@ def _fill_row(
     """The numbers of a solution row but its state (``SolutionBuilder.row``), and its Jacobian
     ``J`` (first 12 columns; the mounting's two when ``J`` has them: then the row's mounting,
     else NaN)."""
-    C = mat_from_quat(x[X_NAV + 6], x[X_NAV + 7], x[X_NAV + 8], x[X_NAV + 9])
+    C = mat_from_quat(x[X_QUAT], x[X_QUAT + 1], x[X_QUAT + 2], x[X_QUAT + 3])
     # base_link of the estimated mounting: the lever arm turned by it (arm_b), and below the
     # orientation and rate turned into it (C_bv = I + [μ×]). The lever arm in NED, and its
     # velocity ω × r (body) rotated into NED.
@@ -237,7 +241,7 @@ def _fill_row(
     r0 = C[0, 0] * ux + C[0, 1] * uy + C[0, 2] * uz
     r1 = C[1, 0] * ux + C[1, 1] * uy + C[1, 2] * uz
     r2 = C[2, 0] * ux + C[2, 1] * uy + C[2, 2] * uz
-    lat, lon, height = earth.displace(x[X_NAV], x[X_NAV + 1], x[X_NAV + 2], n0, n1, n2)
+    lat, lon, height = earth.displace(x[X_LAT], x[X_LON], x[X_HEIGHT], n0, n1, n2)
     c_en = np.empty((3, 3))  # MAT_ENU_NED @ C
     c_en[0, :], c_en[1, :], c_en[2, :] = C[1, :], C[0, :], -C[2, :]
     for k, rows in enumerate((enu_skew(-n0, -n1, -n2), enu_skew(-r0, -r1, -r2))):
@@ -255,8 +259,8 @@ def _fill_row(
             P_sub[i, j] = P[states[i], states[j]]
     cov = J @ P_sub @ J.T
     cov = 0.5 * (cov + cov.T)  # symmetric to the bit, as the outputs' check requires
-    vn, ve, vd = x[X_NAV + 3], x[X_NAV + 4], x[X_NAV + 5]
-    quat_nb = (x[X_NAV + 6], x[X_NAV + 7], x[X_NAV + 8], x[X_NAV + 9])
+    vn, ve, vd = x[X_VEL], x[X_VEL + 1], x[X_VEL + 2]
+    quat_nb = (x[X_QUAT], x[X_QUAT + 1], x[X_QUAT + 2], x[X_QUAT + 3])
     out[MOUNTING] = np.nan
     if J.shape[1] > BG + 3:
         out[MOUNTING] = np.array(mounting_rpy_from(r_bi, mu_y, mu_z))
