@@ -315,13 +315,13 @@ class EngineLoop:
 
     def _apply(self, record: Record, live: bool) -> None:
         """Propagate P to the current sample, apply the measurement, restart the interval."""
-        t_m, _, _, kind, payload = record
         s, kf = self._state, self._filter
         assert s is not None and kf is not None
-        if self._fused.applied(s, kf, (kind, t_m, payload), live):  # in one kernel
-            return
+        if self._fused.applied(s, kf, (record.kind, record.t_m, record.payload), live):
+            return  # in one kernel
         self._propagator.propagate_covariance(s, kf)
-        self._corrections.handlers[kind](s, kf, self._propagator.predict(s, kf, t_m), payload, live)
+        prediction = self._propagator.predict(s, kf, record.t_m)
+        self._corrections.handlers[record.kind](s, kf, prediction, record.payload, live)
         x = s.x  # the covariance interval goes on from the corrected velocity
         x[X_COV_VEL0 : X_COV_VEL0 + 3] = x[X_VEL : X_VEL + 3]
 

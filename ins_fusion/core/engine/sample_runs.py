@@ -127,7 +127,7 @@ def take_run(
     period_s, stop_speed_m_s, nhc_min_speed_m_s, use_nhc, detector_idle = epochs
     held, covs, phi_out, white_out, nhcs, pseudo_out = steps
     F, Q, _, misalignment_q, _, markov_idx, markov_q = process
-    has_mounting = columns[3] >= 0
+    has_mounting = columns.mt >= 0
     arm_b = mounted_arm(base_arm_b, x, has_mounting)
     version = block[B_VERSION]
     m = r = v = c = e = 0

@@ -54,6 +54,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -84,8 +85,25 @@ CALIBRATION_WALK = {
     "speed_scale": 1e-5**2,
 }
 
-#: StateLayout.columns: the first column of each optional block (-1: absent), for compiled code.
-Columns = tuple[int, int, int, int, int, int]
+
+class Columns(NamedTuple):
+    """StateLayout.columns: the first column of each optional block (-1: absent), for
+    compiled code."""
+
+    #: Gyro scale factors.
+    sg: int
+    #: Accelerometer scale factors.
+    sa: int
+    #: Correlated GNSS position error.
+    gp: int
+    #: Residual mounting (pitch, yaw).
+    mt: int
+    #: Residual IMU time offset.
+    td: int
+    #: Vehicle speed scale.
+    ks: int
+
+
 #: Time [s] over which the white noise standing for the gyro's misalignment matches its effect
 #: in a steady turn (module docstring).
 AXIS_ERROR_TIME_S = 10.0
@@ -116,7 +134,7 @@ class StateLayout:
 
     def __post_init__(self) -> None:
         next_index = _CORE_SIZE
-        columns = []
+        columns: dict[str, int] = {}
         for name, present, width in (
             ("sg", self.gyro_scale, 3),
             ("sa", self.accel_scale, 3),
@@ -126,11 +144,10 @@ class StateLayout:
             ("ks", self.speed_scale, 1),
         ):
             object.__setattr__(self, name, next_index if present else None)
-            columns.append(next_index if present else -1)
+            columns[name] = next_index if present else -1
             next_index += width * present
         object.__setattr__(self, "size", next_index)
-        sg, sa, gp, mt, td, ks = columns
-        object.__setattr__(self, "columns", (sg, sa, gp, mt, td, ks))
+        object.__setattr__(self, "columns", Columns(**columns))
 
 
 def gyro_misalignment_variance(
@@ -184,7 +201,7 @@ class ErrorStateFilter:
         F[POS : POS + 3, VEL : VEL + 3] = np.eye(3)
         Q = self._Q = np.zeros((n, n))
         #: Columns of the gyro and accelerometer scale factors (-1: not estimated).
-        self.scale_columns = layout.columns[:2]
+        self.scale_columns = (layout.columns.sg, layout.columns.sa)
         # Gauss-Markov states: F = -1/T, continuous noise 2σ²/T.
         t_b = noise.bias_correlation_time_s
         markov = [(BG, t_b, noise.gyro_bias_instability), (BA, t_b, noise.accel_bias_instability)]

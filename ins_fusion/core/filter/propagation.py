@@ -10,6 +10,7 @@ core.filter.eskf).
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -248,7 +249,6 @@ def covariance_step(
     error in ``x`` decayed over it when ``columns`` (StateLayout.columns) hold that block
     (``correlation_time_s``: its correlation time [s])."""
     F, Q, gyro_psd, misalignment_q, accel_psd, markov_idx, markov_q = process
-    sg, sa, gp, _, _, _ = columns
     dt, mat_ni, force_n, force_i, rate_i, lat, height, vel = covariance_interval(x, mat_bi)
     P_new, phi = propagate_kernel(
         P,
@@ -262,15 +262,15 @@ def covariance_step(
         lat,
         height,
         vel,
-        sg,
-        sa,
+        columns.sg,
+        columns.sa,
         gyro_psd,
         misalignment_q,
         accel_psd,
         markov_idx,
         markov_q,
     )
-    if gp >= 0:
+    if columns.gp >= 0:
         decay = math.exp(-dt / correlation_time_s)
         for k in range(3):
             x[X_GNSS_ERROR + k] = x[X_GNSS_ERROR + k] * decay
@@ -354,10 +354,25 @@ class Propagator:
         return Prediction(*predicted_state(s.x, t_m), layout=kf.layout)
 
 
+class Predicted(NamedTuple):
+    """What ``predicted_state`` gives (core.filter.records.Prediction's fields, for compiled
+    code)."""
+
+    #: Latitude, longitude [rad], height [m] of the IMU.
+    lat_rad: float
+    lon_rad: float
+    height_m: float
+    #: NED velocity [m/s].
+    vel_ned_m_s: FloatArray
+    #: Body (base_link FRD) -> NED rotation.
+    mat_nb: FloatArray
+    #: Corrected rate ω_ib [rad/s] in base_link FRD and in imu FRD.
+    rate_b: FloatArray
+    rate_i: FloatArray
+
+
 @jit
-def predicted_state(
-    x: FloatArray, t_m: float
-) -> tuple[float, float, float, FloatArray, FloatArray, FloatArray, FloatArray]:
+def predicted_state(x: FloatArray, t_m: float) -> Predicted:
     """The nominal state of ``x`` (X_* layout) carried to t_m [s] with its NED acceleration
     and body rate (constant over less than an IMU interval): latitude, longitude [rad],
     height [m], NED velocity [m/s], body -> NED rotation, corrected rate in body and imu FRD
@@ -368,7 +383,7 @@ def predicted_state(
     rate_b = x[X_RATE_B : X_RATE_B + 3].copy()
     rate_i = x[X_RATE_I : X_RATE_I + 3].copy()
     if dt == 0.0:
-        return x[X_LAT], x[X_LON], x[X_HEIGHT], vel, mat_nb, rate_b, rate_i
+        return Predicted(x[X_LAT], x[X_LON], x[X_HEIGHT], vel, mat_nb, rate_b, rate_i)
     vel_m = vel + x[X_ACCEL_N : X_ACCEL_N + 3] * dt
     mean_vel = 0.5 * (vel + vel_m)
     lat, lon, height = earth.displace(
@@ -377,4 +392,4 @@ def predicted_state(
     r = rate_b * dt
     rotation = np.array(((0.0, -r[2], r[1]), (r[2], 0.0, -r[0]), (-r[1], r[0], 0.0)))  # [r×]
     turn = np.eye(3) + rotation + 0.5 * rotation @ rotation
-    return lat, lon, height, vel_m, mat_nb @ turn, rate_b, rate_i
+    return Predicted(lat, lon, height, vel_m, mat_nb @ turn, rate_b, rate_i)

@@ -418,7 +418,6 @@ def inject_nominal(x: FloatArray, dx: FloatArray, columns: Columns) -> None:
     on the NED side), position (a NED offset), velocity, the biases and the optional blocks
     whose ``columns`` (StateLayout.columns: sg, sa, gp, mt, td, ks) are not -1: scale factors,
     correlated GNSS error, residual mounting, time offset and speed scale."""
-    sg, sa, gp, mt, td, ks = columns
     q_err = quat_from_rotvec(dx[ATT], dx[ATT + 1], dx[ATT + 2])
     q = quat_normalize(
         quat_multiply(q_err, (x[X_QUAT], x[X_QUAT + 1], x[X_QUAT + 2], x[X_QUAT + 3]))
@@ -432,19 +431,19 @@ def inject_nominal(x: FloatArray, dx: FloatArray, columns: Columns) -> None:
         x[X_VEL + k] += dx[VEL + k]
         x[X_BG + k] += dx[BG + k]
         x[X_BA + k] += dx[BA + k]
-        if sg >= 0:
-            x[X_SG + k] += dx[sg + k]
-        if sa >= 0:
-            x[X_SA + k] += dx[sa + k]
-        if gp >= 0:
-            x[X_GNSS_ERROR + k] += dx[gp + k]
-    if mt >= 0:
-        x[X_MOUNTING] += dx[mt]
-        x[X_MOUNTING + 1] += dx[mt + 1]
-    if td >= 0:
-        x[X_TIME_OFFSET] += dx[td]
-    if ks >= 0:
-        x[X_SPEED_SCALE] += dx[ks]
+        if columns.sg >= 0:
+            x[X_SG + k] += dx[columns.sg + k]
+        if columns.sa >= 0:
+            x[X_SA + k] += dx[columns.sa + k]
+        if columns.gp >= 0:
+            x[X_GNSS_ERROR + k] += dx[columns.gp + k]
+    if columns.mt >= 0:
+        x[X_MOUNTING] += dx[columns.mt]
+        x[X_MOUNTING + 1] += dx[columns.mt + 1]
+    if columns.td >= 0:
+        x[X_TIME_OFFSET] += dx[columns.td]
+    if columns.ks >= 0:
+        x[X_SPEED_SCALE] += dx[columns.ks]
 
 
 def decouple_yaw(kf: ErrorStateFilter, yaw_variance: float = UNKNOWN_YAW_VARIANCE) -> None:

@@ -19,17 +19,29 @@ import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core.filter.adaptation import WhiteNoiseMonitor
 from ins_fusion.core.filter.state import FilterState
 from ins_fusion.core.filter.status import MEASUREMENT_NAMES, Counters
 
-#: A measurement in the history: (stamp, rank of its kind in MEASUREMENT_NAMES, arrival
-#: sequence, kind, payload). Records sort by stamp, then kind: measurements with the same stamp
-#: are applied in one order whatever order they arrived in.
-Record = tuple[float, int, int, str, Any]
+
+class Record(NamedTuple):
+    """A measurement in the history. Records sort by stamp, then kind: measurements with the
+    same stamp are applied in one order whatever order they arrived in (the arrival sequence
+    is unique: the payloads are never compared)."""
+
+    #: Stamp [s].
+    t_m: float
+    #: Rank of its kind in MEASUREMENT_NAMES.
+    rank: int
+    #: Arrival sequence.
+    sequence: int
+    kind: str
+    payload: Any
+
+
 _RANK = {name: rank for rank, name in enumerate(MEASUREMENT_NAMES)}
 #: Most measurements waiting for a later IMU sample.
 MAX_PENDING = 256
@@ -236,7 +248,7 @@ class Timeline:
 
     def record(self, kind: str, t_m: float, payload: Any) -> Record:
         """A new record of a measurement."""
-        return (t_m, _RANK[kind], next(self._sequence), kind, payload)
+        return Record(t_m, _RANK[kind], next(self._sequence), kind, payload)
 
     def add(
         self, kind: str, t_m: float, payload: Any, counters: Counters, running: bool
@@ -262,7 +274,7 @@ class Timeline:
         if t_m > self._history_t[-1]:
             if len(self._pending) >= MAX_PENDING:
                 dropped = heapq.heappop(self._pending)
-                counters[dropped[3]]["rejected"] += 1
+                counters[dropped.kind]["rejected"] += 1
             heapq.heappush(self._pending, record)
             return None
         return record if self.insert(record) else None
@@ -270,18 +282,18 @@ class Timeline:
     def due_by(self, t_s: float) -> bool:
         """Whether a pending measurement is stamped before ``t_s`` (``due`` would take it)."""
         pending = self._pending
-        return bool(pending) and pending[0][0] < t_s
+        return bool(pending) and pending[0].t_m < t_s
 
     def due_stamp(self) -> float:
         """Stamp of the first pending measurement [s] (inf: none): ``due_by(t)`` is this < t."""
         pending = self._pending
-        return pending[0][0] if pending else math.inf
+        return pending[0].t_m if pending else math.inf
 
     def due(self, t_s: float) -> list[Record]:
         """Take the pending measurements stamped before ``t_s`` (stamp order)."""
         pending = self._pending
         records = []
-        while pending and pending[0][0] < t_s:
+        while pending and pending[0].t_m < t_s:
             records.append(heapq.heappop(pending))
         return records
 
@@ -289,20 +301,19 @@ class Timeline:
         """File a measurement at the last history entry at or before its stamp. True: it is
         the newest at the newest entry, to be applied now; else re-propagation from that
         entry is due (``replay_from``)."""
-        k = bisect.bisect_right(self._history_t, record[0]) - 1
+        k = bisect.bisect_right(self._history_t, record.t_m) - 1
         entry = self.entry(k)
         newest = not entry.measurements or entry.measurements[-1] < record
         if self.replay_from is None and k == len(self._history) - 1 and newest:
             entry.measurements.append(record)
             return True
         bisect.insort(entry.measurements, record)
-        self._fresh.add(record[2])
+        self._fresh.add(record.sequence)
         self.replay_from = k if self.replay_from is None else min(self.replay_from, k)
         return False
 
     def take_fresh(self, record: Record) -> bool:
         """Whether a record is applied for the first time (then counted: live)."""
-        sequence = record[2]
-        live = sequence in self._fresh
-        self._fresh.discard(sequence)
+        live = record.sequence in self._fresh
+        self._fresh.discard(record.sequence)
         return live

@@ -74,8 +74,8 @@ def attitude(
         mounting_rad,
         (kernel_array(pred.rate_b), time_offset_s),
         layout.size,
-        layout.columns[3],
-        layout.columns[4],
+        layout.columns.mt,
+        layout.columns.td,
     )
     return None if rows == 0 else (z, H, R)
 
@@ -185,15 +185,14 @@ def attitude_apply(
     mat_bi, q_a_base = geometry
     correlation_time_s, gates, size = constants
     stepped, phi, P, prediction = step_to(P, x, t_m, process, mat_bi, columns, correlation_time_s)
-    _, _, _, _, mat_nb, rate_b, _ = prediction
     rows, z, H, R = attitude_model(
-        mat_nb,
+        prediction.mat_nb,
         base_mat_nb(quat_a, q_a_base),
         cov_rpy,
         (x[X_MOUNTING], x[X_MOUNTING + 1]),
-        (rate_b, 0.0),
+        (prediction.rate_b, 0.0),
         size,
-        columns[3],
+        columns.mt,
         -1,
     )
     accepted, nis, P_new = update_rows(P, x, rows, (z, H, R), gates, columns)

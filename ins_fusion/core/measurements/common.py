@@ -23,7 +23,7 @@ import numpy as np
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core.compiled import compilable, jit
 from ins_fusion.core.filter.eskf import BG, Columns, ErrorStateFilter, ProcessModel
-from ins_fusion.core.filter.propagation import covariance_step, predicted_state
+from ins_fusion.core.filter.propagation import Predicted, covariance_step, predicted_state
 from ins_fusion.core.filter.state import X_COV_DT, X_COV_VEL0, X_VEL, FilterState, inject_nominal
 from ins_fusion.core.filter.update_algebra import joseph_update
 from ins_fusion.core.nav.rotation import skew
@@ -118,11 +118,6 @@ def late_imu(
     if float(np.linalg.norm(rate_n[:rows])) >= min_rate:
         H[:, td] = rate_n[:rows]
     return z - shift, H, R
-
-
-#: What ``predicted_state`` gives: latitude, longitude [rad], height [m], NED velocity [m/s],
-#: C_nb, corrected rate in body and imu FRD [rad/s].
-Predicted = tuple[float, float, float, FloatArray, FloatArray, FloatArray, FloatArray]
 
 
 @jit

@@ -81,7 +81,7 @@ def gnss_position(
         white_cov_ned,
         gnss_error_ned,
         pred.layout.size,
-        pred.layout.columns[2],
+        pred.layout.columns.gp,
         meas.height_known,
     )
 
@@ -199,8 +199,7 @@ def position_apply(
     scale_sq, white_var_ned, white_fraction, share = noise
     correlation_time_s, threshold, size = constants
     stepped, phi, P, prediction = step_to(P, x, t_m, process, mat_bi, columns, correlation_time_s)
-    lat, lon, height, _, mat_nb, _, _ = prediction
-    gp = columns[2]
+    gp = columns.gp
     vertical = height_measured(fix_height, cov_enu[2, 2])
     R, correlated, reported, action = _position_noise(
         cov_enu,
@@ -218,7 +217,19 @@ def position_apply(
         _, P, _ = shrink_correlated(P, x, correlated, gp)
     error = (x[X_GNSS_ERROR], x[X_GNSS_ERROR + 1], x[X_GNSS_ERROR + 2])
     z, H, R = position_model(
-        lat, lon, height, mat_nb, fix_lat, fix_lon, fix_height, arm_b, R, error, size, gp, vertical
+        prediction.lat_rad,
+        prediction.lon_rad,
+        prediction.height_m,
+        prediction.mat_nb,
+        fix_lat,
+        fix_lon,
+        fix_height,
+        arm_b,
+        R,
+        error,
+        size,
+        gp,
+        vertical,
     )
     predicted = projected_variance(H, P)
     accepted, nis, dx, P_new = update_and_restart(P, x, (z, H, R), threshold, columns)

@@ -67,7 +67,7 @@ def gnss_velocity(
         kernel_array(meas.vel_enu_m_s),
         kernel_array(meas.cov_enu_m2_s2),
         pred.layout.size,
-        pred.layout.columns[0],
+        pred.layout.columns.sg,
     )
     return None if rows == 0 else (z, H, R)
 
@@ -172,9 +172,17 @@ def velocity_apply(
     mat_bi, arm_b = geometry
     correlation_time_s, gates, size = constants
     stepped, phi, P, prediction = step_to(P, x, t_m, process, mat_bi, columns, correlation_time_s)
-    _, _, _, vel_m, mat_nb, rate_b, rate_i_m = prediction
     rows, z, H, R = velocity_model(
-        mat_nb, vel_m, rate_b, rate_i_m, arm_b, mat_bi, vel_enu, cov_enu, size, columns[0]
+        prediction.mat_nb,
+        prediction.vel_ned_m_s,
+        prediction.rate_b,
+        prediction.rate_i,
+        arm_b,
+        mat_bi,
+        vel_enu,
+        cov_enu,
+        size,
+        columns.sg,
     )
     accepted, nis, P_new = update_rows(P, x, rows, (z, H, R), gates, columns)
     return stepped, phi, rows, accepted, nis, P_new

@@ -64,8 +64,8 @@ def nhc(
         sigma_m_s,
         mounting_rad,
         layout.size,
-        layout.columns[0],
-        layout.columns[3],
+        layout.columns.sg,
+        layout.columns.mt,
     )
 
 
@@ -135,13 +135,21 @@ def nhc_apply(
     correlation time [s], NHC σ [m/s], gate, state size.
     Returns (stepped, Φ of the step (P when none), accepted, NIS, the new P)."""
     mat_bi, arm_b = geometry
-    sg, _, _, mt, _, _ = columns
     correlation_time_s, sigma_m_s, threshold, size = constants
     stepped, phi, P, prediction = step_to(P, x, t_m, process, mat_bi, columns, correlation_time_s)
-    _, _, _, vel_m, mat_nb, rate_b, rate_i_m = prediction
     mounting = (x[X_MOUNTING], x[X_MOUNTING + 1])
     model = nhc_model(
-        mat_nb, vel_m, rate_b, rate_i_m, arm_b, mat_bi, sigma_m_s, mounting, size, sg, mt
+        prediction.mat_nb,
+        prediction.vel_ned_m_s,
+        prediction.rate_b,
+        prediction.rate_i,
+        arm_b,
+        mat_bi,
+        sigma_m_s,
+        mounting,
+        size,
+        columns.sg,
+        columns.mt,
     )
     accepted, nis, _, P_new = update_and_restart(P, x, model, threshold, columns)
     return stepped, phi, accepted, nis, P_new

@@ -156,7 +156,7 @@ def zupt_apply(
     new P)."""
     correlation_time_s, sigma_m_s, threshold, size = constants
     stepped, phi, P, prediction = step_to(P, x, t_m, process, mat_bi, columns, correlation_time_s)
-    model = zupt_model(prediction[3], sigma_m_s, size)
+    model = zupt_model(prediction.vel_ned_m_s, sigma_m_s, size)
     accepted, nis, _, P_new = update_and_restart(P, x, model, threshold, columns)
     return stepped, phi, accepted, nis, P_new
 
@@ -177,9 +177,8 @@ def zaru_apply(
     t_m, mean_rate_i, variance = measured
     correlation_time_s, threshold, size = constants
     stepped, phi, P, prediction = step_to(P, x, t_m, process, mat_bi, columns, correlation_time_s)
-    lat, _, _, _, mat_nb, _, _ = prediction
     rates_i = (mean_rate_i, x[X_BG : X_BG + 3])
-    model = zaru_model(mat_nb, lat, True, rates_i, mat_bi, variance, size)
+    model = zaru_model(prediction.mat_nb, prediction.lat_rad, True, rates_i, mat_bi, variance, size)
     accepted, nis, _, P_new = update_and_restart(P, x, model, threshold, columns)
     return stepped, phi, accepted, nis, P_new
 

@@ -69,7 +69,7 @@ def speed_model(
     mat_nb, vel, rate_b, rate_i = prediction
     (pitch, yaw), scale = calibration
     measured, variance = reading
-    sg, _, _, mt, _, ks = columns
+    sg, mt, ks = columns.sg, columns.mt, columns.ks
     c_bn = np.ascontiguousarray(mat_nb.T)
     v_b = c_bn @ vel + skew(rate_b) @ arm_b
     axis = np.array((1.0, yaw, -pitch))  # e_xᵀ (I - [μ×]): the vehicle's forward axis in b
