@@ -38,7 +38,12 @@ from ins_fusion.core.engine.intake import (
     take_sample,
 )
 from ins_fusion.core.filter.adaptation import B_MEAN, B_VERSION
-from ins_fusion.core.filter.eskf import Columns, ErrorStateFilter, ProcessModel
+from ins_fusion.core.filter.eskf import (
+    Columns,
+    ErrorStateFilter,
+    ProcessModel,
+    with_white_noise,
+)
 from ins_fusion.core.filter.propagation import (
     ImuDensities,
     Propagator,
@@ -126,7 +131,6 @@ def take_run(
     columns, correlation_time_s, sigma_m_s, gate, size = constants
     period_s, stop_speed_m_s, nhc_min_speed_m_s, use_nhc, detector_idle = epochs
     held, covs, phi_out, white_out, nhcs, pseudo_out = steps
-    F, Q, _, misalignment_q, _, markov_idx, markov_q = process
     has_mounting = columns.mt >= 0
     arm_b = mounted_arm(base_arm_b, x, has_mounting)
     version = block[B_VERSION]
@@ -169,7 +173,7 @@ def take_run(
             seen[m] = v - 1
             if due:  # Propagator.advanced with the heading known
                 gyro, accel = monitored_white_noise(block, floor, x[X_Q_SCALE])
-                model = (F, Q, gyro, misalignment_q, accel, markov_idx, markov_q)
+                model = with_white_noise(process, gyro, accel)
                 P, phi = covariance_step(P, x, mat_bi, model, columns, correlation_time_s)
                 phi_out[:, :] = phi
                 white_out[0, :], white_out[1, :] = gyro, accel
@@ -189,7 +193,7 @@ def take_run(
                         P,
                         x,
                         t,
-                        (F, Q, gyro, misalignment_q, accel, markov_idx, markov_q),
+                        with_white_noise(process, gyro, accel),
                         (mat_bi, arm_b),
                         columns,
                         (correlation_time_s, sigma_m_s, gate, size),
@@ -300,7 +304,10 @@ class CompiledRuns:
         pseudo = np.array([pseudo_t_s, math.nan])
         densities = self._densities
         noise = densities.current()
-        (J, P, states, _, arm_bi, plane), _, origin = self._output.model(s, kf, datum_deg)
+        # The run turns the configured base_link arm by the mounting itself (mounted_arm).
+        (J, P, states, _turned_arm, arm_bi, plane), _mounting, origin = self._output.model(
+            s, kf, datum_deg
+        )
         geometry, config = self._geometry, self._config
         limits = (
             config.imu_time_offset_s,

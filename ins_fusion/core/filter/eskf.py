@@ -59,7 +59,7 @@ from typing import NamedTuple
 import numpy as np
 
 from gnss_ins_common.types import FloatArray, IntArray
-from ins_fusion.core.compiled import jit, kernel_array
+from ins_fusion.core.compiled import compilable, jit, kernel_array
 from ins_fusion.core.filter.update_algebra import (
     UpdateResult,
     covariance_problem,
@@ -165,11 +165,35 @@ def gyro_misalignment_variance(
     return variance
 
 
-#: ErrorStateFilter.process_model: F and Q buffers, gyro white noise, gyro misalignment noise,
-#: accelerometer white noise, Gauss-Markov indices and densities.
-ProcessModel = tuple[
-    FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, IntArray, FloatArray
-]
+class ProcessModel(NamedTuple):
+    """ErrorStateFilter.process_model: the F and Q buffers (filled in place), the white-noise
+    densities per imu axis (gyro [rad²/s], accelerometer [m²/s³]), the gyro misalignment's
+    noise and the Gauss-Markov states' indices and densities."""
+
+    F: FloatArray
+    Q: FloatArray
+    gyro_psd: FloatArray
+    misalignment_q: FloatArray
+    accel_psd: FloatArray
+    markov_idx: IntArray
+    markov_q: FloatArray
+
+
+@compilable
+def with_white_noise(
+    process: ProcessModel, gyro_psd: FloatArray, accel_psd: FloatArray
+) -> ProcessModel:
+    """``process`` with other white-noise densities (gyro [rad²/s], accelerometer [m²/s³] per
+    imu axis: the monitored ones a compiled sample run uses)."""
+    return ProcessModel(
+        process.F,
+        process.Q,
+        gyro_psd,
+        process.misalignment_q,
+        accel_psd,
+        process.markov_idx,
+        process.markov_q,
+    )
 
 
 class ErrorStateFilter:
@@ -307,7 +331,7 @@ class ErrorStateFilter:
         """What ``propagate`` hands its kernel besides P and the interval: the F and Q buffers
         (filled in place), the white-noise densities in force, the gyro misalignment's noise
         and the Gauss-Markov states' indices and densities (propagation.covariance_step)."""
-        return (
+        return ProcessModel(
             self._F,
             self._Q,
             self._gyro_psd,
