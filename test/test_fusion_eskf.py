@@ -242,7 +242,6 @@ def _prediction(dx: np.ndarray, layout: StateLayout = LAYOUT_GNSS) -> Prediction
         nav.mat_nb,
         MAT_BI @ rate_i,
         rate_i,
-        layout,
     )
 
 
@@ -272,7 +271,9 @@ def test_gnss_position_jacobian():
     def model(pred, dx):
         # The true correlated receiver error is the estimate (0) plus its error δε_g.
         error = dx[LAYOUT_GNSS.gp : LAYOUT_GNSS.gp + 3]
-        return gnss_position(pred, fix, LEVER_B, np.eye(3), (error[0], error[1], error[2]))
+        return gnss_position(
+            pred, LAYOUT_GNSS, fix, LEVER_B, np.eye(3), (error[0], error[1], error[2])
+        )
 
     _check_jacobian(model, SIZES)
 
@@ -282,7 +283,7 @@ def test_gnss_velocity_jacobian_and_horizontal_only_when_vertical_unknown():
     vel = GnssVelocityMeasurement(0.0, np.array([-8.0, 12.0, 0.0]), cov)
 
     def model(pred, _):
-        out = gnss_velocity(pred, vel, LEVER_B, MAT_BI)
+        out = gnss_velocity(pred, LAYOUT_GNSS, vel, LEVER_B, MAT_BI)
         assert out is not None
         return out
 
@@ -291,28 +292,33 @@ def test_gnss_velocity_jacobian_and_horizontal_only_when_vertical_unknown():
     full = GnssVelocityMeasurement(0.0, np.array([-8.0, 12.0, 0.0]), np.eye(3) * 0.0025)
 
     def model3(pred, _):
-        out = gnss_velocity(pred, full, LEVER_B, MAT_BI)
+        out = gnss_velocity(pred, LAYOUT_GNSS, full, LEVER_B, MAT_BI)
         assert out is not None
         return out
 
     _check_jacobian(model3, SIZES)
     bad = GnssVelocityMeasurement(0.0, np.array([math.nan, 1.0, 0.0]), np.eye(3))
-    assert gnss_velocity(_prediction(np.zeros(LAYOUT_GNSS.size)), bad, LEVER_B, MAT_BI) is None
+    assert (
+        gnss_velocity(_prediction(np.zeros(LAYOUT_GNSS.size)), LAYOUT_GNSS, bad, LEVER_B, MAT_BI)
+        is None
+    )
     # A vertical velocity or variance that is not finite leaves the horizontal rows.
     for vertical, variance in ((math.nan, 0.0025), (0.0, math.nan), (0.0, math.inf)):
         cov_v = np.diag([0.0025, 0.0025, variance])
         partial = GnssVelocityMeasurement(0.0, np.array([-8.0, 12.0, vertical]), cov_v)
-        out = gnss_velocity(_prediction(np.zeros(LAYOUT_GNSS.size)), partial, LEVER_B, MAT_BI)
+        out = gnss_velocity(
+            _prediction(np.zeros(LAYOUT_GNSS.size)), LAYOUT_GNSS, partial, LEVER_B, MAT_BI
+        )
         assert out is not None and out[0].shape == (2,) and np.isfinite(out[2]).all()
 
 
 def test_nhc_jacobian():
     arm = np.array([-0.8, 0.0, 1.6])
-    _check_jacobian(lambda pred, _: nhc(pred, arm, MAT_BI, 0.05), SIZES)
+    _check_jacobian(lambda pred, _: nhc(pred, LAYOUT_GNSS, arm, MAT_BI, 0.05), SIZES)
 
 
 def test_zupt_is_the_negated_velocity():
-    z, H, R = zupt(_prediction(np.zeros(LAYOUT_GNSS.size)), 0.02)
+    z, H, R = zupt(_prediction(np.zeros(LAYOUT_GNSS.size)), LAYOUT_GNSS, 0.02)
     assert z == pytest.approx(-VEL_NED)
     assert np.array_equal(H[:, VEL : VEL + 3], np.eye(3)) and np.count_nonzero(H) == 3
     assert np.allclose(R, np.eye(3) * 4e-4)
@@ -333,17 +339,17 @@ def test_attitude_model_converts_rep103_covariance_and_drops_unknown_angles():
     pred = _prediction(np.zeros(LAYOUT_GNSS.size))
     measured = Rotation.from_rotvec([0.0, 0.0, 0.01]).as_matrix() @ pred.mat_nb
     cov_flu = np.array([[4e-6, 1e-6, 0.0], [1e-6, 2e-6, 0.0], [0.0, 0.0, 1e-6]])
-    z, H, R = attitude(pred, measured, cov_flu)
+    z, H, R = attitude(pred, LAYOUT_GNSS, measured, cov_flu)
     assert z == pytest.approx([0.0, 0.0, 0.01], abs=1e-12)  # a turn about down is yaw only
     assert R[0, 1] == pytest.approx(-1e-6)  # FLU pitch is minus NED pitch
-    heading_only = attitude(pred, measured, np.diag([1e6, 1e6, 1e-6]))
+    heading_only = attitude(pred, LAYOUT_GNSS, measured, np.diag([1e6, 1e6, 1e-6]))
     assert heading_only is not None
     z, H, R = heading_only
     assert z.shape == (1,) and H.shape == (1, LAYOUT_GNSS.size)
-    assert attitude(pred, measured, np.eye(3) * 1e6) is None
+    assert attitude(pred, LAYOUT_GNSS, measured, np.eye(3) * 1e6) is None
     # A variance that is not finite drops its angle only (no product spreads it).
     cov_nan = np.array([[math.nan, 0.0, 0.0], [0.0, 2e-6, 0.0], [0.0, 0.0, 1e-6]])
-    partial = attitude(pred, measured, cov_nan)
+    partial = attitude(pred, LAYOUT_GNSS, measured, cov_nan)
     assert partial is not None and partial[0].shape == (2,)
     assert np.array_equal(partial[2], np.diag([2e-6, 1e-6]))
 
@@ -361,8 +367,8 @@ def test_attitude_model_keeps_the_measured_angles_with_their_variances(
     covariances: the diagonal stays) in R."""
     pred = _prediction(np.zeros(LAYOUT_GNSS.size))
     mat = Rotation.from_rotvec(rotvec).as_matrix()
-    pred = replace(pred, mat_nb=mat)
-    model = attitude(pred, mat, np.diag(variances))
+    pred = pred._replace(mat_nb=mat)
+    model = attitude(pred, LAYOUT_GNSS, mat, np.diag(variances))
     kept = [v for v in variances if math.isfinite(v) and v < 1.0]
     if not kept:
         assert model is None

@@ -10,7 +10,6 @@ core.filter.eskf).
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
 
 import numpy as np
 
@@ -351,39 +350,22 @@ class Propagator:
     def predict(s: FilterState, kf: ErrorStateFilter, t_m: float) -> Prediction:
         """The nominal state carried from the current state to t_m (< one IMU interval;
         ``predicted_state``)."""
-        return Prediction(*predicted_state(s.x, t_m), layout=kf.layout)
-
-
-class Predicted(NamedTuple):
-    """What ``predicted_state`` gives (core.filter.records.Prediction's fields, for compiled
-    code)."""
-
-    #: Latitude, longitude [rad], height [m] of the IMU.
-    lat_rad: float
-    lon_rad: float
-    height_m: float
-    #: NED velocity [m/s].
-    vel_ned_m_s: FloatArray
-    #: Body (base_link FRD) -> NED rotation.
-    mat_nb: FloatArray
-    #: Corrected rate ω_ib [rad/s] in base_link FRD and in imu FRD.
-    rate_b: FloatArray
-    rate_i: FloatArray
+        return predicted_state(s.x, t_m)
 
 
 @jit
-def predicted_state(x: FloatArray, t_m: float) -> Predicted:
+def predicted_state(x: FloatArray, t_m: float) -> Prediction:
     """The nominal state of ``x`` (X_* layout) carried to t_m [s] with its NED acceleration
     and body rate (constant over less than an IMU interval): latitude, longitude [rad],
     height [m], NED velocity [m/s], body -> NED rotation, corrected rate in body and imu FRD
-    [rad/s] (core.filter.records.Prediction's fields)."""
+    [rad/s]."""
     dt = t_m - x[X_T]
     mat_nb = mat_from_quat(x[X_QUAT], x[X_QUAT + 1], x[X_QUAT + 2], x[X_QUAT + 3])
     vel = x[X_VEL : X_VEL + 3].copy()
     rate_b = x[X_RATE_B : X_RATE_B + 3].copy()
     rate_i = x[X_RATE_I : X_RATE_I + 3].copy()
     if dt == 0.0:
-        return Predicted(x[X_LAT], x[X_LON], x[X_HEIGHT], vel, mat_nb, rate_b, rate_i)
+        return Prediction(x[X_LAT], x[X_LON], x[X_HEIGHT], vel, mat_nb, rate_b, rate_i)
     vel_m = vel + x[X_ACCEL_N : X_ACCEL_N + 3] * dt
     mean_vel = 0.5 * (vel + vel_m)
     lat, lon, height = earth.displace(
@@ -392,4 +374,4 @@ def predicted_state(x: FloatArray, t_m: float) -> Predicted:
     r = rate_b * dt
     rotation = np.array(((0.0, -r[2], r[1]), (r[2], 0.0, -r[0]), (-r[1], r[0], 0.0)))  # [r×]
     turn = np.eye(3) + rotation + 0.5 * rotation @ rotation
-    return Predicted(lat, lon, height, vel_m, mat_nb @ turn, rate_b, rate_i)
+    return Prediction(lat, lon, height, vel_m, mat_nb @ turn, rate_b, rate_i)

@@ -6,14 +6,14 @@ kind's module of core.measurements (gnss_position, gnss_velocity, attitude, vehi
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
 from gnss_ins_common.navsat import HEIGHT_UNKNOWN_VARIANCE_M2
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core.compiled import compilable
-from ins_fusion.core.filter.eskf import StateLayout
 
 
 def _array(value: object, shape: tuple[int, ...]) -> FloatArray:
@@ -102,17 +102,18 @@ class VehicleSpeedMeasurement:
     variance_m2_s2: float
 
 
-@dataclass(frozen=True)
-class Prediction:
-    """Nominal state at a measurement stamp: IMU position (lat, lon [rad], h [m]), NED
-    velocity [m/s], body (base_link FRD) -> NED rotation, corrected body rate ω_ib [rad/s] in
-    base_link FRD and in imu FRD."""
+class Prediction(NamedTuple):
+    """The nominal state at a measurement's stamp (core.filter.propagation.predicted_state,
+    built in compiled code too)."""
 
+    #: Latitude, longitude [rad], height [m] of the IMU.
     lat_rad: float
     lon_rad: float
     height_m: float
+    #: NED velocity [m/s].
     vel_ned_m_s: FloatArray
+    #: Body (base_link FRD) -> NED rotation.
     mat_nb: FloatArray
+    #: Corrected rate ω_ib [rad/s] in base_link FRD and in imu FRD.
     rate_b: FloatArray
     rate_i: FloatArray
-    layout: StateLayout = field(default_factory=StateLayout)

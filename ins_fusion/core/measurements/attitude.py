@@ -25,7 +25,7 @@ import numpy as np
 
 from gnss_ins_common.types import FloatArray, Quat
 from ins_fusion.core.compiled import jit, kernel_array
-from ins_fusion.core.filter.eskf import ATT, Columns, ErrorStateFilter, ProcessModel
+from ins_fusion.core.filter.eskf import ATT, Columns, ErrorStateFilter, ProcessModel, StateLayout
 from ins_fusion.core.filter.records import AttitudeMeasurement, Prediction
 from ins_fusion.core.filter.state import X_MOUNTING, FilterState, Geometry, base_mat_nb
 from ins_fusion.core.measurements.common import (
@@ -49,6 +49,7 @@ TIME_OFFSET_MIN_TURN_RATE = math.radians(2.0)
 
 def attitude(
     pred: Prediction,
+    layout: StateLayout,
     mat_nb_measured: FloatArray,
     cov_rpy_flu: FloatArray,
     time_offset_s: float = 0.0,
@@ -66,7 +67,6 @@ def attitude(
     the vehicle's: C_nb (I + [μ×]) with the residual mounting μ = (0, pitch, yaw), which is
     ψ = C_nb μ, so H gets J C_nb on (μ_y, μ_z). Compiled (``attitude_model``).
     """
-    layout = pred.layout
     rows, z, H, R = attitude_model(
         kernel_array(pred.mat_nb),
         kernel_array(mat_nb_measured),
@@ -156,7 +156,7 @@ class AttitudeUpdate:
                 set_heading(s, kf, self._geometry, float(euler_rad(mat_nb)[2]), yaw_variance)
                 corrections.count_used(_KIND, live)
             return
-        model = attitude(pred, mat_nb, att.cov_rpy_rad2, s.time_offset, s.mounting)
+        model = attitude(pred, kf.layout, mat_nb, att.cov_rpy_rad2, s.time_offset, s.mounting)
         if model is None:
             corrections.reject(_KIND, live)
             return

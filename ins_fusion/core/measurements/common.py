@@ -23,7 +23,8 @@ import numpy as np
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core.compiled import compilable, jit
 from ins_fusion.core.filter.eskf import BG, Columns, ErrorStateFilter, ProcessModel
-from ins_fusion.core.filter.propagation import Predicted, covariance_step, predicted_state
+from ins_fusion.core.filter.propagation import covariance_step, predicted_state
+from ins_fusion.core.filter.records import Prediction
 from ins_fusion.core.filter.state import X_COV_DT, X_COV_VEL0, X_VEL, FilterState, inject_nominal
 from ins_fusion.core.filter.update_algebra import joseph_update
 from ins_fusion.core.nav.rotation import skew
@@ -129,7 +130,7 @@ def step_to(
     mat_bi: FloatArray,
     columns: Columns,
     correlation_time_s: float,
-) -> tuple[bool, FloatArray, FloatArray, Predicted]:
+) -> tuple[bool, FloatArray, FloatArray, Prediction]:
     """What InsEngine._apply does before a model (heading known, no smoother): the covariance
     step over the interval accumulated in ``x`` when there is one (``covariance_step``) and
     the prediction to ``t_m`` [s]. Returns (stepped, Φ of the step (P when none), the new P,

@@ -29,7 +29,14 @@ import numpy as np
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core.compiled import jit, kernel_array
 from ins_fusion.core.filter.adaptation import white_push_fix
-from ins_fusion.core.filter.eskf import ATT, POS, Columns, ErrorStateFilter, ProcessModel
+from ins_fusion.core.filter.eskf import (
+    ATT,
+    POS,
+    Columns,
+    ErrorStateFilter,
+    ProcessModel,
+    StateLayout,
+)
 from ins_fusion.core.filter.propagation import Propagator
 from ins_fusion.core.filter.records import GnssFixMeasurement, Prediction, height_measured
 from ins_fusion.core.filter.state import (
@@ -60,6 +67,7 @@ _TIME_OFFSET_MIN_SPEED_M_S = 1.0
 
 def gnss_position(
     pred: Prediction,
+    layout: StateLayout,
     meas: GnssFixMeasurement,
     lever_b: FloatArray,
     white_cov_ned: FloatArray,
@@ -80,8 +88,8 @@ def gnss_position(
         lever_b,
         white_cov_ned,
         gnss_error_ned,
-        pred.layout.size,
-        pred.layout.columns.gp,
+        layout.size,
+        layout.columns.gp,
         meas.height_known,
     )
 
@@ -156,7 +164,7 @@ class PositionUpdate:
         elif action == NOISE_MOVED:  # the white/correlated split moved
             noise.set_correlated_variance(s, kf, correlated)
         antenna_b = self._geometry.arms(s)[0]
-        model = gnss_position(pred, fix, antenna_b, white, s.gnss_error)
+        model = gnss_position(pred, kf.layout, fix, antenna_b, white, s.gnss_error)
         if kf.layout.td is not None:
             antenna_rate_n = pred.vel_ned_m_s + pred.mat_nb @ (skew(s.rate_lp) @ antenna_b)
             model = late_imu(

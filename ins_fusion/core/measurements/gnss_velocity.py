@@ -27,7 +27,14 @@ import numpy as np
 
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core.compiled import jit, kernel_array
-from ins_fusion.core.filter.eskf import ATT, VEL, Columns, ErrorStateFilter, ProcessModel
+from ins_fusion.core.filter.eskf import (
+    ATT,
+    VEL,
+    Columns,
+    ErrorStateFilter,
+    ProcessModel,
+    StateLayout,
+)
 from ins_fusion.core.filter.records import GnssVelocityMeasurement, Prediction
 from ins_fusion.core.filter.state import FilterState, Geometry, LatestInputs
 from ins_fusion.core.measurements.common import (
@@ -51,7 +58,11 @@ _TIME_OFFSET_MIN_ACCEL_M_S2 = 0.3
 
 
 def gnss_velocity(
-    pred: Prediction, meas: GnssVelocityMeasurement, lever_b: FloatArray, mat_bi: FloatArray
+    pred: Prediction,
+    layout: StateLayout,
+    meas: GnssVelocityMeasurement,
+    lever_b: FloatArray,
+    mat_bi: FloatArray,
 ) -> Model | None:
     """Antenna velocity v + C_nb (ω_b × l) (the ω_in × C l term, < 2e-4 m/s, is left out);
     horizontal rows only when the vertical is unknown (its velocity or variance not finite, or
@@ -66,8 +77,8 @@ def gnss_velocity(
         mat_bi,
         kernel_array(meas.vel_enu_m_s),
         kernel_array(meas.cov_enu_m2_s2),
-        pred.layout.size,
-        pred.layout.columns.sg,
+        layout.size,
+        layout.columns.sg,
     )
     return None if rows == 0 else (z, H, R)
 
@@ -142,7 +153,7 @@ class VelocityUpdate:
         if not config.use_gnss_velocity:
             return
         geometry = self._geometry
-        model = gnss_velocity(pred, vel, geometry.arms(s)[0], geometry.mat_bi)
+        model = gnss_velocity(pred, kf.layout, vel, geometry.arms(s)[0], geometry.mat_bi)
         if model is None:
             corrections.reject(_KIND, live)
             return

@@ -25,7 +25,14 @@ import numpy as np
 
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core.compiled import jit, kernel_array
-from ins_fusion.core.filter.eskf import ATT, VEL, Columns, ErrorStateFilter, ProcessModel
+from ins_fusion.core.filter.eskf import (
+    ATT,
+    VEL,
+    Columns,
+    ErrorStateFilter,
+    ProcessModel,
+    StateLayout,
+)
 from ins_fusion.core.filter.records import Prediction
 from ins_fusion.core.filter.state import X_MOUNTING, FilterState, Geometry
 from ins_fusion.core.measurements.common import (
@@ -41,6 +48,7 @@ from ins_fusion.core.settings.config import FusionConfig
 
 def nhc(
     pred: Prediction,
+    layout: StateLayout,
     arm_b: FloatArray,
     mat_bi: FloatArray,
     sigma_m_s: float,
@@ -53,7 +61,6 @@ def nhc(
     gyro errors -> -[r×] dω_b (``gyro_error_columns``), δμ_y -> +v_b,x
     (vertical), δμ_z -> -v_b,x (lateral) (the mounting's second-order terms in H left out).
     Compiled (``nhc_model``)."""
-    layout = pred.layout
     return nhc_model(
         pred.mat_nb,
         pred.vel_ned_m_s,
@@ -113,7 +120,9 @@ class NhcUpdate:
         self, s: FilterState, kf: ErrorStateFilter, pred: Prediction, _: None, live: bool
     ) -> None:
         geometry = self._geometry
-        model = nhc(pred, geometry.arms(s)[1], geometry.mat_bi, self._sigma_m_s, s.mounting)
+        model = nhc(
+            pred, kf.layout, geometry.arms(s)[1], geometry.mat_bi, self._sigma_m_s, s.mounting
+        )
         self._corrections.update(s, kf, "nhc", model, live)
 
 

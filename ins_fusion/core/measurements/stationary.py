@@ -24,7 +24,14 @@ import numpy as np
 
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core.compiled import jit, kernel_array
-from ins_fusion.core.filter.eskf import BG, VEL, Columns, ErrorStateFilter, ProcessModel
+from ins_fusion.core.filter.eskf import (
+    BG,
+    VEL,
+    Columns,
+    ErrorStateFilter,
+    ProcessModel,
+    StateLayout,
+)
 from ins_fusion.core.filter.records import Prediction
 from ins_fusion.core.filter.state import X_BG, FilterState, Geometry
 from ins_fusion.core.measurements.common import Model, step_to, update_and_restart
@@ -33,9 +40,9 @@ from ins_fusion.core.nav.levelling import earth_rate_body_rad_s, unknown_earth_r
 from ins_fusion.core.settings.config import FusionConfig
 
 
-def zupt(pred: Prediction, sigma_m_s: float) -> Model:
+def zupt(pred: Prediction, layout: StateLayout, sigma_m_s: float) -> Model:
     """Zero velocity of the IMU point: H: δv -> I. Compiled (``zupt_model``)."""
-    return zupt_model(kernel_array(pred.vel_ned_m_s), sigma_m_s, pred.layout.size)
+    return zupt_model(kernel_array(pred.vel_ned_m_s), sigma_m_s, layout.size)
 
 
 @jit
@@ -51,6 +58,7 @@ def zupt_model(
 
 def zaru(
     pred: Prediction,
+    layout: StateLayout,
     rates_i: tuple[FloatArray, FloatArray],
     mat_bi: FloatArray,
     variance: FloatArray,
@@ -68,7 +76,7 @@ def zaru(
         (kernel_array(mean_rate_i), kernel_array(gyro_bias_i)),
         mat_bi,
         kernel_array(variance),
-        pred.layout.size,
+        layout.size,
     )
 
 
@@ -109,7 +117,7 @@ class ZuptUpdate:
     def __call__(
         self, s: FilterState, kf: ErrorStateFilter, pred: Prediction, _: None, live: bool
     ) -> None:
-        self._corrections.update(s, kf, "zupt", zupt(pred, self._sigma_m_s), live)
+        self._corrections.update(s, kf, "zupt", zupt(pred, kf.layout, self._sigma_m_s), live)
 
 
 class ZaruUpdate:
@@ -135,7 +143,7 @@ class ZaruUpdate:
         if not s.heading_known:
             variance = variance + unknown_earth_rate_rad_s(pred.lat_rad) ** 2
         rates_i = (mean_rate_i, s.x[X_BG : X_BG + 3])
-        model = zaru(pred, rates_i, self._geometry.mat_bi, variance, s.heading_known)
+        model = zaru(pred, kf.layout, rates_i, self._geometry.mat_bi, variance, s.heading_known)
         self._corrections.update(s, kf, "zaru", model, live)
 
 

@@ -33,7 +33,7 @@ import numpy as np
 
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core.compiled import jit
-from ins_fusion.core.filter.eskf import ATT, VEL, Columns, ErrorStateFilter
+from ins_fusion.core.filter.eskf import ATT, VEL, Columns, ErrorStateFilter, StateLayout
 from ins_fusion.core.filter.records import Prediction, VehicleSpeedMeasurement
 from ins_fusion.core.filter.state import FilterState, Geometry
 from ins_fusion.core.filter.status import SPEED_KIND
@@ -90,6 +90,7 @@ def speed_model(
 
 def vehicle_speed(
     pred: Prediction,
+    layout: StateLayout,
     arm_b: FloatArray,
     mat_bi: FloatArray,
     s: FilterState,
@@ -97,7 +98,6 @@ def vehicle_speed(
 ) -> Model:
     """``speed_model`` for a prediction, the state ``s``'s mounting and speed scale and a
     reading (speed [m/s], variance [m²/s²])."""
-    layout = pred.layout
     return speed_model(
         (pred.mat_nb, pred.vel_ned_m_s, pred.rate_b, pred.rate_i),
         arm_b,
@@ -138,5 +138,5 @@ class SpeedUpdate:
             return
         reading = (measured.speed_m_s, speed_variance(measured, self._least_sigma_m_s))
         geometry = self._geometry
-        model = vehicle_speed(pred, geometry.speed_arm(s), geometry.mat_bi, s, reading)
+        model = vehicle_speed(pred, kf.layout, geometry.speed_arm(s), geometry.mat_bi, s, reading)
         corrections.update(s, kf, SPEED_KIND, model, live)
