@@ -152,9 +152,15 @@ def speed_measurement(msg: Any) -> VehicleSpeedMeasurement:
     odometry, its twist in base_link) -> the forward speed twist.linear.x [m/s] and its variance
     covariance[0] [m²/s²] (<= 0 or NaN: not given)."""
     twist = msg.twist
-    return VehicleSpeedMeasurement(
-        stamp_s(msg), float(twist.twist.linear.x), float(twist.covariance[0])
-    )
+    return speed_from_fields(stamp_s(msg), _vec3(twist.twist.linear), twist.covariance)
+
+
+def speed_from_fields(
+    t_s: float, linear: Sequence[float], covariance: Sequence[float]
+) -> VehicleSpeedMeasurement:
+    """A twist's fields -> the vehicle speed: stamp [s], the forward speed linear.x [m/s] and
+    its variance, the first element of the row-major 6x6 covariance [m²/s²]."""
+    return VehicleSpeedMeasurement(t_s, float(linear[0]), float(covariance[0]))
 
 
 def attitude_measurement(msg: Any) -> AttitudeMeasurement:

@@ -285,8 +285,8 @@ def _speeds(payloads: Sequence[bytes]) -> list[Measurement]:
     """``messages_in.speed_measurement`` of a whole TwistWithCovarianceStamped topic."""
     t_s, linear, cov = cdr_fields.twist_columns(payloads)
     return [
-        VehicleSpeedMeasurement(t, x, c)
-        for t, x, c in zip(t_s.tolist(), linear[:, 0].tolist(), cov[:, 0].tolist(), strict=True)
+        messages_in.speed_from_fields(t, row, cov_row)
+        for t, row, cov_row in zip(t_s.tolist(), linear, cov, strict=True)
     ]
 
 
