@@ -61,12 +61,6 @@ SCALE_ERROR = 0.02
 SLIP_THRESHOLD_M_S2 = 1.0
 
 
-def without_speed(inputs: ReplayInputs) -> ReplayInputs:
-    """The same inputs without the vehicle speed."""
-    kept = [m for m in inputs.measurements if m[1] != "speed"]
-    return dataclasses.replace(inputs, measurements=kept)
-
-
 def first_seconds(inputs: ReplayInputs, seconds: float) -> ReplayInputs:
     """The inputs of the first ``seconds`` of IMU samples."""
     n = int(np.searchsorted(inputs.imu.t_s, inputs.t0_s + seconds))
@@ -98,7 +92,7 @@ def outage_rows(report: dict[str, Any]) -> list[tuple[float, float]]:
 
 def real_drive() -> None:
     inputs = load_bag(REAL_BAG, TopicMap(), DEFAULT_REFERENCE, reference_required=True)
-    plain = without_speed(inputs)
+    plain = inputs.without_speed()
     speeds = len(inputs.measurements) - len(plain.measurements)
     print(f"## Real drive {REAL_BAG.name}: {speeds} CAN speed readings, {inputs.duration_s:.0f} s")
     print()
@@ -189,7 +183,7 @@ def simulated_drives(directory: Path) -> None:
     print("|---|---|---|---|---|---|---|---|---|")
     for seed in SIM_SEEDS:
         inputs = load_bag(simulate(directory, seed), TopicMap(), DEFAULT_REFERENCE)
-        for aided, data in (("no", without_speed(inputs)), ("yes", inputs)):
+        for aided, data in (("no", inputs.without_speed()), ("yes", inputs)):
             result = replay(data, params, SIM_OUTAGES, DEFAULT_REFERENCE)
             report = result.report
             assert result.evaluation is not None

@@ -230,6 +230,37 @@ def test_replay_uses_the_bags_speed_and_says_so_in_its_report(tmp_path, capsys):
     assert "vehicle_speed" in out and "vehicle speed scale error" in out
 
 
+@pytest.mark.parametrize("how", ["--set", "--params"])
+def test_speed_use_false_leaves_the_bags_speed_out_and_says_so(how, tmp_path, capsys):
+    """A user's ``speed.use: false`` (``--set`` or a parameter file) wins over the bag's speed:
+    the replay is the one of the same drive without its speed topic (the fixture it was made
+    from), and says what it left out."""
+    if how == "--set":
+        declined = ["--set", "speed.use=false"]
+    else:
+        params = tmp_path / "params.yaml"
+        params.write_text("ins_fusion_node:\n  ros__parameters:\n    speed:\n      use: false\n")
+        declined = ["--params", str(params)]
+    reports = []
+    for bag, options in ((SPEED_BAG, declined), (FIXTURE / "comma2k19_ex1_seg40", [])):
+        report_path = tmp_path / "report.json"
+        assert cli.main(["replay", str(bag), "--report", str(report_path), *options]) == 0
+        reports.append(json.loads(report_path.read_text()))
+        report_path.unlink()
+    _, err = capsys.readouterr()
+    source = "--set" if how == "--set" else str(tmp_path / "params.yaml")
+    assert f"note: speed.use false ({source}): the bag's 4974 vehicle speed readings" in err
+    assert "vehicle_speed" not in reports[0]["measurements"]
+    for key in ("measurements", "position_error_m", "nees"):
+        assert reports[0][key] == reports[1][key], key
+
+
+def test_speed_use_is_not_swept(capsys):
+    """Sweeping speed.use would compare nothing: a bag's speed is used unless declined."""
+    assert cli.main(["replay", str(SPEED_BAG), "--sweep", "speed.use=true,false"]) == 2
+    assert "speed.use is not swept" in capsys.readouterr().err
+
+
 def test_wheel_odometry_in_a_bag_is_the_same_speed_under_topics_speed(tmp_path, capsys):
     """The fixture's speed rewritten as nav_msgs/Odometry on another topic and named with
     ``--topics speed=``: the replay reads the same readings (through rosbags) and gives the same

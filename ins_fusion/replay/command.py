@@ -13,7 +13,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from gnss_ins_common.params import ParameterValueError, load_yaml, validate_all
+from gnss_ins_common.params import ParameterValueError, file_values, load_yaml, validate_all
 from ins_fusion.bags.bag_io import BagError
 from ins_fusion.core.engine.engine import InsEngine
 from ins_fusion.core.nav.calibration import CalibrationError
@@ -77,6 +77,17 @@ def _parameters(args: argparse.Namespace) -> dict[str, Any]:
     return {**base, **dict(args.settings), **unaided}
 
 
+def _speed_declined(args: argparse.Namespace) -> str | None:
+    """Where the user set ``speed.use`` false (``--set`` or the --params file), else None: a
+    bag's vehicle speed is used unless declined there."""
+    settings = dict(args.settings)
+    if "speed.use" in settings:
+        return None if settings["speed.use"] else "--set"
+    if args.params is not None and file_values(args.params, NODE_NAME).get("speed.use") is False:
+        return str(args.params)
+    return None
+
+
 def _check_engine(parameters: dict[str, Any]) -> None:
     """The engine accepts the parameters (and reads the calibration file they name)."""
     try:
@@ -98,6 +109,10 @@ def _check_usage(args: argparse.Namespace) -> None:
         raise UsageError("--free-inertial withholds GNSS itself: not with --outage or --sweep")
     if args.output is not None and args.output.exists():
         raise UsageError(f"{args.output} exists already, not overwriting")
+    if any(name == "speed.use" for name, _ in args.sweep):
+        raise UsageError(
+            "speed.use is not swept: a bag's vehicle speed is used unless --set speed.use=false"
+        )
     if args.sweep and (args.smooth or args.export):
         raise UsageError("--smooth and --export are for a single replay, not with --sweep")
     if args.export_solution == "smoothed" and not args.smooth:
@@ -122,6 +137,15 @@ def _load(args: argparse.Namespace) -> ReplayInputs:
             raise UsageError(str(exc)) from None
     for note in inputs.notes:
         print(f"note: {note}", file=sys.stderr)
+    declined = _speed_declined(args)
+    if declined is not None and inputs.has_speed:
+        readings = sum(role == "speed" for _, role, _ in inputs.measurements)
+        inputs = inputs.without_speed()
+        print(
+            f"note: speed.use false ({declined}): the bag's {readings} vehicle speed readings"
+            f" ({inputs.topics.speed}) not used",
+            file=sys.stderr,
+        )
     for outage in args.outage:
         if outage.start_s >= inputs.duration_s:
             raise UsageError(

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -151,6 +151,11 @@ class ReplayInputs:
     def has_speed(self) -> bool:
         """Whether the inputs hold vehicle speed readings (the engine then uses them)."""
         return any(role == "speed" for _, role, _ in self.measurements)
+
+    def without_speed(self) -> ReplayInputs:
+        """The same inputs without the vehicle speed readings."""
+        kept = [item for item in self.measurements if item[1] != "speed"]
+        return replace(self, measurements=kept)
 
     @property
     def duration_s(self) -> float:

@@ -327,7 +327,8 @@ PARAMETERS: tuple[Param, ...] = (
         "speed.use",
         False,
         "use vehicle/speed (forward speed of the measuring point, base_link x) with a speed "
-        "scale state; gnss_ins replay turns it on when the bag holds the speed topic",
+        "scale state; gnss_ins replay turns it on when the bag holds the speed topic, unless"
+        " --params or --set make it false",
     ),
     _vector(
         "speed.lever_arm",
