@@ -49,6 +49,8 @@ def gsa_satellites(gsas: Sequence[pynmea2.GSA]) -> int | None:
 
 def gsa_mode(gsas: Sequence[pynmea2.GSA]) -> int | None:
     """The best fix mode (1 no fix, 2 2-D, 3 3-D) the GSA sentences state, None if none does."""
+    if not gsas:  # most receivers' epochs (cheap: run for every fix)
+        return None
     modes = [text(gsa, "mode_fix_type") for gsa in gsas]
     valid = [int(m) for m in modes if m in ("1", "2", "3")]
     return max(valid) if valid else None

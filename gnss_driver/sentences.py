@@ -138,6 +138,10 @@ def number(sentence: pynmea2.NMEASentence, name: str) -> float | None:
     return result
 
 
+#: An NMEA integer field's text.
+_INTEGER = re.compile(r"[+-]?\d+")
+
+
 def integer(sentence: pynmea2.NMEASentence, name: str) -> int | None:
     """Field ``name`` as an int; None when empty, FieldError when malformed."""
     value = getattr(sentence, name)
@@ -145,7 +149,7 @@ def integer(sentence: pynmea2.NMEASentence, name: str) -> int | None:
         return None
     if isinstance(value, int) and not isinstance(value, bool):
         return value
-    if isinstance(value, str) and re.fullmatch(r"[+-]?\d+", value.strip()):
+    if isinstance(value, str) and _INTEGER.fullmatch(value.strip()):
         return int(value)
     raise FieldError(f"{name}={value!r}")
 
@@ -180,6 +184,10 @@ def date(sentence: pynmea2.NMEASentence, name: str = "datestamp") -> datetime.da
     return value
 
 
+#: An NMEA ddmm.mmmm / dddmm.mmmm coordinate: whole degrees, minutes.
+_DEGREES_MINUTES = re.compile(r"(\d+)(\d\d(?:\.\d+)?)")
+
+
 def _angle(
     dm: str | None, hemisphere: str | None, positive: str, negative: str, limit: float
 ) -> float | None:
@@ -187,7 +195,7 @@ def _angle(
         return None
     if dm is None or hemisphere not in (positive, negative):
         raise FieldError(f"coordinate {dm!r} {hemisphere!r}")
-    match = re.fullmatch(r"(\d+)(\d\d(?:\.\d+)?)", dm)
+    match = _DEGREES_MINUTES.fullmatch(dm)
     if match is None or float(match.group(2)) >= 60.0:
         raise FieldError(f"coordinate {dm!r}")
     degrees = int(match.group(1)) + float(match.group(2)) / 60.0

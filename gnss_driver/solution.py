@@ -126,11 +126,11 @@ class UereTable:
 
     def for_fix(self, fix_type: FixType) -> float:
         """UERE [m] of a valid fix type."""
-        return {
-            FixType.DGPS: self.dgps,
-            FixType.RTK_FLOAT: self.rtk_float,
-            FixType.RTK_FIXED: self.rtk_fixed,
-        }.get(fix_type, self.sps)
+        if fix_type is FixType.RTK_FIXED:
+            return self.rtk_fixed
+        if fix_type is FixType.RTK_FLOAT:
+            return self.rtk_float
+        return self.dgps if fix_type is FixType.DGPS else self.sps
 
 
 @dataclass(frozen=True)
