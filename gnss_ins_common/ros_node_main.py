@@ -21,7 +21,8 @@ import signal
 import sys
 import threading
 import traceback
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 
 import rclpy
 from rclpy._rclpy_pybind11 import RCLError
@@ -138,6 +139,23 @@ def _init(args: list[str]) -> None:
         raise ParameterValueError(re.sub(r", at /\S+:\d+", "", str(exc))) from exc
 
 
+@contextmanager
+def _quiet_after_stop(stop: StopSignals) -> Iterator[None]:
+    """While installed: an exception a callback from native code could not raise (printed by
+    Python as "Exception ignored ...") is not printed when it is the stop's KeyboardInterrupt."""
+    previous = sys.unraisablehook
+
+    def hook(unraisable: sys.UnraisableHookArgs) -> None:
+        if not (stop.requested and isinstance(unraisable.exc_value, KeyboardInterrupt)):
+            previous(unraisable)
+
+    sys.unraisablehook = hook
+    try:
+        yield
+    finally:
+        sys.unraisablehook = previous
+
+
 def run_node(factory: Callable[[], Node], args: Sequence[str] | None = None) -> int:
     """Init rclpy, build the node, spin until Ctrl-C/SIGTERM; exit code 2 on bad parameters or
     parameter files."""
@@ -150,7 +168,7 @@ def run_node(factory: Callable[[], Node], args: Sequence[str] | None = None) -> 
     executor: Executor | None = None
     stop = StopSignals()
     try:
-        with stop:
+        with stop, _quiet_after_stop(stop):
             node = factory()
             executor = make_executor()
             executor.add_node(node)
@@ -161,6 +179,13 @@ def run_node(factory: Callable[[], Node], args: Sequence[str] | None = None) -> 
         return 2
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except Exception:
+        if not stop.requested:
+            raise
+        # The stop's KeyboardInterrupt raised inside a native library's callback (numba
+        # compiling the fusion kernels at start-up) is swallowed there and surfaces as another
+        # error: the process was asked to stop, and stops.
+        print("stopped while starting", file=sys.stderr)
     finally:
         if executor is not None:  # its callbacks off the node's endpoints before they go
             executor.shutdown(timeout_sec=2.0)

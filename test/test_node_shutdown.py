@@ -89,3 +89,59 @@ def test_a_signal_is_a_request_while_spinning_and_an_interrupt_before() -> None:
         assert stop.requested and wait.done()
         assert stop.wait().done()  # a wait after the request ends at once
     assert (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)) == before
+
+
+STARTING_NODE = """
+import ctypes, sys, time
+from rclpy.node import Node
+from gnss_ins_common.ros_node_main import run_node
+
+CALLBACK = ctypes.CFUNCTYPE(None)
+
+
+class Compiling(Node):
+    '''Builds for a long time inside callbacks from native code, as numba compiling the
+    fusion kernels with an empty cache: an exception there is swallowed by ctypes and the
+    library then fails on its own.'''
+
+    def __init__(self):
+        super().__init__("compiling")
+        failed = []
+
+        def step():
+            try:
+                time.sleep(0.01)
+            except BaseException:
+                failed.append(True)
+                raise
+
+        native = CALLBACK(step)
+        print("building", flush=True)
+        for _ in range(3000):
+            native()  # Python -> C -> Python, as an LLVM callback
+            if failed:
+                raise RuntimeError("no compiled object yet")
+
+
+sys.exit(run_node(Compiling, sys.argv))
+"""
+
+
+def test_a_stop_while_a_native_library_builds_the_node_ends_it_quietly() -> None:
+    process = subprocess.Popen(
+        [sys.executable, "-c", STARTING_NODE],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
+    assert process.stdout is not None
+    assert process.stdout.readline().strip() == "building"
+    time.sleep(0.5)
+    process.send_signal(signal.SIGINT)
+    try:
+        output, _ = process.communicate(timeout=20)
+    finally:
+        process.kill()
+    assert process.returncode == 0, output
+    assert "stopped while starting" in output
+    assert "Traceback" not in output and "Exception ignored" not in output, output
