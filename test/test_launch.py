@@ -213,6 +213,39 @@ def test_launch_restarts_a_node_killed_with_sigkill_and_leaves_the_others(tmp_pa
     assert f"leica_gnss started (pid {after['leica_gnss']}, restart 1)" in log
 
 
+def test_a_hung_node_is_killed_and_restarted_and_the_others_left(tmp_path):
+    """A node that stops without ending (SIGSTOP: hung in a call) goes silent on /diagnostics:
+    launch kills it after --restart-silent and starts it again; the others keep their PIDs."""
+    with launched(tmp_path, "--restart-silent", "6") as (launcher, collector, output, _):
+        assert wait_for(lambda: collector.count("imu/data_raw") > 100, 60.0)
+        assert wait_for(lambda: set(node_pids(launcher.pid)) == NODE_NAMES, 10.0)
+        # The status server has heard every node for long enough to judge them.
+        assert wait_for(lambda: (tmp_path / "heard.json").exists(), 30.0)
+        time.sleep(6.0)
+        before = node_pids(launcher.pid)
+        hung = before["imu400cc_node"]
+        os.kill(hung, signal.SIGSTOP)
+        stopped_at = time.monotonic()
+        assert wait_for(lambda: node_pids(launcher.pid).get("imu400cc_node", hung) != hung, 20.0)
+        restarted_after_s = time.monotonic() - stopped_at
+        print(f"restarted {restarted_after_s:.1f} s after the stop")
+        after = node_pids(launcher.pid)
+        assert {n: p for n, p in after.items() if n != "imu400cc_node"} == {
+            n: p for n, p in before.items() if n != "imu400cc_node"
+        }
+        # 6 s of silence counted from the last status (up to 1 s before the stop), the status
+        # server's second, the supervisor's 0.5 s of backoff.
+        assert 4.5 < restarted_after_s < 12.0, restarted_after_s
+        packets = collector.count("imu/data_raw")
+        assert wait_for(lambda: collector.count("imu/data_raw") > packets + 100, 30.0)
+        assert launcher.poll() is None
+    assert launcher.returncode == 0, output[0]
+    assert "imu400cc_node killed: no status on /diagnostics for " in output[0]
+    assert "imu400cc_node exited (signal SIGKILL)" in output[0]
+    log = (tmp_path / "imu400cc_node.log").read_text()
+    assert "imu400cc_node killed: no status on /diagnostics for " in log
+
+
 def node_pids(parent: int, markers: dict[str, str] | None = None) -> dict[str, int]:
     """PID of each running node process started by ``parent``, by node name (psutil when
     installed, else /proc); a killed node not yet reaped (a zombie) has no command line.

@@ -229,6 +229,22 @@ class ProcessGroup:
             for name, child in self.children.items()
         }
 
+    def running_since(self) -> dict[str, float]:
+        """Each running process's last (re)start [``clock`` s]."""
+        return {
+            name: child.started_s
+            for name, child in self.children.items()
+            if child.restart_at_s is None and child.process.poll() is None
+        }
+
+    def kill(self, name: str, why: str) -> str:
+        """SIGKILL a running process that no longer works (``why``); ``poll`` then restarts it
+        as any process that ended. The line saying so, also in its log."""
+        self.children[name].process.kill()
+        line = f"{name} killed: {why}"
+        self._note(name, line)
+        return line
+
     def restarts(self) -> dict[str, int]:
         """How many times each process was started again."""
         return {name: child.restarts for name, child in self.children.items()}

@@ -6,7 +6,9 @@ The same nodes, namespaces and remappings as launch/vehicle.launch.py
 ends (crash, exit, kill -9) is started again with the same command, 0.5 s later, the delay
 doubling with each failure in a row up to 30 s (ins_fusion.runtime.processes); the others run
 on. A missing port, every WARN/ERROR line of a node's log (rate-limited by the nodes) and every
-restart are reported on the console. ``--record DIR`` adds a supervised recorder
+restart are reported on the console. A process that goes silent on /diagnostics for
+``--restart-silent`` seconds without ending (hung) is killed and so restarted
+(ins_fusion.runtime.watchdog). ``--record DIR`` adds a supervised recorder
 (ins_fusion.runtime.recorder); ``--stop-on-failure`` stops everything when one process ends.
 """
 
@@ -22,6 +24,7 @@ from typing import Any
 
 from gnss_ins_common.paths import config_file
 from ins_fusion.runtime.health import (
+    SHOWN,
     STATUS_PROCESS,
     STATUS_TOPIC,
     status_command,
@@ -45,10 +48,17 @@ from ins_fusion.runtime.vehicle_nodes import (
     command,
     discovery_environment,
 )
+from ins_fusion.runtime.watchdog import FRESH_S, START_GRACE_S, read_heard, silent
 from ins_fusion.tools.record import min_free_option
 
 #: Seconds between two supervision steps (exits, restarts, new warnings).
 _PERIOD_S = 0.2
+#: --restart-silent: its default, and its least value other than 0 (the status server writes
+#: what it heard every second; a node reports every second).
+DEFAULT_SILENT_S = 10.0
+MIN_SILENT_S = 2.0 * FRESH_S
+#: The processes that report on /diagnostics.
+REPORTING = frozenset(SHOWN)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -83,6 +93,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="stop everything and exit with 1 when a process ends, instead of restarting it",
     )
     parser.add_argument(
+        "--restart-silent",
+        type=_silent_seconds,
+        default=DEFAULT_SILENT_S,
+        metavar="S",
+        help="kill and restart a process whose /diagnostics have been silent for S seconds (hung, "
+        "not ended; S longer than the nodes' diagnostics_period; the first status after a start "
+        f"may take {START_GRACE_S:.0f} s); 0: never",
+    )
+    parser.add_argument(
         "--record",
         type=Path,
         metavar="DIR",
@@ -115,6 +134,30 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="SIZE",
         help="with --record: passed to `gnss_ins record --min-free` (its free-space limit)",
     )
+
+
+def _silent_seconds(text: str) -> float:
+    """``--restart-silent``: 0 (off), or seconds of at least FRESH_S above the status period."""
+    value = float(text)
+    if not math.isfinite(value) or not (value == 0 or value >= MIN_SILENT_S):
+        raise argparse.ArgumentTypeError(f"{text}: 0 (never) or seconds >= {MIN_SILENT_S:g}")
+    return value
+
+
+def _kill_silent(group: ProcessGroup, args: argparse.Namespace, log_dir: Path) -> list[str]:
+    """Kill the processes that have gone silent (ins_fusion.runtime.watchdog); the lines
+    saying so. ``poll`` restarts them."""
+    if args.restart_silent == 0 or args.stop_on_failure:
+        return []
+    found = silent(
+        group.running_since(),
+        REPORTING,
+        STATUS_PROCESS,
+        read_heard(log_dir),
+        time.monotonic(),
+        args.restart_silent,
+    )
+    return [group.kill(name, why) for name, why in found.items()]
 
 
 def _split_seconds(text: str) -> float:
@@ -203,7 +246,7 @@ def run(args: argparse.Namespace) -> int:
         )
         written: dict[str, Any] = {}
         while not stop and not (args.stop_on_failure and group.exited()):
-            for line in [*group.poll(), *group.problems()]:
+            for line in [*group.poll(), *group.problems(), *_kill_silent(group, args, log_dir)]:
                 print(line, flush=True)
             if (state := group.state()) != written:  # for `gnss_ins status`
                 write_supervisor_state(log_dir, state)

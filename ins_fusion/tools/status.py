@@ -6,7 +6,8 @@ restarts, message and the values an operator reads (ins_fusion/runtime/health.py
 prints once, after ``--wait`` seconds of listening, for scripts and health checks; ``--once``
 the same as text. The exit code is 0 when the system is OK, 1 when something warns, 2 on an
 error or a process that is silent. ``--serve`` runs as a service that publishes the same view on
-/gnss_ins/status (diagnostic_msgs/DiagnosticArray), as ``gnss_ins launch`` starts it.
+/gnss_ins/status (diagnostic_msgs/DiagnosticArray), as ``gnss_ins launch`` starts it, and writes
+what it heard when to ``heard.json`` there (launch's watchdog, ins_fusion/runtime/watchdog.py).
 
 rclpy is imported only when listening starts (this module is loaded by ``gnss_ins --help``).
 """
@@ -16,12 +17,14 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import time
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
 from ins_fusion.runtime.health import Health, exit_code, format_view
 from ins_fusion.runtime.processes import default_log_dir
+from ins_fusion.runtime.watchdog import HEARD_FILE, Heard, write_heard
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -54,10 +57,16 @@ def run(args: argparse.Namespace) -> int:
     log_dir = args.log_dir if args.log_dir is not None else default_log_dir()
     health = Health()
     last: dict[str, Any] = {}
+    since_s = time.monotonic()
 
     def on_view(view: dict[str, Any]) -> bool:
         last.update(view)
         if args.serve:
+            heard = {name: status.received_s for name, status in health.latest.items()}
+            try:
+                write_heard(log_dir, Heard(time.monotonic(), since_s, heard))
+            except OSError as exc:  # launch's watchdog then leaves the nodes alone
+                print(f"gnss_ins status: cannot write {HEARD_FILE}: {exc}", file=sys.stderr)
             return True
         if args.json:
             print(json.dumps(view, indent=1))
