@@ -3,8 +3,10 @@
 1. ``gnss_ins simulate --live --hold`` drives an emulated IMU400CC, Leica RTK rover and ADU5 on
    pseudo-terminals in real time (the test pattern: a 60 s standstill, then urban driving) and
    writes the truth to a bag;
-2. the real nodes read them: imu400cc_node, gnss_node twice (namespaces ``leica`` and ``adu5``)
-   and ins_fusion_node (remapped to those namespaces), each in its own process, logging to
+2. the fusion kernels are loaded (compiled into numba's cache after an install or an update,
+   so that the live node does not spend the drive compiling them); the real nodes read the
+   devices: imu400cc_node, gnss_node twice (namespaces ``leica`` and ``adu5``) and
+   ins_fusion_node (remapped to those namespaces), each in its own process, logging to
    ``logs/``; their warnings are printed with the time left every 10 s;
 3. ``gnss_ins record`` records the sensor topics and the fused output; when the drive ends the
    recorder, the nodes and then the emulators are stopped, in that order;
@@ -45,6 +47,7 @@ from ins_fusion.bags.topics import (
     INS_FIX,
     INS_ODOMETRY,
 )
+from ins_fusion.core.engine.warm_up import warm_up
 from ins_fusion.replay.recorded import RecordedErrors, recorded_errors, truth_track
 from ins_fusion.runtime.processes import ProcessGroup, gnss_ins_command
 from ins_fusion.runtime.vehicle_nodes import ADU5, FUSION, LEICA, VEHICLE, command
@@ -274,6 +277,8 @@ def run(args: argparse.Namespace) -> int:
     )
     for signum in (signal.SIGTERM, signal.SIGHUP):
         signal.signal(signum, _stop_on_signal)
+    print("  fusion kernels: loading (compiled once after an install or an update: minutes)")
+    print(f"  fusion kernels ready in {warm_up():.0f} s", flush=True)
     failed = _live_run(args, out, env)
     if failed:
         print(f"gnss_ins demo: error: {failed}; logs in {out / 'logs'}", file=sys.stderr)
