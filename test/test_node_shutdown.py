@@ -46,16 +46,21 @@ sys.exit(run_node(Busy, sys.argv))
 """
 
 
-def _busy_node() -> subprocess.Popen[str]:
+def _node_process(program: str, first_line: str) -> subprocess.Popen[str]:
+    """``program`` run by this interpreter, once it has printed ``first_line``."""
     process = subprocess.Popen(
-        [sys.executable, "-c", BUSY_NODE],
+        [sys.executable, "-c", program],
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
         text=True,
     )
     assert process.stdout is not None
-    assert process.stdout.readline().strip() == "spinning"
+    assert process.stdout.readline().strip() == first_line
     return process
+
+
+def _busy_node() -> subprocess.Popen[str]:
+    return _node_process(BUSY_NODE, "spinning")
 
 
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
@@ -128,14 +133,7 @@ sys.exit(run_node(Compiling, sys.argv))
 
 
 def test_a_stop_while_a_native_library_builds_the_node_ends_it_quietly() -> None:
-    process = subprocess.Popen(
-        [sys.executable, "-c", STARTING_NODE],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-    )
-    assert process.stdout is not None
-    assert process.stdout.readline().strip() == "building"
+    process = _node_process(STARTING_NODE, "building")
     time.sleep(0.5)
     process.send_signal(signal.SIGINT)
     try:

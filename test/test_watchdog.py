@@ -65,6 +65,13 @@ def test_the_server_is_silent_when_its_file_is_old_or_never_came() -> None:
     }
     # A file of the server's earlier run (before its restart) does not count for this one.
     assert _silent({SERVER: 500.0}, Heard(499.0, 10.0, {}), 600.0) == {}
+    # Nor one written before a reboot (monotonic time started again): as no file.
+    before_reboot = Heard(90_000.0, 80_000.0, {"ins_fusion_node": 89_999.0})
+    started = {SERVER: 10.0, "ins_fusion_node": 10.0}
+    assert _silent(started, before_reboot, 20.0) == {}
+    assert _silent(started, before_reboot, START_GRACE_S + 11.0) == {
+        SERVER: f"no {HEARD_FILE} for {START_GRACE_S + 1.0:.1f} s"
+    }
 
 
 @given(

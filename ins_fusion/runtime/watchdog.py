@@ -13,7 +13,8 @@ from GNSS or NTP). ``silent`` reads that against each supervised process's start
   an update the fusion node compiles its kernels for minutes before its first status);
 - nothing is decided about the nodes while ``heard.json`` is older than ``FRESH_S`` or the
   server has listened for less than ``after_s``: a server that stopped hearing must not get every
-  node killed. The server itself is silent when its file is older than ``after_s``.
+  node killed. The server itself is silent when its file is older than ``after_s``; a file
+  dated after now (written before a reboot: monotonic time starts again) counts as none.
 """
 
 from __future__ import annotations
@@ -76,6 +77,8 @@ def silent(
     (re)start [monotonic s]; ``reporting``: those that publish /diagnostics; ``server``: the
     status server's name."""
     found: dict[str, str] = {}
+    if heard is not None and heard.written_s > now_s:  # of a boot before this one
+        heard = None
     if server in started_s:
         reported = heard is not None and heard.since_s >= started_s[server]
         quiet_s = now_s - (heard.written_s if heard is not None and reported else started_s[server])
