@@ -53,8 +53,8 @@ from ins_fusion.tools.record import min_free_option
 
 #: Seconds between two supervision steps (exits, restarts, new warnings).
 _PERIOD_S = 0.2
-#: --restart-silent: its default, and its least value other than 0 (the status server writes
-#: what it heard every second; a node reports every second).
+#: --restart-silent: its default, and its least value other than 0: twice the age at which
+#: heard.json stops counting (the nodes report, the status server writes, every second).
 DEFAULT_SILENT_S = 10.0
 MIN_SILENT_S = 2.0 * FRESH_S
 #: The processes that report on /diagnostics.
@@ -137,7 +137,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _silent_seconds(text: str) -> float:
-    """``--restart-silent``: 0 (off), or seconds of at least FRESH_S above the status period."""
+    """``--restart-silent``: 0 (off), or at least MIN_SILENT_S seconds."""
     value = float(text)
     if not math.isfinite(value) or not (value == 0 or value >= MIN_SILENT_S):
         raise argparse.ArgumentTypeError(f"{text}: 0 (never) or seconds >= {MIN_SILENT_S:g}")
