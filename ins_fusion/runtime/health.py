@@ -159,9 +159,15 @@ def status_command(log_dir: Path | None) -> list[str]:
     return gnss_ins_command("status", "--serve", *options)
 
 
+def write_whole(path: Path, text: str) -> None:
+    """``path`` holds ``text`` or what it held before, never a part: a hidden scratch file
+    renamed over it (not synced: for state files a power cut may lose, never half-write)."""
+    scratch = path.with_name(f".{path.name}.writing")
+    scratch.write_text(text, encoding="utf-8")
+    os.replace(scratch, path)
+
+
 def write_supervisor_state(log_dir: Path, processes: Mapping[str, Mapping[str, Any]]) -> None:
     """``supervisor.json`` in ``log_dir`` (whole or not at all): pid, restarts and running of
     each supervised process."""
-    scratch = log_dir / f".{SUPERVISOR_FILE}.writing"
-    scratch.write_text(json.dumps({"processes": processes}, indent=1), encoding="utf-8")
-    os.replace(scratch, log_dir / SUPERVISOR_FILE)
+    write_whole(log_dir / SUPERVISOR_FILE, json.dumps({"processes": processes}, indent=1))

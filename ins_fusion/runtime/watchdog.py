@@ -20,10 +20,11 @@ from GNSS or NTP). ``silent`` reads that against each supervised process's start
 from __future__ import annotations
 
 import json
-import os
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
+
+from ins_fusion.runtime.health import write_whole
 
 #: The status server's file in launch's log directory.
 HEARD_FILE = "heard.json"
@@ -45,14 +46,12 @@ class Heard:
 
 def write_heard(log_dir: Path, heard: Heard) -> None:
     """``heard.json`` in ``log_dir``, whole or not at all."""
-    scratch = log_dir / f".{HEARD_FILE}.writing"
     document = {
         "written_s": heard.written_s,
         "since_s": heard.since_s,
         "last_status_s": dict(heard.last_status_s),
     }
-    scratch.write_text(json.dumps(document), encoding="utf-8")
-    os.replace(scratch, log_dir / HEARD_FILE)
+    write_whole(log_dir / HEARD_FILE, json.dumps(document))
 
 
 def read_heard(log_dir: Path) -> Heard | None:

@@ -12,10 +12,10 @@ from __future__ import annotations
 
 import argparse
 import getpass
-import os
 import sys
 from pathlib import Path
 
+from ins_fusion.runtime.health import write_whole
 from ins_fusion.runtime.processes import gnss_ins_command
 from ins_fusion.runtime.service import SYSTEM_UNIT_DIR, UNIT_NAME, Service, unit_text
 from ins_fusion.runtime.vehicle_nodes import DEFAULT_PORTS
@@ -84,9 +84,7 @@ def run(args: argparse.Namespace) -> int:
         )
         return 2
     try:
-        scratch = path.with_name(f".{UNIT_NAME}.writing")
-        scratch.write_text(text, encoding="utf-8")
-        os.replace(scratch, path)
+        write_whole(path, text)
     except OSError as exc:
         print(f"gnss_ins install-service: error: {exc} (as root: sudo)", file=sys.stderr)
         return 2
