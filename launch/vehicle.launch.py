@@ -1,7 +1,8 @@
 """Launch the gnss_ins vehicle on a machine with a full ROS 2 Jazzy install.
 
     ros2 launch gnss_ins vehicle.launch.py imu_port:=/dev/ttyUSB0 \
-        leica_port:=/dev/ttyUSB1 adu5_port:=/dev/ttyUSB2 [record_dir:=/data/bags]
+        leica_port:=/dev/ttyUSB1 adu5_port:=/dev/ttyUSB2 [record_dir:=/data/bags] \
+        [ntrip_url:=http://USER@HOST:2101/MOUNTPOINT ntrip_password_file:=/etc/gnss_ins/ntrip]
 
 The nodes, namespaces and remappings come from ins_fusion.runtime.vehicle_nodes (the same table as
 `gnss_ins launch` and the demo); parameters from the installed config/*.yaml, the port arguments
@@ -9,8 +10,11 @@ override them. Each GNSS receiver runs in its own namespace (``leica/gnss/fix``,
 ``adu5/gnss/attitude``); ins_fusion_node reads those. Every node is respawned 1 s after it ends
 (``respawn:=false``: not). A non-empty ``record_dir`` also starts `gnss_ins record` into
 ``record_dir/vehicle_<UTC start time>`` (ins_fusion.runtime.recorder), respawned the same way
-and continuing the same recording (``--resume``). ROS discovery is closed to this machine
-(``discovery:=LOCALHOST``) unless ``discovery:=SUBNET`` opens it.
+and continuing the same recording (``--resume``). A non-empty ``ntrip_url`` also starts the NTRIP
+client that brings the Leica rover its corrections (docs/ntrip.md); its password comes from
+``ntrip_password_file`` or the environment variable NTRIP_PASSWORD, never an argument. ROS
+discovery is closed to this machine (``discovery:=LOCALHOST``) unless ``discovery:=SUBNET``
+opens it.
 """
 
 from pathlib import Path
@@ -35,7 +39,9 @@ from ins_fusion.runtime.recorder import (
 from ins_fusion.runtime.vehicle_nodes import (
     DEFAULT_PORTS,
     DISCOVERY_RANGES,
+    NTRIP,
     VEHICLE,
+    NodeSpec,
     discovery_environment,
 )
 
@@ -67,6 +73,16 @@ def generate_launch_description() -> LaunchDescription:
         ),
         DeclareLaunchArgument("record_storage", default_value=STORAGES[0], choices=list(STORAGES)),
         DeclareLaunchArgument(
+            "ntrip_url",
+            default_value="",
+            description="NTRIP caster http[s]://USER@HOST:PORT/MOUNTPOINT (no password)",
+        ),
+        DeclareLaunchArgument(
+            "ntrip_password_file",
+            default_value="",
+            description="file with the caster's password (mode 0600); empty: $NTRIP_PASSWORD",
+        ),
+        DeclareLaunchArgument(
             "discovery",
             default_value=DISCOVERY_RANGES[0],
             choices=list(DISCOVERY_RANGES),
@@ -84,24 +100,30 @@ def _processes(context: LaunchContext) -> list[ExecuteProcess]:
 
     respawn = evaluate_condition_expression(context, [LaunchConfiguration("respawn")])
     env = discovery_environment(value("discovery"))
-    processes: list[ExecuteProcess] = [
-        Node(
+
+    def node(spec: NodeSpec, parameters: dict[str, str]) -> Node:
+        return Node(
             package="gnss_ins",
             executable=spec.executable,
             name=spec.name,
             namespace=spec.namespace,
-            parameters=[
-                str(config_file(spec.config)),
-                *([{"port": value(f"{spec.port_role}_port")}] if spec.port_role else []),
-            ],
+            parameters=[str(config_file(spec.config)), *([parameters] if parameters else [])],
             remappings=list(spec.remaps),
             output="screen",
             respawn=respawn,
             respawn_delay=RESPAWN_DELAY_S,
             additional_env=env,
         )
+
+    processes: list[ExecuteProcess] = [
+        node(spec, {"port": value(f"{spec.port_role}_port")} if spec.port_role else {})
         for spec in VEHICLE
     ]
+    if value("ntrip_url"):
+        parameters = {"url": value("ntrip_url")}
+        if value("ntrip_password_file"):
+            parameters["password_file"] = value("ntrip_password_file")
+        processes.append(node(NTRIP, parameters))
     processes.append(  # the system's health on /gnss_ins/status
         ExecuteProcess(
             cmd=status_command(None),

@@ -28,7 +28,7 @@ from rosbags.interfaces import Connection, Qos
 from rosbags.rosbag2 import ReaderError, StoragePlugin, Writer
 from rosbags.rosbag2.storage_mcap import McapWriter
 from rosbags.rosbag2.storage_sqlite3 import Sqlite3Writer
-from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
 from ins_fusion.bags.resume import PARTS_DIR, existing_recording, keep_part_metadata
@@ -47,10 +47,22 @@ class BagError(Exception):
     """A bag cannot be written or read as asked."""
 
 
+#: Messages of the ROS ecosystem that rosbags' Jazzy store lacks, as ROS 2 defines them (the
+#: same fields as ros_interfaces/, which builds them for rclpy): corrections and NMEA sentences.
+ECOSYSTEM_MESSAGES = {
+    "rtcm_msgs/msg/Message": "std_msgs/Header header\nuint8[] message\n",
+    "nmea_msgs/msg/Sentence": "std_msgs/Header header\nstring sentence\n",
+}
+
+
 @cache
 def jazzy_typestore() -> Typestore:
-    """The rosbags typestore of ROS 2 Jazzy (common_interfaces, rosgraph_msgs, ...)."""
-    return get_typestore(Stores.ROS2_JAZZY)
+    """The rosbags typestore of ROS 2 Jazzy (common_interfaces, rosgraph_msgs, ...) with
+    ECOSYSTEM_MESSAGES."""
+    store = get_typestore(Stores.ROS2_JAZZY)
+    for name, text in ECOSYSTEM_MESSAGES.items():
+        store.register(get_types_from_msg(text, name))
+    return store
 
 
 # --------------------------------------------------------------------------------------------

@@ -58,6 +58,18 @@ SHOWN: dict[str, tuple[str, ...]] = {
         "outputs_invalid",
     ),
     "recorder": ("bag", "files", "messages", "free_bytes", "min_free_bytes"),
+    "ntrip_client": (
+        "caster_state",
+        "http_status",
+        "corrections_age_s",
+        "bytes_per_s",
+        "frames_per_s",
+        "crc_failures",
+        "non_rtcm_bytes",
+        "gga_sent",
+        "reconnects",
+        "rover_solution",
+    ),
 }
 #: Status name prefixes that are not the process's name.
 PROCESS_OF_STATUS = {"gnss_ins_record": "recorder"}

@@ -44,6 +44,10 @@ FUSION = NodeSpec(
     ),
 )
 VEHICLE = (IMU, LEICA, ADU5, FUSION)
+#: The NTRIP client (with ``--ntrip`` / ``ntrip_url:=``), in the rover's namespace: it publishes
+#: the corrections on /leica/rtcm, which the rover's gnss_node writes to its port, and reads the
+#: rover's GGA from /leica/nmea.
+NTRIP = NodeSpec("ntrip_client", "ntrip_client.node", "ntrip_node", "leica", "ntrip.yaml", None)
 #: Default serial ports per role.
 DEFAULT_PORTS = {"imu": "/dev/ttyUSB0", "leica": "/dev/ttyUSB1", "adu5": "/dev/ttyUSB2"}
 #: ROS 2 discovery ranges the daemon offers (``ROS_AUTOMATIC_DISCOVERY_RANGE``), closed first:
@@ -79,3 +83,12 @@ def command(
 ) -> list[str]:
     """The node's command line with this interpreter (see ``processes.python_main``)."""
     return python_main(spec.module, *ros_arguments(spec, config_dir, port, extra))
+
+
+def ntrip_parameters(url: str, password_file: Path | None) -> tuple[str, ...]:
+    """The NTRIP client's ``--ros-args`` beyond its file: the caster URL (never a password:
+    ntrip_client.caster_url refuses one) and the password file's path, if any."""
+    args = ("-p", f"url:={url}")
+    if password_file is not None:
+        args += ("-p", f"password_file:={password_file.absolute()}")
+    return args

@@ -24,6 +24,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "calibrate": ("calibrate", "IMU laboratory calibration from bags: biases, scales, axes"),
     "emulate-imu": ("emulate_imu", "emulated IMU400CC on a pseudo-terminal"),
     "emulate-gnss": ("emulate_gnss", "emulated Leica RTK rover or ADU5 on a pseudo-terminal"),
+    "emulate-caster": ("emulate_caster", "NTRIP caster on 127.0.0.1 serving an RTCM 3 capture"),
     "demo": (
         "demo",
         "the whole system on a simulated drive: emulators, nodes, bag, accuracy report",

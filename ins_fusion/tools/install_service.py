@@ -5,7 +5,9 @@ with the given ports, log directory and recording, run as ``--user`` with ROS_DO
 restarted by systemd whenever it ends (ins_fusion/runtime/service.py). Then:
 ``systemctl daemon-reload && systemctl enable --now gnss_ins``. Ports are best given as
 /dev/serial/by-id/... paths (``gnss_ins list-devices``), which do not change with the order of
-plugging. Refuses to replace an existing unit unless ``--force``.
+plugging. Refuses to replace an existing unit unless ``--force``. ``--ntrip URL`` adds the NTRIP
+client; its password comes from ``--ntrip-password-file`` only (mode 0600, readable by
+``--user``): the unit file is world-readable, so no password is ever written into it.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from ins_fusion.runtime.health import write_whole
 from ins_fusion.runtime.processes import gnss_ins_command
 from ins_fusion.runtime.service import SYSTEM_UNIT_DIR, UNIT_NAME, Service, unit_text
 from ins_fusion.runtime.vehicle_nodes import DEFAULT_PORTS
+from ins_fusion.tools.launch import add_ntrip_arguments, ntrip_problem
 
 
 def _domain(text: str) -> int:
@@ -47,6 +50,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--unit-dir", type=Path, default=SYSTEM_UNIT_DIR, help="where the unit file goes"
     )
+    add_ntrip_arguments(parser)
     parser.add_argument("--dry-run", action="store_true", help="print the unit, write nothing")
     parser.add_argument("--force", action="store_true", help="replace an existing unit file")
 
@@ -60,11 +64,19 @@ def launch_options(args: argparse.Namespace) -> list[str]:
         options.append(f"--log-dir={args.log_dir.absolute()}")
     if args.record is not None:
         options.append(f"--record={args.record.absolute()}")
+    if args.ntrip is not None:
+        options.append(f"--ntrip={args.ntrip}")
+    if args.ntrip_password_file is not None:
+        options.append(f"--ntrip-password-file={args.ntrip_password_file.absolute()}")
     return options
 
 
 def run(args: argparse.Namespace) -> int:
-    """Print or write the unit; 2 when it exists (without ``--force``) or cannot be written."""
+    """Print or write the unit; 2 when it exists (without ``--force``) or cannot be written, or
+    the NTRIP options are wrong."""
+    if (problem := ntrip_problem(args, {})) is not None:  # the unit carries no environment
+        print(f"gnss_ins install-service: error: {problem}", file=sys.stderr)
+        return 2
     script = Path(sys.executable).parent / "gnss_ins"  # the console script of this install
     launch = ["launch", *launch_options(args)]
     service = Service(

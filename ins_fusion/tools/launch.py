@@ -9,7 +9,8 @@ on. A missing port, every WARN/ERROR line of a node's log (rate-limited by the n
 restart are reported on the console. A process that goes silent on /diagnostics for
 ``--restart-silent`` seconds without ending (hung) is killed and so restarted
 (ins_fusion.runtime.watchdog). ``--record DIR`` adds a supervised recorder
-(ins_fusion.runtime.recorder); ``--stop-on-failure`` stops everything when one process ends.
+(ins_fusion.runtime.recorder), ``--ntrip URL`` the NTRIP client that brings the rover its
+corrections (docs/ntrip.md); ``--stop-on-failure`` stops everything when one process ends.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import math
 import os
 import signal
 import time
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -44,12 +46,15 @@ from ins_fusion.runtime.vehicle_nodes import (
     ADU5,
     DEFAULT_PORTS,
     DISCOVERY_RANGES,
+    NTRIP,
     VEHICLE,
     command,
     discovery_environment,
+    ntrip_parameters,
 )
 from ins_fusion.runtime.watchdog import FRESH_S, START_GRACE_S, read_heard, silent
 from ins_fusion.tools.record import min_free_option
+from ntrip_client.caster_url import PASSWORD_VARIABLE, parse_caster_url, read_password
 
 #: Seconds between two supervision steps (exits, restarts, new warnings).
 _PERIOD_S = 0.2
@@ -67,7 +72,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--config",
         type=Path,
         help="directory with imu400cc.yaml, gnss_leica.yaml, gnss_adu5.yaml, ins_fusion.yaml "
-        "(default: the installed config/)",
+        "and optionally ntrip.yaml (default: the installed config/)",
     )
     for role, port in DEFAULT_PORTS.items():
         parser.add_argument(f"--{role}-port", default=port, help=f"serial port of the {role}")
@@ -134,6 +139,39 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="SIZE",
         help="with --record: passed to `gnss_ins record --min-free` (its free-space limit)",
     )
+    add_ntrip_arguments(parser)
+
+
+def add_ntrip_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--ntrip`` and ``--ntrip-password-file`` (also install-service's)."""
+    parser.add_argument(
+        "--ntrip",
+        metavar="URL",
+        help="also run the NTRIP client: corrections from http[s]://USER@HOST:PORT/MOUNTPOINT "
+        f"to the Leica rover (password: ${PASSWORD_VARIABLE} or --ntrip-password-file, never "
+        "in the URL; docs/ntrip.md)",
+    )
+    parser.add_argument(
+        "--ntrip-password-file",
+        type=Path,
+        metavar="FILE",
+        help="with --ntrip: the file holding the caster's password (mode 0600)",
+    )
+
+
+def ntrip_problem(args: argparse.Namespace, env: Mapping[str, str]) -> str | None:
+    """Why ``--ntrip`` / ``--ntrip-password-file`` cannot be used with the environment ``env``
+    (None: they can), checked before anything starts: a bad URL or password file would only
+    make the client fail at every restart."""
+    if args.ntrip is None:
+        return "--ntrip-password-file without --ntrip" if args.ntrip_password_file else None
+    try:
+        parse_caster_url(args.ntrip)
+        file = args.ntrip_password_file
+        read_password(env, None if file is None else str(file))
+    except ValueError as exc:
+        return f"--ntrip: {exc}"
+    return None
 
 
 def _silent_seconds(text: str) -> float:
@@ -202,6 +240,9 @@ def run(args: argparse.Namespace) -> int:
         except (OSError, ValueError) as exc:
             print(f"gnss_ins launch: error: --record: {exc}")
             return 2
+    if (problem := ntrip_problem(args, os.environ)) is not None:
+        print(f"gnss_ins launch: error: {problem}")
+        return 2
     log_dir = args.log_dir if args.log_dir is not None else default_log_dir()
     ports = {role: getattr(args, f"{role}_port") for role in DEFAULT_PORTS}
     env = {**os.environ, **discovery_environment(args.discovery)}
@@ -227,6 +268,11 @@ def run(args: argparse.Namespace) -> int:
                     f"warning: {port} does not exist; {spec.name} keeps trying to open it",
                     flush=True,
                 )
+        if args.ntrip is not None:
+            extra = ntrip_parameters(args.ntrip, args.ntrip_password_file)
+            own = args.config is not None and (args.config / NTRIP.config).is_file()
+            group.start(NTRIP.name, command(NTRIP, args.config if own else None, None, extra))
+            print(f"started {NTRIP.name}: corrections from {args.ntrip}", flush=True)
         if record is not None:
             group.start(RECORDER, record.command())
             print(
