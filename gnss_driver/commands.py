@@ -75,8 +75,10 @@ def run_setup(
     answer_timeout_s: float = 0.5,
     log: Callable[[str], None] = print,
     on_data: Callable[[bytes], None] | None = None,
+    on_sent: Callable[[str], None] | None = None,
 ) -> list[CommandResult]:
-    """Send each command and wait up to ``answer_timeout_s`` for its ACK / NAK.
+    """Send each command and wait up to ``answer_timeout_s`` for its ACK / NAK; ``on_sent``
+    is called with each command once it is written.
 
     The receiver may already be streaming: every byte read meanwhile is also handed to
     ``on_data`` as soon as it is read, so no epoch is lost to the set-up.
@@ -84,6 +86,8 @@ def run_setup(
     results = []
     for command in commands:
         port.write(encode_command(command))
+        if on_sent is not None:
+            on_sent(command)
         answer = _wait_for_answer(port, answer_timeout_s, on_data)
         results.append(CommandResult(command, answer))
         log(f"{command}: {answer.value}")

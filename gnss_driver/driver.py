@@ -113,15 +113,18 @@ class GnssDriver:
         self.utc.reset()
         self.clock.reset()
 
-    def feed(self, chunk: bytes, receive_time_s: float) -> list[EpochOutput]:
-        """Bytes received at host time ``receive_time_s`` [s] -> results of the closed epochs.
+    def feed(
+        self, chunk: bytes, receive_time_s: float, lines: list[bytes] | None = None
+    ) -> list[EpochOutput]:
+        """Bytes received at host time ``receive_time_s`` [s] -> results of the closed epochs;
+        ``lines`` gets every line read, accepted or not (``NmeaReader.feed``).
 
         Never raises: an exception from one sentence is counted (``internal_errors``) and the
         rest of the chunk is still read.
         """
         outputs: list[EpochOutput] = []
         self.assembler.note_traffic(receive_time_s)
-        for read in self.reader.feed(chunk):
+        for read in self.reader.feed(chunk, lines):
             try:
                 self._take(read.sentence, read.wire_bytes, receive_time_s, outputs)
             except Exception as exc:  # a bug must cost one sentence, never the stream

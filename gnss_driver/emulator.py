@@ -4,7 +4,11 @@ As far as the driver can tell it is the receiver (imu400cc-aalborg-notes.md §7.
 
 - ``leica``: one epoch per second at 9600 baud, in the report's order VTG, GGA, LLQ, then the
   optional GST, RMC, ZDA; RTK-fixed quality, the coordinate quality of the nominal 2 cm + 3 cm;
-  commands are ignored (the rover is set up on its own keyboard).
+  commands are ignored (the rover is set up on its own keyboard). With ``rtk_from_corrections``
+  the rover's solution follows the RTCM 3 corrections written to it (``emulated_rtk``): RTK
+  fixed while valid frames arrived within ``rtk_hold_s``, RTK float for ``float_hold_s`` after
+  that, then standalone (also from the start until the first frame), each with its position
+  error, coordinate quality, GST sigmas and mode letters.
 - ``adu5``: ``$PASHR,PAT`` (optionally also ``$PASHR,ATT``) five times a second; answers each
   ``$PASHS`` / ``$PASHQ`` line with ``$PASHR,ACK*3D`` or ``$PASHR,NAK*30`` and applies the
   offset angles (``3DF,OFS``), the output period (``NME,PER``) and PAT on/off (``NME,PAT``).
@@ -20,6 +24,7 @@ jump, attitude resets, degraded attitude quality, silence and a pulled cable.
 
 from __future__ import annotations
 
+import dataclasses
 import datetime
 import math
 import re
@@ -31,6 +36,7 @@ import pymap3d
 
 from gnss_driver.attitude import brf_angles, brf_rotation
 from gnss_driver.driver import BITS_PER_CHARACTER, GPS_UTC_LEAP_S
+from gnss_driver.emulated_rtk import RoverCorrections
 from gnss_driver.profiles import PROFILES, Receiver
 from gnss_driver.reader import frame_sentence
 from gnss_driver.utc import SECONDS_PER_WEEK
@@ -41,6 +47,8 @@ _KNOTS_PER_M_S = 3600.0 / 1852.0
 _GPS_EPOCH_UNIX_S = 315_964_800
 ACK = frame_sentence("PASHR,ACK")
 NAK = frame_sentence("PASHR,NAK")
+#: GGA quality -> RMC mode letter (NMEA 2.3+; R, F: RTK fixed, float, NMEA 4.1).
+_RMC_MODE = {1: "A", 2: "D", 4: "R", 5: "F"}
 
 
 @dataclass(frozen=True)
@@ -118,6 +126,14 @@ class EmulatorConfig:
     gps_utc_leap_s: int = GPS_UTC_LEAP_S
     #: False: the ADU5 records commands but never answers or applies them.
     answer_commands: bool = True
+    #: Leica: the solution follows the RTCM 3 frames written to the port (module docstring).
+    rtk_from_corrections: bool = False
+    #: RTK fixed while the last valid frame arrived at most this long ago [s].
+    rtk_hold_s: float = 2.0
+    #: Then RTK float for this long, then standalone [s].
+    float_hold_s: float = 10.0
+    #: Seed of the float and standalone position errors.
+    seed: int = 0
 
 
 @dataclass
@@ -176,12 +192,14 @@ def leica_sentences(utc_s: float, truth: Truth, cfg: EmulatorConfig, fix: bool) 
             f"GPLLQ,{tod},{date:%m%d%y},,M,,M,0,{cfg.satellites:02d},,,M",
         ]
     mode = "D" if cfg.fix_quality > 1 else "A"
+    rmc_mode = _RMC_MODE.get(cfg.fix_quality, mode)
     llq_quality = {4: 3, 5: 2}.get(cfg.fix_quality, 1)
     msl = truth.alt_m - cfg.geoid_separation_m
+    differential = "1.0,0001" if cfg.fix_quality > 1 else ","  # correction age [s], station
     bodies = [
         f"GPVTG,{course:05.1f},T,,M,{speed * _KNOTS_PER_M_S:06.2f},N,{speed * 3.6:06.2f},K,{mode}",
         f"GPGGA,{tod},{_lat_lon(truth, 7)},{cfg.fix_quality},{cfg.satellites:02d},"
-        f"{cfg.hdop:.1f},{msl:.3f},M,{cfg.geoid_separation_m:.3f},M,1.0,0001",
+        f"{cfg.hdop:.1f},{msl:.3f},M,{cfg.geoid_separation_m:.3f},M,{differential}",
         f"GPLLQ,{tod},{date:%m%d%y},,M,,M,{llq_quality},{cfg.satellites:02d},"
         f"{cfg.coordinate_quality_m:.3f},{truth.alt_m:.3f},M",
     ]
@@ -189,7 +207,7 @@ def leica_sentences(utc_s: float, truth: Truth, cfg: EmulatorConfig, fix: bool) 
     extra = {
         "GST": f"GPGST,{tod},0.010,{s_lat:.3f},{s_lon:.3f},0.0,{s_lat:.3f},{s_lon:.3f},{s_alt:.3f}",
         "RMC": f"GPRMC,{tod},A,{_lat_lon(truth, 7)},{speed * _KNOTS_PER_M_S:.2f},{course:.1f},"
-        f"{date:%d%m%y},,,{'R' if cfg.fix_quality == 4 else mode}",
+        f"{date:%d%m%y},,,{rmc_mode}",
         "ZDA": f"GPZDA,{tod},{date:%d},{date:%m},{date:%Y},00,00",
     }
     return bodies + [extra[name] for name in cfg.leica_extra]
@@ -229,6 +247,14 @@ _ADU5_COMMAND = re.compile(
 )
 
 
+def _shifted(truth: Truth, east_m: float, north_m: float, up_m: float) -> Truth:
+    """``truth`` with its position moved by ENU metres."""
+    lat, lon, alt = pymap3d.enu2geodetic(
+        east_m, north_m, up_m, truth.lat_deg, truth.lon_deg, truth.alt_m
+    )
+    return dataclasses.replace(truth, lat_deg=float(lat), lon_deg=float(lon), alt_m=float(alt))
+
+
 class GnssEmulator(PtyEmulator):
     """A running emulated receiver on a pty; ``path`` is what the driver opens."""
 
@@ -257,6 +283,22 @@ class GnssEmulator(PtyEmulator):
             period_s=1.0 / (self.config.rate_hz or profile.rate_hz),
         )
         self._line = bytearray()
+        cfg = self.config
+        self._rtk = (
+            RoverCorrections(cfg.rtk_hold_s, cfg.float_hold_s, cfg.seed)
+            if cfg.rtk_from_corrections
+            else None
+        )
+
+    @property
+    def rtcm_received(self) -> bytes:
+        """With ``rtk_from_corrections``: the whole valid RTCM 3 frames received, in order."""
+        return b"" if self._rtk is None else self._rtk.received
+
+    @property
+    def rtcm_frames(self) -> int:
+        """With ``rtk_from_corrections``: valid RTCM 3 frames received."""
+        return 0 if self._rtk is None else self._rtk.frames
 
     @property
     def commands(self) -> list[str]:
@@ -316,6 +358,8 @@ class GnssEmulator(PtyEmulator):
 
     def plug(self) -> None:
         """Plug the cable back: a new pty on the same path."""
+        if self._rtk is not None:
+            self._rtk.reset()
         self.pty.reopen_port()
 
     # ---- receiver behaviour -----------------------------------------------------------------
@@ -344,18 +388,40 @@ class GnssEmulator(PtyEmulator):
             epoch = round(epoch / period) * period
 
     def _serve_until(self, due: float) -> None:
-        """Answer commands until host time ``due``."""
+        """Answer commands (and take corrections) until host time ``due``."""
         while (remaining := due - time.time()) > 0 and not self._stop.is_set():
             if not self.pty.is_open:
                 time.sleep(min(remaining, 0.05))
                 continue
-            for byte in self.pty.read(min(remaining, 0.05)):
+            data = self.pty.read(min(remaining, 0.05))
+            if self._rtk is not None and data:
+                data = self._rtk.take(data, time.time())
+            for byte in data:
                 if byte in (0x0D, 0x0A):
                     if self._line:
                         self._command(self._line.decode("ascii", "replace"))
                     self._line.clear()
                 elif len(self._line) < 200:
                     self._line.append(byte)
+
+    def _solution(self, truth: Truth) -> tuple[EmulatorConfig, Truth]:
+        """With ``rtk_from_corrections``: the configuration of the solution the corrections allow
+        now and the position with its error."""
+        cfg = self.config
+        if self._rtk is None:
+            return cfg, truth
+        kind, error_enu_m = self._rtk.solution(time.time(), self._period_s())
+        if kind is None:
+            return cfg, truth
+        scale = kind.coordinate_quality_m / cfg.coordinate_quality_m
+        s_lat, s_lon, s_alt = cfg.gst_sigmas_m
+        solution = dataclasses.replace(
+            cfg,
+            fix_quality=kind.quality,
+            coordinate_quality_m=kind.coordinate_quality_m,
+            gst_sigmas_m=(s_lat * scale, s_lon * scale, s_alt * scale),
+        )
+        return solution, _shifted(truth, *error_enu_m)
 
     def _command(self, line: str) -> None:
         with self._lock:
@@ -386,18 +452,7 @@ class GnssEmulator(PtyEmulator):
             faults.no_fix_epochs = max(0, faults.no_fix_epochs - 1)
             if faults.jump_epochs > 0:
                 faults.jump_epochs -= 1
-                lat, lon, alt = pymap3d.enu2geodetic(
-                    0.0, faults.jump_north_m, 0.0, truth.lat_deg, truth.lon_deg, truth.alt_m
-                )
-                truth = Truth(
-                    float(lat),
-                    float(lon),
-                    float(alt),
-                    truth.vel_enu_m_s,
-                    truth.heading_deg,
-                    truth.pitch_deg,
-                    truth.roll_deg,
-                )
+                truth = _shifted(truth, 0.0, faults.jump_north_m, 0.0)
             reset = 1 if faults.attitude_resets > 0 else 0
             faults.attitude_resets = max(0, faults.attitude_resets - 1)
             mrms = self.config.mrms_m
@@ -410,7 +465,8 @@ class GnssEmulator(PtyEmulator):
             offsets = self._adu5.offsets_deg
             bodies = adu5_sentences(utc_s, truth, self.config, offsets, reset, mrms, fix)
         else:
-            bodies = leica_sentences(utc_s, truth, self.config, fix)
+            config, truth = self._solution(truth)
+            bodies = leica_sentences(utc_s, truth, config, fix)
         return [self._damaged(frame_sentence(body)) for body in bodies]
 
     def _damaged(self, sentence: bytes) -> bytes:

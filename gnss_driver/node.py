@@ -5,7 +5,9 @@ groups the sentences into epochs and stamps each with its UTC time mapped onto t
 results are published straight from that thread (an epoch ended by an idle line is published
 from a timer). Publishes ``gnss/fix`` (NavSatFix), ``gnss/vel`` (TwistWithCovarianceStamped,
 ENU), ``gnss/attitude`` (Imu with orientation only), ``gnss/time_reference`` (TimeReference)
-and ``/diagnostics``. docs/gnss.md describes parameters, topics and covariance rules.
+and ``/diagnostics``; the receiver's raw traffic (``nmea`` out, RTCM 3 corrections in on
+``rtcm``, what is written to it on ``to_device/*``) is gnss_driver/ros_receiver_io.py's.
+docs/gnss.md describes parameters, topics and covariance rules.
 """
 
 from __future__ import annotations
@@ -21,23 +23,13 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, NavSatFix, TimeReference
 
 from gnss_driver import geoid
-from gnss_driver.attitude import (
-    ANGLE_CONVENTIONS,
-    DEFAULT_ANGLE_CONVENTION,
-    DEFAULT_SIGMA_RPY_DEG,
-    AttitudeConfig,
-)
-from gnss_driver.commands import Answer, CommandResult, command_error, run_setup
-from gnss_driver.driver import GPS_UTC_LEAP_S, DriverConfig, EpochOutput, GnssDriver
-from gnss_driver.grid import projection_error
-from gnss_driver.profiles import (
-    CAR_OFFSETS_DEG,
-    CAR_VECTORS_M,
-    PROFILES,
-    Adu5Setup,
-    Receiver,
-    default_setup_commands,
-)
+from gnss_driver.attitude import AttitudeConfig
+from gnss_driver.commands import Answer, CommandResult, run_setup
+from gnss_driver.corrections import CorrectionQueue
+from gnss_driver.driver import DriverConfig, EpochOutput, GnssDriver
+from gnss_driver.parameters import DRIVER_PARAMETERS
+from gnss_driver.profiles import PROFILES, Adu5Setup, Receiver, default_setup_commands
+from gnss_driver.ros_receiver_io import ReceiverTraffic
 from gnss_driver.solution import FixType, SolutionConfig, UereTable, fill_gnss_fix
 from gnss_ins_common import ros_diagnostics as diag
 from gnss_ins_common.message_fields import (
@@ -46,7 +38,6 @@ from gnss_ins_common.message_fields import (
     fill_velocity,
     stamp_ns,
 )
-from gnss_ins_common.params import Param, needs_values, serial_link_params
 from gnss_ins_common.rates import RateMeter
 from gnss_ins_common.ros_endpoints import Endpoints
 from gnss_ins_common.ros_lifecycle import AUTOSTART, ManagedSerialDriver
@@ -55,142 +46,8 @@ from gnss_ins_common.ros_params import declare_parameters
 from gnss_ins_common.ros_serial import node_time_s, start_serial_link
 from gnss_ins_common.serial_link import LinkSettings, SerialLink
 
-
-def _commands_error(commands: list[str]) -> str | None:
-    for command in commands:
-        problem = command_error(command)
-        if problem:
-            return f"{command!r}: {problem}"
-    return None
-
-
-_UERE = UereTable()
-PARAMETERS = (
-    *serial_link_params(
-        "receiver", 9600, "serial baud rate, 8N1 (Leica 9600, notes §7.2)", 3.0, 0.2
-    ),
-    Param(
-        "receiver",
-        "leica",
-        "receiver profile: leica (GGA/VTG/LLQ), adu5 (PASHR PAT/ATT), generic (any NMEA 0183)",
-        choices=tuple(r.value for r in Receiver),
-    ),
-    Param("frame_id", "gnss_link", "frame_id of the published messages (the antenna)"),
-    Param(
-        "setup_commands",
-        [],
-        "commands sent after each (re)open, CR LF appended; empty: the profile's defaults",
-        check=_commands_error,
-    ),
-    Param("setup_answer_timeout", 0.5, "wait for each command's ACK/NAK [s]", 0.0, 10.0),
-    Param("allow_missing_checksum", False, "accept sentences without *hh (still counted)"),
-    Param("uere_sps", _UERE.sps, "UERE of an SPS fix [m], x HDOP/VDOP", 0.001, 100.0),
-    Param("uere_dgps", _UERE.dgps, "UERE of a DGPS fix [m]", 0.001, 100.0),
-    Param("uere_rtk_float", _UERE.rtk_float, "UERE of an RTK float fix [m]", 0.001, 100.0),
-    Param("uere_rtk_fixed", _UERE.rtk_fixed, "UERE of an RTK fixed fix [m]", 0.001, 100.0),
-    Param(
-        "velocity_sigma",
-        SolutionConfig().velocity_sigma_m_s,
-        "1-sigma of each horizontal velocity component [m/s] (notes (7.15))",
-        0.001,
-        100.0,
-    ),
-    Param(
-        "llq_horizontal_fraction",
-        SolutionConfig().llq_horizontal_fraction,
-        "horizontal share f of Leica LLQ's coordinate quality CQ = sigma_h + sigma_v: sigma_h ="
-        " f CQ, sigma_v = (1 - f) CQ (the report gives only the sum; 0.4 = 2 cm of 2 + 3 cm)",
-        0.01,
-        0.99,
-    ),
-    Param(
-        "attitude_sigma_rpy",
-        list(DEFAULT_SIGMA_RPY_DEG),
-        "1-sigma of roll, pitch, yaw at nominal PAT quality [deg] (notes §7.3)",
-        0.001,
-        180.0,
-        check=needs_values(3, "roll, pitch, yaw"),
-    ),
-    Param(
-        "adu5_angle_convention",
-        DEFAULT_ANGLE_CONVENTION,
-        "how ADU5 heading, pitch, roll compose: heading_pitch_roll (vehicle Euler angles, pitch ="
-        " elevation of V12) or report_fixed_axes (Aalborg report 7.5: fixed axes, order"
-        " heading, pitch, roll); docs/gnss.md",
-        choices=ANGLE_CONVENTIONS,
-    ),
-    Param(
-        "min_satellites",
-        SolutionConfig().min_satellites,
-        "a position from fewer satellites used is published as no fix (3-D needs 4; a 2-D fix"
-        " needs one fewer; a count the receiver does not report is not checked)",
-        0,
-        12,
-    ),
-    Param(
-        "allow_2d_fix",
-        SolutionConfig().allow_2d_fix,
-        "publish 2-D fixes (GSA mode 2, 3 satellites, RMC/GLL without a recent altitude) as fixes"
-        " with altitude NaN and vertical variance 1e6 (height unknown); false: no fix",
-    ),
-    Param(
-        "llq_projection",
-        "",
-        "projected CRS of Leica LLQ grid positions (e.g. EPSG:25832, ETRS89 / UTM 32N); empty:"
-        " LLQ gives accuracy only, no position",
-        check=projection_error,
-    ),
-    Param("attitude_mrms_limit", 0.005, "MRMS above this scales the sigmas up [m]", 1e-4, 1.0),
-    Param("attitude_brms_limit", 0.04, "BRMS above this scales the sigmas up [m]", 1e-4, 10.0),
-    Param(
-        "adu5_vectors",
-        [v for vector in CAR_VECTORS_M for v in vector],
-        "ADU5 antenna vectors V12, V13, V14 as x right, y forward, z up [m] ($PASHS,3DF,Vxx)",
-        -200.0,
-        200.0,
-        check=needs_values(9, "3 vectors x, y, z"),
-    ),
-    Param(
-        "adu5_offsets",
-        list(CAR_OFFSETS_DEG),
-        "ADU5 offset angles heading, pitch, roll of the antenna frame on the vehicle [deg]",
-        -180.0,
-        360.0,
-        check=needs_values(3, "heading, pitch, roll"),
-    ),
-    Param(
-        "adu5_offsets_in_receiver",
-        True,
-        "true: send the offsets with $PASHS,3DF,OFS; false: send zeros, the driver removes them",
-    ),
-    Param("adu5_elevation_mask", 15, "ADU5 elevation mask [deg] (notes §7.3)", 0, 90),
-    Param("adu5_period", 0.2, "ADU5 NMEA output period [s] (0.2 s = 5 Hz)", 0.2, 999.0),
-    Param("adu5_port", "A", "ADU5 port this node is connected to", choices=("A", "B")),
-    Param("latency", 0.0, "fixed delay from the epoch's UTC time to its first byte [s]", 0.0, 2.0),
-    Param(
-        "use_gnss_time",
-        False,
-        "true: stamp each epoch with its UTC time (host clock disciplined to UTC by NTP/PTP/PPS);"
-        " false: with the UTC mapped onto the host clock by the arrival envelope",
-    ),
-    Param(
-        "gnss_time_offset_warn",
-        0.25,
-        "with use_gnss_time, warn when host - UTC (receiver output delay + host clock error)"
-        " exceeds this [s]",
-        0.001,
-        10.0,
-    ),
-    Param("gps_utc_leap_seconds", GPS_UTC_LEAP_S, "GPS - UTC for PASHR,ATT times [s]", 0, 100),
-    Param(
-        "epoch_idle_timeout",
-        0.5,
-        "a quiet line for this long ends an epoch [s]; below the gap between epochs",
-        0.01,
-        5.0,
-    ),
-    AUTOSTART,
-)
+#: The declared parameters: the driver's (gnss_driver/parameters.py) and the lifecycle's.
+PARAMETERS = (*DRIVER_PARAMETERS, AUTOSTART)
 
 #: Latency samples averaged for the diagnostics.
 _LATENCY_WINDOW = 50
@@ -272,6 +129,16 @@ class GnssNode(ManagedSerialDriver):
         self._vel_pub = endpoints.publisher(TwistWithCovarianceStamped, "gnss/vel", qos)
         self._att_pub = endpoints.publisher(Imu, "gnss/attitude", qos)
         self._time_pub = endpoints.publisher(TimeReference, "gnss/time_reference", qos)
+        self._traffic = ReceiverTraffic(
+            self,
+            endpoints,
+            self._frame_id,
+            corrections=(
+                CorrectionQueue(p["corrections_max_age"]) if p["corrections_input"] else None
+            ),
+            nmea_output=p["nmea_output"],
+            write=self._write,
+        )
         self._diagnostics = diag.DiagnosticsPublisher(self, endpoints)
         self.create_timer(p["diagnostics_period"], diag.guarded(self, self._publish_diagnostics))
         self.create_timer(p["epoch_idle_timeout"] / 2.0, diag.guarded(self, self._flush_idle))
@@ -293,7 +160,16 @@ class GnssNode(ManagedSerialDriver):
         )
         return link
 
+    def destroy_node(self) -> None:
+        """Stop writing corrections, then destroy the node."""
+        self._traffic.stop()
+        super().destroy_node()
+
     # ---- serial side (link thread) ----------------------------------------------------------
+    def _write(self, data: bytes) -> bool:
+        link = self.link
+        return link is not None and link.write(data)
+
     def _on_open(self, port: Any) -> None:
         with self._lock:
             self._driver.reset()
@@ -303,6 +179,7 @@ class GnssNode(ManagedSerialDriver):
             answer_timeout_s=self.params["setup_answer_timeout"],
             log=self.get_logger().info,
             on_data=lambda chunk: self._on_data(chunk, node_time_s(self)),
+            on_sent=lambda command: self._traffic.publish_command(command, node_time_s(self)),
         )
         for result in results:
             if result.answer is Answer.NAK:
@@ -311,8 +188,10 @@ class GnssNode(ManagedSerialDriver):
             self._setup_results = results
 
     def _on_data(self, chunk: bytes, received_s: float) -> None:
+        lines: list[bytes] = []
         with self._lock:
-            outputs = self._driver.feed(chunk, received_s)
+            outputs = self._driver.feed(chunk, received_s, lines)
+            self._traffic.publish_lines(lines, received_s)
             self._publish(outputs)
 
     def _flush_idle(self) -> None:
@@ -446,11 +325,13 @@ class GnssNode(ManagedSerialDriver):
         self._attitude_problems = problems
         rate = self._rate.rate_hz(epochs, now)
         link = self.link_stats
+        values.update(self._traffic.diagnostics(node_time_s(self)))
         values.update(
             rate_hz=rate,
             expected_rate_hz=self._rate_hz,
             reconnects=link.reconnects,
             stalls=link.stalls,
+            write_failures=link.write_failures,
             held_while_inactive=self.held_while_inactive,
             last_error=link.last_error,
         )

@@ -16,6 +16,10 @@ Kinds of rejected input (``ReaderStats``):
 - ``missing_checksum``: no ``*hh`` (the sentence is still accepted when allowed);
 - ``unknown_sentence``: a sentence type no pynmea2 class is registered for;
 - ``malformed``: a registered type whose text pynmea2 could not build.
+
+``feed``'s ``lines`` output also hands back every line as received, accepted or not: each run
+from a ``$`` to its end (CR, LF, or the ``$`` of the next sentence), without the line end; only
+an overlong line is left out (counted as such).
 """
 
 from __future__ import annotations
@@ -116,8 +120,9 @@ class NmeaReader:
         self._discarding = False
         self._in_junk = False
 
-    def feed(self, chunk: bytes) -> list[ReadSentence]:
-        """Add ``chunk`` to the stream; return the sentences it completed, in stream order."""
+    def feed(self, chunk: bytes, lines: list[bytes] | None = None) -> list[ReadSentence]:
+        """Add ``chunk`` to the stream; return the sentences it completed, in stream order.
+        ``lines``, when given, gets every line the chunk completed (module docstring)."""
         stats = self.stats
         stats.bytes_in += len(chunk)
         buf = self._buffer
@@ -144,6 +149,8 @@ class NmeaReader:
                     pos = end
                 break
             line_end = match.start()
+            if lines is not None and line_end - pos <= self.max_line_bytes:
+                lines.append(bytes(buf[pos:line_end]))
             if buf[line_end] == _DOLLAR:
                 if _NOT_PRINTABLE.search(buf, pos, line_end):
                     stats.garbage += 1

@@ -9,6 +9,13 @@ or (with ``valid_timeout_s``) one whose bytes hold nothing valid for that long â
 of a unit that power-cycled and waits for its start command; the driver calls ``note_valid`` for
 each valid message â€” closes the port and reopens it with exponential back-off. Nothing here
 raises into the caller.
+
+``write`` (any thread) sends only to a port that is open *and* set up: while ``on_open`` writes
+the set-up commands directly on the port, and while the port is closed or being reopened, it
+refuses (returns False, writes nothing), so another thread's bytes never interleave with the
+set-up or go to a device in an unknown mode. Each accepted write is one ``port.write`` of the
+whole buffer under the write lock (pyserial loops until all of it is written or its write
+time-out expires), so two writers' messages never interleave either.
 """
 
 from __future__ import annotations
@@ -48,6 +55,8 @@ class LinkStats:
     invalid_stalls: int = 0
     bytes_read: int = 0
     callback_errors: int = 0
+    #: Writes that raised (write time-out, I/O error); refused writes are not counted.
+    write_failures: int = 0
     #: The last problem, cleared when the port is open and the device set up again.
     last_error: str = ""
 
@@ -89,7 +98,9 @@ class SerialLink:
         self._log = log
         self._info = info
         self._stop = threading.Event()
+        # Guards _ready and every write on the port outside on_open.
         self._write_lock = threading.Lock()
+        self._ready = False  # the port is open and on_open has returned
         self._port: serial.Serial | None = None
         self._thread: threading.Thread | None = None
         self._last_valid = time.monotonic()
@@ -100,8 +111,8 @@ class SerialLink:
 
     @property
     def is_open(self) -> bool:
-        """True while the port is open and configured."""
-        return self._port is not None
+        """True while the port is open and configured (``on_open`` returned)."""
+        return self._ready
 
     def start(self) -> None:
         """Start the reader thread (opens the port in the background)."""
@@ -117,7 +128,9 @@ class SerialLink:
         if self._thread is not None:
             self._thread.join(timeout=2.0)
             self._thread = None
-        port = self._port
+        with self._write_lock:
+            self._ready = False  # the shutdown command goes alone
+            port = self._port
         if port is not None and before_close is not None:
             try:
                 before_close(port)
@@ -126,16 +139,18 @@ class SerialLink:
         self._close()
 
     def write(self, data: bytes) -> bool:
-        """Send bytes if the port is open; returns False (and writes nothing) otherwise."""
-        port = self._port
-        if port is None:
-            return False
-        try:
-            with self._write_lock:
+        """Send all of ``data`` in one write when the port is open and set up; False when it is
+        not (nothing written) or the write failed (counted in ``write_failures``)."""
+        with self._write_lock:
+            port = self._port
+            if not self._ready or port is None:
+                return False
+            try:
                 port.write(data)
-        except (serial.SerialException, OSError) as exc:
-            self.stats.last_error = f"write failed: {exc}"
-            return False
+            except (serial.SerialException, OSError) as exc:  # SerialTimeoutException included
+                self.stats.write_failures += 1
+                self.stats.last_error = f"write failed: {exc}"
+                return False
         return True
 
     def _run(self) -> None:
@@ -181,8 +196,12 @@ class SerialLink:
         if self.stats.opens > 0:
             self.stats.reconnects += 1
         self.stats.opens += 1
-        self._port = port
+        with self._write_lock:
+            self._ready = False
+            self._port = port
         self._on_open(port)
+        with self._write_lock:
+            self._ready = True
         self.stats.last_error = ""  # recovered: the device answered its set-up
         self._info(f"opened {self.settings.port} at {self.settings.baud} baud")
 
@@ -225,7 +244,9 @@ class SerialLink:
                 )
 
     def _close(self) -> None:
-        port, self._port = self._port, None
+        with self._write_lock:
+            self._ready = False
+            port, self._port = self._port, None
         if port is not None:
             with contextlib.suppress(serial.SerialException, OSError):
                 port.close()

@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-EXECUTABLES = ("imu400cc_node", "gnss_node", "ins_fusion_node", "gnss_ins")
+EXECUTABLES = ("imu400cc_node", "gnss_node", "ntrip_node", "ins_fusion_node", "gnss_ins")
 
 
 def test_colcon_build_installs_executables_config_and_launch(tmp_path):
@@ -42,5 +42,11 @@ def test_colcon_build_installs_executables_config_and_launch(tmp_path):
         assert (share / "config" / config.name).is_file(), config.name
     assert (share / "launch" / "vehicle.launch.py").is_file()
     site = next((prefix / "lib").glob("python3*/site-packages"))
-    for package in ("imu400cc_driver", "gnss_driver", "ins_fusion", "gnss_ins_common"):
+    for package in (
+        "imu400cc_driver",
+        "gnss_driver",
+        "ntrip_client",
+        "ins_fusion",
+        "gnss_ins_common",
+    ):
         assert (site / package / "__init__.py").is_file(), package

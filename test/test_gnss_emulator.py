@@ -1,4 +1,5 @@
-"""The emulator's sentences read back through the driver core (no pty, no ROS)."""
+"""The emulator's sentences read back through the driver core, and its corrections input (no
+ROS)."""
 
 from __future__ import annotations
 
@@ -6,12 +7,16 @@ import math
 
 import pymap3d
 import pytest
+import serial
+from ros_harness import wait_for
 from scipy.spatial.transform import Rotation
 
 from gnss_driver.attitude import R_BRF_FLU, brf_rotation
 from gnss_driver.driver import DriverConfig, GnssDriver
+from gnss_driver.emulated_rtk import RTK_FLOAT, STANDALONE, RoverCorrections
 from gnss_driver.emulator import (
     EmulatorConfig,
+    GnssEmulator,
     Truth,
     adu5_sentences,
     constant_velocity,
@@ -20,6 +25,7 @@ from gnss_driver.emulator import (
 from gnss_driver.profiles import Receiver
 from gnss_driver.reader import frame_sentence
 from gnss_driver.solution import FixType
+from gnss_ins_common.rtcm import make_frame
 
 UTC = 1_735_689_599.0  # 2024-12-31T23:59:59Z
 SOUTH_WEST = Truth(-33.85, -70.675, 520.25, (-2.0, 1.0, 0.0), 296.565, 1.5, -2.25)
@@ -89,3 +95,41 @@ def test_constant_velocity_truth():
     )
     assert (east, north, up) == pytest.approx((30.0, 40.0, 0.0), abs=1e-6)
     assert later.heading_deg == pytest.approx(math.degrees(math.atan2(3.0, 4.0)))
+
+
+def test_rover_solution_follows_the_corrections():
+    frames = [make_frame(bytes((0x3E, 0xD0)) + bytes(range(n))) for n in (3, 40)]  # 1005
+    rover = RoverCorrections(rtk_hold_s=2.0, float_hold_s=10.0, seed=3)
+    assert rover.solution(50.0, 1.0)[0] is STANDALONE  # no corrections yet
+    other = rover.take(b"$PXXX,1\r\n" + frames[0] + b"noise" + frames[1][:9], 100.0)
+    assert other == b"$PXXX,1\r\nnoise"
+    assert rover.take(frames[1][9:], 100.5) == b""  # the rest of a frame split over two writes
+    assert rover.received == b"".join(frames) and rover.frames == 2
+    assert rover.solution(102.5, 1.0) == (None, (0.0, 0.0, 0.0))  # RTK fixed: the truth
+    kind, error_enu_m = rover.solution(103.0, 1.0)
+    assert kind is RTK_FLOAT and 0.0 < math.hypot(*error_enu_m[:2]) < 5 * RTK_FLOAT.sigma_m
+    assert rover.solution(112.5, 1.0)[0] is RTK_FLOAT
+    assert rover.solution(112.6, 1.0)[0] is STANDALONE
+
+
+@pytest.mark.parametrize(
+    ("quality", "fix_type"),
+    [(4, FixType.RTK_FIXED), (5, FixType.RTK_FLOAT), (1, FixType.SPS)],
+)
+def test_leica_mode_letters_follow_the_quality(quality, fix_type):
+    config = EmulatorConfig(leica_extra=("RMC",), fix_quality=quality)
+    bodies = leica_sentences(UTC, SOUTH_WEST, config, fix=True)
+    rmc_mode, vtg_mode = {4: "R", 5: "F", 1: "A"}[quality], "A" if quality == 1 else "D"
+    assert bodies[-1].endswith(f",{rmc_mode}") and bodies[0].endswith(f",{vtg_mode}")
+    out, _ = _read(bodies)
+    assert out.fix.fix_type is fix_type
+
+
+def test_emulated_rover_takes_frames_and_commands_from_its_port():
+    frames = [make_frame(bytes((0x43, 0xD0)) + bytes(n)) for n in (5, 200)]  # 1085
+    config = EmulatorConfig(rtk_from_corrections=True, output_latency_s=0.0)
+    with GnssEmulator(config=config) as device, serial.Serial(device.path, 115200) as port:
+        port.write(frames[0] + b"$PLEIC,1\r\n" + frames[1])
+        assert wait_for(lambda: device.rtcm_frames == 2, 10.0)
+        assert wait_for(lambda: device.commands == ["$PLEIC,1"], 10.0)
+    assert device.rtcm_received == frames[0] + frames[1]

@@ -440,6 +440,7 @@ def test_executable_with_the_adu5_config_and_a_renamed_node():
 PROFILE_VALUES = {
     "gnss_leica.yaml": {"port": "/dev/ttyUSB1"},
     "gnss_adu5.yaml": {
+        "corrections_input": False,
         "port": "/dev/ttyUSB2",
         "baud": 115200,
         "receiver": "adu5",

@@ -141,9 +141,22 @@ def test_every_kind_of_bad_input_is_counted_and_the_good_lines_survive():
         + b"\r\n"  # pynmea2 fails on it
         + good
     )
-    reader = NmeaReader()
-    reads = reader.feed(stream)
+    reader, lines = NmeaReader(), []
+    reads = reader.feed(stream, lines)
     assert [r.sentence.render().encode() for r in reads] == [GGA_SOUTH_EAST] * 3
+    # Every line as received, rejected or not; only the overlong one is left out.
+    assert lines == [
+        GGA_SOUTH_EAST,
+        GGA_SOUTH_EAST[:-1] + b"E",
+        GGA_SOUTH_EAST[:-3],
+        GGA_SOUTH_EAST[:30],
+        GGA_SOUTH_EAST,
+        b"$GPXYZ,1,2*%02X" % nmea_checksum(b"GPXYZ,1,2"),
+        b"$PXXXX,1*%02X" % nmea_checksum(b"PXXXX,1"),
+        b"$GP\x01GGA,1*00",
+        b"$PASHR*%02X" % nmea_checksum(b"PASHR"),
+        GGA_SOUTH_EAST,
+    ]
     assert reader.stats.rejected() == {
         "garbage": 2,
         "truncated": 1,
@@ -186,12 +199,14 @@ _GOOD_LINES = st.sampled_from([line + b"\r\n" for line in GOLDEN])
 _NOISE = st.binary(max_size=40)
 
 
-def _feed_in_chunks(data: bytes, cuts: list[int]) -> tuple[list[bytes], NmeaReader]:
+def _feed_in_chunks(
+    data: bytes, cuts: list[int], lines: list[bytes] | None = None
+) -> tuple[list[bytes], NmeaReader]:
     reader = NmeaReader()
     out: list[bytes] = []
     bounds = sorted({0, len(data), *(c % (len(data) + 1) for c in cuts)})
     for start, end in itertools.pairwise(bounds):
-        out += [r.sentence.render().encode() for r in reader.feed(data[start:end])]
+        out += [r.sentence.render().encode() for r in reader.feed(data[start:end], lines)]
         assert reader.buffered <= MAX_LINE_BYTES
     return out, reader
 
@@ -199,9 +214,14 @@ def _feed_in_chunks(data: bytes, cuts: list[int]) -> tuple[list[bytes], NmeaRead
 @settings(max_examples=300, deadline=None)
 @given(st.binary(max_size=2000), st.lists(st.integers(min_value=0), max_size=30))
 def test_fuzz_arbitrary_bytes_never_raise_and_chunking_does_not_matter(data, cuts):
-    whole, reader_whole = _feed_in_chunks(data, [])
-    split, reader_split = _feed_in_chunks(data, cuts)
+    lines_whole: list[bytes] = []
+    lines_split: list[bytes] = []
+    whole, reader_whole = _feed_in_chunks(data, [], lines_whole)
+    split, reader_split = _feed_in_chunks(data, cuts, lines_split)
     assert whole == split
+    assert lines_whole == lines_split
+    assert all(line.startswith(b"$") and len(line) <= MAX_LINE_BYTES for line in lines_whole)
+    assert len(lines_whole) >= reader_whole.stats.sentences
     assert reader_whole.stats == reader_split.stats
     assert reader_whole.stats.sentences == len(whole)
 

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 import rclpy
+from config_checks import assert_file_holds_defaults
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from nmea_msgs.msg import Sentence
 from ros_harness import (
@@ -23,7 +24,7 @@ from rtcm_msgs.msg import Message
 
 from gnss_driver.reader import frame_sentence
 from ntrip_client.caster_emulator import CasterEmulator
-from ntrip_client.node import NtripNode
+from ntrip_client.node import PARAMETERS, NtripNode
 
 pytestmark = pytest.mark.ros
 
@@ -115,7 +116,8 @@ def test_a_wrong_password_is_an_error_with_the_caster_s_reason(tmp_path, monkeyp
         try:
             with spinning(node, collector.node):
                 assert wait_for(
-                    lambda: any(s.level == DiagnosticStatus.ERROR for s in _statuses(collector)), 15.0
+                    lambda: any(s.level == DiagnosticStatus.ERROR for s in _statuses(collector)),
+                    15.0,
                 )
         finally:
             node.close()
@@ -173,3 +175,7 @@ def _run_node(*parameters: str):
     return subprocess.run(
         args, capture_output=True, text=True, timeout=30, env={**os.environ, "NTRIP_PASSWORD": ""}
     )
+
+
+def test_the_configuration_file_holds_every_default():
+    assert_file_holds_defaults("ntrip.yaml", "ntrip_client", PARAMETERS)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import threading
 import time
 
 from ros_harness import wait_for
@@ -52,3 +53,80 @@ def test_a_silence_is_a_stall_after_stall_timeout_whatever_valid_timeout_says():
     assert not chunks
     assert link.stats.invalid_stalls == 0
     assert "no data" in link.stats.last_error
+
+
+def _read_exactly(device: PtyDevice, size: int) -> bytes:
+    data = b""
+    deadline = time.monotonic() + 10.0
+    while len(data) < size and time.monotonic() < deadline:
+        data += device.read(0.1)
+    return data
+
+
+def test_write_is_refused_while_the_device_is_set_up_and_goes_whole_after():
+    in_setup, tried = threading.Event(), threading.Event()
+    refused: list[bool] = []
+
+    def on_open(port) -> None:
+        port.write(b"SETUP\r\n")
+        in_setup.set()
+        tried.wait(10.0)  # another thread writes meanwhile
+
+    def other_writer() -> None:
+        in_setup.wait(10.0)
+        refused.append(link.write(b"during set-up"))
+        tried.set()
+
+    with PtyDevice() as device:
+        link = SerialLink(
+            LinkSettings(port=device.path, stall_timeout_s=30.0),
+            on_open=on_open,
+            on_data=lambda _chunk, _received: None,
+            now=time.monotonic,
+            log=lambda _message: None,
+            info=lambda _message: None,
+        )
+        assert link.write(b"before start") is False
+        writer = threading.Thread(target=other_writer)
+        writer.start()
+        link.start()
+        try:
+            writer.join(timeout=20.0)
+            assert wait_for(lambda: link.is_open, 10.0)
+            assert link.write(b"after") is True
+            data = _read_exactly(device, len(b"SETUP\r\nafter"))
+        finally:
+            link.stop()
+    assert refused == [False]
+    assert data == b"SETUP\r\nafter"
+    assert link.stats.write_failures == 0
+
+
+def test_write_is_refused_while_the_port_is_lost_and_resumes_after():
+    with PtyDevice() as device:
+        link = _link(device, [], stall_timeout_s=30.0, backoff_max_s=0.2)
+        try:
+            assert wait_for(lambda: link.is_open, 10.0)
+            device.close_port()
+            assert wait_for(lambda: not link.is_open, 10.0)
+            assert link.write(b"lost") is False
+            device.reopen_port()
+            assert wait_for(lambda: link.is_open, 10.0)
+            assert link.write(b"back") is True
+            data = _read_exactly(device, len(b"back"))
+        finally:
+            link.stop()
+    assert data == b"back"
+    assert link.stats.write_failures == 0 and link.stats.reconnects >= 1
+
+
+def test_a_write_that_times_out_is_counted():
+    with PtyDevice() as device:  # the device never reads: the pty's buffer fills up
+        link = _link(device, [], stall_timeout_s=30.0)
+        try:
+            assert wait_for(lambda: link.is_open, 10.0)
+            assert link.write(bytes(1_000_000)) is False  # pyserial's 1 s write time-out
+        finally:
+            link.stop()
+    assert link.stats.write_failures == 1
+    assert link.stats.last_error.startswith("write failed")

@@ -88,7 +88,5 @@ def command(
 def ntrip_parameters(url: str, password_file: Path | None) -> tuple[str, ...]:
     """The NTRIP client's ``--ros-args`` beyond its file: the caster URL (never a password:
     ntrip_client.caster_url refuses one) and the password file's path, if any."""
-    args = ("-p", f"url:={url}")
-    if password_file is not None:
-        args += ("-p", f"password_file:={password_file.absolute()}")
-    return args
+    file = () if password_file is None else ("-p", f"password_file:={password_file.absolute()}")
+    return ("-p", f"url:={url}", *file)

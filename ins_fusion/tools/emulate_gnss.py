@@ -44,12 +44,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="optional Leica sentences after VTG, GGA, LLQ",
     )
     parser.add_argument("--att", action="store_true", help="ADU5: also send PASHR,ATT")
+    parser.add_argument(
+        "--rtk-from-corrections",
+        action="store_true",
+        help="Leica: RTK fixed only while RTCM 3 frames are written to the port, then float,"
+        " then standalone (default: always RTK fixed)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
     """Run the receiver until SIGINT/SIGTERM; prints the port path first."""
     config = EmulatorConfig(
-        receiver=Receiver(args.receiver), leica_extra=tuple(args.extra), adu5_att=args.att
+        receiver=Receiver(args.receiver),
+        leica_extra=tuple(args.extra),
+        adu5_att=args.att,
+        rtk_from_corrections=args.rtk_from_corrections,
     )
     truth = constant_velocity(tuple(args.velocity), tuple(args.origin))
     done = threading.Event()
@@ -62,4 +71,6 @@ def run(args: argparse.Namespace) -> int:
         with contextlib.suppress(KeyboardInterrupt):
             done.wait()
         print(f"sent {device.epochs_sent} epochs; commands: {device.commands}")
+        if config.rtk_from_corrections:
+            print(f"received {device.rtcm_frames} RTCM 3 frames")
     return 0
