@@ -39,6 +39,8 @@ SHOWN: dict[str, tuple[str, ...]] = {
         "rate_hz",
         "expected_rate_hz",
         "reconnects",
+        "rtcm_frames_written",
+        "rtcm_age_s",
     ),
     "adu5_gnss": (
         "last_fix_type",
