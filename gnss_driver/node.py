@@ -23,21 +23,16 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, NavSatFix, TimeReference
 
 from gnss_driver import geoid
-from gnss_driver.attitude import AttitudeConfig
 from gnss_driver.commands import Answer, CommandResult, run_setup
 from gnss_driver.corrections import CorrectionQueue
-from gnss_driver.driver import DriverConfig, EpochOutput, GnssDriver
-from gnss_driver.parameters import DRIVER_PARAMETERS
-from gnss_driver.profiles import PROFILES, Adu5Setup, Receiver, default_setup_commands
+from gnss_driver.driver import EpochOutput, GnssDriver
+from gnss_driver.messages import TOPICS, MessageClasses, epoch_messages
+from gnss_driver.parameters import DRIVER_PARAMETERS, adu5_setup, driver_config
+from gnss_driver.profiles import PROFILES, Receiver, default_setup_commands
 from gnss_driver.ros_receiver_io import ReceiverTraffic
-from gnss_driver.solution import FixType, SolutionConfig, UereTable, fill_gnss_fix
+from gnss_driver.solution import FixType
 from gnss_ins_common import ros_diagnostics as diag
-from gnss_ins_common.message_fields import (
-    fill_orientation,
-    fill_time_reference,
-    fill_velocity,
-    stamp_ns,
-)
+from gnss_ins_common.message_fields import seconds_of_ns, stamp_ns
 from gnss_ins_common.rates import RateMeter
 from gnss_ins_common.ros_endpoints import Endpoints
 from gnss_ins_common.ros_lifecycle import AUTOSTART, ManagedSerialDriver
@@ -49,6 +44,8 @@ from gnss_ins_common.serial_link import LinkSettings, SerialLink
 #: The declared parameters: the driver's (gnss_driver/parameters.py) and the lifecycle's.
 PARAMETERS = (*DRIVER_PARAMETERS, AUTOSTART)
 
+#: The node's message classes (gnss_driver/messages.py).
+_CLASSES = MessageClasses(NavSatFix, TwistWithCovarianceStamped, Imu, TimeReference)
 #: Latency samples averaged for the diagnostics.
 _LATENCY_WINDOW = 50
 
@@ -65,51 +62,15 @@ class GnssNode(ManagedSerialDriver):
         self.params = p
         self._receiver = Receiver(p["receiver"])
         self._frame_id = p["frame_id"]
-        offsets = (p["adu5_offsets"][0], p["adu5_offsets"][1], p["adu5_offsets"][2])
-        zeros = (0.0, 0.0, 0.0)
-        in_receiver = p["adu5_offsets_in_receiver"]
-        vectors = p["adu5_vectors"]
-        adu5 = Adu5Setup(
-            vectors_m=tuple((vectors[i], vectors[i + 1], vectors[i + 2]) for i in (0, 3, 6)),
-            offsets_deg=offsets if in_receiver else zeros,
-            elevation_mask_deg=p["adu5_elevation_mask"],
-            period_s=p["adu5_period"],
-            port=p["adu5_port"],
+        self._commands = p["setup_commands"] or default_setup_commands(
+            self._receiver, adu5_setup(p)
         )
-        self._commands = p["setup_commands"] or default_setup_commands(self._receiver, adu5)
         self._rate_hz = (
             1.0 / p["adu5_period"]
             if self._receiver is Receiver.ADU5
             else PROFILES[self._receiver].rate_hz
         )
-        sigma = p["attitude_sigma_rpy"]
-        self._driver = GnssDriver(
-            DriverConfig(
-                baud=p["baud"],
-                allow_missing_checksum=p["allow_missing_checksum"],
-                latency_s=p["latency"],
-                use_gnss_time=p["use_gnss_time"],
-                epoch_idle_s=p["epoch_idle_timeout"],
-                gps_utc_leap_s=p["gps_utc_leap_seconds"],
-                solution=SolutionConfig(
-                    UereTable(
-                        p["uere_sps"], p["uere_dgps"], p["uere_rtk_float"], p["uere_rtk_fixed"]
-                    ),
-                    p["velocity_sigma"],
-                    p["llq_horizontal_fraction"],
-                    p["min_satellites"],
-                    p["llq_projection"],
-                    p["allow_2d_fix"],
-                ),
-                attitude=AttitudeConfig(
-                    sigma_rpy_deg=(sigma[0], sigma[1], sigma[2]),
-                    offsets_deg=zeros if in_receiver else offsets,
-                    mrms_limit_m=p["attitude_mrms_limit"],
-                    brms_limit_m=p["attitude_brms_limit"],
-                    convention=p["adu5_angle_convention"],
-                ),
-            )
-        )
+        self._driver = GnssDriver(driver_config(p))
         self._lock = threading.Lock()
         self._setup_results: list[CommandResult] = []
         self._latencies: collections.deque[float] = collections.deque(maxlen=_LATENCY_WINDOW)
@@ -125,10 +86,10 @@ class GnssNode(ManagedSerialDriver):
 
         qos = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
         endpoints = Endpoints(self)
-        self._fix_pub = endpoints.publisher(NavSatFix, "gnss/fix", qos)
-        self._vel_pub = endpoints.publisher(TwistWithCovarianceStamped, "gnss/vel", qos)
-        self._att_pub = endpoints.publisher(Imu, "gnss/attitude", qos)
-        self._time_pub = endpoints.publisher(TimeReference, "gnss/time_reference", qos)
+        self._epoch_pubs = {
+            topic: endpoints.publisher(msg_type, topic, qos)
+            for topic, msg_type in zip(TOPICS, _CLASSES, strict=True)
+        }
         self._traffic = ReceiverTraffic(
             self,
             endpoints,
@@ -173,6 +134,7 @@ class GnssNode(ManagedSerialDriver):
     def _on_open(self, port: Any) -> None:
         with self._lock:
             self._driver.reset()
+            self._traffic.publish_opened(stamp_ns(node_time_s(self)))
         results = run_setup(
             port,
             self._commands,
@@ -188,10 +150,11 @@ class GnssNode(ManagedSerialDriver):
             self._setup_results = results
 
     def _on_data(self, chunk: bytes, received_s: float) -> None:
+        time_ns = stamp_ns(received_s)  # the driver gets the time nmea records, to the bit
         lines: list[bytes] = []
         with self._lock:
-            outputs = self._driver.feed(chunk, received_s, lines)
-            self._traffic.publish_lines(lines, received_s)
+            outputs = self._driver.feed(chunk, seconds_of_ns(time_ns), lines)
+            self._traffic.publish_lines(lines, time_ns)
             self._publish(outputs)
 
     def _flush_idle(self) -> None:
@@ -210,57 +173,17 @@ class GnssNode(ManagedSerialDriver):
                 self._last_publish_error = repr(exc)[:200]
 
     def _publish_epoch(self, out: EpochOutput) -> None:
+        publishers = self._epoch_pubs
+        for topic, msg in epoch_messages(out, self._frame_id, self._receiver.value, _CLASSES):
+            publishers[topic].publish(msg)
         if out.fix is not None:
-            self._publish_fix(out)
-        if out.velocity is not None:
-            self._publish_velocity(out)
-        if out.attitude is not None:
-            self._publish_attitude(out)
+            fix = out.fix
+            self._last_fix_type = fix.fix_type.name
+            self._last_satellites = fix.satellites
+            self._last_horizontal_sigma_m = math.sqrt(fix.cov_enu_m2[0] + fix.cov_enu_m2[4])
         if out.utc is not None and not out.extends:
-            msg = fill_time_reference(
-                TimeReference(),
-                stamp_ns(out.host_s),
-                self._frame_id,
-                stamp_ns(out.utc.utc_s),
-                self._receiver.value,
-            )
-            self._time_pub.publish(msg)
             self._last_date_source = out.utc.date_source.value
         self._latencies.append(node_time_s(self) - out.stamp_s)
-
-    def _publish_fix(self, out: EpochOutput) -> None:
-        fix = out.fix
-        assert fix is not None
-        self._fix_pub.publish(
-            fill_gnss_fix(NavSatFix(), stamp_ns(out.stamp_s), self._frame_id, fix)
-        )
-        self._last_fix_type = fix.fix_type.name
-        self._last_satellites = fix.satellites
-        self._last_horizontal_sigma_m = math.sqrt(fix.cov_enu_m2[0] + fix.cov_enu_m2[4])
-
-    def _publish_velocity(self, out: EpochOutput) -> None:
-        vel = out.velocity
-        assert vel is not None
-        msg = fill_velocity(
-            TwistWithCovarianceStamped(),
-            stamp_ns(out.stamp_s),
-            self._frame_id,
-            vel.vel_enu_m_s,
-            vel.cov_enu,
-        )
-        self._vel_pub.publish(msg)
-
-    def _publish_attitude(self, out: EpochOutput) -> None:
-        attitude = out.attitude
-        assert attitude is not None
-        msg = fill_orientation(
-            Imu(),
-            stamp_ns(out.stamp_s),
-            self._frame_id,
-            attitude.orientation.quat_enu_flu_xyzw,
-            attitude.orientation.cov_rpy_rad2,
-        )
-        self._att_pub.publish(msg)
 
     # ---- diagnostics (executor side) --------------------------------------------------------
     def _publish_diagnostics(self) -> None:

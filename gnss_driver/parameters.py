@@ -1,16 +1,24 @@
-"""The gnss_node's parameters: name, default, description and valid values (no ROS).
+"""The gnss_node's parameters: name, default, description and valid values, and the driver
+core's configuration from them (no ROS).
 
-``gnss_driver.node`` declares them (with the lifecycle's ``autostart``); docs/parameters.md lists
-them and docs/gnss.md describes them.
+``gnss_driver.node`` declares them (with the lifecycle's ``autostart``); ``gnss_ins redecode``
+reads them from a parameter file; docs/parameters.md lists them and docs/gnss.md describes them.
 """
 
 from __future__ import annotations
 
-from gnss_driver.attitude import ANGLE_CONVENTIONS, DEFAULT_ANGLE_CONVENTION, DEFAULT_SIGMA_RPY_DEG
+from typing import Any
+
+from gnss_driver.attitude import (
+    ANGLE_CONVENTIONS,
+    DEFAULT_ANGLE_CONVENTION,
+    DEFAULT_SIGMA_RPY_DEG,
+    AttitudeConfig,
+)
 from gnss_driver.commands import command_error
-from gnss_driver.driver import GPS_UTC_LEAP_S
+from gnss_driver.driver import GPS_UTC_LEAP_S, DriverConfig
 from gnss_driver.grid import projection_error
-from gnss_driver.profiles import CAR_OFFSETS_DEG, CAR_VECTORS_M, Receiver
+from gnss_driver.profiles import CAR_OFFSETS_DEG, CAR_VECTORS_M, Adu5Setup, Receiver
 from gnss_driver.solution import SolutionConfig, UereTable
 from gnss_ins_common.params import Param, needs_values, serial_link_params
 
@@ -165,6 +173,53 @@ DRIVER_PARAMETERS = (
         "nmea_output",
         True,
         "publish every line read from the receiver on nmea (nmea_msgs/Sentence), rejected ones"
-        " included",
+        " included, and the port's (re)opens on port_events",
     ),
 )
+
+
+def _adu5_offsets(p: dict[str, Any]) -> tuple[float, float, float]:
+    offsets = p["adu5_offsets"]
+    return (offsets[0], offsets[1], offsets[2])
+
+
+def adu5_setup(p: dict[str, Any]) -> Adu5Setup:
+    """The ADU5's set-up from the validated parameters (its default set-up commands)."""
+    vectors = p["adu5_vectors"]
+    in_receiver = p["adu5_offsets_in_receiver"]
+    return Adu5Setup(
+        vectors_m=tuple((vectors[i], vectors[i + 1], vectors[i + 2]) for i in (0, 3, 6)),
+        offsets_deg=_adu5_offsets(p) if in_receiver else (0.0, 0.0, 0.0),
+        elevation_mask_deg=p["adu5_elevation_mask"],
+        period_s=p["adu5_period"],
+        port=p["adu5_port"],
+    )
+
+
+def driver_config(p: dict[str, Any]) -> DriverConfig:
+    """The driver core's configuration from the validated parameters."""
+    sigma = p["attitude_sigma_rpy"]
+    in_receiver = p["adu5_offsets_in_receiver"]
+    return DriverConfig(
+        baud=p["baud"],
+        allow_missing_checksum=p["allow_missing_checksum"],
+        latency_s=p["latency"],
+        use_gnss_time=p["use_gnss_time"],
+        epoch_idle_s=p["epoch_idle_timeout"],
+        gps_utc_leap_s=p["gps_utc_leap_seconds"],
+        solution=SolutionConfig(
+            UereTable(p["uere_sps"], p["uere_dgps"], p["uere_rtk_float"], p["uere_rtk_fixed"]),
+            p["velocity_sigma"],
+            p["llq_horizontal_fraction"],
+            p["min_satellites"],
+            p["llq_projection"],
+            p["allow_2d_fix"],
+        ),
+        attitude=AttitudeConfig(
+            sigma_rpy_deg=(sigma[0], sigma[1], sigma[2]),
+            offsets_deg=(0.0, 0.0, 0.0) if in_receiver else _adu5_offsets(p),
+            mrms_limit_m=p["attitude_mrms_limit"],
+            brms_limit_m=p["attitude_brms_limit"],
+            convention=p["adu5_angle_convention"],
+        ),
+    )

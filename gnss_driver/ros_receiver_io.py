@@ -6,12 +6,17 @@
   older than ``corrections_max_age`` (gnss_driver/corrections.py).
 - ``nmea`` (nmea_msgs/Sentence): every line read from the receiver, as received and in order,
   the rejected ones (bad or missing checksum, unknown type, cut off) included; stamped with the
-  host receive time of the chunk that held the line's end.
+  host receive time of the chunk that held the line's end; latched (the last 50 lines).
+- ``port_events`` (gnss_ins_msgs/SerialChunk, no data): each open of the port, just after the
+  driver was reset and before the set-up (``STARTED`` the node's first, ``OPENED`` a later one),
+  where ``gnss_ins redecode`` starts the driver anew; published with ``nmea``, latched (the last
+  10).
 - ``to_device/rtcm`` (rtcm_msgs/Message, one frame each) and ``to_device/nmea``
-  (nmea_msgs/Sentence, one set-up command each): what the node wrote to the receiver, stamped
-  with the host time of the write.
+  (nmea_msgs/Sentence, one set-up command each, latched: the last 50): what the node wrote to the
+  receiver, stamped with the host time of the write.
 
-Like the measurements, ``nmea`` is published only while the node is active; corrections are
+Like the measurements, ``nmea`` is published only while the node is active (``port_events`` in
+every state); corrections are
 written whenever the port is open and the receiver set up (configured, active or not), and
 ``to_device/*`` record every write, so they are published in every state.
 """
@@ -22,7 +27,7 @@ import math
 from collections.abc import Callable
 
 from nmea_msgs.msg import Sentence
-from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rtcm_msgs.msg import Message
 
 from gnss_driver.corrections import CorrectionQueue, CorrectionWriter
@@ -30,8 +35,16 @@ from gnss_ins_common.message_fields import set_header, stamp_ns
 from gnss_ins_common.ros_diagnostics import guarded
 from gnss_ins_common.ros_endpoints import Endpoints
 from gnss_ins_common.ros_lifecycle import ManagedSerialDriver
-from gnss_ins_common.ros_serial import node_time_s
+from gnss_ins_common.ros_serial import RawPublisher, node_time_s
 
+#: nmea, to_device/nmea and port_events are latched: a recorder that subscribes late, or matches
+#: a restarted node only after its first lines, still gets the last 50 lines and 10 opens.
+RAW_QOS = QoSProfile(
+    depth=50, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
+)
+EVENTS_QOS = QoSProfile(
+    depth=10, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
+)
 #: Queue depth of the rtcm subscription: a burst of a network's epoch (~10 messages) many times.
 RTCM_DEPTH = 100
 
@@ -54,8 +67,12 @@ class ReceiverTraffic:
         self._node = node
         self._frame_id = frame_id
         qos = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
-        self._nmea_pub = endpoints.publisher(Sentence, "nmea", qos) if nmea_output else None
-        self._commands_pub = endpoints.publisher(Sentence, "to_device/nmea", qos)
+        self._nmea_pub = endpoints.publisher(Sentence, "nmea", RAW_QOS) if nmea_output else None
+        self._events = (
+            RawPublisher(endpoints, "port_events", frame_id, EVENTS_QOS) if nmea_output else None
+        )
+        self._opened = False
+        self._commands_pub = endpoints.publisher(Sentence, "to_device/nmea", RAW_QOS)
         self.queue = corrections
         self._writer: CorrectionWriter | None = None
         if corrections is not None:
@@ -80,11 +97,16 @@ class ReceiverTraffic:
         if self._writer is not None:
             self._writer.stop()
 
-    def publish_lines(self, lines: list[bytes], received_s: float) -> None:
-        """The lines read from the receiver in a chunk received at host time ``received_s``."""
+    def publish_opened(self, time_ns: int) -> None:
+        """The port was opened at host time ``time_ns`` [ns] and the driver reset."""
+        if self._events is not None:
+            self._events.event(not self._opened, time_ns)
+        self._opened = True
+
+    def publish_lines(self, lines: list[bytes], time_ns: int) -> None:
+        """The lines read from the receiver in a chunk received at host time ``time_ns`` [ns]."""
         if self._nmea_pub is None or not lines or not self._node.publishing(held=0):
             return
-        time_ns = stamp_ns(received_s)
         for line in lines:
             msg = Sentence(sentence=line.decode("ascii", "backslashreplace"))
             set_header(msg, time_ns, self._frame_id)

@@ -31,6 +31,14 @@ def stamp_ns(seconds: float) -> int:
     return sec * _NS_PER_S + min(_NS_PER_S - 1, round((seconds - sec) * 1e9))
 
 
+def seconds_of_ns(time_ns: int) -> float:
+    """The host time [s] a driver core is fed for a stamp of ``time_ns`` [ns]: the nodes feed
+    ``seconds_of_ns(stamp_ns(read_time_s))`` and stamp the raw topics with that ``stamp_ns``, so
+    ``gnss_ins redecode`` feeds the very same float from a recording (the ROS clock's own
+    conversion, ``node_time_s``)."""
+    return time_ns * 1e-9
+
+
 def set_header(msg: Any, time_ns: int, frame_id: str) -> None:
     """header.stamp from ns since the epoch, header.frame_id."""
     msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(time_ns, _NS_PER_S)

@@ -76,6 +76,14 @@ class Param:
         return self.check(value) if self.check is not None else None
 
 
+#: The parameter that makes a managed driver node configure and activate itself at start
+#: (gnss_ins_common.ros_lifecycle).
+AUTOSTART = Param(
+    "autostart",
+    True,
+    "configure and activate at start; false: wait for a lifecycle manager's transitions",
+)
+
 _EMPTY_ELEMENT: dict[str, ParamValue] = {"str": "", "float": 0.0}
 
 

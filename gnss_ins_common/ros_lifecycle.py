@@ -25,15 +25,10 @@ from typing import Any
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 
 from gnss_ins_common import ros_diagnostics as diag
-from gnss_ins_common.params import Param
+from gnss_ins_common.params import AUTOSTART
 from gnss_ins_common.serial_link import LinkStats, SerialLink
 
-#: The parameter that makes the node configure and activate itself at start.
-AUTOSTART = Param(
-    "autostart",
-    True,
-    "configure and activate at start; false: wait for a lifecycle manager's transitions",
-)
+__all__ = ["AUTOSTART", "ManagedSerialDriver"]
 
 _SUCCESS, _FAILURE = TransitionCallbackReturn.SUCCESS, TransitionCallbackReturn.FAILURE
 

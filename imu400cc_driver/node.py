@@ -4,7 +4,10 @@ Serial bytes are read on the link's thread and handed to the ROS-free ``ImuDrive
 frames them and stamps each packet with the device clock mapped to the host clock (the sample
 time, not the read time); the samples are published straight from that thread, so a busy
 executor adds no latency. Publishes ``imu/data_raw`` (REP-145: FLU ``imu_link``, SI units,
-orientation_covariance[0] = -1), ``imu/temperature`` and ``/diagnostics``.
+orientation_covariance[0] = -1), ``imu/temperature``, ``/diagnostics`` and, with ``raw_output``,
+``imu/raw`` (gnss_ins_msgs/SerialChunk): every read as the driver was fed it (its stamp the
+receive time, in ns, that the driver got) and every (re)open of the port, in every lifecycle
+state, for ``gnss_ins redecode`` (docs/redecode.md).
 """
 
 from __future__ import annotations
@@ -12,115 +15,26 @@ from __future__ import annotations
 import time
 from typing import Any
 
-from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, Temperature
 
 from gnss_ins_common import ros_diagnostics as diag
-from gnss_ins_common.axes import AxisMap
-from gnss_ins_common.message_fields import fill_imu, fill_temperature, stamp_ns
-from gnss_ins_common.params import Param, needs_values, serial_link_params
+from gnss_ins_common.message_fields import seconds_of_ns, stamp_ns
 from gnss_ins_common.rates import RateMeter
 from gnss_ins_common.ros_endpoints import Endpoints
 from gnss_ins_common.ros_lifecycle import AUTOSTART, ManagedSerialDriver
 from gnss_ins_common.ros_node_main import run_node
 from gnss_ins_common.ros_params import declare_parameters
-from gnss_ins_common.ros_serial import start_serial_link
+from gnss_ins_common.ros_serial import RawPublisher, node_time_s, start_serial_link
 from gnss_ins_common.serial_link import LinkSettings, SerialLink
-from imu400cc_driver.axes import DEFAULT_AXIS_SPEC
-from imu400cc_driver.driver import (
-    ACCEL_NOISE_DENSITY,
-    GYRO_NOISE_DENSITY,
-    DriverConfig,
-    ImuDriver,
-    ImuSample,
-)
+from imu400cc_driver.driver import ImuDriver, ImuSample
 from imu400cc_driver.link import configure_device, stop_stream
-from imu400cc_driver.protocol import TEMPERATURE_VARIANCE_C2, Command, Scaling
+from imu400cc_driver.messages import sample_messages
+from imu400cc_driver.parameters import DRIVER_PARAMETERS, driver_config
+from imu400cc_driver.protocol import Command
 
-
-def _axis_map_error(spec: list[str]) -> str | None:
-    try:
-        AxisMap.from_spec(spec)
-    except ValueError as exc:
-        return str(exc)
-    return None
-
-
-PARAMETERS = (
-    *serial_link_params(
-        "IMU400CC", 38400, "serial baud rate (the IMU400CC runs at 38400 8N1)", 1.0, 0.1
-    ),
-    Param(
-        "mode",
-        "continuous",
-        "continuous: 134 Hz stream after 'C'; polled: one 'G' request per sample",
-        choices=("continuous", "polled"),
-    ),
-    Param("poll_rate", 5.0, "request rate in polled mode [Hz]", 0.1, 100.0),
-    Param("frame_id", "imu_link", "frame_id of the published messages (FLU, REP-103)"),
-    Param("gyro_range_dps", 100.0, "rate range RR of the unit [deg/s] (scaling D-3)", 1.0, 2000.0),
-    Param("accel_range_g", 2.0, "accelerometer range GR of the unit [g] (scaling D-2)", 0.5, 50.0),
-    Param(
-        "axis_map",
-        list(DEFAULT_AXIS_SPEC),
-        "device axis (with sign) that is each FLU imu_link axis x, y, z; the device is FRD",
-        check=_axis_map_error,
-    ),
-    Param(
-        "accel_sign",
-        -1.0,
-        "multiplies the accelerations: -1 because the unit reads +1 g on z at rest (notes §12.1)",
-        -1.0,
-        1.0,
-        check=lambda v: None if abs(abs(v) - 1.0) < 1e-9 else "must be -1.0 or 1.0",
-    ),
-    Param("gravity", 9.80665, "value of 1 g used for the accelerometer counts [m/s^2]", 9.7, 9.9),
-    Param(
-        "gyro_noise_density",
-        list(GYRO_NOISE_DENSITY),
-        "white rate noise per axis [rad/s/sqrt(Hz)]; covariance = density^2 x 134 Hz",
-        0.0,
-        1.0,
-        check=needs_values(3, "x, y, z"),
-    ),
-    Param(
-        "accel_noise_density",
-        list(ACCEL_NOISE_DENSITY),
-        "white acceleration noise per axis [m/s^2/sqrt(Hz)]; covariance = density^2 x 134 Hz",
-        0.0,
-        1.0,
-        check=needs_values(3, "x, y, z"),
-    ),
-    Param("latency", 0.0, "fixed delay from sampling to the packet's first byte [s]", 0.0, 0.1),
-    Param(
-        "packet_timeout",
-        2.0,
-        "reconnect (and restart the stream) when bytes arrive but no valid packet for this long,"
-        " e.g. noise on the line after the unit power-cycled [s]; at least 3 poll periods",
-        0.2,
-        60.0,
-    ),
-    Param("temperature_rate", 1.0, "publish rate of imu/temperature [Hz]", 0.1, 134.0),
-    AUTOSTART,
-)
-
-
-def driver_config(p: dict[str, Any]) -> DriverConfig:
-    """The driver core's configuration from the validated parameters."""
-    gyro, accel = p["gyro_noise_density"], p["accel_noise_density"]
-    return DriverConfig(
-        continuous=p["mode"] == "continuous",
-        baud=p["baud"],
-        poll_rate_hz=p["poll_rate"],
-        latency_s=p["latency"],
-        scaling=Scaling(p["gyro_range_dps"], p["accel_range_g"]),
-        axis_map=AxisMap.from_spec(p["axis_map"]),
-        accel_sign=p["accel_sign"],
-        gravity_m_s2=p["gravity"],
-        gyro_noise_density=(gyro[0], gyro[1], gyro[2]),
-        accel_noise_density=(accel[0], accel[1], accel[2]),
-        temperature_rate_hz=p["temperature_rate"],
-    )
+#: The declared parameters: the driver's (imu400cc_driver/parameters.py) and the lifecycle's.
+PARAMETERS = (*DRIVER_PARAMETERS, AUTOSTART)
 
 
 class Imu400ccNode(ManagedSerialDriver):
@@ -148,6 +62,15 @@ class Imu400ccNode(ManagedSerialDriver):
         endpoints = Endpoints(self)
         self._imu_pub = endpoints.publisher(Imu, "imu/data_raw", qos)
         self._temp_pub = endpoints.publisher(Temperature, "imu/temperature", 10)
+        # Latched: a recorder that matches a (re)started node late still gets its first reads.
+        raw_qos = QoSProfile(
+            depth=200,
+            reliability=ReliabilityPolicy.RELIABLE,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL,
+        )
+        self._raw = (
+            RawPublisher(endpoints, "imu/raw", self._frame_id, raw_qos) if p["raw_output"] else None
+        )
         self._diagnostics = diag.DiagnosticsPublisher(self, endpoints)
         self.create_timer(p["diagnostics_period"], diag.guarded(self, self._publish_diagnostics))
         if not config.continuous:
@@ -182,10 +105,15 @@ class Imu400ccNode(ManagedSerialDriver):
         self._serial_number = info.serial_number
         if self._opened:  # a reconnect or a new configure: the stream and its timer start anew
             self._driver.reset()
+        if self._raw is not None:
+            self._raw.event(not self._opened, stamp_ns(node_time_s(self)))
         self._opened = True
 
     def _on_data(self, chunk: bytes, received_s: float) -> None:
-        samples = self._driver.feed(chunk, received_s)
+        time_ns = stamp_ns(received_s)  # the driver gets the time imu/raw records, to the bit
+        if self._raw is not None:
+            self._raw.data(chunk, time_ns)
+        samples = self._driver.feed(chunk, seconds_of_ns(time_ns))
         link = self.link
         if samples and link is not None:
             link.note_valid()
@@ -195,29 +123,10 @@ class Imu400ccNode(ManagedSerialDriver):
     def _publish(self, sample: ImuSample) -> None:
         if not self.publishing():
             return
-        stamp = stamp_ns(sample.stamp_s)
-        meas = sample.measurement
-        driver = self._driver
-        msg = fill_imu(
-            Imu(),
-            stamp,
-            self._frame_id,
-            meas.rate_flu_rad_s,
-            meas.specific_force_flu_m_s2,
-            driver.gyro_variance,
-            driver.accel_variance,
-        )
-        self._imu_pub.publish(msg)
-        if sample.with_temperature:
-            self._temp_pub.publish(
-                fill_temperature(
-                    Temperature(),
-                    stamp,
-                    self._frame_id,
-                    meas.temperature_c,
-                    TEMPERATURE_VARIANCE_C2,
-                )
-            )
+        imu, temperature = sample_messages(sample, self._driver, self._frame_id, Imu, Temperature)
+        self._imu_pub.publish(imu)
+        if temperature is not None:
+            self._temp_pub.publish(temperature)
 
     # ---- executor side ----------------------------------------------------------------------
     def _poll(self) -> None:

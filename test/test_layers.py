@@ -36,6 +36,7 @@ LAYERS: dict[str, int] = {
     "ins_fusion.bags": 10,
     "ins_fusion.runtime": 10,
     "ins_fusion.sim": 11,
+    "ins_fusion.redecode": 11,
     "ins_fusion.replay": 12,
     "ins_fusion.noise_id": 12,
     "ins_fusion.calibration_id": 12,

@@ -15,6 +15,7 @@ import pytest
 from rclpy.serialization import serialize_message
 
 from gnss_driver.driver import EpochOutput
+from gnss_driver.messages import TOPICS as GNSS_TOPICS
 from gnss_driver.node import GnssNode
 from gnss_driver.profiles import Receiver
 from gnss_driver.utc import DateSource, UtcTime
@@ -207,8 +208,12 @@ def _node_stub(cls: type, **attributes: Any) -> tuple[SimpleNamespace, dict[str,
     ``*_pub`` publisher collecting its messages."""
     published: dict[str, list[Any]] = {}
     stub = SimpleNamespace(**attributes)
-    for name in ("_imu_pub", "_temp_pub", "_fix_pub", "_vel_pub", "_att_pub", "_time_pub"):
+    for name in ("_imu_pub", "_temp_pub"):
         setattr(stub, name, SimpleNamespace(publish=published.setdefault(name, []).append))
+    stub._epoch_pubs = {  # gnss_node's publishers by relative topic
+        topic: SimpleNamespace(publish=published.setdefault(topic, []).append)
+        for topic in GNSS_TOPICS
+    }
     for name in dir(cls):
         if name.startswith("_publish"):
             setattr(stub, name, partial(getattr(cls, name), stub))
@@ -285,9 +290,13 @@ def test_gnss_messages_are_what_gnss_node_publishes():
                 [EpochOutput(utc_s, utc_s, utc, solution.fix, solution.velocity, solution.attitude)]
             )
         wanted = (
-            [("_att_pub", T.GNSS_ATTITUDE)]
+            [("gnss/attitude", T.GNSS_ATTITUDE)]
             if receiver.receiver is Receiver.ADU5
-            else [("_fix_pub", T.GNSS_FIX), ("_vel_pub", T.GNSS_VEL), ("_time_pub", T.GNSS_TIME)]
+            else [
+                ("gnss/fix", T.GNSS_FIX),
+                ("gnss/vel", T.GNSS_VEL),
+                ("gnss/time_reference", T.GNSS_TIME),
+            ]
         )
         for publisher, topic in wanted:
             node_messages += [

@@ -47,20 +47,25 @@ class BagError(Exception):
     """A bag cannot be written or read as asked."""
 
 
-#: Messages of the ROS ecosystem that rosbags' Jazzy store lacks, as ROS 2 defines them (the
-#: same fields as ros_interfaces/, which builds them for rclpy): corrections and NMEA sentences.
-ECOSYSTEM_MESSAGES = {
+#: Messages that rosbags' Jazzy store lacks, as their packages define them (the same fields as
+#: ros_interfaces/, which builds them for rclpy): the ROS ecosystem's corrections and NMEA
+#: sentences, and gnss_ins_msgs' serial chunks (a device's bytes as read: imu/raw).
+EXTRA_MESSAGES = {
     "rtcm_msgs/msg/Message": "std_msgs/Header header\nuint8[] message\n",
     "nmea_msgs/msg/Sentence": "std_msgs/Header header\nstring sentence\n",
+    "gnss_ins_msgs/msg/SerialChunk": (
+        "std_msgs/Header header\nuint8 DATA=0\nuint8 OPENED=1\nuint8 STARTED=2\n"
+        "uint8 event\nuint8[] data\n"
+    ),
 }
 
 
 @cache
 def jazzy_typestore() -> Typestore:
     """The rosbags typestore of ROS 2 Jazzy (common_interfaces, rosgraph_msgs, ...) with
-    ECOSYSTEM_MESSAGES."""
+    EXTRA_MESSAGES."""
     store = get_typestore(Stores.ROS2_JAZZY)
-    for name, text in ECOSYSTEM_MESSAGES.items():
+    for name, text in EXTRA_MESSAGES.items():
         store.register(get_types_from_msg(text, name))
     return store
 

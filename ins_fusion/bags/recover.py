@@ -9,13 +9,11 @@ the output and renamed when it is complete: a bag under the final name is always
 
 from __future__ import annotations
 
-import os
-import shutil
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 from ins_fusion.bags.bag_io import BagError, BagWriter
+from ins_fusion.bags.output import refuse_existing, whole_bag
 from ins_fusion.bags.resume import split_name
 from ins_fusion.bags.salvage import STORAGE_OF_SUFFIX, Salvaged, salvage
 from ins_fusion.bags.summary import BagSummary
@@ -85,20 +83,17 @@ def recover_bag(bag: Path, output: Path) -> Recovered:
     ``output`` exists."""
     if (bag / "metadata.yaml").exists():
         raise BagError(f"{bag} has its metadata.yaml: complete, nothing to recover")
-    if output.exists():
-        raise BagError(f"{output} exists already, not overwriting")
+    refuse_existing(output)
     sources = storage_files_left(bag)
     if not sources:
         raise BagError(f"{bag}: no NAME_<n>.mcap or .db3 file to recover")
     storages = {STORAGE_OF_SUFFIX[f.suffix] for f in sources}
     if len(storages) > 1:
         raise BagError(f"{bag}: both MCAP and sqlite3 files; move one kind away")
-    output.parent.mkdir(parents=True, exist_ok=True)
-    scratch = Path(tempfile.mkdtemp(dir=output.parent, prefix=f".{output.name}.recovering."))
-    try:
+    with whole_bag(output, "recovering") as path:
         found: list[Salvaged] = []
         skipped: dict[str, str] = {}
-        with BagWriter(scratch / output.name, storage=storages.pop()) as writer:
+        with BagWriter(path, storage=storages.pop()) as writer:
             for source in sources:
                 found.append(salvaged := salvage(source))
                 if salvaged.messages:
@@ -106,12 +101,4 @@ def recover_bag(bag: Path, output: Path) -> Recovered:
                     writer.start_new_file()
         if not writer.summary.count:
             raise BagError(f"{bag}: no complete message in {', '.join(f.name for f in sources)}")
-        if output.exists():
-            raise BagError(f"{output} appeared while recovering; the recovered bag is {scratch}")
-        os.rename(scratch / output.name, output)
-    except BaseException:
-        if not output.exists():  # nothing half-written stays behind; the input is untouched
-            shutil.rmtree(scratch, ignore_errors=True)
-        raise
-    scratch.rmdir()
     return Recovered(found, writer.summary, skipped)

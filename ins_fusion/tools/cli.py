@@ -39,6 +39,10 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "install-service": ("install_service", "start the vehicle daemon at boot (a systemd unit)"),
     "list-devices": ("list_devices", "serial adapters with their stable /dev/serial/by-id names"),
     "status": ("status", "the vehicle's health on one screen (or --json), from /diagnostics"),
+    "redecode": (
+        "redecode",
+        "a recording's raw device bytes through today's drivers: a new bag, outputs rebuilt",
+    ),
     "recover": ("recover", "a readable bag from a recording that was killed (no metadata.yaml)"),
     "play": ("play", "publish a rosbag2 bag with its timing and /clock"),
     "replay": ("replay", "bag through the fusion core offline: accuracy report, plot, sweeps"),
