@@ -30,7 +30,12 @@ from gnss_driver.profiles import Receiver
 from imu400cc_driver.emulator import Imu400ccEmulator
 from ins_fusion.bags.bag_io import BagReader
 from ins_fusion.runtime.processes import gnss_ins_command
-from ins_fusion.runtime.vehicle_nodes import FUSION, VEHICLE, ros_arguments
+from ins_fusion.runtime.vehicle_nodes import (
+    FUSION,
+    VEHICLE,
+    discovery_environment,
+    ros_arguments,
+)
 
 pytestmark = pytest.mark.ros
 REPO = Path(__file__).resolve().parents[1]
@@ -56,6 +61,25 @@ def test_node_table_wires_the_fusion_node_to_the_receivers_namespaces():
     assert "gnss/fix:=/leica/gnss/fix" in args
     assert "gnss/attitude:=/adu5/gnss/attitude" in args
     assert (REPO / "config" / "ins_fusion.yaml").samefile(args[args.index("--params-file") + 1])
+
+
+def test_the_nodes_talk_over_udp_only_never_fast_dds_shared_memory():
+    """Fast DDS 2.14's shared-memory transport stalled every publication of a process for 333 ms
+    when another process joined (issue #46): the launched nodes use UDP only."""
+    localhost = discovery_environment("LOCALHOST", {})
+    assert localhost["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "SYSTEM_DEFAULT"
+    profile = Path(localhost["FASTRTPS_DEFAULT_PROFILES_FILE"]).read_text()
+    assert "<useBuiltinTransports>false</useBuiltinTransports>" in profile
+    assert "<type>UDPv4</type>" in profile and "SHM" not in profile
+    assert "<address>127.0.0.1</address>" in profile  # this machine only, as LOCALHOST
+    assert discovery_environment("SUBNET", {}) == {
+        "ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET",
+        "FASTDDS_BUILTIN_TRANSPORTS": "UDPv4",
+    }
+    other = {"RMW_IMPLEMENTATION": "rmw_cyclonedds_cpp"}
+    assert discovery_environment("LOCALHOST", other) == {
+        "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"
+    }
 
 
 def test_ros_launch_file_uses_the_shared_table():
@@ -167,7 +191,7 @@ def test_ros_launch_file_respawns_the_nodes_and_starts_the_recorder(monkeypatch,
     for process in [*nodes, status, recorder]:
         assert process.kwargs["respawn"] is (respawn == "true")
         assert process.kwargs["respawn_delay"] == 1.0
-        assert process.kwargs["additional_env"] == {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+        assert process.kwargs["additional_env"] == discovery_environment("LOCALHOST")
     command = recorder.kwargs["cmd"]
     output = Path(command[command.index("-o") + 1])
     assert output.parent == tmp_path / "bags" and output.parent.is_dir()

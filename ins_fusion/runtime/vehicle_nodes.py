@@ -6,6 +6,8 @@ rover's position/velocity and the ADU5's attitude. Pure data plus command-line b
 
 from __future__ import annotations
 
+import os
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -56,11 +58,32 @@ DEFAULT_PORTS = {"imu": "/dev/ttyUSB0", "leica": "/dev/ttyUSB1", "adu5": "/dev/t
 DISCOVERY_RANGES = ("LOCALHOST", "SUBNET")
 
 
-def discovery_environment(range_: str) -> dict[str, str]:
-    """The environment entry that sets the nodes' discovery range (one of DISCOVERY_RANGES)."""
+#: Fast DDS profile of the LOCALHOST range without the shared-memory transport (see the file).
+FASTDDS_LOCALHOST_PROFILE = "fastdds_localhost.xml"
+
+
+def discovery_environment(range_: str, environ: Mapping[str, str] = os.environ) -> dict[str, str]:
+    """The environment entries that set the nodes' discovery range (one of DISCOVERY_RANGES).
+
+    With Fast DDS (rmw_fastrtps_cpp, the default RMW) the nodes use UDP only, never the
+    shared-memory transport: Fast DDS 2.14 opens a peer's shared-memory port holding the
+    participant's send mutex, and the port's health check can sleep 333 ms, so each process that
+    joined the domain stalled every publication of every node for a third of a second (issue
+    #46, eProsima/Fast-DDS#6535). rmw_fastrtps always adds shared memory for the LOCALHOST range,
+    so LOCALHOST is the same settings (no multicast, 127.0.0.1 the initial peer) from
+    FASTDDS_LOCALHOST_PROFILE under the range SYSTEM_DEFAULT (which rmw_fastrtps leaves to
+    the profile); another RMW gets the range itself.
+    """
     if range_ not in DISCOVERY_RANGES:
         raise ValueError(f"discovery range {range_!r}: one of {', '.join(DISCOVERY_RANGES)}")
-    return {"ROS_AUTOMATIC_DISCOVERY_RANGE": range_}
+    if environ.get("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp") != "rmw_fastrtps_cpp":
+        return {"ROS_AUTOMATIC_DISCOVERY_RANGE": range_}
+    if range_ == "SUBNET":
+        return {"ROS_AUTOMATIC_DISCOVERY_RANGE": range_, "FASTDDS_BUILTIN_TRANSPORTS": "UDPv4"}
+    return {
+        "ROS_AUTOMATIC_DISCOVERY_RANGE": "SYSTEM_DEFAULT",
+        "FASTRTPS_DEFAULT_PROFILES_FILE": str(config_file(FASTDDS_LOCALHOST_PROFILE)),
+    }
 
 
 def ros_arguments(
