@@ -65,7 +65,7 @@ def test_node_table_wires_the_fusion_node_to_the_receivers_namespaces():
 
 def test_the_nodes_talk_over_udp_only_never_fast_dds_shared_memory():
     """Fast DDS 2.14's shared-memory transport stalled every publication of a process for 333 ms
-    when another process joined (issue #46): the launched nodes use UDP only."""
+    when another process joined: the launched nodes use UDP only."""
     localhost = discovery_environment("LOCALHOST", {})
     assert localhost["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "SYSTEM_DEFAULT"
     profile = Path(localhost["FASTRTPS_DEFAULT_PROFILES_FILE"]).read_text()

@@ -68,11 +68,11 @@ def discovery_environment(range_: str, environ: Mapping[str, str] = os.environ) 
     With Fast DDS (rmw_fastrtps_cpp, the default RMW) the nodes use UDP only, never the
     shared-memory transport: Fast DDS 2.14 opens a peer's shared-memory port holding the
     participant's send mutex, and the port's health check can sleep 333 ms, so each process that
-    joined the domain stalled every publication of every node for a third of a second (issue
-    #46, eProsima/Fast-DDS#6535). rmw_fastrtps always adds shared memory for the LOCALHOST range,
-    so LOCALHOST is the same settings (no multicast, 127.0.0.1 the initial peer) from
-    FASTDDS_LOCALHOST_PROFILE under the range SYSTEM_DEFAULT (which rmw_fastrtps leaves to
-    the profile); another RMW gets the range itself.
+    joined the domain stalled every publication of every node for a third of a second
+    (eProsima/Fast-DDS#6535; docs/operation.md). rmw_fastrtps always adds shared memory for
+    the LOCALHOST range, so LOCALHOST is the same settings (no multicast, 127.0.0.1 the initial
+    peer) from FASTDDS_LOCALHOST_PROFILE under the range SYSTEM_DEFAULT (which rmw_fastrtps
+    leaves to the profile); another RMW gets the range itself.
     """
     if range_ not in DISCOVERY_RANGES:
         raise ValueError(f"discovery range {range_!r}: one of {', '.join(DISCOVERY_RANGES)}")
