@@ -224,6 +224,14 @@ def main() -> None:
         + (", floor (inputs dropped, outputs from templates)" if args.floor else "")
     )
     print(f"  Imu messages received {len(imu_rx)}, Odometry {len(odom_rx)}, matched {len(common)}")
+    if len(odom_rx) > 1:
+        stamps = np.array(sorted(odom_rx)) * 1e-6  # header stamps [µs] -> [s]
+        spacing_ms = np.diff(stamps) * 1e3
+        print(
+            f"  Odometry rate by stamp {(len(stamps) - 1) / (stamps[-1] - stamps[0]):.3f} Hz; "
+            f"spacing [ms] min {spacing_ms.min():.1f} median {np.median(spacing_ms):.1f} "
+            f"max {spacing_ms.max():.1f}"
+        )
     if len(latency_ms):
         print(
             "  latency Imu -> Odometry [ms]: "

@@ -8,9 +8,10 @@ forward speed, twist.linear.x; publishes
 ``base_link``), ``ins/fix`` (NavSatFix of base_link), ``ins/imu`` (orientation of base_link with
 bias-corrected rates), ``/diagnostics`` and TF (ins_fusion.adapters.tf_frames: the odometry's
 transform on ``/tf`` per ``tf_mode``, the sensor frames on ``/tf_static``). Outputs are published
-from the IMU callback of the sample they are due at (``output_rate``, by stamp), as soon as it is
-processed. The IMU samples between two outputs are held and given to the engine together, in their
-order, with the next output's sample, before the next GNSS message or status, or when MAX_HELD
+from the IMU callback of the sample they are due at: the first at or past each tick of
+``output_rate`` (ins_fusion.core.output.output_clock, the rule replay records by), as soon as it
+is processed. The IMU samples between two outputs are held and given to the engine together, in
+their order, with the next output's sample, before the next GNSS message or status, or when MAX_HELD
 wait: the engine computes the same numbers, and its code runs once per output instead of once per
 sample, each time after a wake-up with the CPU's caches cold (docs/benchmarks.md). All callbacks
 run on one executor thread, so the engine needs no locking; measurements are applied at their own
@@ -46,6 +47,7 @@ from ins_fusion.adapters.cdr_fields import CdrError
 from ins_fusion.adapters.cdr_out import OutputWriter
 from ins_fusion.adapters.status_log import WARN, StatusLog
 from ins_fusion.core.engine.engine import InsEngine
+from ins_fusion.core.output.output_clock import OutputClock
 from ins_fusion.core.output.output_numbers import fault_report
 from ins_fusion.core.output.solution import STATE, STATES, T
 from ins_fusion.core.settings.config import FusionConfig
@@ -75,8 +77,7 @@ class InsFusionNode(Node):
             )
         self._map_frame = tf_frames.world_frame(values)
         self._base_frame = config.base_frame
-        self._output_period_s = 1.0 / config.output_rate_hz
-        self._last_output_s = -math.inf
+        self._output_clock = OutputClock(config.output_rate_hz)
         # IMU samples not yet given to the engine: those between two outputs are taken together
         # at the next output, GNSS message or status (module docstring).
         self._held: list[messages_in.ImuSample] = []
@@ -138,16 +139,15 @@ class InsFusionNode(Node):
             return
         held = self._held
         held.append(sample)
-        if sample.t_s < self._last_output_s:  # time jumped back (a bag restarted): the engine
-            self._last_output_s = -math.inf  # resets; start the output clock anew
-        # Build the solution (not free) only when an output is due by the sample's stamp.
-        due = sample.t_s - self._last_output_s >= self._output_period_s
+        # Build the solution (not free) only when an output is due by the sample's stamp (a
+        # stamp before the last output, a bag played again: the clock starts anew).
+        due = self._output_clock.due(sample.t_s)
         if due or len(held) >= MAX_HELD:
             self._take_held()
         if due:
             row = self.engine.solution_row()
             if row is not None:
-                self._last_output_s = sample.t_s
+                self._output_clock.taken(sample.t_s)
                 self._publish(row)
 
     def _take_held(self) -> None:

@@ -46,6 +46,7 @@ TESTS: dict[str, tuple[str, ...]] = {
     "measurements/stationary.py": ("test_fusion_eskf.py", "test_sample_runs.py"),
     "measurements/stop_detector.py": ("test_fusion_config.py", "test_compiled.py"),
     "measurements/vehicle_speed.py": ("test_fusion_vehicle_speed.py",),
+    "output/output_clock.py": ("test_replay_run.py",),
     "output/output_numbers.py": ("test_output_numbers.py",),
     "output/solution.py": ("test_output_numbers.py", "test_fusion_engine.py"),
     "output/solution_rows.py": ("test_sample_runs.py", "test_smoother_engine.py"),

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 import os
 import signal
 import subprocess
@@ -36,6 +35,7 @@ from gnss_ins_common.ros_node_main import EXECUTOR_ENV
 from ins_fusion.adapters import cdr_fields, messages_in
 from ins_fusion.bags.bag_io import BagReader
 from ins_fusion.core.engine.engine import InsEngine
+from ins_fusion.core.output.output_clock import OutputClock
 from ins_fusion.core.output.solution import COV_VEL, QUAT, WIDTH
 from ins_fusion.core.settings.config import FusionConfig
 from ins_fusion.node import MAX_HELD, InsFusionNode
@@ -202,14 +202,15 @@ def _check_outputs(collector: Collector, drive_bag: Path) -> None:
 def test_samples_held_between_outputs_reach_the_engine_in_order(drive_bag, output_rate, attitude):
     """The node gives the engine the IMU samples between two outputs together, at the next
     output, GNSS message or status: its rows equal to the bit those of an engine given each
-    message as it comes (an output at each sample a period past the last one), every sample
-    is taken, and no more than MAX_HELD wait (a low output rate, GNSS at 1 Hz)."""
+    message as it comes (an output at the first sample at or past each tick of the output
+    rate: OutputClock, replay's rule), every sample is taken, and no more than MAX_HELD wait (a
+    low output rate, GNSS at 1 Hz)."""
     node = InsFusionNode(parameter_overrides=overrides(output_rate=output_rate))
     published: list[np.ndarray] = []
     node._publish = published.append  # the rows, not the messages
     eager = InsEngine(FusionConfig.from_parameters(node.params))
     expected: list[np.ndarray] = []
-    last_s, most_held = -math.inf, 0
+    clock, most_held = OutputClock(output_rate), 0
     eager_calls = {
         "/gnss/fix": (node._on_fix, eager.add_gnss_fix, messages_in.fix_measurement),
         "/gnss/vel": (node._on_velocity, eager.add_gnss_velocity, messages_in.velocity_measurement),
@@ -230,11 +231,10 @@ def test_samples_held_between_outputs_reach_the_engine_in_order(drive_bag, outpu
                 most_held = max(most_held, len(node._held))
                 sample = cdr_fields.imu_sample(m.message)
                 eager.add_imu(*sample)
-                last_s = -math.inf if sample.t_s < last_s else last_s
-                if sample.t_s - last_s >= 1.0 / output_rate:
+                if clock.due(sample.t_s):
                     row = eager.solution_row()
                     if row is not None:
-                        last_s = sample.t_s
+                        clock.taken(sample.t_s)
                         expected.append(row)
         node._publish_diagnostics()
         taken = node.engine.status().imu_samples

@@ -6,13 +6,15 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ins_fusion.adapters.messages_in import ImuSample
 from ins_fusion.core.filter.records import GnssFixMeasurement
+from ins_fusion.core.output.output_clock import TICK_TOLERANCE, OutputClock, output_ticks
 from ins_fusion.replay.inputs import ImuSeries, ReplayInputs
-from ins_fusion.replay.run import _TICK_TOLERANCE, output_ticks, run_fusion
+from ins_fusion.replay.run import run_fusion
 from ins_fusion.replay.topics import TopicMap
 
 T0_S = 1717236000.0  # stamps in seconds since 1970, as in a bag: k / rate is not exact there
@@ -41,7 +43,7 @@ def _ticks_one_by_one(t_s: list[float], t0_s: float, rate_hz: float) -> list[boo
     becomes the one after the sample's."""
     ticks, next_tick = [], 0.0
     for t in t_s:
-        tick = (t - t0_s) * rate_hz + _TICK_TOLERANCE
+        tick = (t - t0_s) * rate_hz + TICK_TOLERANCE
         ticks.append(tick >= next_tick)
         if ticks[-1]:
             next_tick = math.floor(tick) + 1.0
@@ -61,3 +63,37 @@ def test_output_ticks_follow_the_rule_sample_by_sample(steps, rate_hz, sorted_st
     t_s = np.array([t0 + s for s in stamps], dtype=float)
     expected = _ticks_one_by_one(t_s.tolist(), t0, rate_hz)
     assert output_ticks(t_s, t0, rate_hz).tolist() == expected
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.lists(st.floats(0.0, 5.0), min_size=0, max_size=60),
+    st.sampled_from([1.0, 20.0, 50.0, 100.0, 134.0]),
+)
+def test_the_node_s_clock_is_replay_s_rule(steps, rate_hz):
+    """OutputClock (the node, one sample at a time) outputs where output_ticks (replay) does,
+    for stamps that start at t0 and never go back."""
+    t0 = 1.7e9
+    t_s = np.array([t0, *sorted(t0 + s for s in steps)], dtype=float)
+    clock, one_by_one = OutputClock(rate_hz), []
+    for t in t_s.tolist():
+        one_by_one.append(clock.due(t))
+        if one_by_one[-1]:
+            clock.taken(t)
+    assert one_by_one == output_ticks(t_s, t0, rate_hz).tolist()
+
+
+@pytest.mark.parametrize("rate_hz", [50.0, 100.0])
+def test_the_node_outputs_at_the_configured_rate_from_134_hz_samples(rate_hz):
+    """50 Hz ± 1 % and 100 Hz ± 1 % from the IMU's 134 Hz (issue: every third sample gave
+    44.7 Hz); each output within one IMU period after its tick."""
+    clock, t0, outputs = OutputClock(rate_hz), 1.7e9, []
+    for k in range(134 * 60):
+        t = t0 + k / 134.0
+        if clock.due(t):
+            clock.taken(t)
+            outputs.append(t)
+    rate = (len(outputs) - 1) / (outputs[-1] - outputs[0])
+    assert abs(rate / rate_hz - 1.0) < 0.01
+    lag = (np.array(outputs) - t0) * rate_hz
+    assert np.all(lag - np.floor(lag + TICK_TOLERANCE) < 134.0**-1 * rate_hz + 1e-6)

@@ -24,11 +24,12 @@ from ins_fusion.core.measurements.attitude import FusedAttitude
 from ins_fusion.core.measurements.gnss_position import FusedPosition
 from ins_fusion.core.measurements.gnss_velocity import FusedVelocity
 from ins_fusion.core.measurements.stationary import FusedStationary
+from ins_fusion.core.output.output_clock import output_ticks
 from ins_fusion.core.output.solution_rows import RowBuffer
 from ins_fusion.core.settings.config import FusionConfig
 from ins_fusion.core.settings.params import PARAMETERS
 from ins_fusion.replay.inputs import ImuSeries, ReplayInputs, load_bag
-from ins_fusion.replay.run import output_ticks, run_fusion
+from ins_fusion.replay.run import run_fusion
 from ins_fusion.replay.topics import TopicMap
 
 #: test_compiled's parameter sets, the second also with an IMU time offset taken off its stamps,

@@ -23,13 +23,11 @@ from ins_fusion.core.engine.engine import EngineStatus, InsEngine, InsSolution
 from ins_fusion.core.engine.smoothed_solution import attach_recorder, smoothed_rows
 from ins_fusion.core.filter.records import GnssFixMeasurement
 from ins_fusion.core.output import solution_rows
+from ins_fusion.core.output.output_clock import output_ticks
 from ins_fusion.core.settings.config import FusionConfig
 from ins_fusion.replay.inputs import Measurement, ReplayInputs
 from ins_fusion.replay.outages import Outage, in_any
 
-#: A stamp this close before an output tick (in output periods) counts as at it: stamps are
-#: float seconds since 1970 (about 0.24 µs apart), so k / rate after the first one is not exact.
-_TICK_TOLERANCE = 1e-3
 #: IMU samples between two calls of a replay's progress callback.
 _PROGRESS = 2048
 
@@ -110,20 +108,6 @@ class FusionRun:
     withheld_fixes: tuple[GnssFixMeasurement, ...] = ()
     smoothed: SolutionTrack | None = None
     smoothing_time_s: float = 0.0
-
-
-def output_ticks(t_s: FloatArray, t0_s: float, rate_hz: float) -> BoolArray:
-    """Whether a solution is recorded after each IMU sample (stamps ``t_s`` [s]): at the first
-    sample at or past each output tick (``rate_hz`` from ``t0_s``), one per tick."""
-    # Sample by sample: recorded when at or past the next tick, which then becomes the one
-    # after the sample's. So a sample is recorded when its tick (whole output periods since
-    # t0_s) is past every earlier sample's (and not before t0_s); stamps that go back or are
-    # not numbers record nothing.
-    periods = np.floor((t_s - t0_s) * rate_hz + _TICK_TOLERANCE)
-    latest = np.fmax.accumulate(np.fmax(periods, -1.0))  # NaN left out
-    before = np.concatenate(([-1.0], latest[:-1]))
-    ticks: BoolArray = periods > before
-    return ticks
 
 
 def run_fusion(
