@@ -38,9 +38,10 @@ from gnss_ins_common.ros_lifecycle import ManagedSerialDriver
 from gnss_ins_common.ros_serial import RawPublisher, node_time_s
 
 #: nmea, to_device/nmea and port_events are latched: a recorder that subscribes late, or matches
-#: a restarted node only after its first lines, still gets the last 50 lines and 10 opens.
+#: a restarted node only after its first lines, still gets the last 500 lines (50-100 s of a
+#: receiver) and 10 opens.
 RAW_QOS = QoSProfile(
-    depth=50, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
+    depth=500, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
 )
 EVENTS_QOS = QoSProfile(
     depth=10, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
