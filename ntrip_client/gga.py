@@ -12,18 +12,31 @@ MIN_GGA_INTERVAL_S = 1.0
 _DAY_S = 86400
 
 
-def gga_position(sentence: str) -> tuple[float, float] | None:
-    """(lat, lon) [deg] of a GGA sentence with a valid checksum and a fix (quality > 0);
-    None for anything else."""
+def read_gga(sentence: str) -> tuple[int, tuple[float, float] | None] | None:
+    """The quality indicator of a GGA sentence whose checksum holds, and its (lat, lon) [deg]
+    when it has a fix (quality > 0) and a position; None for any other sentence."""
     try:
         msg = pynmea2.parse(sentence.strip(), check=True)
-        if not isinstance(msg, pynmea2.GGA) or not msg.lat or not msg.lon:
+        if not isinstance(msg, pynmea2.GGA) or msg.gps_qual is None:
             return None
-        if int(msg.gps_qual or 0) <= 0:
-            return None
-        return float(msg.latitude), float(msg.longitude)
+        quality = int(msg.gps_qual)
+        if quality <= 0 or not msg.lat or not msg.lon:
+            return quality, None
+        return quality, (float(msg.latitude), float(msg.longitude))
     except (ValueError, TypeError):  # pynmea2's ParseError and ChecksumError are ValueErrors
         return None
+
+
+def gga_quality(sentence: str) -> int | None:
+    """The quality indicator of a GGA sentence whose checksum holds (``read_gga``)."""
+    read = read_gga(sentence)
+    return None if read is None else read[0]
+
+
+def gga_position(sentence: str) -> tuple[float, float] | None:
+    """(lat, lon) [deg] of a GGA sentence with a valid checksum and a fix (``read_gga``)."""
+    read = read_gga(sentence)
+    return None if read is None else read[1]
 
 
 def _angle(value_deg: float, degree_digits: int) -> str:

@@ -12,9 +12,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from gnss_driver.reader import nmea_checksum
 from ntrip_client.client import CasterState, ClientStats
-from ntrip_client.gga import gga_position
+from ntrip_client.gga import read_gga
 
 #: GGA quality indicator -> the rover's solution type as status shows it.
 SOLUTIONS = {
@@ -46,29 +45,15 @@ class RoverGga:
     def note(self, text: str) -> None:
         """One sentence the rover sent, as received (any type; only GGAs whose checksum holds
         count)."""
-        body = text.strip()
-        quality = gga_quality(body)
-        if quality is None:
+        read = read_gga(text)
+        if read is None:
             return
+        quality, position = read
         self.seen += 1
         self.solution = SOLUTIONS.get(quality, f"quality {quality}")
-        if gga_position(body) is not None:
+        if position is not None:
             self.with_position += 1
-            self.sentence = body.encode("ascii") + b"\r\n"
-
-
-def gga_quality(sentence: str) -> int | None:
-    """The quality indicator of a GGA sentence (``$--GGA,...*hh``) whose checksum holds; None
-    for any other sentence."""
-    if not sentence.startswith("$") or sentence[3:6] != "GGA":
-        return None
-    body, star, given = sentence[1:].partition("*")
-    try:
-        if not star or int(given[:2], 16) != nmea_checksum(body.encode("ascii")):
-            return None
-        return int(body.split(",")[6])
-    except (IndexError, ValueError, UnicodeEncodeError):
-        return None
+            self.sentence = text.strip().encode("ascii") + b"\r\n"
 
 
 def corrections_age_s(stats: ClientStats, now_s: float) -> float:

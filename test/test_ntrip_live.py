@@ -29,7 +29,7 @@ from imu400cc_driver.emulator import Imu400ccEmulator
 from ins_fusion.bags.bag_io import BagReader
 from ins_fusion.runtime.processes import gnss_ins_command
 from ntrip_client.caster_emulator import CasterEmulator
-from ntrip_client.health import gga_quality
+from ntrip_client.gga import gga_quality
 from ntrip_client.node import NtripNode
 
 pytestmark = pytest.mark.ros
