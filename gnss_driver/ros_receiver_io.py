@@ -6,13 +6,13 @@
   older than ``corrections_max_age`` (gnss_driver/corrections.py).
 - ``nmea`` (nmea_msgs/Sentence): every line read from the receiver, as received and in order,
   the rejected ones (bad or missing checksum, unknown type, cut off) included; stamped with the
-  host receive time of the chunk that held the line's end; latched (the last 50 lines).
+  host receive time of the chunk that held the line's end; latched (the last 500 lines).
 - ``port_events`` (gnss_ins_msgs/SerialChunk, no data): each open of the port, just after the
   driver was reset and before the set-up (``STARTED`` the node's first, ``OPENED`` a later one),
   where ``gnss_ins redecode`` starts the driver anew; published with ``nmea``, latched (the last
   10).
 - ``to_device/rtcm`` (rtcm_msgs/Message, one frame each) and ``to_device/nmea``
-  (nmea_msgs/Sentence, one set-up command each, latched: the last 50): what the node wrote to the
+  (nmea_msgs/Sentence, one set-up command each, latched: the last 500): what the node wrote to the
   receiver, stamped with the host time of the write.
 
 Like the measurements, ``nmea`` is published only while the node is active (``port_events`` in
