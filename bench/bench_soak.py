@@ -3,12 +3,13 @@ hour (``--duration``), as the README's "Every tool without hardware" runs them: 
 both receivers moving at 5 m/s (inconsistent inputs, as a faulty installation gives them).
 
 Every ``--sample`` seconds the resident memory (RSS) and CPU time of each process of the launch
-(the four nodes and the recorder, by /proc) are read. At the end launch is stopped with Ctrl-C and
-the recording is read: the last /diagnostics status of each node gives the IMU packets the driver
-lost (``dropped_packets``), the fusion's solutions that were not published (``outputs_invalid``;
-its log says why) and its resets; launch's console gives the restarts. Printed per process: RSS
-at the start of the steady state (after ``--settle`` s) and at the end, the growth per hour
-(least squares over the steady-state samples) and the mean CPU. Plain script, no asserts.
+(the four nodes, the recorder, the status server and launch itself, by /proc) are read. At the
+end launch is stopped with Ctrl-C and the recording is read: the last /diagnostics status of each
+node gives the IMU packets the driver lost (``dropped_packets``), the fusion's solutions that
+were not published (``outputs_invalid``; its log says why) and its resets; launch's console gives
+the restarts. Printed per process: RSS at the start of the steady state (after ``--settle`` s)
+and at the end, the growth per hour (least squares over the steady-state samples) and the mean
+CPU (% of one core), and the sum of all. Plain script, no asserts.
 """
 
 from __future__ import annotations
@@ -71,10 +72,12 @@ def main() -> None:
                 work, "--record", str(work / "bags"), velocity=("3", "4", "0"), output=out
             ) as launcher,
         ):
-            readings: dict[str, list[tuple[float, float, float]]] = {n: [] for n in PROCESSES}
+            readings: dict[str, list[tuple[float, float, float]]] = {
+                n: [] for n in [*PROCESSES, "launch"]
+            }
             start = time.monotonic()
             while (elapsed := time.monotonic() - start) < args.duration:
-                for name, pid in children(launcher.pid).items():
+                for name, pid in {**children(launcher.pid), "launch": launcher.pid}.items():
                     if (reading := rss_and_cpu(pid)) is not None:
                         readings[name].append((elapsed, *reading))
                 time.sleep(min(args.sample, max(0.0, args.duration - elapsed)))
@@ -86,6 +89,7 @@ def main() -> None:
         f" steady from {args.settle:g} s"
     )
     print(f"  {'process':<16} {'RSS start MB':>12} {'RSS end MB':>10} {'MB/h':>8} {'CPU %':>6}")
+    total_cpu = 0.0
     for name, rows in readings.items():
         steady = np.array([r for r in rows if r[0] >= args.settle] or rows)
         if len(steady) < 2:
@@ -93,9 +97,11 @@ def main() -> None:
             continue
         slope = np.polyfit(steady[:, 0], steady[:, 1], 1)[0] * 3600.0
         cpu = (steady[-1, 2] - steady[0, 2]) / (steady[-1, 0] - steady[0, 0]) * 100.0
+        total_cpu += cpu
         print(
             f"  {name:<16} {steady[0, 1]:>12.1f} {steady[-1, 1]:>10.1f} {slope:>8.2f} {cpu:>6.1f}"
         )
+    print(f"  {'all of them':<16} {'':>12} {'':>10} {'':>8} {total_cpu:>6.1f}")
     imu = statuses.get("imu400cc_node: IMU400CC", {})
     fusion = statuses.get("ins_fusion_node: INS", {})
     print(f"  IMU packets {imu.get('packets')}, dropped {imu.get('dropped_packets')}")

@@ -23,6 +23,7 @@ PROCESSES = {
     "adu5_gnss": "__node:=adu5_gnss",
     "ins_fusion_node": "__node:=ins_fusion_node",
     "recorder": "--resume",
+    "status_server": "--serve",
 }
 
 

@@ -2,11 +2,12 @@
 
 The recording node (ins_fusion/tools/ros_record.py) subscribes with ``raw=True`` to each
 requested topic as soon as a publisher of it appears, with the QoS its publishers offer, and
-writes what it receives on a writer thread in log-time order, flushed within 0.6 s of its
+writes what it receives on a writer thread in log-time order, flushed within 0.65 s of its
 reception (what a SIGKILL or power cut loses; ``gnss_ins recover`` reads the rest). Ctrl-C or
 SIGTERM stops the subscriptions, takes every message already received, and closes the bag
 cleanly. A disk guard watches the free space (ins_fusion/bags/recording.py). ``--resume``
-continues an existing recording (a supervised recorder that was restarted).
+continues an existing recording (a supervised recorder that was restarted); the unfinished file
+of the recorder before is salvaged in a child process, so the recorder does not keep its memory.
 
 Exit codes: 0 recorded and closed; 1 writing failed (the bag is left for ``gnss_ins recover``);
 2 bad arguments; 3 stopped by the disk guard (the bag is closed and complete) or refused to start
@@ -19,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import multiprocessing
 import sys
 from pathlib import Path
 
@@ -111,6 +113,8 @@ def run(args: argparse.Namespace) -> int:
     if refused := _below_limit(disk.resolve(), args.min_free):
         print(f"gnss_ins record: error: {refused}; not recording", file=sys.stderr)
         return EXIT_DISK_FULL
+    if args.resume and args.output.exists():
+        _continue_in_child(args.output, args.storage)
     try:
         writer = BagWriter(
             args.output,
@@ -122,12 +126,7 @@ def run(args: argparse.Namespace) -> int:
     except BagError as exc:
         print(f"gnss_ins record: error: {exc}", file=sys.stderr)
         return 2
-    for found in writer.resumed:
-        print(
-            f"continuing {args.output}: {len(found.messages)} messages of the unfinished "
-            f"{found.path.name} written into a new file",
-            file=sys.stderr,
-        )
+    _say_continued(args.output, writer)
     recording = RecordingWriter(
         writer,
         _print_log,
@@ -157,6 +156,38 @@ def run(args: argparse.Namespace) -> int:
         print(f"gnss_ins record: error: {recording.stopped}", file=sys.stderr)
         return EXIT_DISK_FULL
     return 0
+
+
+def _continue_in_child(output: Path, storage: str) -> None:
+    """Write what the unfinished files of the recording ``output`` hold into new files, in a
+    child process: salvaging reads a whole file's messages into memory (tens of MB for a few
+    minutes of the vehicle's topics), which the recorder would otherwise keep for the rest of
+    its run (freed memory is not returned by the allocator). Forked before rclpy starts. If the
+    child fails, the recorder's own ``BagWriter`` does the same work (and reports the error)."""
+    child = multiprocessing.get_context("fork").Process(
+        target=_write_unfinished, args=(output, storage), name="gnss_ins_record_resume"
+    )
+    child.start()
+    child.join()
+
+
+def _write_unfinished(output: Path, storage: str) -> None:
+    """The child of ``_continue_in_child``: the recording continued and closed again."""
+    try:
+        writer = BagWriter(output, storage=storage, resume=True)
+    except BagError:
+        sys.exit(2)  # the recorder's own BagWriter reports it
+    _say_continued(output, writer)
+    writer.close()
+
+
+def _say_continued(output: Path, writer: BagWriter) -> None:
+    for found in writer.resumed:
+        print(
+            f"continuing {output}: {len(found.messages)} messages of the unfinished "
+            f"{found.path.name} written into a new file",
+            file=sys.stderr,
+        )
 
 
 def _below_limit(path: Path, min_free: MinFree) -> str | None:

@@ -1,9 +1,15 @@
 """The rclpy half of ``gnss_ins record`` (ins_fusion/tools/record.py): a node that subscribes
 with ``raw=True`` (serialized CDR, no deserialization) to each requested topic as soon as a
 publisher of it appears in the graph, with the QoS its publishers offer (reliable only if all
-are, transient-local only if all are — rosbag2's rule). Callbacks only queue (topic, receive time,
-bytes); a writer thread hands them to ``BagWriter``. The receive time is the middleware's
-reception time (system clock, ns since the epoch). The writer thread runs a
+are, transient-local only if all are — rosbag2's rule). The node spins the nodes' executor
+(gnss_ins_common/ros_node_main.py: rclpy's EventsExecutor, which takes each message in C++;
+SingleThreadedExecutor rebuilt its wait set of every subscription and its message-lost event in
+Python for every message, about two thirds of the recorder's CPU). Callbacks only queue (topic,
+receive time, bytes); a writer thread takes the queue every WRITE_PERIOD_S (not once per
+message) and hands it to ``BagWriter``. The receive time is the system clock (ns since the epoch)
+when the callback takes the message, as rosbag2's recorder stamps it (rclpy 7.1's EventsExecutor
+fails on callbacks that ask for the message info with the middleware's reception time:
+"SystemError: null argument to internal routine"). The writer thread runs a
 ``RecordingWriter`` (ins_fusion/bags/recording.py): messages held a moment and written in
 log-time order, flushed on a bounded interval, the disk's free space guarded; a process killed
 otherwise (SIGKILL, power cut) leaves all but its last fraction of a second on disk.
@@ -28,10 +34,10 @@ from typing import Any, NamedTuple
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.event_handler import SubscriptionEventCallbacks
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
+from rclpy.task import Future
 from rosbags.interfaces import (
     Qos,
     QosDurability,
@@ -42,6 +48,7 @@ from rosbags.interfaces import (
 )
 
 from gnss_ins_common.ros_diagnostics import ERROR, OK, WARN, make_status
+from gnss_ins_common.ros_node_main import make_executor
 from ins_fusion.bags.recording import RecordingWriter
 from ins_fusion.runtime.progress import Progress
 
@@ -51,6 +58,10 @@ DISCOVERY_PERIOD_S = 0.2
 SUBSCRIPTION_DEPTH = 1000
 #: Executor wake-up period, the latency of reacting to Ctrl-C (s).
 SPIN_PERIOD_S = 0.1
+#: How often the writer thread takes the queued messages (s): one wake-up for all of them.
+WRITE_PERIOD_S = 0.05
+#: Spins in a row that take no message before the recorder stops taking them after a stop.
+DRAIN_IDLE_SPINS = 3
 #: Period of the recorder's /diagnostics status and of its topic watch (s).
 DIAGNOSTICS_PERIOD_S = 1.0
 
@@ -140,12 +151,16 @@ class Recorder:
         self._watch: dict[str, _Watch] = {}
         self._ignored: set[str] = set()
         self._queue: queue.SimpleQueue[_Declare | _Message | None] = queue.SimpleQueue()
+        self._closing = threading.Event()  # wakes the writer thread for the None sentinel
+        self._spin_wait: Future = Future()
         self._thread = threading.Thread(target=self._write_loop, name="bag-writer", daemon=True)
         self._thread.start()
         self._diagnostics = node.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self._discover()
         self._timer = node.create_timer(DISCOVERY_PERIOD_S, self._discover)
         self._status_timer = node.create_timer(DIAGNOSTICS_PERIOD_S, self._watch_and_report)
+        # Ends each spin: EventsExecutor's time-out is not reached while messages keep it busy.
+        self._spin_timer = node.create_timer(SPIN_PERIOD_S, self._end_spin)
 
     @property
     def waiting_for(self) -> list[str]:
@@ -194,9 +209,8 @@ class Recorder:
             )
             print(f"recording {topic} [{msgtype}]", file=sys.stderr)
 
-    def _on_message(self, topic: str, data: bytes, info: dict[str, Any]) -> None:
-        receive_ns = info.get("received_timestamp") or self.node.get_clock().now().nanoseconds
-        self._queue.put(_Message(topic, receive_ns, data))
+    def _on_message(self, topic: str, data: bytes) -> None:
+        self._queue.put(_Message(topic, time.time_ns(), data))
         self.received += 1
         watch = self._watch[topic]
         watch.count += 1
@@ -258,26 +272,38 @@ class Recorder:
         array.header.stamp = self.node.get_clock().now().to_msg()
         return array
 
+    def _end_spin(self) -> None:
+        if not self._spin_wait.done():
+            self._spin_wait.set_result(None)
+
+    def _take_queue(self) -> bool:
+        """Hand every queued item to the recording; False at the None sentinel."""
+        while True:
+            try:
+                item = self._queue.get_nowait()
+            except queue.Empty:
+                return True
+            if item is None:
+                return False
+            if isinstance(item, _Declare):
+                self.recording.declare(item.topic, item.msgtype, item.qos)
+            else:
+                self.recording.receive(item.topic, item.receive_ns, item.data)
+
     def _write_loop(self) -> None:
-        """Hand queued items to the recording until the None sentinel, then close it — all on
-        this thread (the storage, e.g. a sqlite3 connection, belongs to the thread that opened
-        it)."""
+        """Every WRITE_PERIOD_S (or sooner when the recording needs it) hand the queued items
+        to the recording, until the None sentinel; then close it — all on this thread (the
+        storage, e.g. a sqlite3 connection, belongs to the thread that opened it)."""
         try:
             timeout = self.recording.service()
             while True:
-                try:
-                    item = self._queue.get(timeout=timeout)
-                except queue.Empty:  # nothing came: time to write, flush or check the disk
-                    item = False
-                if item is None:
-                    break
-                if isinstance(item, _Declare):
-                    self.recording.declare(item.topic, item.msgtype, item.qos)
-                elif isinstance(item, _Message):
-                    self.recording.receive(item.topic, item.receive_ns, item.data)
+                self._closing.wait(max(timeout, WRITE_PERIOD_S))
+                going_on = self._take_queue()
                 timeout = self.recording.service()
                 if self.recording.stopped is not None:
                     self.stop.set()
+                if not going_on:
+                    break
         except BaseException as exc:  # re-raised by close()
             self.error = exc
             self.stop.set()
@@ -290,19 +316,22 @@ class Recorder:
     def spin(self, executor: Any, progress: Progress) -> None:
         """Spin until ``stop``, then take every message the middleware already received."""
         while not self.stop.is_set():
-            executor.spin_once(timeout_sec=SPIN_PERIOD_S)
+            self._spin_wait = Future()
+            executor.spin_until_future_complete(self._spin_wait, timeout_sec=SPIN_PERIOD_S)
             progress.update(self.received, f"backlog {self.backlog}")
-        self._timer.cancel()
-        self._status_timer.cancel()
-        before = -1
-        while before != self.received:  # one pass per ready message; ends when none is ready
+        for timer in (self._timer, self._status_timer, self._spin_timer):
+            timer.cancel()
+        idle = 0
+        while idle < DRAIN_IDLE_SPINS:  # one event per spin; ends when none is left
             before = self.received
             executor.spin_once(timeout_sec=0.0)
+            idle = idle + 1 if self.received == before else 0
         progress.update(self.received)
 
     def close(self) -> None:
         """Write what is queued, close the bag; re-raises a writer-thread error."""
         self._queue.put(None)
+        self._closing.set()
         self._thread.join()
         if self.error is not None:
             raise self.error
@@ -318,7 +347,7 @@ def record(
     # already received are still taken and written after Ctrl-C.
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node("gnss_ins_record")
-    executor = SingleThreadedExecutor()
+    executor = make_executor()
     executor.add_node(node)
     recorder = Recorder(node, recording, topics, silence_s)
     for signum in (signal.SIGINT, signal.SIGTERM):
@@ -330,6 +359,7 @@ def record(
         with Progress("recorded", unit="msgs") as progress:
             recorder.spin(executor, progress)
     finally:
+        executor.shutdown(timeout_sec=2.0)  # its callbacks off the node's endpoints before they go
         node.destroy_node()
         rclpy.try_shutdown()
         try:
