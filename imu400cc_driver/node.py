@@ -5,9 +5,10 @@ frames them and stamps each packet with the device clock mapped to the host cloc
 time, not the read time); the samples are published straight from that thread, so a busy
 executor adds no latency. Publishes ``imu/data_raw`` (REP-145: FLU ``imu_link``, SI units,
 orientation_covariance[0] = -1), ``imu/temperature``, ``/diagnostics`` and, with ``raw_output``,
-``imu/raw`` (gnss_ins_msgs/SerialChunk): every read as the driver was fed it (its stamp the
-receive time, in ns, that the driver got) and every (re)open of the port, in every lifecycle
-state, for ``gnss_ins redecode`` (docs/redecode.md).
+``imu/raw`` (gnss_ins_msgs/SerialChunk): every read as the driver was fed it, with the receive
+time in ns that the driver got, gathered into one message every 0.1 s
+(gnss_ins_common.serial_reads), and every (re)open of the port, in every lifecycle state, for
+``gnss_ins redecode`` (docs/redecode.md).
 """
 
 from __future__ import annotations
@@ -25,7 +26,12 @@ from gnss_ins_common.ros_endpoints import Endpoints
 from gnss_ins_common.ros_lifecycle import AUTOSTART, ManagedSerialDriver
 from gnss_ins_common.ros_node_main import run_node
 from gnss_ins_common.ros_params import declare_parameters
-from gnss_ins_common.ros_serial import RawPublisher, node_time_s, start_serial_link
+from gnss_ins_common.ros_serial import (
+    RAW_PERIOD_S,
+    RawPublisher,
+    node_time_s,
+    start_serial_link,
+)
 from gnss_ins_common.serial_link import LinkSettings, SerialLink
 from imu400cc_driver.driver import ImuDriver, ImuSample
 from imu400cc_driver.link import configure_device, stop_stream
@@ -37,8 +43,9 @@ from imu400cc_driver.protocol import Command
 PARAMETERS = (*DRIVER_PARAMETERS, AUTOSTART)
 
 
-#: Reads of imu/raw kept for a late subscriber (a recorder that matched after the first reads).
-RAW_HISTORY = 2000
+#: imu/raw messages kept for a late subscriber (a recorder that matched after the first reads):
+#: 15 s of reads at RAW_PERIOD_S a message, and the port events among them.
+RAW_HISTORY = 200
 
 
 class Imu400ccNode(ManagedSerialDriver):
@@ -67,7 +74,7 @@ class Imu400ccNode(ManagedSerialDriver):
         self._imu_pub = endpoints.publisher(Imu, "imu/data_raw", qos)
         self._temp_pub = endpoints.publisher(Temperature, "imu/temperature", 10)
         # Latched: a recorder that matches a (re)started node late still gets its first reads
-        # (RAW_HISTORY: 15 s at 134 reads a second, ~0.2 MB).
+        # (RAW_HISTORY: ~20 s of reads, ~0.2 MB).
         raw_qos = QoSProfile(
             depth=RAW_HISTORY,
             reliability=ReliabilityPolicy.RELIABLE,
@@ -76,6 +83,9 @@ class Imu400ccNode(ManagedSerialDriver):
         self._raw = (
             RawPublisher(endpoints, "imu/raw", self._frame_id, raw_qos) if p["raw_output"] else None
         )
+        if self._raw is not None:  # the last reads before a silence: published all the same
+            raw = self._raw
+            self.create_timer(RAW_PERIOD_S, lambda: raw.flush(stamp_ns(node_time_s(self))))
         self._diagnostics = diag.DiagnosticsPublisher(self, endpoints)
         self.create_timer(p["diagnostics_period"], diag.guarded(self, self._publish_diagnostics))
         if not config.continuous:
@@ -103,6 +113,12 @@ class Imu400ccNode(ManagedSerialDriver):
             f"reading IMU400CC on {p['port']} at {p['baud']} baud, {p['mode']} mode"
         )
         return link
+
+    def close(self) -> None:
+        """Stop the link, then publish the reads still held."""
+        super().close()
+        if self._raw is not None:
+            self._raw.flush()
 
     # ---- serial side (link thread) ----------------------------------------------------------
     def _on_open(self, port: Any) -> None:

@@ -22,6 +22,7 @@ from gnss_driver.messages import epoch_messages
 from gnss_driver.parameters import driver_config as gnss_config
 from gnss_driver.reader import frame_sentence
 from gnss_ins_common.message_fields import seconds_of_ns, set_header, stamp_ns
+from gnss_ins_common.serial_reads import ReadBatch
 from imu400cc_driver.driver import ImuDriver
 from imu400cc_driver.messages import sample_messages
 from imu400cc_driver.parameters import driver_config as imu_config
@@ -114,6 +115,36 @@ def _imu_live(chunks: list[tuple[bytes, float]]) -> list[bytes]:
     return out
 
 
+def _imu_raw_rows(imu_chunks, events) -> list[tuple[str, int, object]]:
+    """/imu/raw as imu400cc_node publishes it: the reads gathered every 0.1 s (RawPublisher),
+    an OPENED event after the reads before it; each message logged at its last read."""
+    batch = ReadBatch(period_ns=100_000_000, max_reads=64)
+    rows: list[tuple[str, int, object]] = []
+    last_ns = START_NS
+
+    def publish() -> None:
+        if (record := batch.take()) is not None:
+            msg = _serial_chunk(DATA, record.read_times_ns[0], record.data)
+            msg.read_ends = np.array(record.read_ends, np.uint32)
+            msg.read_times_ns = np.array(record.read_times_ns, np.int64)
+            rows.append(("/imu/raw", last_ns, msg))
+
+    timeline = sorted(
+        [(t, data) for data, t in imu_chunks] + [(t, None) for t in events], key=lambda e: e[0]
+    )
+    for t, data in timeline:
+        if data is None:
+            publish()
+            rows.append(("/imu/raw", t, _serial_chunk(OPENED, t)))
+            continue
+        last_ns = t
+        if batch.add(data, t):
+            publish()
+    publish()
+    assert len(imu_chunks) < 20 or len(rows) < len(imu_chunks) / 5  # several reads a message
+    return rows
+
+
 def _write_recording(path, imu_chunks, leica_epochs, extra_events=()) -> None:
     """A recording with the raw topics, a stale /imu/data_raw and a topic to copy."""
     with BagWriter(path) as writer:
@@ -124,8 +155,7 @@ def _write_recording(path, imu_chunks, leica_epochs, extra_events=()) -> None:
         writer.write("/imu/data_raw", START_NS, stale)  # replaced by the rebuilt ones
         writer.write("/leica/port_events", START_NS, _serial_chunk(STARTED, START_NS))
         writer.write("/imu/raw", START_NS, _serial_chunk(STARTED, START_NS))
-        rows = [("/imu/raw", t, _serial_chunk(DATA, t, data)) for data, t in imu_chunks]
-        rows += [("/imu/raw", t, _serial_chunk(OPENED, t)) for t in extra_events]
+        rows = _imu_raw_rows(imu_chunks, extra_events)
         for wire, t in leica_epochs:
             for line in wire.split(b"\r\n")[:-1]:
                 msg = new_message(SENTENCE)
@@ -144,6 +174,8 @@ def _topic_cdr(path, topic: str) -> list[bytes]:
 
 def test_serial_chunk_round_trip_through_a_bag(tmp_path):
     sent = [_serial_chunk(DATA, START_NS + i, bytes(range(i, i + 40))) for i in range(3)]
+    sent[1].read_ends = np.array([15, 40], np.uint32)
+    sent[1].read_times_ns = np.array([START_NS + 1, START_NS + 5], np.int64)
     sent.append(_serial_chunk(OPENED, START_NS + 9))
     with BagWriter(tmp_path / "bag") as writer:
         for msg in sent:
@@ -151,9 +183,17 @@ def test_serial_chunk_round_trip_through_a_bag(tmp_path):
     with BagReader(tmp_path / "bag") as reader:
         got = [m.message for m in reader.messages(deserialize=True)]
     assert reader.topics["/imu/raw"].msgtype == CHUNK
-    assert [(m.event, bytes(m.data), m.header.stamp.nanosec) for m in got] == [
-        (m.event, bytes(m.data), m.header.stamp.nanosec) for m in sent
-    ]
+
+    def fields(m):
+        return (
+            m.event,
+            bytes(m.data),
+            m.header.stamp.nanosec,
+            list(m.read_ends),
+            list(m.read_times_ns),
+        )
+
+    assert [fields(m) for m in got] == [fields(m) for m in sent]
     assert got[0].OPENED == OPENED and got[0].STARTED == STARTED
 
 
@@ -307,3 +347,25 @@ def test_the_right_gyro_range_rebuilds_what_the_wrong_one_recorded(tmp_path):
         f, g = a.linear_acceleration, b.linear_acceleration
         assert (f.x, f.y, f.z) == (g.x, g.y, g.z)
     assert not math.isclose(pairs[10][0].message.angular_velocity.x, 0.0)
+
+
+@pytest.mark.parametrize(
+    ("data", "why"),
+    [
+        (b"", "not a gnss_ins_msgs/msg/SerialChunk of this release"),  # cut short
+        (None, "read ends \\[40\\]... do not cut 20 bytes"),
+    ],
+)
+def test_a_raw_message_that_cannot_be_read_is_named_and_nothing_is_written(tmp_path, data, why):
+    """A damaged /imu/raw message (or one of a format this release does not read) stops the
+    redecode with its topic and log time, never a traceback or a half-rebuilt bag."""
+    msg = _serial_chunk(DATA, START_NS, bytes(20))
+    msg.read_ends = np.array([40], np.uint32)
+    msg.read_times_ns = np.array([START_NS], np.int64)
+    cdr = _cdr(msg)
+    with BagWriter(tmp_path / "rec") as writer:
+        writer.add_topic("/imu/raw", CHUNK)
+        writer.write("/imu/raw", START_NS, cdr[: len(cdr) - 12] if data == b"" else cdr)
+    with pytest.raises(RedecodeError, match=f"/imu/raw message logged at {START_NS} ns.*{why}"):
+        redecode(tmp_path / "rec", tmp_path / "out")
+    assert not (tmp_path / "out").exists()

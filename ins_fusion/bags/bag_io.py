@@ -49,13 +49,13 @@ class BagError(Exception):
 
 #: Messages that rosbags' Jazzy store lacks, as their packages define them (the same fields as
 #: ros_interfaces/, which builds them for rclpy): the ROS ecosystem's corrections and NMEA
-#: sentences, and gnss_ins_msgs' serial chunks (a device's bytes as read: imu/raw).
+#: sentences, and gnss_ins_msgs' serial chunks (a device's reads with their times: imu/raw).
 EXTRA_MESSAGES = {
     "rtcm_msgs/msg/Message": "std_msgs/Header header\nuint8[] message\n",
     "nmea_msgs/msg/Sentence": "std_msgs/Header header\nstring sentence\n",
     "gnss_ins_msgs/msg/SerialChunk": (
         "std_msgs/Header header\nuint8 DATA=0\nuint8 OPENED=1\nuint8 STARTED=2\n"
-        "uint8 event\nuint8[] data\n"
+        "uint8 event\nuint8[] data\nuint32[] read_ends\nint64[] read_times_ns\n"
     ),
 }
 

@@ -2,7 +2,8 @@
 
 - ``ImuDecoder``: each ``imu/raw`` message (gnss_ins_msgs/SerialChunk) in order: ``STARTED`` a
   new ``ImuDriver`` (the node started), ``OPENED`` ``reset()`` (the port reopened), ``DATA``
-  ``feed(data, seconds_of_ns(stamp))``: the node fed the driver that very float.
+  each of its reads (gnss_ins_common.serial_reads) as ``feed(read, seconds_of_ns(read time))``:
+  the node fed the driver those very bytes and that very float.
 - ``GnssDecoder``: each line of ``nmea`` as ``feed(line + CR LF, seconds_of_ns(stamp))``, one
   call per line (the node fed the chunk holding the lines' ends at that stamp: the same
   sentences at the same time), ``port_events`` as the IMU's events. The node closes an epoch
@@ -26,6 +27,7 @@ from gnss_driver.messages import MessageClasses, epoch_messages
 from gnss_driver.parameters import driver_config as gnss_config
 from gnss_driver.profiles import Receiver
 from gnss_ins_common.message_fields import seconds_of_ns
+from gnss_ins_common.serial_reads import split_reads
 from imu400cc_driver.driver import ImuDriver
 from imu400cc_driver.messages import sample_messages
 from imu400cc_driver.parameters import driver_config as imu_config
@@ -82,18 +84,21 @@ class ImuDecoder:
             self.driver.reset()
         elif chunk.event == DATA:
             driver = self.driver
-            t = seconds_of_ns(header_ns(chunk))
-            for sample in driver.feed(bytes(chunk.data), t):
-                imu, temperature = sample_messages(
-                    sample,
-                    driver,
-                    self._frame_id,
-                    lambda: new_message(IMU_TYPE),
-                    lambda: new_message(TEMPERATURE_TYPE),
-                )
-                yield "imu/data_raw", imu
-                if temperature is not None:
-                    yield "imu/temperature", temperature
+            reads = split_reads(
+                bytes(chunk.data), chunk.read_ends, chunk.read_times_ns, header_ns(chunk)
+            )
+            for data, time_ns in reads:
+                for sample in driver.feed(data, seconds_of_ns(time_ns)):
+                    imu, temperature = sample_messages(
+                        sample,
+                        driver,
+                        self._frame_id,
+                        lambda: new_message(IMU_TYPE),
+                        lambda: new_message(TEMPERATURE_TYPE),
+                    )
+                    yield "imu/data_raw", imu
+                    if temperature is not None:
+                        yield "imu/temperature", temperature
 
 
 class GnssDecoder:

@@ -151,6 +151,17 @@ def _devices(reader: BagReader) -> tuple[bool, list[NodeSpec]]:
     return imu, receivers
 
 
+def _raw_message(reader: BagReader, topic: str, log_time_ns: int, data: bytes, msgtype: str) -> Any:
+    """A raw topic's message deserialized; BagError naming it when its bytes are not one."""
+    try:
+        return reader.deserialize(data, msgtype)
+    except Exception as exc:  # rosbags raises what its parser meets: struct, index, value errors
+        raise BagError(
+            f"{topic} message logged at {log_time_ns} ns is not a {msgtype} of this release"
+            f" ({type(exc).__name__}: {exc}); nothing written"
+        ) from exc
+
+
 def _decoded(
     reader: BagReader,
     params: dict[str, dict[str, Any]],
@@ -182,13 +193,16 @@ def _decoded(
             yield msg.topic, msg.log_time_ns, msg.message
         if msg.topic != IMU_RAW and msg.topic not in gnss:
             continue
-        raw = reader.deserialize(msg.message, msg.msgtype)
+        raw = _raw_message(reader, msg.topic, msg.log_time_ns, msg.message, msg.msgtype)
         if header_ns(raw) < newest.get(msg.topic, 0):
             continue
         newest[msg.topic] = header_ns(raw)
         if imu_decoder is not None and msg.topic == IMU_RAW:
-            chunk = raw
-            for relative, rebuilt in imu_decoder.take(chunk):
+            try:
+                decoded = list(imu_decoder.take(raw))
+            except ValueError as exc:  # its reads do not cut its bytes (serial_reads)
+                raise BagError(f"{IMU_RAW} message logged at {msg.log_time_ns} ns: {exc}") from exc
+            for relative, rebuilt in decoded:
                 yield _topic(IMU, relative), msg.log_time_ns, rebuilt
         elif msg.topic in gnss:
             spec, decoder, events = gnss[msg.topic]
