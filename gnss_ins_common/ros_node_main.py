@@ -86,6 +86,29 @@ def _callback_name(exc: BaseException) -> str:
     return frames[after].name if 0 <= after < len(frames) else "callback"
 
 
+class SpinSlices:
+    """Spins an executor in slices of at most ``period_s``: a timer of ``node`` ends each slice
+    (EventsExecutor's time-out is not reached while messages keep it busy), so the caller's loop
+    gets its turn at least every ``period_s``."""
+
+    def __init__(self, node: Node, period_s: float) -> None:
+        self._wait = Future()
+        self._timer = node.create_timer(period_s, self._end)
+
+    def spin(self, executor: Executor, timeout_s: float) -> None:
+        """Spin until the next tick of the timer, or ``timeout_s`` when idle."""
+        self._wait = Future()
+        executor.spin_until_future_complete(self._wait, timeout_sec=timeout_s)
+
+    def cancel(self) -> None:
+        """Stop the timer (the executor's last spins drain what is left)."""
+        self._timer.cancel()
+
+    def _end(self) -> None:
+        if not self._wait.done():
+            self._wait.set_result(None)
+
+
 class StopSignals:
     """SIGINT and SIGTERM as a stop request while installed (a context manager): ``requested``
     turns True, the future of the latest ``wait()`` is completed (the executor's spin returns)

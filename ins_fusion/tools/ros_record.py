@@ -37,7 +37,6 @@ from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
-from rclpy.task import Future
 from rosbags.interfaces import (
     Qos,
     QosDurability,
@@ -48,7 +47,7 @@ from rosbags.interfaces import (
 )
 
 from gnss_ins_common.ros_diagnostics import ERROR, OK, WARN, make_status
-from gnss_ins_common.ros_node_main import make_executor
+from gnss_ins_common.ros_node_main import SpinSlices, make_executor
 from ins_fusion.bags.recording import RecordingWriter
 from ins_fusion.runtime.progress import Progress
 
@@ -152,15 +151,13 @@ class Recorder:
         self._ignored: set[str] = set()
         self._queue: queue.SimpleQueue[_Declare | _Message | None] = queue.SimpleQueue()
         self._closing = threading.Event()  # wakes the writer thread for the None sentinel
-        self._spin_wait: Future = Future()
         self._thread = threading.Thread(target=self._write_loop, name="bag-writer", daemon=True)
         self._thread.start()
         self._diagnostics = node.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self._discover()
         self._timer = node.create_timer(DISCOVERY_PERIOD_S, self._discover)
         self._status_timer = node.create_timer(DIAGNOSTICS_PERIOD_S, self._watch_and_report)
-        # Ends each spin: EventsExecutor's time-out is not reached while messages keep it busy.
-        self._spin_timer = node.create_timer(SPIN_PERIOD_S, self._end_spin)
+        self._slices = SpinSlices(node, SPIN_PERIOD_S)
 
     @property
     def waiting_for(self) -> list[str]:
@@ -272,10 +269,6 @@ class Recorder:
         array.header.stamp = self.node.get_clock().now().to_msg()
         return array
 
-    def _end_spin(self) -> None:
-        if not self._spin_wait.done():
-            self._spin_wait.set_result(None)
-
     def _take_queue(self) -> bool:
         """Hand every queued item to the recording; False at the None sentinel."""
         while True:
@@ -316,10 +309,9 @@ class Recorder:
     def spin(self, executor: Any, progress: Progress) -> None:
         """Spin until ``stop``, then take every message the middleware already received."""
         while not self.stop.is_set():
-            self._spin_wait = Future()
-            executor.spin_until_future_complete(self._spin_wait, timeout_sec=SPIN_PERIOD_S)
+            self._slices.spin(executor, SPIN_PERIOD_S)
             progress.update(self.received, f"backlog {self.backlog}")
-        for timer in (self._timer, self._status_timer, self._spin_timer):
+        for timer in (self._timer, self._status_timer, self._slices):
             timer.cancel()
         idle = 0
         while idle < DRAIN_IDLE_SPINS:  # one event per spin; ends when none is left

@@ -13,14 +13,16 @@ from typing import Any
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 
 from gnss_ins_common.ros_diagnostics import make_status
+from gnss_ins_common.ros_node_main import SpinSlices, make_executor
 from ins_fusion.runtime.health import LEVELS, STATUS_TOPIC, Health, Status
 
 #: Seconds between two views (screen refresh, /gnss_ins/status).
 PERIOD_S = 1.0
+#: Longest spin between two looks at the time and at a stop request [s].
+SPIN_PERIOD_S = 0.1
 
 
 def _take(health: Health, array: Any) -> None:
@@ -71,8 +73,9 @@ def watch(
     node = rclpy.create_node("gnss_ins_status")
     node.create_subscription(DiagnosticArray, "/diagnostics", lambda a: _take(health, a), 100)
     publisher = node.create_publisher(DiagnosticArray, STATUS_TOPIC, 10) if serve else None
-    executor = SingleThreadedExecutor()
+    executor = make_executor()  # the nodes' (EventsExecutor): no wait set rebuilt per message
     executor.add_node(node)
+    slices = SpinSlices(node, SPIN_PERIOD_S)
     stop = False
 
     def request_stop(*_: object) -> None:
@@ -84,7 +87,7 @@ def watch(
     due = time.monotonic() + first_after_s
     try:
         while not stop:
-            executor.spin_once(timeout_sec=max(0.0, min(0.1, due - time.monotonic())))
+            slices.spin(executor, max(0.0, min(SPIN_PERIOD_S, due - time.monotonic())))
             if time.monotonic() < due:
                 continue
             due += PERIOD_S
@@ -97,5 +100,6 @@ def watch(
             if not on_view(view):
                 break
     finally:
+        executor.shutdown(timeout_sec=2.0)  # its callbacks off the node's endpoints before they go
         node.destroy_node()
         rclpy.try_shutdown()
