@@ -195,10 +195,13 @@ class InsFusionNode(Node):
         message after it ends it, said at once too."""
         watch, now = self._imu_watch, time.monotonic()
         if self._imu_received != watch.count:
+            first = watch.count == 0
             watch.count, watch.last_change_s, watch.quiet_ticks = self._imu_received, now, 0
             if watch.silent:
                 watch.silent = False
-                self.get_logger().info("imu/data_raw is back")
+                self.get_logger().info(
+                    "first IMU message on imu/data_raw" if first else "imu/data_raw is back"
+                )
                 self._publish_diagnostics()
             return
         watch.quiet_ticks += 1

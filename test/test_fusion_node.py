@@ -16,6 +16,7 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import TwistWithCovarianceStamped
 from nav_msgs.msg import Odometry
+from rcl_interfaces.msg import Log
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from ros_harness import (
     Collector,
@@ -374,9 +375,10 @@ def test_the_imu_subscription_reliability_is_a_standard_qos_override():
 def test_an_imu_that_falls_silent_is_reported_within_a_second_and_its_return_too():
     """imu/data_raw at 100 Hz, silent for 3 s, back: the status says no_imu (ERROR) within 1 s
     of the silence although /diagnostics is otherwise only every 10 s, and stops saying it within
-    1 s of the first sample back."""
+    1 s of the first sample back. Its log (/rosout) calls the first message the first, and only
+    the one after the silence "back"."""
     node = InsFusionNode(parameter_overrides=overrides(diagnostics_period=10.0))
-    collector = Collector({"/diagnostics": DiagnosticArray})
+    collector = Collector({"/diagnostics": DiagnosticArray, "/rosout": Log})
     publisher = collector.node.create_publisher(
         Imu, "imu/data_raw", QoSProfile(depth=50, reliability=ReliabilityPolicy.BEST_EFFORT)
     )
@@ -389,6 +391,9 @@ def test_an_imu_that_falls_silent_is_reported_within_a_second_and_its_return_too
             )
             if at >= t and array.status[0].name.startswith("ins_fusion_node")
         ]
+
+    def logged() -> list[str]:
+        return [m.msg for m in collector.get("/rosout") if m.name.endswith("ins_fusion_node")]
 
     def publish_for(seconds: float) -> None:
         end = time.time() + seconds
@@ -403,6 +408,7 @@ def test_an_imu_that_falls_silent_is_reported_within_a_second_and_its_return_too
     try:
         with spinning(node, collector.node):
             assert wait_for(lambda: publisher.get_subscription_count() > 0, 10.0)
+            assert wait_for(lambda: any("waiting for the first" in m for m in logged()), 5.0)
             publish_for(2.0)
             silent_from = time.time()
             assert wait_for(lambda: states_since(silent_from), 3.0)
@@ -415,6 +421,12 @@ def test_an_imu_that_falls_silent_is_reported_within_a_second_and_its_return_too
             at, state, _ = states_since(back_at)[0]
             assert state != "no_imu" and at - back_at <= 1.0, (state, at - back_at)
             print(f"no_imu reported {states_since(silent_from)[0][0] - silent_from:.2f} s after")
+            assert wait_for(lambda: "imu/data_raw is back" in logged(), 3.0), logged()
+            imu_lines = [line for line in logged() if "IMU message" in line or "back" in line]
+            assert imu_lines[0] == "waiting for the first IMU message on imu/data_raw", imu_lines
+            assert imu_lines[1] == "first IMU message on imu/data_raw", imu_lines
+            assert imu_lines[-1] == "imu/data_raw is back", imu_lines
+            assert sum("is back" in line for line in imu_lines) == 1, imu_lines
     finally:
         node.destroy_node()
         collector.node.destroy_node()
