@@ -436,14 +436,17 @@ def _first_since(collector: Collector, since: float, name: str, level: int) -> f
 
 
 def _status(log_dir: Path) -> dict:
+    ros_logs = log_dir.parent / "status_ros_logs"
     result = subprocess.run(
         gnss_ins_command("status", "--json", "--log-dir", str(log_dir)),
         capture_output=True,
         text=True,
         timeout=60,
+        env={**os.environ, "ROS_LOG_DIR": str(ros_logs)},
     )
     view = json.loads(result.stdout)
     assert result.returncode == min(["OK", "WARN", "ERROR", "STALE"].index(view["level"]), 2)
+    assert not ros_logs.exists() or not any(ros_logs.iterdir())  # a look leaves no ROS log file
     return view
 
 

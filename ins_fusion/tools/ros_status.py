@@ -69,7 +69,11 @@ def watch(
     """Collect /diagnostics into ``health``; ``first_after_s`` after the start and then every
     PERIOD_S, read the supervisor file in ``log_dir``, build the view and call ``on_view`` (and,
     serving, publish it) until ``on_view`` returns False or Ctrl-C/SIGTERM."""
-    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    # A look (not serving) writes no ROS log file: each call left an empty one in ~/.ros/log.
+    rclpy.init(
+        args=None if serve else ["--ros-args", "--disable-external-lib-logs"],
+        signal_handler_options=SignalHandlerOptions.NO,
+    )
     node = rclpy.create_node("gnss_ins_status")
     node.create_subscription(DiagnosticArray, "/diagnostics", lambda a: _take(health, a), 100)
     publisher = node.create_publisher(DiagnosticArray, STATUS_TOPIC, 10) if serve else None
