@@ -115,17 +115,29 @@ def open_store(root: Path, options: dict[str, Any], force: bool) -> Iterator[Bat
     with lock:
         try:
             fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
+            # The batch before removed the file after this one opened it: another may lock
+            # the new file, so this lock is not the folder's.
+            if os.stat(root / _LOCK).st_ino != os.fstat(lock.fileno()).st_ino:
+                raise BlockingIOError
+        except (BlockingIOError, FileNotFoundError):
             raise StoreError(f"another batch is writing {root}") from None
-        saved = root / OPTIONS
-        text = json.dumps(options, indent=2, sort_keys=True)
-        if saved.is_file() and not force:
-            before = json.loads(saved.read_text(encoding="utf-8"))
-            if before != json.loads(text):
-                changed = sorted(k for k in {*before, *options} if before.get(k) != options.get(k))
-                raise StoreError(
-                    f"{root} holds results made with other options ({', '.join(changed)}):"
-                    " give another --out, or --force to redo every bag"
-                )
-        write_atomic(saved, text.encode())
-        yield BatchStore(root)
+        try:
+            yield _checked_store(root, options, force)
+        finally:
+            (root / _LOCK).unlink(missing_ok=True)  # while locked: no empty file left behind
+
+
+def _checked_store(root: Path, options: dict[str, Any], force: bool) -> BatchStore:
+    """The store of the locked ``root``, its options checked and saved (see ``open_store``)."""
+    saved = root / OPTIONS
+    text = json.dumps(options, indent=2, sort_keys=True)
+    if saved.is_file() and not force:
+        before = json.loads(saved.read_text(encoding="utf-8"))
+        if before != json.loads(text):
+            changed = sorted(k for k in {*before, *options} if before.get(k) != options.get(k))
+            raise StoreError(
+                f"{root} holds results made with other options ({', '.join(changed)}):"
+                " give another --out, or --force to redo every bag"
+            )
+    write_atomic(saved, text.encode())
+    return BatchStore(root)
