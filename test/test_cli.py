@@ -11,9 +11,20 @@ from pathlib import Path
 
 import pytest
 
-from ins_fusion.tools.cli import SUBCOMMANDS, DefaultsHelpFormatter, build_parser, main
+from ins_fusion.tools.cli import (
+    GROUPS,
+    SUBCOMMANDS,
+    DefaultsHelpFormatter,
+    build_parser,
+    main,
+)
 
 GNSS_INS = Path(sys.executable).parent / "gnss_ins"
+
+
+def test_every_sub_command_is_in_one_group_of_the_help():
+    grouped = [name for names in GROUPS.values() for name in names]
+    assert sorted(grouped) == sorted(SUBCOMMANDS)  # each once
 
 
 def test_top_level_help_lists_every_sub_command():

@@ -1,8 +1,9 @@
-"""`gnss_ins` command-line tool: one sub-command per module in ins_fusion/tools.
+"""`gnss_ins`: run, record and check the GNSS/INS on the vehicle, and work with its recordings.
 
-Each sub-command module defines ``add_arguments(parser)`` and ``run(args) -> int``; register it
-in ``SUBCOMMANDS`` below. Only the chosen sub-command's module is imported, so ``gnss_ins --help``
-stays fast and a sub-command that needs rclpy does not slow down one that does not.
+Each sub-command is a module in ins_fusion/tools that defines ``add_arguments(parser)`` and
+``run(args) -> int``; register it in ``SUBCOMMANDS`` and in one of ``GROUPS`` below. Only the
+chosen sub-command's module is imported, so ``gnss_ins --help`` stays fast and a sub-command
+that needs rclpy does not slow down one that does not.
 """
 
 from __future__ import annotations
@@ -49,6 +50,21 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "simulate": ("simulate", "simulated drive to a rosbag2 bag, or live on emulated devices"),
 }
 
+#: The sub-commands as ``gnss_ins --help`` lists them: by what the user is doing.
+GROUPS: dict[str, tuple[str, ...]] = {
+    "on the vehicle": ("launch", "status", "record", "list-devices", "install-service"),
+    "recordings, offline": ("replay", "play", "redecode", "recover", "batch", "import-qfree"),
+    "calibration and noise": ("calibrate", "allan"),
+    "without hardware": (
+        "demo",
+        "simulate",
+        "emulate-imu",
+        "emulate-gnss",
+        "emulate-caster",
+        "imu-demo",
+    ),
+}
+
 #: Sub-commands that run OpenBLAS single-threaded unless the user set OPENBLAS_NUM_THREADS: the
 #: engine's matrices are at most 21 x 21 and a replay's work on whole tracks gains nothing
 #: measurable from more threads, whose start at numpy's import alone costs ~0.07 s of CPU (a
@@ -92,18 +108,37 @@ def version() -> str:
 
 def build_parser(command: str | None) -> argparse.ArgumentParser:
     """Parser listing every sub-command; only ``command``'s module is imported for its options."""
-    parser = argparse.ArgumentParser(prog="gnss_ins", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        prog="gnss_ins",
+        description=__doc__.splitlines()[0].strip("`").replace("`", ""),
+        epilog=commands_text(),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     parser.add_argument("--version", action="version", version=f"%(prog)s {version()}")
-    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    sub = parser.add_subparsers(
+        dest="command", required=True, metavar="COMMAND", help="one of the commands below"
+    )
     for name, (module_name, help_text) in SUBCOMMANDS.items():
         sub_parser = sub.add_parser(
-            name, help=help_text, description=help_text, formatter_class=DefaultsHelpFormatter
+            name, description=help_text, formatter_class=DefaultsHelpFormatter
         )
         if name == command:
             module = importlib.import_module(f"ins_fusion.tools.{module_name}")
             module.add_arguments(sub_parser)
             sub_parser.set_defaults(_module=module)
     return parser
+
+
+def commands_text() -> str:
+    """The sub-commands with their one-line help, in GROUPS."""
+    width = max(len(name) for name in SUBCOMMANDS) + 2
+    lines = []
+    for title, names in GROUPS.items():
+        lines.append(f"{title}:")
+        lines += [f"  {name:<{width}}{SUBCOMMANDS[name][1]}" for name in names]
+        lines.append("")
+    lines.append("`gnss_ins COMMAND --help`: the command's options with their defaults.")
+    return "\n".join(lines)
 
 
 def main(argv: list[str] | None = None) -> int:
