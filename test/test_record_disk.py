@@ -13,7 +13,9 @@ from pathlib import Path
 
 import pytest
 import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+from ros_harness import Collector, spinning, wait_for
 from std_msgs.msg import String
 
 from ins_fusion.bags.bag_io import BagReader
@@ -83,11 +85,28 @@ def numbers(bag: Path) -> list[int]:
         return [int(m.message.data[:8]) for m in reader.messages(deserialize=True)]
 
 
+def recorder_errors(collector: Collector) -> list[str]:
+    """The messages of the recorder's ERROR statuses on /diagnostics."""
+    return [
+        status.message
+        for array in collector.get("/diagnostics")
+        for status in array.status
+        if status.name.startswith("gnss_ins_record") and status.level == DiagnosticStatus.ERROR
+    ]
+
+
 def test_guard_stops_before_the_disk_is_full_with_a_complete_bag(small_disk, publisher):
-    recorder = record(small_disk / "bag", "--min-free", "1M")
-    _out, err = recorder.communicate(timeout=60)
+    """... and says why on /diagnostics before it exits."""
+    collector = Collector({"/diagnostics": DiagnosticArray})
+    with spinning(collector.node):
+        recorder = record(small_disk / "bag", "--min-free", "1M")
+        _out, err = recorder.communicate(timeout=60)
+        assert wait_for(lambda: recorder_errors(collector), 5.0)
+    collector.node.destroy_node()
     assert recorder.returncode == 3, err
     assert "disk space low" in err and "recording stopped" in err
+    error = recorder_errors(collector)[-1]  # the last status, sent before the exit
+    assert error.startswith("free disk space") and "recording stopped" in error
     got = numbers(small_disk / "bag")  # metadata.yaml written: no recover needed
     assert len(got) > 100 and got == list(range(got[0], got[0] + len(got)))
 
@@ -117,10 +136,16 @@ def test_rotation_keeps_recording_and_deletes_the_oldest_files(small_disk, publi
 def test_without_the_guard_a_full_disk_leaves_a_bag_that_recover_restores(
     small_disk, publisher, tmp_path
 ):
-    recorder = record(small_disk / "bag", "--min-free", "0")
-    _out, err = recorder.communicate(timeout=60)
+    collector = Collector({"/diagnostics": DiagnosticArray})
+    with spinning(collector.node):
+        recorder = record(small_disk / "bag", "--min-free", "0")
+        _out, err = recorder.communicate(timeout=60)
+        assert wait_for(lambda: recorder_errors(collector), 5.0)
+    collector.node.destroy_node()
     assert recorder.returncode == 1, err
     assert "No space left on device" in err and "gnss_ins recover" in err
+    error = recorder_errors(collector)[-1]
+    assert error.startswith("writing failed") and "No space left on device" in error
     assert not (small_disk / "bag" / "metadata.yaml").exists()
     assert main(["recover", str(small_disk / "bag"), "-o", str(tmp_path / "recovered")]) == 0
     got = numbers(tmp_path / "recovered")

@@ -33,6 +33,7 @@ from typing import Any, NamedTuple
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.duration import Duration
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -61,6 +62,9 @@ SPIN_PERIOD_S = 0.1
 WRITE_PERIOD_S = 0.05
 #: Spins in a row that take no message before the recorder stops taking them after a stop.
 DRAIN_IDLE_SPINS = 3
+#: Longest wait for the subscribers of /diagnostics to take the ERROR status of a recorder
+#: that stops on its own (full disk, writing failed) [s].
+FINAL_STATUS_WAIT_S = 1.0
 #: Period of the recorder's /diagnostics status and of its topic watch (s).
 DIAGNOSTICS_PERIOD_S = 1.0
 
@@ -313,6 +317,10 @@ class Recorder:
             progress.update(self.received, f"backlog {self.backlog}")
         for timer in (self._timer, self._status_timer, self._slices):
             timer.cancel()
+        if self.error is not None or self.recording.stopped is not None:
+            # The reason on /diagnostics before the process ends (gnss_ins status shows it).
+            self._diagnostics.publish(self._status(time.monotonic(), []))
+            self._diagnostics.wait_for_all_acked(Duration(seconds=FINAL_STATUS_WAIT_S))
         idle = 0
         while idle < DRAIN_IDLE_SPINS:  # one event per spin; ends when none is left
             before = self.received
