@@ -71,15 +71,20 @@ def test_the_supervisor_file_names_the_expected_processes_and_their_restarts(tmp
     assert json.loads((tmp_path / "supervisor.json").read_text())["processes"] == state
     health = healthy(5.0)
     health.read_supervisor(tmp_path)
-    health.add(status("gnss_ins_record: recording", OK, 5.0, bag="/data/b", free_bytes="7"))
+    health.add(status("recorder: recording", OK, 5.0, bag="/data/b", free_bytes="7"))
+    # A recorder started by hand (`gnss_ins record`, node gnss_ins_record): a row of its own.
+    health.add(status("gnss_ins_record: recording", WARN, 5.0, bag="/tmp/mine"))
     view = health.view(5.1)
     assert list(view["processes"]) == [
-        "imu400cc_node", "leica_gnss", "recorder", "adu5_gnss", "ins_fusion_node"
+        "imu400cc_node", "leica_gnss", "recorder", "adu5_gnss", "ins_fusion_node",
+        "gnss_ins_record",
     ]  # fmt: skip
     assert view["processes"]["leica_gnss"]["restarts"] == 3
     assert view["processes"]["recorder"]["values"] == {"bag": "/data/b", "free_bytes": "7"}
+    assert view["processes"]["recorder"]["level"] == "OK"
+    assert view["processes"]["gnss_ins_record"]["values"] == {"bag": "/tmp/mine"}
     text = format_view(view, "title")
-    assert text.splitlines()[0] == "title   system: OK"
+    assert text.splitlines()[0] == "title   system: WARN"
     assert "leica_gnss" in text and "bag /data/b, free_bytes 7" in text
 
 

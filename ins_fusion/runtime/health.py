@@ -60,6 +60,8 @@ SHOWN: dict[str, tuple[str, ...]] = {
         "outputs_invalid",
     ),
     "recorder": ("bag", "files", "messages", "free_bytes", "min_free_bytes"),
+    # a `gnss_ins record` started by hand beside the vehicle's: a row of its own
+    "gnss_ins_record": ("bag", "files", "messages", "free_bytes", "min_free_bytes"),
     "ntrip_client": (
         "caster_state",
         "http_status",
@@ -73,8 +75,6 @@ SHOWN: dict[str, tuple[str, ...]] = {
         "rover_solution",
     ),
 }
-#: Status name prefixes that are not the process's name.
-PROCESS_OF_STATUS = {"gnss_ins_record": "recorder"}
 #: Processes expected without a supervisor file (the vehicle's four nodes).
 DEFAULT_EXPECTED = ("imu400cc_node", "leica_gnss", "adu5_gnss", "ins_fusion_node")
 
@@ -91,9 +91,8 @@ class Status:
 
     @property
     def process(self) -> str:
-        """The process the status is about (its name's prefix before ':')."""
-        prefix = self.name.split(":", 1)[0]
-        return PROCESS_OF_STATUS.get(prefix, prefix)
+        """The process the status is about (its name's prefix before ':', the node's name)."""
+        return self.name.split(":", 1)[0]
 
 
 @dataclass

@@ -56,8 +56,10 @@ class Recording:
     min_free: str | None = None
 
     def command(self) -> list[str]:
-        """``gnss_ins record -o OUTPUT --resume --max-bag-duration S ... TOPICS``."""
+        """``gnss_ins record -o OUTPUT --resume --max-bag-duration S --name recorder ...
+        TOPICS``."""
         options = ["-o", str(self.output), "--resume", "--max-bag-duration", str(self.split_s)]
+        options += ["--name", RECORDER]  # its status is the recorder's row, a hand-started one not
         options += ["--storage", self.storage]
         if self.min_free is not None:
             options += ["--min-free", self.min_free]

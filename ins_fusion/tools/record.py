@@ -21,6 +21,7 @@ from __future__ import annotations
 import argparse
 import math
 import multiprocessing
+import re
 import sys
 from pathlib import Path
 
@@ -30,6 +31,8 @@ from ins_fusion.bags.recording import free_space as read_free_space
 
 #: Exit code of a recording stopped (or not started) by the disk guard.
 EXIT_DISK_FULL = 3
+#: The recorder's node name unless --name gives one.
+DEFAULT_NAME = "gnss_ins_record"
 #: How long a message is held to be written in log-time order, and the longest time a written
 #: message waits to be flushed (s): a kill loses at most their sum.
 HOLD_S, FLUSH_PERIOD_S = 0.2, 0.4
@@ -41,6 +44,12 @@ def min_free_option(text: str) -> MinFree:
         return MinFree.parse(text)
     except ValueError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from exc
+
+
+def _node_name(text: str) -> str:
+    if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", text):
+        raise argparse.ArgumentTypeError(f"{text!r}: a ROS node name (letters, digits, _)")
+    return text
 
 
 def _seconds(text: str) -> float:
@@ -96,6 +105,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "this recording (needs --max-bag-duration or --max-bag-size) (default: stop)",
     )
     parser.add_argument(
+        "--name",
+        type=_node_name,
+        default=DEFAULT_NAME,
+        help="the recorder's ROS node name, which names its /diagnostics status "
+        f"('NAME: recording'; default {DEFAULT_NAME}; gnss_ins launch's is 'recorder')",
+    )
+    parser.add_argument(
         "--silence-warning",
         type=_seconds,
         default=5.0,
@@ -137,7 +153,9 @@ def run(args: argparse.Namespace) -> int:
     )
     from ins_fusion.tools.ros_record import record
 
-    lost, failure = record(recording, None if args.all else list(args.topics), args.silence_warning)
+    lost, failure = record(
+        recording, None if args.all else list(args.topics), args.silence_warning, args.name
+    )
     if failure is not None:
         print(
             f"gnss_ins record: error: writing {args.output} failed: {failure!r}; "

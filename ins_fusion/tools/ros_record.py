@@ -267,7 +267,7 @@ class Recorder:
         else:
             level, message = OK, "recording"
         status = make_status(
-            "gnss_ins_record: recording", str(self.writer.path), level, message, values
+            f"{self.node.get_name()}: recording", str(self.writer.path), level, message, values
         )
         array = DiagnosticArray(status=[status])
         array.header.stamp = self.node.get_clock().now().to_msg()
@@ -338,7 +338,7 @@ class Recorder:
 
 
 def record(
-    recording: RecordingWriter, topics: list[str] | None, silence_s: float
+    recording: RecordingWriter, topics: list[str] | None, silence_s: float, name: str
 ) -> tuple[Counter[str], Exception | None]:
     """Record into ``recording`` until Ctrl-C/SIGTERM or until its disk guard stops it (``topics``
     None: every topic) and close it; returns the messages lost in transport per topic and the
@@ -346,7 +346,7 @@ def record(
     # Own signal handlers (not rclpy's, which shut the context down at once) so that messages
     # already received are still taken and written after Ctrl-C.
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
-    node = rclpy.create_node("gnss_ins_record")
+    node = rclpy.create_node(name)
     executor = make_executor()
     executor.add_node(node)
     recorder = Recorder(node, recording, topics, silence_s)
