@@ -93,3 +93,38 @@ def test_an_unreadable_supervisor_file_changes_nothing(tmp_path: Path):
     health = healthy(1.0)
     health.read_supervisor(tmp_path)
     assert health.supervised == {} and health.view(1.0)["level"] == "OK"
+
+
+def test_a_restarted_process_never_shows_the_status_of_the_one_before(tmp_path: Path):
+    """The Leica node dies at 20 s with its last status OK (19.5 s): while it is down its row
+    says so, after launch restarts it (21 s) the old status is not shown as the new process's,
+    and the new one's first status (22 s) is."""
+    health = healthy(19.5)
+
+    def supervisor(running: bool, restarts: int, started_s: float) -> None:
+        write_supervisor_state(
+            tmp_path,
+            {
+                "leica_gnss": {
+                    "pid": 7,
+                    "restarts": restarts,
+                    "running": running,
+                    "started_s": started_s,
+                }
+            },
+        )
+        health.read_supervisor(tmp_path)
+
+    supervisor(True, 0, 1.0)
+    assert health.view(19.6)["processes"]["leica_gnss"]["level"] == "OK"
+    supervisor(False, 0, 1.0)  # died, not yet restarted
+    row = health.view(20.2)["processes"]["leica_gnss"]
+    assert (row["level"], row["message"]) == ("ERROR", "not running")
+    supervisor(True, 1, 21.0)
+    row = health.view(21.5)["processes"]["leica_gnss"]
+    assert (row["level"], row["restarts"]) == ("WARN", 1)
+    assert row["message"] == "restarted 0 s ago, no status since" and row["values"] == {}
+    assert health.view(21.0 + STALE_AFTER_S + 1)["processes"]["leica_gnss"]["level"] == "STALE"
+    health.add(status("leica_gnss: GNSS leica", OK, 22.0, last_fix_type="RTK_FIXED"))
+    row = health.view(22.1)["processes"]["leica_gnss"]
+    assert (row["level"], row["values"]) == ("OK", {"last_fix_type": "RTK_FIXED"})

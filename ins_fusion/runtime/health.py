@@ -133,6 +133,21 @@ class Health:
         status = self.latest.get(name)
         supervised = self.supervised.get(name, {})
         entry: dict[str, Any] = {"restarts": supervised.get("restarts")}
+        if supervised.get("running") is False:  # ended, launch restarts it (or gave up)
+            entry.update(level=LEVELS[ERROR], message="not running", age_s=None, values={})
+            return entry
+        started_s = supervised.get("started_s")
+        if (
+            status is not None
+            and isinstance(started_s, int | float)
+            and status.received_s < started_s
+        ):
+            # The process before the restart said it: nothing of the running one yet.
+            since_s = now_s - started_s
+            level = STALE if since_s > STALE_AFTER_S else WARN
+            message = f"restarted {since_s:.0f} s ago, no status since"
+            entry.update(level=LEVELS[level], message=message, age_s=None, values={})
+            return entry
         if status is None:
             entry.update(level=LEVELS[STALE], message="no status received", age_s=None, values={})
             return entry

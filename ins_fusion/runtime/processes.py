@@ -219,12 +219,14 @@ class ProcessGroup:
             log.write(f"=== {_utc_now()} {line}\n")
 
     def state(self) -> dict[str, dict[str, Any]]:
-        """Each process's pid, restarts and whether it runs (``supervisor.json``)."""
+        """Each process's pid, restarts, whether it runs and its last (re)start [``clock`` s]
+        (``supervisor.json``)."""
         return {
             name: {
                 "pid": child.process.pid,
                 "restarts": child.restarts,
                 "running": child.process.poll() is None,
+                "started_s": round(child.started_s, 3),
             }
             for name, child in self.children.items()
         }
