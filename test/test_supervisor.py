@@ -182,6 +182,14 @@ def test_stop_all_stops_everything_and_nothing_is_restarted_after_it(make_group,
     assert group.poll() == []
     assert {name: child.process for name, child in group.children.items()} == processes
     assert group.restarts() == {"first": 0, "second": 0, "stubborn": 0, "quitter": 0}
+    last = {name: group.log_path(name).read_text().splitlines()[-1] for name in processes}
+    stamp = r"^=== \d{4}-\d\d-\d\dT\d\d:\d\d:\d\dZ "
+    assert re.match(stamp + r"first stopped by the supervisor \(signal SIGINT\)", last["first"])
+    assert re.match(
+        stamp + r"stubborn killed \(no stop within 0.5 s\) by the supervisor \(signal SIGKILL\)",
+        last["stubborn"],
+    )
+    assert "quitter exited (code 3)" in last["quitter"]  # it had ended: nothing stopped
 
 
 def test_logs_are_appended_with_a_banner_at_each_start(make_group, tmp_path):
@@ -374,6 +382,7 @@ def test_launch_restarts_a_node_until_stopped(tmp_path, stand_ins, capsys):
     finally:
         timer.cancel()
     out = capsys.readouterr().out
+    assert out.splitlines()[-1].startswith("stopped; logs in ")  # Ctrl-C/SIGTERM: said
     assert re.search(r"leica_gnss exited \(code 3\) after [\d.]+ s; restart 1 in 0\.5 s", out)
     assert "leica_gnss restarted (pid " in out and "leica_gnss: [ERROR] no port" in out
     assert "stopped on its own" not in out

@@ -299,12 +299,21 @@ class ProcessGroup:
             process = child.process
             if process.poll() is None:
                 process.send_signal(signal.SIGINT)
+                how = "stopped"
                 try:
                     process.wait(timeout=self.stop_timeout_s)
                 except subprocess.TimeoutExpired:
                     print(f"{name} did not stop; killing it", flush=True)
                     process.kill()
                     process.wait()
+                    how = f"killed (no stop within {self.stop_timeout_s:g} s)"
+                ran_s = self.clock() - child.started_s
+                # The log's last line: how the run ended, as its banner says how it began.
+                self._note(
+                    name,
+                    f"{name} {how} by the supervisor ({describe_exit(process.returncode)})"
+                    f" after {ran_s:.1f} s",
+                )
         return failed
 
 

@@ -302,8 +302,10 @@ def run(args: argparse.Namespace) -> int:
             print(line, flush=True)
         ended = group.exited() if args.stop_on_failure else []
     finally:
+        print("stopping the processes (the last started first)", flush=True)
         group.stop_all()
         write_supervisor_state(log_dir, group.state())
+        print(f"stopped; logs in {log_dir}/", flush=True)
     for name in ended:
         print(f"gnss_ins launch: error: {name} stopped on its own; see {log_dir}/{name}.log")
     return 1 if ended else 0
