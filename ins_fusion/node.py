@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Mapping
 from typing import Any
 
 from geometry_msgs.msg import TwistWithCovarianceStamped
@@ -45,6 +46,7 @@ from gnss_ins_common.types import FloatArray
 from ins_fusion.adapters import cdr_fields, messages_in, tf_frames
 from ins_fusion.adapters.cdr_fields import CdrError
 from ins_fusion.adapters.cdr_out import OutputWriter
+from ins_fusion.adapters.position_use import PositionUse
 from ins_fusion.adapters.status_log import WARN, StatusLog
 from ins_fusion.core.engine.engine import InsEngine
 from ins_fusion.core.output.output_clock import OutputClock
@@ -94,6 +96,8 @@ class InsFusionNode(Node):
         # IMU stamp [s] from which the state is 'navigating' again after an outage; None: not
         # recovering (never degraded, or degraded now). -inf: navigating from the start.
         self._navigating_since_s: float | None = -math.inf
+        self._fixes_received = 0
+        self._position_use = PositionUse(time.monotonic())  # why degraded, in numbers
         self._status_log = StatusLog()  # what /diagnostics shows, on the console (rate-limited)
 
         sensor_qos = QoSProfile(depth=200, reliability=ReliabilityPolicy.BEST_EFFORT)
@@ -158,6 +162,7 @@ class InsFusionNode(Node):
         self._held.clear()
 
     def _on_fix(self, msg: NavSatFix) -> None:
+        self._fixes_received += 1
         self._take_held()
         self.engine.add_gnss_fix(messages_in.fix_measurement(msg))
 
@@ -207,6 +212,7 @@ class InsFusionNode(Node):
         watch.quiet_ticks += 1
         if watch.quiet_ticks >= 2 and not watch.silent:
             watch.silent = True
+            self._position_use.imu_gap(now)
             if self._imu_received:
                 self.get_logger().error(
                     f"no IMU message on imu/data_raw for {now - watch.last_change_s:.1f} s:"
@@ -234,29 +240,36 @@ class InsFusionNode(Node):
         self._imu_pub.publish(outputs.imu)
         self._published += 1
 
-    def _state_level(self, state: str, t_s: float | None) -> tuple[bytes, str]:
+    def _state_level(
+        self, state: str, t_s: float | None, positions: Mapping[str, int]
+    ) -> tuple[bytes, str]:
         """Level and message of the navigation state at IMU stamp ``t_s``. 'aligning' and
         'degraded' (no GNSS position used for degraded_after_s) are WARN, never ERROR: the
         outputs stay valid, with a covariance that grows honestly. After an outage the level
         returns to OK only once positions have kept the state 'navigating' for another
-        degraded_after_s, so sparse fixes in an outage do not flip it between OK and WARN."""
+        degraded_after_s, so sparse fixes in an outage do not flip it between OK and WARN.
+        ``positions``: the engine's gnss_position counters (why it is degraded)."""
+        use, now = self._position_use, time.monotonic()
+        use.update(positions, self._fixes_received, now)
         if state == "degraded":
             self._navigating_since_s = None
-            return diag.WARN, "degraded: no GNSS position used for too long"
+            return diag.WARN, use.degraded(positions, self._fixes_received, now)
         if state != "navigating":
             return diag.WARN, state
         if self._navigating_since_s is None and t_s is not None:
             self._navigating_since_s = t_s
         since = self._navigating_since_s
         if since is None or t_s is None or t_s - since < self._degraded_after_s:
-            return diag.WARN, "navigating again after a GNSS outage, not yet settled"
+            return diag.WARN, f"navigating again after {use.cause()}, not yet settled"
         return diag.OK, state
 
     def _publish_diagnostics(self) -> None:
         self._take_held()
         status = self.engine.status()
         solution = self.engine.solution()
-        level, message = self._state_level(status.state, solution.t_s if solution else None)
+        level, message = self._state_level(
+            status.state, solution.t_s if solution else None, status.measurements["gnss_position"]
+        )
         temperature_ok = self._temperature_ok(self._temperature_c)
         if status.last_reset_reason:
             message = f"{message}; last reset: {status.last_reset_reason}"
