@@ -262,7 +262,7 @@ class GnssNode(ManagedSerialDriver):
             level, message = problem
         elif not self.port_open:
             level, message = diag.ERROR, f"port closed: {link.last_error or 'opening'}"
-        elif rate < 0.5 * self._rate_hz:
+        elif self._rate.settled(now) and not 0.5 <= rate / self._rate_hz <= 1.5:
             level, message = diag.WARN, f"{rate:.1f} epochs/s, expected {self._rate_hz:g}"
         elif no_fix:
             level, message = diag.WARN, "no fix"

@@ -127,7 +127,8 @@ def test_fusion_level_is_stable_through_an_outage_with_sparse_fixes():
         timeline += [(33.0, "degraded"), (34.0, "navigating"), (38.0, "navigating")]
         timeline += [(40.0, "degraded"), (41.0, "navigating"), (45.0, "navigating")]
         timeline += [(46.5, "navigating")]
-        levels = [node._state_level(state, t)[0] for t, state in timeline]
+        positions = {"used": 0, "rejected": 0, "gated": 0, "too_old": 0}
+        levels = [node._state_level(state, t, positions)[0] for t, state in timeline]
     finally:
         node.destroy_node()
     ok, warn = DiagnosticStatus.OK, DiagnosticStatus.WARN
