@@ -269,3 +269,57 @@ def test_killed_record_is_recovered_up_to_the_last_second(tmp_path: Path, storag
     assert stamps == sent_ns[: len(stamps)]  # in order, none missing
     print(f"{storage}: {(killed_ns - stamps[-1]) / 1e9:.3f} s before the kill lost")
     assert len(stamps) >= sum(t <= killed_ns - 10**9 for t in sent_ns)  # all but the last 1 s
+
+
+def test_a_topic_is_silent_after_its_messages_stop_and_before_its_first_only_much_later(
+    tmp_path: Path,
+):
+    """--silence-warning 0.5: a topic whose messages stopped is called silent within ~1 s; one
+    that has a publisher but no message yet (the fusion's outputs while it aligns) only after
+    12 x 0.5 s, and then as "no message yet"."""
+    from diagnostic_msgs.msg import DiagnosticArray
+    from std_msgs.msg import String
+
+    node = rclpy.create_node("test_silences")
+    collector = Collector({"/diagnostics": DiagnosticArray})
+    stops = node.create_publisher(String, "/test/stops", 10)
+    node.create_publisher(String, "/test/quiet", 10)  # never publishes
+
+    def silent_since(start: float) -> list[tuple[float, str]]:
+        return [
+            (at, status.message)
+            for at, array in zip(
+                collector.receive_times["/diagnostics"], collector.get("/diagnostics"), strict=True
+            )
+            for status in array.status
+            if at >= start and status.name.startswith("gnss_ins_record")
+            and status.message.startswith("silent")
+        ]  # fmt: skip
+
+    recorder = gnss_ins(
+        "record", "-o", str(tmp_path / "bag"), "--silence-warning", "0.5", "/test/stops",
+        "/test/quiet",
+    )  # fmt: skip
+    try:
+        with spinning(collector.node):
+            assert wait_for(lambda: stops.get_subscription_count() > 0, 20.0)
+            start = time.time()
+            for _ in range(10):
+                stops.publish(String(data="x"))
+                time.sleep(0.05)
+            stopped = time.time()
+            assert wait_for(lambda: silent_since(stopped), 5.0)
+            at, message = silent_since(stopped)[0]
+            assert message == "silent: /test/stops" and at - stopped < 2.0
+            assert wait_for(lambda: any("quiet" in m for _, m in silent_since(start)), 15.0)
+            first_quiet = min(at for at, m in silent_since(start) if "quiet" in m)
+            assert first_quiet - start >= 12 * 0.5 - 1.0  # subscribed at most ~1 s before start
+        recorder.send_signal(signal.SIGINT)
+        _out, err = recorder.communicate(timeout=60)
+    finally:
+        if recorder.poll() is None:
+            recorder.kill()
+        node.destroy_node()
+        collector.node.destroy_node()
+    assert "/test/stops silent for" in err and "although it has a publisher" in err
+    assert "/test/quiet: no message yet" in err and "/test/quiet silent for" not in err

@@ -14,9 +14,10 @@ fails on callbacks that ask for the message info with the middleware's reception
 log-time order, flushed on a bounded interval, the disk's free space guarded; a process killed
 otherwise (SIGKILL, power cut) leaves all but its last fraction of a second on disk.
 
-The node also watches its topics (a topic silent for ``silence_s`` while it has a publisher, a
-topic whose publishers all left: a warning in its log, which ``gnss_ins launch`` shows) and
-publishes its state on /diagnostics every DIAGNOSTICS_PERIOD_S.
+The node also watches its topics (a topic silent for ``silence_s`` while it has a publisher, or
+without a first message for FIRST_MESSAGE_FACTOR times that, a topic whose publishers all
+left: a warning in its log, which ``gnss_ins launch`` shows) and publishes its state on
+/diagnostics every DIAGNOSTICS_PERIOD_S.
 """
 
 from __future__ import annotations
@@ -60,6 +61,10 @@ SUBSCRIPTION_DEPTH = 1000
 SPIN_PERIOD_S = 0.1
 #: How often the writer thread takes the queued messages (s): one wake-up for all of them.
 WRITE_PERIOD_S = 0.05
+#: How many times ``silence_s`` a subscribed topic may go without its first message before it
+#: counts as silent: 60 s by default (the fusion's outputs start when it has aligned, 15-40 s on
+#: a vehicle at rest).
+FIRST_MESSAGE_FACTOR = 12
 #: Spins in a row that take no message before the recorder stops taking them after a stop.
 DRAIN_IDLE_SPINS = 3
 #: Longest wait for the subscribers of /diagnostics to take the ERROR status of a recorder
@@ -234,12 +239,18 @@ class Recorder:
             if publishers == 0 and watch.had_publishers:
                 logger.warning(f"{topic}: no publisher any more (its node stopped?)")
             watch.had_publishers = publishers > 0
-            if publishers and now - watch.last > self.silence_s:
+            # A topic that has not carried a message yet gets longer: an output that starts
+            # later by design (the fusion's while it aligns) is not silent.
+            allowed_s = self.silence_s * (1 if watch.count else FIRST_MESSAGE_FACTOR)
+            if publishers and now - watch.last > allowed_s:
                 silent.append(topic)
                 if not watch.silent_warned:
                     watch.silent_warned = True
                     logger.warning(
                         f"{topic} silent for {now - watch.last:.1f} s although it has a publisher"
+                        if watch.count
+                        else f"{topic}: no message yet, {now - watch.last:.1f} s after its"
+                        " subscription"
                     )
         self._diagnostics.publish(self._status(now, silent))
 
