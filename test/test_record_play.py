@@ -7,6 +7,7 @@ publishes the bag to a collector and a use_sim_time node in the test process.
 
 from __future__ import annotations
 
+import re
 import signal
 import subprocess
 import sys
@@ -167,7 +168,8 @@ def test_record_stop_and_play_back(tmp_path: Path, storage: str, signum: int, op
             recorder.kill()
         node.destroy_node()
 
-    assert "lost in transport (reported by the middleware): none" in out
+    assert "lost in transport once subscribed (reported by the middleware): none" in out
+    assert re.search(r"topics subscribed [\d.-]+ s after the start: messages published", out)
     with BagReader(bag) as reader:
         topics = reader.topics
         recorded = {t: list(reader.messages([t])) for t in ("/test/imu", "/test/fix")}

@@ -153,7 +153,7 @@ def run(args: argparse.Namespace) -> int:
     )
     from ins_fusion.tools.ros_record import record
 
-    lost, failure = record(
+    lost, failure, subscribed_s = record(
         recording, None if args.all else list(args.topics), args.silence_warning, args.name
     )
     if failure is not None:
@@ -166,7 +166,14 @@ def run(args: argparse.Namespace) -> int:
     title = f"bag {args.output} ({args.storage}, files: {len(writer.files)})"
     print(writer.summary.format(title + (" (this run)" if args.resume else "")))
     lost_text = ", ".join(f"{t} {n}" for t, n in sorted(lost.items()) if n) or "none"
-    print(f"  lost in transport (reported by the middleware): {lost_text}")
+    if subscribed_s:
+        first, last = min(subscribed_s.values()), max(subscribed_s.values())
+        span = f"{first:.1f} s" if last - first < 0.05 else f"{first:.1f}-{last:.1f} s"
+        print(
+            f"  topics subscribed {span} after the start: messages published before are not"
+            " in the bag (a latched topic's history excepted)"
+        )
+    print(f"  lost in transport once subscribed (reported by the middleware): {lost_text}")
     print(f"  received later than {HOLD_S} s after a later message: {recording.late}")
     for path in recording.deleted:
         print(f"  deleted by the disk guard: {path.name}")

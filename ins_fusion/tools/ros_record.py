@@ -154,6 +154,9 @@ class Recorder:
         self.received = 0
         self.lost: Counter[str] = Counter()
         self.error: BaseException | None = None
+        #: topic -> when it was subscribed [s after the start]
+        self.subscribed_s: dict[str, float] = {}
+        self._started = time.monotonic()
         self.stop = threading.Event()
         self._subscriptions: dict[str, Any] = {}
         self._watch: dict[str, _Watch] = {}
@@ -203,6 +206,7 @@ class Recorder:
             offered = [p.qos_profile for p in publishers]
             self._queue.put(_Declare(topic, msgtype, [qos_to_rosbags(p) for p in offered]))
             self._watch[topic] = _Watch()
+            self.subscribed_s[topic] = time.monotonic() - self._started
             self._subscriptions[topic] = self.node.create_subscription(
                 msg_class,
                 topic,
@@ -348,12 +352,20 @@ class Recorder:
             raise self.error
 
 
+class Recorded(NamedTuple):
+    """What ``record`` reports: messages lost in transport per topic, the writer thread's error
+    (None: written), and when each topic was subscribed [s after the recorder started]."""
+
+    lost: Counter[str]
+    failure: Exception | None
+    subscribed_s: dict[str, float]
+
+
 def record(
     recording: RecordingWriter, topics: list[str] | None, silence_s: float, name: str
-) -> tuple[Counter[str], Exception | None]:
+) -> Recorded:
     """Record into ``recording`` until Ctrl-C/SIGTERM or until its disk guard stops it (``topics``
-    None: every topic) and close it; returns the messages lost in transport per topic and the
-    error of the writer thread (disk full, ...) if writing failed."""
+    None: every topic) and close it (see ``Recorded``)."""
     # Own signal handlers (not rclpy's, which shut the context down at once) so that messages
     # already received are still taken and written after Ctrl-C.
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
@@ -377,4 +389,4 @@ def record(
             recorder.close()
         except Exception as exc:  # raised on the writer thread
             failure = exc
-    return recorder.lost, failure
+    return Recorded(recorder.lost, failure, recorder.subscribed_s)
