@@ -303,15 +303,17 @@ class Recorder:
                 self.recording.receive(item.topic, item.receive_ns, item.data)
 
     def _write_loop(self) -> None:
-        """Every WRITE_PERIOD_S (or sooner when the recording needs it) hand the queued items
-        to the recording, until the None sentinel; then close it — all on this thread (the
-        storage, e.g. a sqlite3 connection, belongs to the thread that opened it)."""
+        """Every WRITE_PERIOD_S hand the queued items to the recording and let it write, flush
+        and check the disk when due, until the None sentinel; then close it — all on this
+        thread (the storage, e.g. a sqlite3 connection, belongs to the thread that opened it)."""
         try:
-            timeout = self.recording.service()
+            self.recording.service()
             while True:
-                self._closing.wait(max(timeout, WRITE_PERIOD_S))
+                # Never longer: a message that came after a silence must not wait for the
+                # recording's next deadline (a disk check, 1 s) before its hold even starts.
+                self._closing.wait(WRITE_PERIOD_S)
                 going_on = self._take_queue()
-                timeout = self.recording.service()
+                self.recording.service()
                 if self.recording.stopped is not None:
                     self.stop.set()
                 if not going_on:
