@@ -18,7 +18,8 @@ RATE_WINDOW_S: Final = 5.0
 
 
 class RateMeter:
-    """Messages per second over the last ``window_s`` of readings of a running count."""
+    """Messages per second over the last ``window_s`` of readings of a running count (0: since
+    the previous reading)."""
 
     def __init__(self, now_s: float, window_s: float = RATE_WINDOW_S) -> None:
         """Start counting at ``now_s`` [s] (any steady clock) from a count of 0."""

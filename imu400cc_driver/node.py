@@ -65,7 +65,9 @@ class Imu400ccNode(ManagedSerialDriver):
                 f"axis_map {p['axis_map']} is a mirror image (left-handed): check the mounting"
             )
         self._frame_id = p["frame_id"]
-        self._rate = RateMeter(time.monotonic())
+        # Since the last status: at 134 Hz one period is enough, and a rate back to normal
+        # shows at once after a gap (a window would keep it low for its length).
+        self._rate = RateMeter(time.monotonic(), window_s=0.0)
         self._serial_number: int | None = None
         self._opened = False  # the port was opened before (the driver then starts anew)
 

@@ -29,3 +29,10 @@ def test_a_steady_rate_is_measured_exactly(rate_hz: float, period_s: float):
         now = k * period_s
         measured = meter.rate_hz(round(rate_hz * now * 1000), now)
         assert abs(measured - rate_hz * 1000) <= 1.0 / min(now, RATE_WINDOW_S) + 1e-6 * rate_hz
+
+
+def test_a_zero_window_is_the_rate_since_the_previous_reading():
+    meter = RateMeter(0.0, window_s=0.0)
+    assert meter.rate_hz(100, 1.0) == 100.0
+    assert meter.rate_hz(100, 2.0) == 0.0  # a gap shows at once
+    assert meter.rate_hz(234, 3.0) == 134.0  # and so does the return
