@@ -95,17 +95,25 @@ def recorder_errors(collector: Collector) -> list[str]:
     ]
 
 
+def record_until_it_stops(bag: Path, *options: str) -> tuple[int, str, str]:
+    """A recorder that stops on its own: its exit code, its stderr and the last ERROR status it
+    sent on /diagnostics (waited for: it must come before the exit)."""
+    collector = Collector({"/diagnostics": DiagnosticArray})
+    try:
+        with spinning(collector.node):
+            recorder = record(bag, *options)
+            _out, err = recorder.communicate(timeout=60)
+            assert wait_for(lambda: recorder_errors(collector), 5.0)
+    finally:
+        collector.node.destroy_node()
+    return recorder.returncode, err, recorder_errors(collector)[-1]
+
+
 def test_guard_stops_before_the_disk_is_full_with_a_complete_bag(small_disk, publisher):
     """... and says why on /diagnostics before it exits."""
-    collector = Collector({"/diagnostics": DiagnosticArray})
-    with spinning(collector.node):
-        recorder = record(small_disk / "bag", "--min-free", "1M")
-        _out, err = recorder.communicate(timeout=60)
-        assert wait_for(lambda: recorder_errors(collector), 5.0)
-    collector.node.destroy_node()
-    assert recorder.returncode == 3, err
+    returncode, err, error = record_until_it_stops(small_disk / "bag", "--min-free", "1M")
+    assert returncode == 3, err
     assert "disk space low" in err and "recording stopped" in err
-    error = recorder_errors(collector)[-1]  # the last status, sent before the exit
     assert error.startswith("free disk space") and "recording stopped" in error
     got = numbers(small_disk / "bag")  # metadata.yaml written: no recover needed
     assert len(got) > 100 and got == list(range(got[0], got[0] + len(got)))
@@ -136,15 +144,9 @@ def test_rotation_keeps_recording_and_deletes_the_oldest_files(small_disk, publi
 def test_without_the_guard_a_full_disk_leaves_a_bag_that_recover_restores(
     small_disk, publisher, tmp_path
 ):
-    collector = Collector({"/diagnostics": DiagnosticArray})
-    with spinning(collector.node):
-        recorder = record(small_disk / "bag", "--min-free", "0")
-        _out, err = recorder.communicate(timeout=60)
-        assert wait_for(lambda: recorder_errors(collector), 5.0)
-    collector.node.destroy_node()
-    assert recorder.returncode == 1, err
+    returncode, err, error = record_until_it_stops(small_disk / "bag", "--min-free", "0")
+    assert returncode == 1, err
     assert "No space left on device" in err and "gnss_ins recover" in err
-    error = recorder_errors(collector)[-1]
     assert error.startswith("writing failed") and "No space left on device" in error
     assert not (small_disk / "bag" / "metadata.yaml").exists()
     assert main(["recover", str(small_disk / "bag"), "-o", str(tmp_path / "recovered")]) == 0
