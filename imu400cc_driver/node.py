@@ -44,7 +44,7 @@ PARAMETERS = (*DRIVER_PARAMETERS, AUTOSTART)
 
 
 #: imu/raw messages kept for a late subscriber (a recorder that matched after the first reads):
-#: 15 s of reads at RAW_PERIOD_S a message, and the port events among them.
+#: ~20 s of reads at RAW_PERIOD_S a message, and the port events among them.
 RAW_HISTORY = 200
 
 
@@ -86,8 +86,7 @@ class Imu400ccNode(ManagedSerialDriver):
             RawPublisher(endpoints, "imu/raw", self._frame_id, raw_qos) if p["raw_output"] else None
         )
         if self._raw is not None:  # the last reads before a silence: published all the same
-            raw = self._raw
-            self.create_timer(RAW_PERIOD_S, lambda: raw.flush(stamp_ns(node_time_s(self))))
+            self.create_timer(RAW_PERIOD_S, diag.guarded(self, self._flush_raw))
         self._diagnostics = diag.DiagnosticsPublisher(self, endpoints)
         self.create_timer(p["diagnostics_period"], diag.guarded(self, self._publish_diagnostics))
         if not config.continuous:
@@ -152,6 +151,11 @@ class Imu400ccNode(ManagedSerialDriver):
             self._temp_pub.publish(temperature)
 
     # ---- executor side ----------------------------------------------------------------------
+    def _flush_raw(self) -> None:
+        """Publish the imu/raw reads held once they are due."""
+        if self._raw is not None:
+            self._raw.flush(stamp_ns(node_time_s(self)))
+
     def _poll(self) -> None:
         link = self.link
         if link is not None:

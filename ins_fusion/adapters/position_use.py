@@ -20,19 +20,17 @@ class PositionUse:
     """The node's record of the last GNSS position the engine used (monotonic seconds)."""
 
     def __init__(self, now_s: float) -> None:
-        self._used = 0
+        self._at_use: dict[str, int] = {}  # the counters when the last position was used
         self._used_at_s = now_s
         self._fixes_at_use = 0
-        self._rejected_at_use: dict[str, int] = {}
         self._imu_gap_at_s: float | None = None
 
     def update(self, counters: Mapping[str, int], fixes_received: int, now_s: float) -> None:
         """The engine's ``gnss_position`` counters and the fixes the node received so far."""
-        if counters.get("used", 0) != self._used:
-            self._used = counters.get("used", 0)
+        if counters.get("used", 0) != self._at_use.get("used", 0):
+            self._at_use = dict(counters)
             self._used_at_s = now_s
             self._fixes_at_use = fixes_received
-            self._rejected_at_use = dict(counters)
 
     def imu_gap(self, now_s: float) -> None:
         """The IMU fell silent at ``now_s``."""
@@ -54,14 +52,19 @@ class PositionUse:
         elif fixes <= 0:
             why = "no GNSS fix received"
         else:
-            new = {k: counters.get(k, 0) - self._rejected_at_use.get(k, 0) for k in counters}
-            other = new.get("rejected", 0) - new.get("gated", 0) - new.get("too_old", 0)
-            refused = [
-                f"{new.get('gated', 0)} gated by the innovation test" if new.get("gated") else "",
-                f"{new.get('too_old', 0)} too old" if new.get("too_old") else "",
-                f"{other} refused (fix type, covariance)" if other > 0 else "",
-            ]
-            why = f"{fixes} fixes received: " + (
-                ", ".join(r for r in refused if r) or "none taken yet"
+            gated, too_old, rejected = (
+                counters.get(k, 0) - self._at_use.get(k, 0)
+                for k in ("gated", "too_old", "rejected")
             )
+            other = rejected - gated - too_old  # fix type, covariance
+            refused = [
+                text
+                for count, text in (
+                    (gated, f"{gated} gated by the innovation test"),
+                    (too_old, f"{too_old} too old"),
+                    (other, f"{other} refused (fix type, covariance)"),
+                )
+                if count > 0
+            ]
+            why = f"{fixes} fixes received: " + (", ".join(refused) or "none taken yet")
         return f"degraded: no GNSS position used for {since_s:.0f} s ({why})"

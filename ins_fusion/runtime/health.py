@@ -19,6 +19,8 @@ from typing import Any
 
 from ins_fusion.runtime.processes import gnss_ins_command
 
+#: The values a recorder's row shows (the vehicle's and one started by hand).
+RECORDER_VALUES = ("bag", "files", "messages", "free_bytes", "min_free_bytes")
 #: Levels of diagnostic_msgs/DiagnosticStatus, in order of severity.
 LEVELS = ("OK", "WARN", "ERROR", "STALE")
 OK, WARN, ERROR, STALE = range(4)
@@ -59,9 +61,9 @@ SHOWN: dict[str, tuple[str, ...]] = {
         "resets",
         "outputs_invalid",
     ),
-    "recorder": ("bag", "files", "messages", "free_bytes", "min_free_bytes"),
+    "recorder": RECORDER_VALUES,
     # a `gnss_ins record` started by hand beside the vehicle's: a row of its own
-    "gnss_ins_record": ("bag", "files", "messages", "free_bytes", "min_free_bytes"),
+    "gnss_ins_record": RECORDER_VALUES,
     "ntrip_client": (
         "caster_state",
         "http_status",
