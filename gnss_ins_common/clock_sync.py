@@ -14,11 +14,18 @@ explains the method for users.
 Why the hull is written here: scipy.spatial.ConvexHull (Qhull) is batch-only, so every sample
 would cost O(n log n) for the ~8000 points of a 60 s IMU window; no installed library keeps a
 sliding-window hull. The window is a queue of two monotone chains (Andrew 1979): new points are
-pushed on the back chain; the front chain is the back chain's points re-pushed from newest to
-oldest over mirrored sensor times, logging what each push removed, so that dropping the oldest
-point is undoing the front chain's last push. Each point is pushed twice and undone once:
-amortised O(1) per sample. The line is then the lower bridge between the two chains (a short
-walk) or an edge of one of them (a bisection).
+pushed on the back chain; the front chain holds the older points pushed from newest to oldest
+over mirrored sensor times, logging what each push removed, so that dropping the oldest point is
+undoing the front chain's last push. The line is then the lower bridge between the two chains (a
+short walk) or an edge of one of them (a bisection).
+
+The next front chain is built a few points per update while the current one still serves (a
+de-amortised two-stack queue: rebuilding all ~8000 points at once took 7-33 ms of the serial
+reader's time once a minute): when the back holds as many points as the front, the whole window
+is taken as a snapshot and pushed into a new front chain, ``REBUILD_STEPS`` points per update,
+while new points go on both the current back chain and a fresh one; when the new front is done it
+replaces the front and the fresh chain the back. Each point is pushed about three times and
+undone once: O(1) per sample, in the worst case too.
 """
 
 from __future__ import annotations
@@ -99,15 +106,9 @@ class _Moments:
     """Count, means and co-moments of the window's points (Welford's update; removal reverses
     it), for the mean sensor time and the delay statistics without cancellation."""
 
-    def __init__(self, points: Collection[_Point] = ()) -> None:
-        """Exact (two-pass) moments of ``points``."""
-        self.n = len(points)
-        self.mean_x = math.fsum(p[0] for p in points) / max(self.n, 1)
-        self.mean_y = math.fsum(p[1] for p in points) / max(self.n, 1)
-        dxy = [(p[0] - self.mean_x, p[1] - self.mean_y) for p in points]
-        self.cxx = math.fsum(dx * dx for dx, _ in dxy)
-        self.cxy = math.fsum(dx * dy for dx, dy in dxy)
-        self.cyy = math.fsum(dy * dy for _, dy in dxy)
+    def __init__(self) -> None:
+        self.n = 0
+        self.mean_x = self.mean_y = self.cxx = self.cxy = self.cyy = 0.0
 
     def add(self, p: _Point) -> None:
         self.n += 1
@@ -130,11 +131,73 @@ class _Moments:
         self.cxy -= dx * (p[1] - self.mean_y)
         self.cyy -= dy * (p[1] - self.mean_y)
 
+    def merged(self, other: _Moments) -> _Moments:
+        """The moments of both point sets together (Chan, Golub & LeVeque's pairwise update)."""
+        both = _Moments()
+        both.n = self.n + other.n
+        if both.n == 0:
+            return both
+        dx, dy = other.mean_x - self.mean_x, other.mean_y - self.mean_y
+        share, weight = other.n / both.n, self.n * other.n / both.n
+        both.mean_x = self.mean_x + dx * share
+        both.mean_y = self.mean_y + dy * share
+        both.cxx = self.cxx + other.cxx + dx * dx * weight
+        both.cxy = self.cxy + other.cxy + dx * dy * weight
+        both.cyy = self.cyy + other.cyy + dy * dy * weight
+        return both
+
     def residuals(self, p: _Point, slope: float) -> tuple[float, float]:
         """Mean and RMS of y above the line through ``p`` with ``slope``."""
         mean = self.mean_y - p[1] - slope * (self.mean_x - p[0])
         variance = (self.cyy - 2.0 * slope * self.cxy + slope * slope * self.cxx) / self.n
         return mean, math.sqrt(max(mean * mean + variance, 0.0))
+
+
+#: Points pushed into the next front chain per update while it is being built: it is started
+#: when the back holds at least as many points as the front (half the window), and at one expiry
+#: per update it is done after a fifth of the window's updates, well before the front runs out.
+REBUILD_STEPS = 4
+
+
+class _FrontRebuild:
+    """The next front chain, built from a snapshot of the window a few points per update, and
+    the fresh back chain of the points that arrive meanwhile."""
+
+    def __init__(self, window: Collection[_Point], first: int) -> None:
+        """``window``: every point of the window, oldest first; ``first``: how many points had
+        left the window before the oldest of them."""
+        self.snapshot = list(window)
+        self.first = first
+        self.todo = len(self.snapshot)  # snapshot[:todo] not pushed yet (pushed newest first)
+        self.front = _LowerChain()
+        self.front_hidden: deque[tuple[_Point, ...]] = deque()
+        self.front_moments = _Moments()
+        self.back = _LowerChain()
+        self.back_moments = _Moments()
+
+    def add(self, p: _Point) -> None:
+        """A point newer than the snapshot."""
+        self.back.push(p)
+        self.back_moments.add(p)
+
+    def step(self, count: int, expired: int) -> bool:
+        """Push up to ``count`` more snapshot points, none of the ``expired`` oldest; True when
+        every snapshot point still in the window is pushed."""
+        for _ in range(max(min(count, self.todo - expired), 0)):
+            self.todo -= 1
+            p = self.snapshot[self.todo]
+            self.front_hidden.appendleft(self.front.push(_mirror(p)))
+            self.front_moments.add(p)
+        return self.todo <= expired
+
+    def finish(self, expired: int) -> None:
+        """Push the rest and take back the pushes of points that have left the window since
+        (the oldest were pushed last, so they are undone in the order pushes are undone)."""
+        self.step(self.todo, expired)
+        for p in self.snapshot[self.todo : expired]:
+            self.front.undo(self.front_hidden.popleft())
+            self.front_moments.remove(p)
+        self.todo = max(self.todo, expired)
 
 
 class _Fit(NamedTuple):
@@ -188,6 +251,8 @@ class EnvelopeClockSync:
         self._front_hidden: deque[tuple[_Point, ...]] = deque()  # per front point, its push log
         self._back = _LowerChain()  # the newest part of the window
         self._moments = _Moments()
+        self._expired = 0  # points that have left the window since the last reset
+        self._rebuild: _FrontRebuild | None = None  # the next front chain, while it is built
         self._last_sensor_s = -math.inf
         self._fit: _Fit | None = None
 
@@ -209,6 +274,7 @@ class EnvelopeClockSync:
         self._window.append(p)
         self._back.push(p)
         self._moments.add(p)
+        self._build_front(p)
         self._fit = self._compute_fit()
 
     def reset(self) -> None:
@@ -218,19 +284,35 @@ class EnvelopeClockSync:
 
     def _expire_before(self, x_min: float) -> None:
         while self._window and self._window[0][0] < x_min:
-            if not self._front_hidden:
-                self._refill_front()
+            if not self._front_hidden:  # only after an irregular stretch: the rebuild was late
+                self._replace_front()
             self._front.undo(self._front_hidden.popleft())
             self._moments.remove(self._window.popleft())
+            self._expired += 1
 
-    def _refill_front(self) -> None:
-        """Move every point into the front chain (once per window span: amortised O(1)), and
-        recompute the moments so that rounding cannot build up over hours."""
-        self._front = _LowerChain()
-        for p in reversed(self._window):
-            self._front_hidden.appendleft(self._front.push(_mirror(p)))
-        self._back = _LowerChain()
-        self._moments = _Moments(self._window)
+    def _build_front(self, p: _Point) -> None:
+        """After ``p`` joined the window: the next front chain a few points further, started
+        when the back holds as many points as the front, and put in place when done."""
+        rebuild = self._rebuild
+        if rebuild is not None:
+            rebuild.add(p)
+        elif len(self._window) >= 2 * len(self._front_hidden):
+            rebuild = self._rebuild = _FrontRebuild(self._window, self._expired)
+        else:
+            return
+        if rebuild.step(REBUILD_STEPS, self._expired - rebuild.first):
+            self._replace_front()
+
+    def _replace_front(self) -> None:
+        """Put the next front chain in place (the whole window's when none is being built),
+        finished now if it is not yet; the moments start again from the two chains' own sums,
+        so that rounding cannot build up over hours."""
+        rebuild = self._rebuild or _FrontRebuild(self._window, self._expired)
+        rebuild.finish(self._expired - rebuild.first)
+        self._front, self._front_hidden = rebuild.front, rebuild.front_hidden
+        self._back = rebuild.back
+        self._moments = rebuild.front_moments.merged(rebuild.back_moments)
+        self._rebuild = None
 
     # ---- the line --------------------------------------------------------------------------
     def _support_at_mean(self) -> tuple[_Point, float]:
@@ -239,9 +321,11 @@ class EnvelopeClockSync:
         if len(self._window) < max(self.min_points, 2):  # the lowest point is a hull vertex
             return min(chain(map(_mirror, self._front.vertices), self._back.vertices), key=_y), 0.0
         x_mean = self._moments.mean_x
-        front, back = self._front.vertices, self._back.vertices  # back holds the newest point
+        front, back = self._front.vertices, self._back.vertices  # one of them may be empty
         if not front:
             p, q = _edge_at(back, x_mean, 0)
+        elif not back:
+            q, p = map(_mirror, _edge_at(front, -x_mean, 0))
         else:
             i, j = _bridge(front, back)
             p, q = _mirror(front[i]), back[j]

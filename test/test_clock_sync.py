@@ -13,6 +13,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from gnss_ins_common import clock_sync
 from gnss_ins_common.clock_sync import EnvelopeClockSync
 from gnss_ins_common.rates import IMU400CC_RATE_HZ
 from imu400cc_driver.device_clock import COUNTS_PER_PACKET, NOMINAL_TICK_S, PACKET_TRANSMISSION_S
@@ -182,6 +183,35 @@ def test_rejects_non_finite_input(bad):
 
 
 # ---- invariants ----------------------------------------------------------------------------
+def test_no_update_rebuilds_the_window(monkeypatch):
+    """The hull's front chain is rebuilt a few points per update: over three 60 s windows of a
+    134 Hz stream no update pushes more than the rebuild's steps, the new point on the back and
+    on the next back (the whole window was once pushed in one update: 7-33 ms of the serial
+    reader's time a minute), and the line is still the window's lowest support."""
+    pushes = [0]
+    push = clock_sync._LowerChain.push
+
+    def counted(chain: clock_sync._LowerChain, p: tuple[float, float]) -> tuple:
+        pushes[0] += 1
+        return push(chain, p)
+
+    monkeypatch.setattr(clock_sync._LowerChain, "push", counted)
+    stream = simulate(200.0, 100.0, seed=3)
+    sync = EnvelopeClockSync(window_s=60.0)
+    host = stream.receive_s - PACKET_TRANSMISSION_S
+    most = 0
+    for device, received in zip(stream.device_s.tolist(), host.tolist(), strict=True):
+        pushes[0] = 0
+        sync.update(device, received)
+        most = max(most, pushes[0])
+    assert most <= clock_sync.REBUILD_STEPS + 2
+    inside = stream.device_s >= stream.device_s[-1] - 60.0
+    x, d = stream.device_s[inside], host[inside] - stream.device_s[inside]
+    line = np.array([sync.to_host(s) for s in x.tolist()]) - x
+    assert np.all(line <= d + 1e-9) and sync.points == x.size
+    assert sync.mean_delay_s == pytest.approx(float(np.mean(d - line)), abs=1e-9)
+
+
 def _best_supporting_value(x: np.ndarray, d: np.ndarray, x_at: float) -> float:
     """Brute force: the highest value at ``x_at`` of a line through two points below all."""
     i, j = np.triu_indices(x.size, 1)

@@ -57,9 +57,8 @@ TOPICS = {"/imu/data_raw": Imu, "/ins/odometry": Odometry}
 #: Not the issue's 40 ms (two odometry periods), which bench/bench_latency.py --disturb measures
 #: on a quiet machine: this test runs beside the rest of the suite on 2 cores, where CPU
 #: contention alone delayed the nodes' publications by 45-57 ms (3 of 3 runs with two busy
-#: processes beside it), and the IMU node's clock model rebuilds its window once a minute
-#: (EnvelopeClockSync._refill_front, ~33 ms); a join over UDP was once seen to delay a
-#: publication by ~190 ms on a quiet machine.
+#: processes beside it); a join over UDP was once seen to delay a publication by ~190 ms on a
+#: quiet machine.
 LONGEST_GAP_MS = 250.0
 #: A bare rclpy process that joins the domain, spins until its first IMU message (at most 20 s)
 #: and then 2 s more, and prints the number of IMU messages it got.
