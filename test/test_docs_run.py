@@ -6,10 +6,11 @@ rules and rewrites the examples). Blocks not meant to run are marked with their 
 from __future__ import annotations
 
 import re
+import subprocess
 from pathlib import Path
 
 import pytest
-from docs_pages import PAGES, Session, blocks, differences
+from docs_pages import PAGES, REPO, Session, blocks, differences
 
 # Real nodes run in the README's blocks: in the session of the real-time tests.
 pytestmark = pytest.mark.ros
@@ -49,12 +50,34 @@ def run_page(page: Path, scratch: Path, text: str | None = None) -> list[str]:
 
 
 RUN_PAGES = [p for p in PAGES if any(b.kind in ("run", "example") for b in blocks(p))]
+#: What the session puts in a scratch directory itself.
+SESSION_ENTRIES = {"config", "test", ".venv", ".docs_test_env"}
+
+
+def not_ignored(scratch: Path) -> list[str]:
+    """The blocks' outputs at the top of ``scratch`` that the repository's .gitignore does
+    not cover (a reader running the page from the repository root would see them untracked)."""
+    names = sorted(
+        f"{p.name}/" if p.is_dir() else p.name
+        for p in scratch.iterdir()
+        if p.name not in SESSION_ENTRIES
+    )
+    ignored = subprocess.run(
+        ["git", "check-ignore", "--no-index", "--stdin"],
+        cwd=REPO,
+        input="\n".join(names),
+        capture_output=True,
+        text=True,
+    ).stdout.split()
+    return [name for name in names if name not in ignored]
 
 
 @pytest.mark.parametrize("page", RUN_PAGES, ids=lambda p: p.name)
 def test_the_page_runs_and_its_examples_are_current(page: Path, tmp_path: Path) -> None:
     failures = run_page(page, tmp_path)
     assert not failures, "\n".join(failures)
+    if page.name == "README.md":  # a newcomer's first commands leave the clone clean
+        assert not not_ignored(tmp_path), f"outputs git does not ignore: {not_ignored(tmp_path)}"
 
 
 BAGS = Path(__file__).resolve().parents[1] / "docs" / "bags.md"
