@@ -40,6 +40,8 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "install-service": ("install_service", "start the vehicle daemon at boot (a systemd unit)"),
     "list-devices": ("list_devices", "serial adapters with their stable /dev/serial/by-id names"),
     "status": ("status", "the vehicle's health on one screen (or --json), from /diagnostics"),
+    "topics": ("topics", "the topics on the ROS domain: type, publishers, subscribers"),
+    "echo": ("echo", "print a topic's messages (as ros2 topic echo, without ros2)"),
     "redecode": (
         "redecode",
         "a recording's raw device bytes through today's drivers: a new bag, outputs rebuilt",
@@ -52,7 +54,15 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
 
 #: The sub-commands as ``gnss_ins --help`` lists them: by what the user is doing.
 GROUPS: dict[str, tuple[str, ...]] = {
-    "on the vehicle": ("launch", "status", "record", "list-devices", "install-service"),
+    "on the vehicle": (
+        "launch",
+        "status",
+        "topics",
+        "echo",
+        "record",
+        "list-devices",
+        "install-service",
+    ),
     "recordings, offline": ("replay", "play", "redecode", "recover", "batch", "import-qfree"),
     "calibration and noise": ("calibrate", "allan"),
     "without hardware": (
