@@ -102,9 +102,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=_silent_seconds,
         default=DEFAULT_SILENT_S,
         metavar="S",
-        help="kill and restart a process whose /diagnostics have been silent for S seconds (hung, "
-        "not ended; S longer than the nodes' diagnostics_period; the first status after a start "
-        f"may take {START_GRACE_S:.0f} s); 0: never",
+        help="restart a process that still runs but has sent no /diagnostics status for S "
+        "seconds (a hang; one that ends is restarted anyway). After a (re)start a process "
+        f"has {START_GRACE_S:.0f} s for its first status. S must be at least "
+        f"{MIN_SILENT_S:g} and longer than the nodes' diagnostics_period; 0 turns this off",
     )
     parser.add_argument(
         "--record",
