@@ -128,3 +128,18 @@ def test_a_restarted_process_never_shows_the_status_of_the_one_before(tmp_path: 
     health.add(status("leica_gnss: GNSS leica", OK, 22.0, last_fix_type="RTK_FIXED"))
     row = health.view(22.1)["processes"]["leica_gnss"]
     assert (row["level"], row["values"]) == ("OK", {"last_fix_type": "RTK_FIXED"})
+
+
+def test_unheard_are_the_running_processes_without_a_status_since_their_start():
+    health = Health()
+    assert health.unheard() == ["imu400cc_node", "leica_gnss", "adu5_gnss", "ins_fusion_node"]
+    health = healthy(10.0)
+    assert health.unheard() == []
+    health.supervised = {
+        "imu400cc_node": {"running": True, "started_s": 11.0},  # restarted after its status
+        "leica_gnss": {"running": False, "started_s": 1.0},  # ended: not waited for
+        "adu5_gnss": {"running": True, "started_s": 1.0},
+    }
+    assert health.unheard() == ["imu400cc_node"]
+    health.add(status("imu400cc_node: IMU400CC", OK, 11.5))
+    assert health.unheard() == []

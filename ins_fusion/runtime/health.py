@@ -123,6 +123,21 @@ class Health:
             self.supervised = {str(k): v for k, v in processes.items() if isinstance(v, dict)}
             self.expected = tuple(name for name in self.supervised if name in SHOWN)
 
+    def unheard(self) -> list[str]:
+        """The expected processes not known to have ended that have sent no status since their
+        (re)start: a look should listen longer before it calls them silent."""
+        unheard = []
+        for name in self.expected:
+            supervised = self.supervised.get(name, {})
+            status, started_s = self.latest.get(name), supervised.get("started_s")
+            if supervised.get("running") is False:
+                continue
+            if status is None or (
+                isinstance(started_s, int | float) and status.received_s < started_s
+            ):
+                unheard.append(name)
+        return unheard
+
     def view(self, now_s: float) -> dict[str, Any]:
         """The system's state at monotonic ``now_s``: its level and one entry per process (the
         expected ones, then any other that reported)."""

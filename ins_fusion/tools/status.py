@@ -26,6 +26,11 @@ from ins_fusion.runtime.health import Health, exit_code, format_view
 from ins_fusion.runtime.processes import default_log_dir
 from ins_fusion.runtime.watchdog import HEARD_FILE, Heard, write_heard
 
+#: How much longer than --wait a look (--json, --once) listens while a running process has sent
+#: no status yet [s]: under load the discovery of one node once took longer than the 4 s (a
+#: running Leica node shown STALE, "no status received", exit 2, in 1 of 22 looks).
+UNHEARD_WAIT_S = 6.0
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Command-line options of ``gnss_ins status``."""
@@ -41,7 +46,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=4.0,
         metavar="S",
         help="seconds of listening before the first view (discovery takes a second or two, "
-        "then the nodes report every second)",
+        "then the nodes report every second); --json and --once listen up to "
+        f"{UNHEARD_WAIT_S:g} s longer while a running process has not reported yet",
     )
     parser.add_argument(
         "--log-dir",
@@ -60,6 +66,9 @@ def run(args: argparse.Namespace) -> int:
     since_s = time.monotonic()
 
     def on_view(view: dict[str, Any]) -> bool:
+        late_s = time.monotonic() - since_s - args.wait
+        if (args.json or args.once) and health.unheard() and late_s < UNHEARD_WAIT_S:
+            return True  # a running process not heard yet: discovery is slow on a busy machine
         last.update(view)
         if args.serve:
             heard = {name: status.received_s for name, status in health.latest.items()}
