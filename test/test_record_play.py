@@ -278,7 +278,8 @@ def test_a_topic_is_silent_after_its_messages_stop_and_before_its_first_only_muc
 ):
     """--silence-warning 0.5: a topic whose messages stopped is called silent within ~1 s; one
     that has a publisher but no message yet (the fusion's outputs while it aligns) only after
-    12 x 0.5 s, and then as "no message yet"."""
+    12 x 0.5 s, and then as "no message yet"; one that carried a burst of messages (set-up
+    commands written to a receiver) never."""
     from diagnostic_msgs.msg import DiagnosticArray
     from std_msgs.msg import String
 
@@ -286,6 +287,7 @@ def test_a_topic_is_silent_after_its_messages_stop_and_before_its_first_only_muc
     collector = Collector({"/diagnostics": DiagnosticArray})
     stops = node.create_publisher(String, "/test/stops", 10)
     node.create_publisher(String, "/test/quiet", 10)  # never publishes
+    burst = node.create_publisher(String, "/test/burst", 10)
 
     def silent_since(start: float) -> list[tuple[float, str]]:
         return [
@@ -300,13 +302,16 @@ def test_a_topic_is_silent_after_its_messages_stop_and_before_its_first_only_muc
 
     recorder = gnss_ins(
         "record", "-o", str(tmp_path / "bag"), "--silence-warning", "0.5", "/test/stops",
-        "/test/quiet",
+        "/test/quiet", "/test/burst",
     )  # fmt: skip
     try:
         with spinning(collector.node):
             assert wait_for(lambda: stops.get_subscription_count() > 0, 20.0)
+            assert wait_for(lambda: burst.get_subscription_count() > 0, 20.0)
             start = time.time()
-            for _ in range(10):
+            for _ in range(5):
+                burst.publish(String(data="set-up"))
+            for _ in range(30):  # 1.5 s at 20 Hz: a stream
                 stops.publish(String(data="x"))
                 time.sleep(0.05)
             stopped = time.time()
@@ -325,3 +330,5 @@ def test_a_topic_is_silent_after_its_messages_stop_and_before_its_first_only_muc
         collector.node.destroy_node()
     assert "/test/stops silent for" in err and "although it has a publisher" in err
     assert "/test/quiet: no message yet" in err and "/test/quiet silent for" not in err
+    assert "/test/burst silent" not in err and "/test/burst: no message" not in err
+    assert not any("burst" in m for _, m in silent_since(start))

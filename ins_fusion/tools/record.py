@@ -116,7 +116,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=_seconds,
         default=5.0,
         metavar="S",
-        help="warn when a recorded topic with a publisher has been silent for S s (default 5)",
+        help="warn when a streaming recorded topic with a publisher has been silent for S s "
+        "(default 5; a topic that carries messages on events only is never silent)",
     )
 
 

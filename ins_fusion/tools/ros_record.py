@@ -14,10 +14,12 @@ fails on callbacks that ask for the message info with the middleware's reception
 log-time order, flushed on a bounded interval, the disk's free space guarded; a process killed
 otherwise (SIGKILL, power cut) leaves all but its last fraction of a second on disk.
 
-The node also watches its topics (a topic silent for ``silence_s`` while it has a publisher, or
-without a first message for FIRST_MESSAGE_FACTOR times that, a topic whose publishers all
-left: a warning in its log, which ``gnss_ins launch`` shows) and publishes its state on
-/diagnostics every DIAGNOSTICS_PERIOD_S.
+The node also watches its topics (a streaming topic silent for ``silence_s`` while it has a
+publisher, a topic without a first message for FIRST_MESSAGE_FACTOR times that, a topic whose
+publishers all left: a warning in its log, which ``gnss_ins launch`` shows) and publishes its
+state on /diagnostics every DIAGNOSTICS_PERIOD_S. A topic that carries messages on events only
+(a port opened, set-up commands written) is never silent: a topic streams once it has carried
+messages for ``silence_s`` at least two per ``silence_s``.
 """
 
 from __future__ import annotations
@@ -125,13 +127,23 @@ class _Message(NamedTuple):
 
 
 class _Watch:
-    """What the recorder saw of one topic: messages, last arrival (monotonic s), warnings."""
+    """What the recorder saw of one topic: messages, first and last arrival (monotonic s),
+    warnings."""
 
     def __init__(self) -> None:
         self.count = 0
+        self.first: float | None = None
         self.last = time.monotonic()
         self.silent_warned = False
         self.had_publishers = True
+
+    def streams(self, silence_s: float) -> bool:
+        """Its messages came for ``silence_s`` at least, on average two per ``silence_s``: a
+        stream, not a burst of set-up commands or a port event now and then."""
+        if self.first is None or self.count < 3:
+            return False
+        span_s = self.last - self.first
+        return span_s >= silence_s and span_s / (self.count - 1) <= silence_s / 2.0
 
 
 class Recorder:
@@ -224,6 +236,8 @@ class Recorder:
         self.received += 1
         watch = self._watch[topic]
         watch.count += 1
+        if watch.first is None:
+            watch.first = time.monotonic()
         if watch.silent_warned:
             silent = time.monotonic() - watch.last
             self.node.get_logger().info(f"{topic} recorded again after {silent:.1f} s of silence")
@@ -246,7 +260,8 @@ class Recorder:
             # A topic that has not carried a message yet gets longer: an output that starts
             # later by design (the fusion's while it aligns) is not silent.
             allowed_s = self.silence_s * (1 if watch.count else FIRST_MESSAGE_FACTOR)
-            if publishers and now - watch.last > allowed_s:
+            expected = watch.count == 0 or watch.streams(self.silence_s)
+            if publishers and expected and now - watch.last > allowed_s:
                 silent.append(topic)
                 if not watch.silent_warned:
                     watch.silent_warned = True
