@@ -1,6 +1,6 @@
 """`gnss_ins launch` and the shared vehicle node table (also used by launch/vehicle.launch.py):
 the nodes on emulated devices, a node killed with SIGKILL started again; the ROS launch file's
-respawn and recorder, read with stand-ins of the ``launch`` packages."""
+respawn, recorder and NTRIP client, read with stand-ins of the ``launch`` packages."""
 
 from __future__ import annotations
 
@@ -15,6 +15,7 @@ import subprocess
 import sys
 import time
 import types
+from collections.abc import Callable
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -170,8 +171,9 @@ def _stub_launch_modules(monkeypatch):
         monkeypatch.setitem(sys.modules, name, module)
 
 
-@pytest.mark.parametrize("respawn", ["true", "false"])
-def test_ros_launch_file_respawns_the_nodes_and_starts_the_recorder(monkeypatch, tmp_path, respawn):
+def _launch_file(monkeypatch) -> tuple[dict[str, str], Callable[[dict[str, str]], list]]:
+    """vehicle.launch.py read with the stand-ins: its arguments' defaults, and the function that
+    gives its processes for the arguments' values."""
     _stub_launch_modules(monkeypatch)
     source = importlib.util.spec_from_file_location(
         "vehicle_launch", REPO / "launch" / "vehicle.launch.py"
@@ -179,12 +181,17 @@ def test_ros_launch_file_respawns_the_nodes_and_starts_the_recorder(monkeypatch,
     module = importlib.util.module_from_spec(source)
     source.loader.exec_module(module)
     (*arguments, opaque) = module.generate_launch_description().args[0]
-    context = {a.args[0]: a.kwargs["default_value"] for a in arguments}
+    return {a.args[0]: a.kwargs["default_value"] for a in arguments}, opaque.kwargs["function"]
+
+
+@pytest.mark.parametrize("respawn", ["true", "false"])
+def test_ros_launch_file_respawns_the_nodes_and_starts_the_recorder(monkeypatch, tmp_path, respawn):
+    context, processes = _launch_file(monkeypatch)
     assert (context["respawn"], context["record_dir"]) == ("true", "")
-    *nodes, status = opaque.kwargs["function"](context)  # no record_dir: no recorder
+    *nodes, status = processes(context)  # no record_dir: no recorder
     assert len(nodes) == len(VEHICLE) and status.kwargs["cmd"][-2:] == ["status", "--serve"]
     context.update(respawn=respawn, record_dir=str(tmp_path / "bags"))
-    *nodes, status, recorder = opaque.kwargs["function"](context)
+    *nodes, status, recorder = processes(context)
     assert [node.kwargs["name"] for node in nodes] == [spec.name for spec in VEHICLE]
     leica = nodes[[spec.name for spec in VEHICLE].index("leica_gnss")]
     assert {"port": "/dev/ttyUSB1"} in leica.kwargs["parameters"]
@@ -198,6 +205,28 @@ def test_ros_launch_file_respawns_the_nodes_and_starts_the_recorder(monkeypatch,
     assert re.fullmatch(r"vehicle_\d{8}_\d{6}", output.name)
     assert "--resume" in command and "/leica/gnss/fix" in command
     assert command[command.index("--max-bag-duration") + 1] == "600.0"
+
+
+def test_ros_launch_file_starts_the_ntrip_client_with_the_url_only(monkeypatch, tmp_path):
+    """``ntrip_url:=`` adds the NTRIP client in the rover's namespace with its file, the URL and
+    the password file's path as parameters; the recording holds the corrections and the rover's
+    sentences."""
+    monkeypatch.setenv("NTRIP_PASSWORD", "launch-S3cret")
+    url, secret = "http://rover@caster.example.net:2101/AAU00DNK", "/etc/gnss_ins/ntrip"
+    defaults, launch_file = _launch_file(monkeypatch)
+    arguments = {**defaults, "ntrip_url": url, "ntrip_password_file": secret}
+    processes = launch_file({**arguments, "record_dir": str(tmp_path)})
+    (client,) = [p for p in processes if p.kwargs.get("name") == "ntrip_client"]
+    assert (client.kwargs["executable"], client.kwargs["namespace"]) == ("ntrip_node", "leica")
+    config, parameters = client.kwargs["parameters"]
+    assert (REPO / "config" / "ntrip.yaml").samefile(config)
+    assert parameters == {"url": url, "password_file": secret}
+    assert "launch-S3cret" not in repr([(p.args, p.kwargs) for p in processes])
+    recorder = processes[-1].kwargs["cmd"]
+    assert {"/leica/rtcm", "/leica/nmea"} <= set(recorder)
+    without_file = launch_file({**arguments, "ntrip_password_file": ""})[len(VEHICLE)]
+    assert without_file.kwargs["name"] == "ntrip_client"
+    assert without_file.kwargs["parameters"][1] == {"url": url}  # NTRIP_PASSWORD, inherited
 
 
 def test_launch_starts_every_node_on_emulated_hardware_and_stops_cleanly(tmp_path):

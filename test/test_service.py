@@ -47,6 +47,34 @@ def test_the_unit_restarts_launch_as_the_user_with_the_domain_and_the_options(ca
     assert unit["Install"]["WantedBy"] == "multi-user.target"
 
 
+def test_the_unit_carries_the_ntrip_client_with_its_password_file_only(
+    tmp_path: Path, capsys, monkeypatch
+):
+    """The caster's URL and the password file's path go into the world-readable unit, never the
+    password; without a file a caster user is refused (NTRIP_PASSWORD would not reach the
+    daemon), and so is a file others may read."""
+    password = "unit-S3cret"
+    monkeypatch.setenv("NTRIP_PASSWORD", password)
+    secret = tmp_path / "ntrip"
+    secret.write_text(password + "\n")
+    secret.chmod(0o600)
+    url = "http://rover@caster.example.net:2101/AAU00DNK"
+    argv = ["install-service", "--dry-run", "--user", "survey", "--ntrip", url]
+    assert main([*argv, "--ntrip-password-file", str(secret)]) == 0
+    text = capsys.readouterr().out
+    exec_start = unit_sections(text)["Service"]["ExecStart"].split()
+    assert exec_start[-2:] == [f"--ntrip={url}", f"--ntrip-password-file={secret}"]
+    assert password not in text
+    assert main(argv) == 2
+    assert "--ntrip-password-file" in capsys.readouterr().err
+    secret.chmod(0o640)
+    assert main([*argv, "--ntrip-password-file", str(secret)]) == 2
+    assert f"chmod 600 {secret}" in capsys.readouterr().err
+    anonymous = ["install-service", "--dry-run", "--ntrip", "http://caster.example.net/MP"]
+    assert main(anonymous) == 0
+    assert "--ntrip=http://caster.example.net/MP" in capsys.readouterr().out
+
+
 def test_percent_signs_are_escaped_for_systemd():
     text = unit_text(
         Service(["/opt/gnss ins/bin/gnss_ins", "launch", "--record=/d/50%"], "u", Path("/w"), 0)

@@ -22,6 +22,7 @@ from ins_fusion.runtime.processes import gnss_ins_command
 from ins_fusion.runtime.service import SYSTEM_UNIT_DIR, UNIT_NAME, Service, unit_text
 from ins_fusion.runtime.vehicle_nodes import DEFAULT_PORTS
 from ins_fusion.tools.launch import add_ntrip_arguments, ntrip_problem
+from ntrip_client.caster_url import PASSWORD_VARIABLE, parse_caster_url
 
 
 def _domain(text: str) -> int:
@@ -55,6 +56,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--force", action="store_true", help="replace an existing unit file")
 
 
+def _ntrip_problem(args: argparse.Namespace) -> str | None:
+    """Why the NTRIP options cannot go into a unit (None: they can). The unit carries no
+    environment, so a caster user's password can only come from ``--ntrip-password-file``: an
+    ``NTRIP_PASSWORD`` of the shell that installs the unit would never reach the daemon."""
+    if (problem := ntrip_problem(args, {})) is not None:
+        return problem
+    if args.ntrip is None or args.ntrip_password_file is not None:
+        return None
+    if parse_caster_url(args.ntrip).user:
+        return (
+            f"--ntrip with the user of {args.ntrip}: give its password with"
+            f" --ntrip-password-file (a unit carries no {PASSWORD_VARIABLE})"
+        )
+    return None
+
+
 def launch_options(args: argparse.Namespace) -> list[str]:
     """``gnss_ins launch``'s options for the unit."""
     options = [f"--{role}-port={getattr(args, f'{role}_port')}" for role in DEFAULT_PORTS]
@@ -74,7 +91,7 @@ def launch_options(args: argparse.Namespace) -> list[str]:
 def run(args: argparse.Namespace) -> int:
     """Print or write the unit; 2 when it exists (without ``--force``) or cannot be written, or
     the NTRIP options are wrong."""
-    if (problem := ntrip_problem(args, {})) is not None:  # the unit carries no environment
+    if (problem := _ntrip_problem(args)) is not None:
         print(f"gnss_ins install-service: error: {problem}", file=sys.stderr)
         return 2
     script = Path(sys.executable).parent / "gnss_ins"  # the console script of this install
