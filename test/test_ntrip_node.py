@@ -24,6 +24,7 @@ from rtcm_msgs.msg import Message
 
 from gnss_driver.reader import frame_sentence
 from ntrip_client.caster_emulator import CasterEmulator
+from ntrip_client.gga import gga_position
 from ntrip_client.node import PARAMETERS, NtripNode
 
 pytestmark = pytest.mark.ros
@@ -152,6 +153,35 @@ def test_an_unknown_mountpoint_lists_the_caster_s_nearest_first():
     assert status.level == DiagnosticStatus.ERROR
     assert _values(status)["mountpoints"].startswith("CPH00DNK")  # Copenhagen is nearer
     assert "NOSUCH" in status.message
+
+
+def test_the_fixed_position_goes_upstream_until_the_rover_has_one(password_file):
+    """A caster that needs a position before the rover's first fix gets ``fixed_position``;
+    once the rover reports one, the rover's own GGA."""
+    with CasterEmulator(CAPTURE.read_bytes(), MOUNTPOINTS, (USER, PASSWORD)) as caster:
+        node = NtripNode(
+            parameter_overrides=overrides(
+                url=f"http://{USER}@127.0.0.1:{caster.port}/AAU00DNK",
+                password_file=str(password_file),
+                gga_interval=1.0,
+                fixed_position=[55.7, 12.5, 30.0],
+            )
+        )
+        collector = Collector({"rtcm": Message})
+        publisher = collector.node.create_publisher(Sentence, "nmea", 10)
+        try:
+            with spinning(node, collector.node):
+                assert wait_for(lambda: len(caster.gga_received) >= 2, 15.0)
+                fixed = list(caster.gga_received)
+                rover_gga = Sentence(sentence=GGA.strip())
+                assert wait_for(lambda: node.count_subscribers("nmea") >= 1, 10.0)
+                publisher.publish(rover_gga)
+                assert wait_for(lambda: caster.gga_received[-1][1] == GGA.strip(), 15.0)
+        finally:
+            node.close()
+            node.destroy_node()
+            collector.node.destroy_node()
+    assert all(gga_position(sentence) == pytest.approx((55.7, 12.5)) for _, sentence in fixed)
 
 
 def test_a_password_in_the_url_or_a_readable_password_file_is_refused(tmp_path):
