@@ -9,13 +9,14 @@ from collections import Counter
 
 import pytest
 import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
 from nmea_msgs.msg import Sentence
-from ros_harness import Collector, overrides, spinning, stamp_s, wait_for
+from ros_harness import Collector, diagnostic_values, overrides, spinning, stamp_s, wait_for
 
 from gnss_driver.emulator import EmulatorConfig, GnssEmulator
 from gnss_driver.node import GnssNode
 from gnss_driver.profiles import Adu5Setup, Receiver, adu5_commands
-from gnss_driver.reader import nmea_checksum
+from gnss_driver.reader import frame_sentence
 
 pytestmark = pytest.mark.ros
 
@@ -43,30 +44,62 @@ def _record_writes(device: GnssEmulator) -> list[bytes]:
     return sent
 
 
-def _checksum_ok(line: str) -> bool:
-    body, _, given = line[1:].rpartition("*")
-    return int(given, 16) == nmea_checksum(body.encode())
+#: Lines the receiver sends while otherwise silent, each rejected by the node for its reason.
+ODD_LINES = {
+    "unknown_sentence": [frame_sentence("GPXYZ,1,2,3"), frame_sentence("PXYZA,7,ok")],
+    "missing_checksum": [b"$GPZDA,123519.00,07,12,2026,00,00\r\n"],
+}
+#: The counters per reason the test injects lines for.
+REJECTED = ("bad_checksum", "truncated", "unknown_sentence", "missing_checksum")
 
 
-def test_every_line_sent_is_published_in_order_corrupted_ones_included():
-    config = EmulatorConfig(leica_extra=("GST", "RMC", "ZDA"))
+def _rejected(collector: Collector) -> dict[str, int]:
+    """The node's rejected-input counters of its latest /diagnostics status."""
+    reports = collector.get("/diagnostics")
+    values = diagnostic_values(reports[-1]) if reports else {}
+    return {kind: int(values.get(kind, -1)) for kind in REJECTED}
+
+
+@pytest.mark.parametrize("receiver", [Receiver.LEICA, Receiver.ADU5])
+def test_every_line_sent_is_published_in_order_rejected_ones_included(receiver):
+    """Every line the receiver sends is on ``nmea`` in order: 4 with a broken checksum, 2 cut
+    off by the next sentence, 2 of unknown types and 1 without a checksum among them, which
+    the node's /diagnostics count per reason."""
+    extra = ("GST", "RMC", "ZDA") if receiver is Receiver.LEICA else ()
+    config = EmulatorConfig(receiver=receiver, leica_extra=extra)
     with GnssEmulator(config=config) as device:
         sent = _record_writes(device)
         node = GnssNode(
-            parameter_overrides=overrides(port=device.path, receiver="leica", baud=device.baud)
+            parameter_overrides=overrides(
+                port=device.path,
+                receiver=receiver.value,
+                baud=device.baud,
+                diagnostics_period=0.2,
+            )
         )
-        collector = Collector({"nmea": Sentence})
+        collector = Collector({"nmea": Sentence, "/diagnostics": DiagnosticArray})
         try:
             with spinning(node, collector.node):
                 assert wait_for(lambda: collector.count("nmea") >= 6, 15.0)
-                device.corrupt_checksums(4)
-                assert wait_for(lambda: collector.count("nmea") >= 24, 15.0)
+                device.corrupt_checksums(4)  # the next 4 sentences, then 2 cut in half
+                device.cut_lines(2)
+                assert wait_for(lambda: collector.count("nmea") >= 30, 15.0)
                 device.go_silent(60.0)
                 # Once the emulator is silent, the last line sent is the last one published.
                 assert wait_for(
                     lambda: collector.get("nmea")[-1].sentence.encode() == sent[-1].rstrip(), 10.0
                 )
+                for line in (line for lines in ODD_LINES.values() for line in lines):
+                    device.send_garbage(line)
+                assert wait_for(
+                    lambda: collector.get("nmea")[-1].sentence.encode() == sent[-1].rstrip(), 10.0
+                )
                 stopped = time.time()
+                injected = {"bad_checksum": 4, "truncated": 2}
+                injected |= {kind: len(lines) for kind, lines in ODD_LINES.items()}
+                assert wait_for(lambda: _rejected(collector) == injected, 10.0), _rejected(
+                    collector
+                )
                 published = collector.get("nmea")
         finally:
             node.close()
@@ -76,7 +109,7 @@ def test_every_line_sent_is_published_in_order_corrupted_ones_included():
     expected = [data.rstrip(b"\r\n").decode() for data in sent[-len(lines) :]]
     assert lines == expected  # every line from the first one read, in order
     assert Counter(line[3:6] for line in lines) == Counter(line[3:6] for line in expected)
-    assert sum(not _checksum_ok(line) for line in lines) == 4
+    assert sum("*" not in line for line in lines) == 2 + 1  # the cut ones, the one without
     assert all(m.header.frame_id == "gnss_link" for m in published)
     stamps = [stamp_s(m) for m in published]
     assert stamps == sorted(stamps) and stopped - 60.0 < stamps[0] <= stamps[-1] <= stopped
