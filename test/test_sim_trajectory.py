@@ -10,8 +10,9 @@ from scipy.integrate import solve_ivp
 
 from ins_fusion.core.nav import earth
 from ins_fusion.core.nav.rotation import euler_from_quat
+from ins_fusion.sim.route import Route
 from ins_fusion.sim.scenarios import AALBORG_START, SURVEY_CAR, figure_eight, seed_test_pattern
-from ins_fusion.sim.trajectory import Mounting, Route, SmoothChannel
+from ins_fusion.sim.trajectory import Mounting, SmoothChannel
 from ins_fusion.sim.vehicle import VehicleSetup, VehicleTruth
 
 

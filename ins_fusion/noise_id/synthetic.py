@@ -20,8 +20,8 @@ from ins_fusion.bags.imu import ImuRecord, write_imu_bag
 from ins_fusion.bags.topics import IMU_DATA
 from ins_fusion.sim.drive import DEFAULT_START_NS
 from ins_fusion.sim.imu_model import ImuErrorModel, ImuProfile
+from ins_fusion.sim.route import Route
 from ins_fusion.sim.scenarios import AALBORG_START, SURVEY_CAR
-from ins_fusion.sim.trajectory import Route
 from ins_fusion.sim.vehicle import VehicleTruth
 
 #: Samples simulated at a time (bounds the error model's temporaries).

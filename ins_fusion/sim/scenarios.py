@@ -11,7 +11,8 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
-from ins_fusion.sim.trajectory import GeodeticStart, Mounting, Route, Trajectory
+from ins_fusion.sim.route import Route
+from ins_fusion.sim.trajectory import GeodeticStart, Mounting, Trajectory
 from ins_fusion.sim.vehicle import VehicleSetup
 
 #: Near the taxi rank north of Fibigerstræde 11, Aalborg Øst (approximate), heading north.
