@@ -32,6 +32,7 @@ from ins_fusion.bags.messages import new_message
 from ins_fusion.redecode.decoders import (
     DATA,
     GNSS_CLASSES,
+    IMU_TOPICS,
     OPENED,
     STARTED,
     GnssDecoder,
@@ -95,23 +96,26 @@ def _leica_epochs(count: int, bad: int = 3) -> list[tuple[bytes, int]]:
     return epochs
 
 
-def _imu_live(chunks: list[tuple[bytes, float]]) -> list[bytes]:
-    """What imu400cc_node publishes of reads at host times [s]: stamp_ns of the receive time,
-    the driver fed seconds_of_ns of it (imu400cc_driver/node.py ``_on_data``)."""
-    params = node_parameters(IMU, None, ())
+def _imu_live(
+    chunks: list[tuple[bytes, int]], params: dict[str, object] | None = None
+) -> list[tuple[str, bytes]]:
+    """(relative topic, CDR) of what imu400cc_node with ``params`` (default: its installed
+    file's) publishes of reads at host times [ns]: the driver fed seconds_of_ns of each
+    (imu400cc_driver/node.py ``_on_data``)."""
+    params = node_parameters(IMU, None, ()) if params is None else params
     driver = ImuDriver(imu_config(params))
-    out: list[bytes] = []
-    for data, received_s in chunks:
-        for sample in driver.feed(data, seconds_of_ns(stamp_ns(received_s))):
-            for msg in sample_messages(
+    out: list[tuple[str, bytes]] = []
+    for data, received_ns in chunks:
+        for sample in driver.feed(data, seconds_of_ns(received_ns)):
+            messages = sample_messages(
                 sample,
                 driver,
                 params["frame_id"],
                 lambda: new_message("sensor_msgs/msg/Imu"),
                 lambda: new_message("sensor_msgs/msg/Temperature"),
-            ):
-                if msg is not None:
-                    out.append(_cdr(msg))
+            )
+            pairs = zip(IMU_TOPICS, messages, strict=True)
+            out += [(topic, _cdr(m)) for topic, m in pairs if m is not None]
     return out
 
 
@@ -262,16 +266,16 @@ def test_redecode_is_the_live_path_for_any_reads(cuts, delays):
     """Any reads of the same bytes at any times: redecode gives what the node published."""
     wire, _ = _wire(150)
     chunks = [
-        (data, t * 1e-9 + delays[i % len(delays)] + 1e-10 * i)
+        (data, stamp_ns(t * 1e-9 + delays[i % len(delays)] + 1e-10 * i))
         for i, (data, t) in enumerate(_chunks(wire, cuts))
     ]
     live = _imu_live(chunks)
     decoder = ImuDecoder(node_parameters(IMU, None, ()))
     redecoded = [
-        _cdr(msg)
-        for data, received_s in [(b"", 0.0), *chunks]
-        for _, msg in decoder.take(
-            _serial_chunk(DATA, stamp_ns(received_s), data) if data else _serial_chunk(STARTED, 0)
+        (topic, _cdr(msg))
+        for data, received_ns in [(b"", 0), *chunks]
+        for topic, msg in decoder.take(
+            _serial_chunk(DATA, received_ns, data) if data else _serial_chunk(STARTED, 0)
         )
     ]
     assert redecoded == live
@@ -320,13 +324,20 @@ def test_bad_parameters_are_refused(tmp_path):
 
 
 def test_the_right_gyro_range_rebuilds_what_the_wrong_one_recorded(tmp_path):
-    """A recording decoded with the wrong range (200 deg/s instead of the unit's 100) gives, with
-    the right one, rates exactly half (a power of two: no rounding) at the same stamps."""
-    _write_recording(tmp_path / "rec", _chunks(_wire(300)[0], list(range(9, 5400, 31))), [])
+    """A drive recorded with the wrong IMU parameter file (a gyro range of 200 deg/s instead of
+    the unit's 100), redecoded with the right one, gives what the node publishes with the right
+    file; with the wrong file, what it published. The rates are exactly half (a power of two:
+    no rounding) at the same stamps, nothing else changes."""
+    chunks = _chunks(_wire(300)[0], list(range(9, 5400, 31)))
+    _write_recording(tmp_path / "rec", chunks, [])
     wrong = tmp_path / "wrong.yaml"
     wrong.write_text("imu400cc_node:\n  ros__parameters:\n    gyro_range_dps: 200.0\n")
     redecode(tmp_path / "rec", tmp_path / "wrong", param_files=[wrong])
     redecode(tmp_path / "rec", tmp_path / "right")
+    right_params = node_parameters(IMU, None, ())
+    for run, params in (("wrong", {**right_params, "gyro_range_dps": 200.0}), ("right", None)):
+        live = [m for topic, m in _imu_live(chunks, params) if topic == "imu/data_raw"]
+        assert _topic_cdr(tmp_path / run, "/imu/data_raw") == live, run
     with BagReader(tmp_path / "wrong") as a, BagReader(tmp_path / "right") as b:
         pairs = list(
             zip(
