@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 
 from gnss_ins_common.navsat import CovarianceType, NavSatStatus
 from ins_fusion.bags.bag_io import BagReader
-from ins_fusion.qfree import checks, logs
+from ins_fusion.qfree import checks, logs, mems_conversion
 from ins_fusion.tools.cli import main
 
 FIXTURES = Path(__file__).parent / "fixtures" / "qfree"
@@ -67,9 +67,9 @@ def test_layouts_have_the_documented_columns():
 
 
 def test_unit_conversions_d2():
-    assert 1000 * logs.ACCEL_UNITS["mg"] == pytest.approx(9.80665)
-    assert 1000 * logs.GYRO_UNITS["mdps"] == pytest.approx(0.0174533, abs=1e-7)
-    half_period = logs.GYRO_WRAP_PERIOD_RAD_S / 2
+    assert 1000 * mems_conversion.ACCEL_UNITS["mg"] == pytest.approx(9.80665)
+    assert 1000 * mems_conversion.GYRO_UNITS["mdps"] == pytest.approx(0.0174533, abs=1e-7)
+    half_period = mems_conversion.GYRO_WRAP_PERIOD_RAD_S / 2
     assert half_period == pytest.approx(0.5719, abs=1e-4)
 
 
@@ -186,11 +186,11 @@ def test_ramp_through_the_16_bit_wrap_is_detected_at_0_572_rad_s_and_undone():
         )
         for k, v in enumerate(logged)
     ]
-    series = logs.imu_series(samples)
+    series = mems_conversion.imu_series(samples)
     assert [(w.line, w.axis) for w in series.wraps] == [(int(np.argmax(mdps > 32767.5)) + 1, "z")]
     assert true_rad_s[series.wraps[0].line - 1] == pytest.approx(0.572, abs=0.002)
     np.testing.assert_allclose(series.rate_rad_s[:, 2], true_rad_s, atol=1e-5)
-    kept = logs.imu_series(samples, unwrap=False)
+    kept = mems_conversion.imu_series(samples, unwrap=False)
     assert len(kept.wraps) == 1 and kept.rate_rad_s[-1, 2] < 0  # wrong sign, as logged
 
 
@@ -201,21 +201,27 @@ def test_unwrapping_restarts_after_a_time_gap():
         logs.MemsSample(logs.Stamp("g", k, 2, 1, 1, T0 + ms * 10**6, 0, 0, 0), (0, 0, 0), (r, 0, 0))
         for k, (ms, r) in enumerate(zip(stamps, rates, strict=True))
     ]
-    series = logs.imu_series(samples, gyro=logs.SensorTransform("mdps", np.eye(3)))
+    series = mems_conversion.imu_series(
+        samples, gyro=mems_conversion.SensorTransform("mdps", np.eye(3))
+    )
     assert series.wraps == []
     np.testing.assert_allclose(series.rate_rad_s[:, 0], np.radians(np.array(rates) / 1000))
 
 
 def test_mounting_rotation_is_proper_and_rotates_vectors_and_covariances():
-    rot = logs.mounting_rotation(-1.04, 25.10, 180.0)
+    rot = mems_conversion.mounting_rotation(-1.04, 25.10, 180.0)
     assert np.linalg.det(rot) == pytest.approx(1.0)
-    np.testing.assert_allclose(logs.mounting_rotation(0, 0, 90) @ [1, 0, 0], [0, 1, 0], atol=1e-12)
-    np.testing.assert_allclose(logs.mounting_rotation(90, 0, 0) @ [0, 1, 0], [0, 0, 1], atol=1e-12)
+    np.testing.assert_allclose(
+        mems_conversion.mounting_rotation(0, 0, 90) @ [1, 0, 0], [0, 1, 0], atol=1e-12
+    )
+    np.testing.assert_allclose(
+        mems_conversion.mounting_rotation(90, 0, 0) @ [0, 1, 0], [0, 0, 1], atol=1e-12
+    )
     sample = logs.MemsSample(logs.Stamp("m", 1, 2, 1, 1, T0, 0, 0, 0), (1000, 0, 0), (0, 0, 500))
-    series = logs.imu_series(
+    series = mems_conversion.imu_series(
         [sample],
-        accel=logs.SensorTransform.mounted("mg", (0, 0, 90)),
-        gyro=logs.SensorTransform.mounted("dps", (0, 0, 90)),
+        accel=mems_conversion.SensorTransform.mounted("mg", (0, 0, 90)),
+        gyro=mems_conversion.SensorTransform.mounted("dps", (0, 0, 90)),
     )
     np.testing.assert_allclose(series.accel_m_s2[0], [0, G0, 0], atol=1e-12)
     np.testing.assert_allclose(series.rate_rad_s[0], [0, 0, math.radians(500)])
@@ -244,16 +250,18 @@ def test_thesis_preset_reproduces_its_program_lines():
     fis_b = rz(math.pi) @ ry(o2) @ rx(o3) @ (0.97396 * 9.82171 * acc / 1000)
     ois_b = np.radians(rz(0) @ ry(o2) @ rx(-o3) @ (-gyro / 1000))
     sample = logs.MemsSample(logs.Stamp("t", 1, 2, 1, 1, T0, 0, 0, 0), tuple(acc), tuple(gyro))
-    accel_t, gyro_t = logs.thesis_transforms()
-    series = logs.imu_series(
-        [sample], accel=accel_t, gyro=gyro_t, time_shift_s=logs.THESIS_LATENCY_S
+    accel_t, gyro_t = mems_conversion.thesis_transforms()
+    series = mems_conversion.imu_series(
+        [sample], accel=accel_t, gyro=gyro_t, time_shift_s=mems_conversion.THESIS_LATENCY_S
     )
     frd = np.array([1.0, -1.0, -1.0])
     np.testing.assert_allclose(series.accel_m_s2[0] * frd, fis_b, rtol=1e-14, atol=1e-14)
     np.testing.assert_allclose(series.rate_rad_s[0] * frd, ois_b, rtol=1e-14, atol=1e-14)
     assert series.utc_ns[0] - T0 == 1_240_000_000
     # 1000 mg reads 0.97396 * 9.82171 = 9.5659... m/s²; the gyro's matrix is a reflection
-    z = logs.imu_series([logs.MemsSample(sample.stamp, (0, 0, 1000), (0, 0, 0))], accel=accel_t)
+    z = mems_conversion.imu_series(
+        [logs.MemsSample(sample.stamp, (0, 0, 1000), (0, 0, 0))], accel=accel_t
+    )
     assert np.linalg.norm(z.accel_m_s2[0]) == pytest.approx(0.97396 * 9.82171, rel=1e-14)
     assert np.linalg.det(accel_t.matrix) == pytest.approx(1.0)
     assert np.linalg.det(gyro_t.matrix) == pytest.approx(-1.0)
@@ -311,7 +319,8 @@ def test_import_writes_the_documented_topics(tmp_path: Path, capsys: pytest.Capt
     rate = imu.angular_velocity
     np.testing.assert_allclose([rate.x, rate.y], np.radians([0.010, -0.020]))
     np.testing.assert_allclose(
-        np.diag(imu.angular_velocity_covariance.reshape(3, 3)), logs.GYRO_VARIANCE_RAD2_S2
+        np.diag(imu.angular_velocity_covariance.reshape(3, 3)),
+        mems_conversion.GYRO_VARIANCE_RAD2_S2,
     )
     rate_z = np.array([m.angular_velocity.z for _, m in msgs["/imu/data_raw"]])
     assert rate_z.max() == pytest.approx(math.radians(40.0), rel=1e-4)  # above the 16-bit limit

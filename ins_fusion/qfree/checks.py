@@ -14,10 +14,10 @@ import math
 from collections.abc import Callable, Iterable, Sequence
 from typing import TypeVar
 
-from ins_fusion.qfree import logs
+from ins_fusion.qfree import logs, mems_conversion
 
 #: Largest plausible specific force per axis [m/s²]: the LIS331DLH's widest range, ±8 g.
-MAX_ACCEL_M_S2 = 8.0 * logs.STANDARD_GRAVITY_M_S2
+MAX_ACCEL_M_S2 = 8.0 * mems_conversion.STANDARD_GRAVITY_M_S2
 #: Largest plausible rate per axis [rad/s]: the L3G4200D's widest range, ±2000 °/s.
 MAX_RATE_RAD_S = math.radians(2000.0)
 #: Plausible ellipsoidal height [m] (below the Dead Sea shore to airliner altitude).
@@ -41,10 +41,10 @@ def _beyond(values: Iterable[float], limit: float) -> float | None:
 
 def mems_problem(sample: logs.MemsSample, accel_unit: str, gyro_unit: str) -> str | None:
     """Why ``sample`` (in the log's ``accel_unit`` / ``gyro_unit``) is implausible, or None."""
-    accel = _beyond(sample.accel, MAX_ACCEL_M_S2 / logs.ACCEL_UNITS[accel_unit])
+    accel = _beyond(sample.accel, MAX_ACCEL_M_S2 / mems_conversion.ACCEL_UNITS[accel_unit])
     if accel is not None:
         return f"accelerometer value {accel:g} {accel_unit} beyond ±8 g"
-    rate = _beyond(sample.gyro, MAX_RATE_RAD_S / logs.GYRO_UNITS[gyro_unit])
+    rate = _beyond(sample.gyro, MAX_RATE_RAD_S / mems_conversion.GYRO_UNITS[gyro_unit])
     if rate is not None:
         return f"gyro value {rate:g} {gyro_unit} beyond ±2000 deg/s"
     return None

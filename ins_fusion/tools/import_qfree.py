@@ -1,6 +1,7 @@
 """``gnss_ins import-qfree``: Q-Free OBU GNSS and MEMS text logs to a rosbag2 bag.
 
-Layouts, units and the reference receiver are described in ins_fusion/qfree/logs.py and
+Layouts and the reference receiver are described in ins_fusion/qfree/logs.py, units and
+mountings in ins_fusion/qfree/mems_conversion.py, both from
 shared/reference/gnss-ins-ntnu-notes.md §3–5. The messages are filled like the drivers' and the
 simulator's (gnss_ins_common/message_fields.py, topics and frames of ins_fusion/bags/topics.py);
 header.stamp = bag time = the UTC date/time columns of the line:
@@ -46,7 +47,7 @@ from ins_fusion.bags.topics import (
     TRUTH_FRAME,
     TRUTH_VEL,
 )
-from ins_fusion.qfree import checks, logs
+from ins_fusion.qfree import checks, logs, mems_conversion
 from ins_fusion.runtime.progress import Progress
 
 #: Bad lines and gyro wraps printed one by one; the rest are counted.
@@ -64,12 +65,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--accel-unit",
-        choices=sorted(logs.ACCEL_UNITS),
+        choices=sorted(mems_conversion.ACCEL_UNITS),
         help="unit of the MEMS log's accelerations (default: mg)",
     )
     parser.add_argument(
         "--gyro-unit",
-        choices=sorted(logs.GYRO_UNITS),
+        choices=sorted(mems_conversion.GYRO_UNITS),
         help="unit of the MEMS log's rates (default: mdps, milli-degrees per second)",
     )
     parser.add_argument(
@@ -123,7 +124,9 @@ def _mounting(text: str) -> tuple[float, float, float]:
     return roll, pitch, yaw
 
 
-def _transforms(args: argparse.Namespace) -> tuple[logs.SensorTransform, logs.SensorTransform]:
+def _transforms(
+    args: argparse.Namespace,
+) -> tuple[mems_conversion.SensorTransform, mems_conversion.SensorTransform]:
     """(accelerometer, gyro) transforms of the options; ValueError for a preset combined with
     unit or mounting options."""
     options = ("accel_unit", "gyro_unit", "mounting", "accel_mounting", "gyro_mounting")
@@ -131,11 +134,15 @@ def _transforms(args: argparse.Namespace) -> tuple[logs.SensorTransform, logs.Se
         given = [f"--{o.replace('_', '-')}" for o in options if getattr(args, o) is not None]
         if given:
             raise ValueError(f"--preset thesis sets the transforms itself, not with {given[0]}")
-        return logs.thesis_transforms()
+        return mems_conversion.thesis_transforms()
     both = args.mounting or (0.0, 0.0, 0.0)
     return (
-        logs.SensorTransform.mounted(args.accel_unit or "mg", args.accel_mounting or both),
-        logs.SensorTransform.mounted(args.gyro_unit or "mdps", args.gyro_mounting or both),
+        mems_conversion.SensorTransform.mounted(
+            args.accel_unit or "mg", args.accel_mounting or both
+        ),
+        mems_conversion.SensorTransform.mounted(
+            args.gyro_unit or "mdps", args.gyro_mounting or both
+        ),
     )
 
 
@@ -175,7 +182,7 @@ def twist_enu(epoch: logs.GnssEpoch, vel_enu_m_s: Sequence[float], frame: str) -
     )
 
 
-def imu_message(series: logs.ImuSeries, k: int) -> Any:
+def imu_message(series: mems_conversion.ImuSeries, k: int) -> Any:
     """sensor_msgs/Imu (REP-145, no orientation) of sample ``k`` of the series."""
     return fill_imu(
         new_message(TOPICS[IMU_DATA]),
@@ -214,7 +221,7 @@ Event = tuple[int, int, str, Callable[[], Any]]
 
 def _events(
     epochs: list[logs.GnssEpoch],
-    series: logs.ImuSeries,
+    series: mems_conversion.ImuSeries,
     selected: Callable[[int], bool],
 ) -> tuple[list[Event], int]:
     """Every message to write in time order, and the count of GNSS epochs without a usable
@@ -277,9 +284,9 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
     samples = [s for s in mems_records if selected(s.stamp.equipment_id)]
-    default_shift = logs.THESIS_LATENCY_S if args.preset == "thesis" else 0.0
+    default_shift = mems_conversion.THESIS_LATENCY_S if args.preset == "thesis" else 0.0
     shift_s = default_shift if args.time_shift is None else args.time_shift
-    series = logs.imu_series(
+    series = mems_conversion.imu_series(
         samples, accel=accel, gyro=gyro, unwrap=not args.keep_gyro_wrap, time_shift_s=shift_s
     )
     _listed(series.wraps, "gyro wrap")
