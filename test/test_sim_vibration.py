@@ -17,6 +17,7 @@ from ins_fusion.bags import topics as T  # noqa: N812
 from ins_fusion.bags.bag_io import BagReader
 from ins_fusion.sim import vibration
 from ins_fusion.sim.drive import Simulation, SimulationConfig
+from ins_fusion.sim.live import LiveImu
 from ins_fusion.sim.vibration import (
     CAR,
     NONE,
@@ -27,7 +28,6 @@ from ins_fusion.sim.vibration import (
     vibration_sigma,
 )
 from ins_fusion.tools import cli
-from ins_fusion.tools.simulate import LiveImu
 
 RATE_HZ = 134.0
 #: Ten minutes at the IMU400CC rate.

@@ -26,15 +26,17 @@ from ins_fusion.bags.bag_io import BagReader
 DURATION_S = 6.0
 
 
-def _port_lines(proc: subprocess.Popen[str], names: set[str]) -> dict[str, str]:
-    """The ``name: path`` lines simulate --live prints first (read on a thread: no hang)."""
+def port_lines(proc: subprocess.Popen[str], names: set[str]) -> dict[str, str]:
+    """The ``name: path`` lines of the live drive's ports ``names`` (simulate --live prints
+    them first, gnss_ins emulate after its own lines), read on a thread: no hang."""
     ports: dict[str, str] = {}
 
     def read() -> None:
         assert proc.stdout is not None
         while set(ports) != names and (line := proc.stdout.readline()):
             name, _, path = line.strip().partition(": ")
-            ports[name] = path
+            if name in names:
+                ports[name] = path
 
     reader = threading.Thread(target=read, daemon=True)
     reader.start()
@@ -58,7 +60,7 @@ def live(tmp_path_factory: pytest.TempPathFactory):
     command += ["--scenario=aalborg_turn", f"--duration={DURATION_S}", f"--truth-output={truth}"]
     proc = subprocess.Popen(command, stdout=subprocess.PIPE, text=True)
     try:
-        ports = _port_lines(proc, {"imu", "gnss", "adu5", "truth"})
+        ports = port_lines(proc, {"imu", "gnss", "adu5", "truth"})
         with (
             serial.Serial(ports["imu"], 38400, timeout=0.1) as imu,
             serial.Serial(ports["gnss"], 9600, timeout=0.1) as gnss,
@@ -130,7 +132,7 @@ def test_hold_keeps_the_devices_open_after_the_drive_until_sigterm():
     command += ["--scenario=aalborg_turn", "--duration=2", "--no-adu5", "--gnss=none"]
     proc = subprocess.Popen(command, stdout=subprocess.PIPE, text=True)
     try:
-        imu_port = _port_lines(proc, {"imu"})["imu"]
+        imu_port = port_lines(proc, {"imu"})["imu"]
         assert proc.stdout is not None
         assert proc.stdout.readline() == "drive ended\n"
         time.sleep(1.0)  # past the drive: the process and its device are still there

@@ -23,6 +23,10 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "batch": ("batch", "many bags replayed on a Dask cluster: per-bag results, fleet summary"),
     "allan": ("allan", "IMU noise terms from a static bag (Allan deviation) as fusion parameters"),
     "calibrate": ("calibrate", "IMU laboratory calibration from bags: biases, scales, axes"),
+    "emulate": (
+        "emulate",
+        "IMU, Leica and ADU5 emulated together on one simulated drive (for launch)",
+    ),
     "emulate-imu": ("emulate_imu", "emulated IMU400CC on a pseudo-terminal"),
     "emulate-gnss": ("emulate_gnss", "emulated Leica RTK rover or ADU5 on a pseudo-terminal"),
     "emulate-caster": ("emulate_caster", "NTRIP caster on 127.0.0.1 serving an RTCM 3 capture"),
@@ -68,6 +72,7 @@ GROUPS: dict[str, tuple[str, ...]] = {
     "without hardware": (
         "demo",
         "simulate",
+        "emulate",
         "emulate-imu",
         "emulate-gnss",
         "emulate-caster",

@@ -33,7 +33,6 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import IO, Any
 
-from gnss_driver.profiles import Receiver
 from gnss_ins_common.paths import config_file
 from ins_fusion.adapters.messages_in import stamp_s
 from ins_fusion.bags.bag_io import BagReader, BagWriter
@@ -50,9 +49,8 @@ from ins_fusion.bags.topics import (
 from ins_fusion.core.engine.warm_up import warm_up
 from ins_fusion.replay.recorded import RecordedErrors, recorded_errors, truth_track
 from ins_fusion.runtime.processes import ProcessGroup, gnss_ins_command
-from ins_fusion.runtime.vehicle_nodes import ADU5, FUSION, LEICA, VEHICLE, command
-from ins_fusion.sim.receivers import emulator_config
-from ins_fusion.sim.scenarios import SURVEY_CAR
+from ins_fusion.runtime.vehicle_nodes import ADU5, LEICA, VEHICLE, command
+from ins_fusion.sim.launch_config import parameter_arguments, simulated_vehicle_parameters
 
 #: The demo's report (live and replay errors, the replay's own report) and figure.
 REPORT, FIGURE = "demo_report.json", "demo.png"
@@ -344,20 +342,12 @@ def _live_run(args: argparse.Namespace, out: Path, env: dict[str, str]) -> str |
         lines = _Lines(simulator.stdout)
         ports = _read_ports(lines)
         print(f"  emulated devices: {', '.join(f'{k} {v}' for k, v in ports.items())}")
-        car = SURVEY_CAR
-        lever_arms = (
-            "-p",
-            f"imu_lever_arm:={list(car.imu.lever_arm_flu_m)}",
-            "-p",
-            f"gnss_lever_arm:={list(car.gnss_antenna_flu_m)}",
-        )
         port_of = {"imu": ports["imu"], "leica": ports["gnss"], "adu5": ports["adu5"]}
-        # The emulated receivers send each epoch output_latency_s after its UTC time; as on a
-        # real vehicle, gnss_node is told that latency so it stamps the epoch time itself.
+        # The simulated car's lever arms and the emulated receivers' output latency, which
+        # gnss_node takes off the stamps, as on a real vehicle.
         extras = {
-            FUSION: lever_arms,
-            LEICA: ("-p", f"latency:={emulator_config(Receiver.LEICA).output_latency_s}"),
-            ADU5: ("-p", f"latency:={emulator_config(Receiver.ADU5).output_latency_s}"),
+            spec: parameter_arguments(values)
+            for spec, values in simulated_vehicle_parameters().items()
         }
         for spec in VEHICLE:
             port = port_of[spec.port_role] if spec.port_role else None

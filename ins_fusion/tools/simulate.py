@@ -4,36 +4,19 @@ Bag mode writes what imu400cc_node and gnss_node would publish on the drive, eac
 receive time, plus the truth (ins_fusion/sim/drive.py lists topics, frames and stamps), then
 prints the bag summary. The same seed gives the same messages.
 
-``--live`` runs the drive in real time instead: the IMU400CC emulator and the GNSS emulators (the
-position receiver, and the ADU5) on pseudo-terminals take their samples from the same truth and
-error models, and the port paths are printed first, one line each (``imu: PATH``, ``gnss: PATH``,
-``adu5: PATH``), for the real nodes to open. ``--truth-output BAG`` records the truth meanwhile,
-stamped on the host clock from the start time the emulators use. Runs until the duration ends or
-Ctrl-C / SIGTERM; with ``--hold`` it prints ``drive ended`` when the duration ends and keeps the
-devices open (the vehicle parked where the drive ended, the receivers without a fix) until
-Ctrl-C / SIGTERM, so that the nodes reading them can be stopped first (``gnss_ins demo``).
+``--live`` runs the drive in real time instead, on emulated devices (ins_fusion/sim/live.py: the
+port lines it prints first, ``--truth-output BAG``, ``--hold``, as ``gnss_ins demo`` uses them).
 """
 
 from __future__ import annotations
 
 import argparse
-import contextlib
 import dataclasses
 import math
-import signal
 import sys
-import threading
-import time
 from datetime import datetime
 from pathlib import Path
 
-import numpy as np
-
-from gnss_driver.emulator import EmulatorConfig as GnssEmulatorConfig
-from gnss_driver.emulator import GnssEmulator, Truth
-from gnss_driver.profiles import Receiver
-from gnss_ins_common.types import FloatArray
-from imu400cc_driver.emulator import EmulatorConfig, Imu400ccEmulator, SentPacket
 from ins_fusion.bags.bag_io import STORAGES, BagError, BagWriter
 from ins_fusion.runtime.progress import Progress
 from ins_fusion.sim import imu_model, odometer_model, vibration
@@ -44,14 +27,9 @@ from ins_fusion.sim.drive import (
     SimulationConfig,
     SkyZoneSpec,
 )
-from ins_fusion.sim.gnss_model import GnssErrorModel
-from ins_fusion.sim.receivers import emulator_truth, epoch_config
+from ins_fusion.sim.live import LiveOptions, run_live
 from ins_fusion.sim.scenarios import SCENARIOS
-from ins_fusion.sim.vehicle import TruthCache
-from ins_fusion.sim.vibration import Vibration
 
-#: How often the live mode writes the truth that became due [s].
-_LIVE_TICK_S = 0.1
 #: Messages written between progress-bar updates.
 _PROGRESS_EVERY = 2000
 
@@ -100,22 +78,28 @@ def _utc_ns(text: str) -> int:
     return round(stamp.timestamp() * 1e9)
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """Command-line options of ``gnss_ins simulate``."""
+def add_drive_arguments(parser: argparse.ArgumentParser, duration_s: float, what: str) -> None:
+    """``--scenario``, ``--duration`` (default ``duration_s``, help ``what``) and ``--seed``: the
+    drive, also of ``gnss_ins emulate``."""
     parser.add_argument(
         "--scenario",
         choices=sorted(SCENARIOS),
         default="test_pattern",
         help="the drive (docs/simulator.md)",
     )
+    parser.add_argument("--duration", type=_positive, default=duration_s, help=what)
+    parser.add_argument("--seed", type=int, default=0, help="seed of every error model")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Command-line options of ``gnss_ins simulate``."""
+    add_drive_arguments(parser, 240.0, "seconds to simulate")
     parser.add_argument(
         "--imu", choices=sorted(imu_model.PROFILES), default="imu400cc", help="IMU error profile"
     )
     parser.add_argument(
         "--imu-rate", type=_positive, metavar="HZ", help="IMU output rate (default: the profile's)"
     )
-    parser.add_argument("--duration", type=_positive, default=240.0, help="seconds to simulate")
-    parser.add_argument("--seed", type=int, default=0, help="seed of every error model")
     parser.add_argument("-o", "--output", type=Path, help="bag directory to create")
     parser.add_argument(
         "--storage", choices=sorted(STORAGES), default="mcap", help="rosbag2 storage plugin"
@@ -262,7 +246,10 @@ def run(args: argparse.Namespace) -> int:
     )
     try:
         if args.live:
-            return run_live(config, args.truth_output, args.storage, args.hold)
+            options = LiveOptions(
+                truth_output=args.truth_output, storage=args.storage, hold=args.hold
+            )
+            return run_live(config, options)
         write_bag(config, args.output, args.storage)
     except (BagError, ValueError) as exc:
         print(f"gnss_ins simulate: error: {exc}", file=sys.stderr)
@@ -310,155 +297,3 @@ def write_bag(config: SimulationConfig, path: Path, storage: str = "mcap") -> No
             f" slip above {dmi.slip_threshold_m_s2:g} m/s²)"
         )
     print(writer.summary.format(title))
-
-
-# --------------------------------------------------------------------------------------------
-# Live mode
-# --------------------------------------------------------------------------------------------
-
-
-class LiveImu:
-    """Source of the IMU400CC emulator: truth plus the IMU error model at simulation time
-    t = device time + offset, with the offset (start of the device clock on the host clock
-    minus the simulation start) measured on the first packet the emulator sends. The vibration
-    (if any) runs on the device's own sample grid at the emulator's rate, its amplitude
-    following the speed at t."""
-
-    def __init__(self, simulation: Simulation, start_s: float, offset_s: float) -> None:
-        """``start_s``: host time of simulation time 0 [s]; ``offset_s``: first guess."""
-        self._model = simulation.imu_model
-        duration = simulation.config.duration_s
-        vehicle = simulation.vehicle
-        rate_hz = EmulatorConfig().rate_hz
-        self._vibration = Vibration(
-            simulation.vibration_profile, rate_hz, simulation.vibration_seed
-        )
-
-        def truths(t: FloatArray) -> list[tuple[FloatArray, FloatArray, float]]:
-            # Times clipped to the drive: the vehicle holds its final state after it.
-            truth = vehicle.imu(np.clip(t, 0.0, duration))
-            speed = np.linalg.norm(truth.vel_ned_m_s, axis=1).tolist()
-            return list(
-                zip(truth.rate_flu_rad_s, truth.specific_force_flu_m_s2, speed, strict=True)
-            )
-
-        self._truth = TruthCache(
-            truths,
-            lambda t: truths(np.array([t]))[0],
-            ahead=np.arange(round(rate_hz)) / rate_hz,  # one second of streamed samples
-        )
-        self._start_s = start_s
-        self.offset_s = offset_s
-        self._measured = False
-        self._first_device_s = math.nan
-
-    def __call__(self, device_s: float) -> tuple[FloatArray, FloatArray]:
-        if math.isnan(self._first_device_s):
-            self._first_device_s = device_s
-        t = device_s + self.offset_s
-        rate, force, speed = self._truth(t)
-        if not self._vibration.profile.silent:
-            vibration_rate, vibration_force = self._vibration.sample(np.array([device_s]), speed)
-            rate, force = rate + vibration_rate[0], force + vibration_force[0]
-        measured_rate, measured_force = self._model.apply(np.array([t]), rate[None], force[None])
-        return measured_rate[0], measured_force[0]
-
-    def on_packet(self, packet: SentPacket) -> None:
-        """Emulator callback (its thread, once the packets of its samples were written). The
-        first is the first sample's: a late emulator thread asks for several samples before it
-        writes them, so the offset is measured against the first sample's device time."""
-        if not self._measured:
-            self.offset_s = packet.sample_wall_s - self._start_s - self._first_device_s
-            self._measured = True
-
-
-class LiveGnss:
-    """Source of a GNSS emulator: the receiver error model's epoch at UTC time u, i.e. at
-    simulation time u - start. Sets the emulator's per-epoch fix quality, satellites, HDOP and
-    accuracy, and reports a lost fix (the emulators take no fix quality from their source)."""
-
-    def __init__(
-        self,
-        model: GnssErrorModel,
-        base_config: GnssEmulatorConfig,
-        start_s: float,
-        duration_s: float,
-    ) -> None:
-        """``base_config``: the emulator's configuration, changed per epoch."""
-        self._model = model
-        self._base_config = base_config
-        self._start_s = start_s
-        self._duration_s = duration_s
-        self.device: GnssEmulator | None = None
-
-    def __call__(self, utc_s: float) -> Truth:
-        device = self.device
-        assert device is not None
-        t = utc_s - self._start_s
-        half_period = 0.5 / self._model.profile.rate_hz
-        epoch = None
-        if t < self._duration_s:
-            epoch = next(iter(self._model.epochs(t - half_period, t + half_period)), None)
-        if epoch is None or epoch.fix is None:
-            device.lose_fix(1)
-            return emulator_truth(None)
-        device.config = epoch_config(self._base_config, epoch)
-        return emulator_truth(epoch.fix)
-
-
-def run_live(
-    config: SimulationConfig, truth_output: Path | None, storage: str = "mcap", hold: bool = False
-) -> int:
-    """Run the emulators in real time until the duration ends (with ``hold``: until a stop
-    signal after it) or a stop signal."""
-    start_s = time.time()
-    simulation = Simulation(dataclasses.replace(config, start_ns=round(start_s * 1e9)))
-    temperature = float(simulation.imu_model.temperature_c(np.array([0.0]))[0])
-    imu_source = LiveImu(simulation, start_s, time.time() - start_s)
-    with contextlib.ExitStack() as stack:
-        imu = stack.enter_context(
-            Imu400ccEmulator(
-                imu_source,
-                EmulatorConfig(temperature_c=temperature),
-                on_packet=imu_source.on_packet,
-            )
-        )
-        ports = [("imu", imu.path)]
-        gnss_devices: list[GnssEmulator] = []
-        for receiver, model in simulation.receivers:
-            source = LiveGnss(model, receiver.config, start_s, config.duration_s)
-            source.device = device = GnssEmulator(source, receiver.config)
-            stack.enter_context(device)
-            gnss_devices.append(device)
-            ports.append(("adu5" if receiver.receiver is Receiver.ADU5 else "gnss", device.path))
-        writer = None
-        if truth_output is not None:
-            writer = stack.enter_context(BagWriter(truth_output, storage=storage))
-            ports.append(("truth", str(truth_output)))
-        for name, path in ports:
-            print(f"{name}: {path}", flush=True)
-        progress = stack.enter_context(Progress("live", total=config.duration_s, unit="s"))
-        # Ctrl-C and SIGTERM end the run (also when started in the background, where the shell
-        # leaves SIGINT ignored).
-        done = threading.Event()
-        for signum in (signal.SIGINT, signal.SIGTERM):
-            signal.signal(signum, lambda *_: done.set())
-        written_s = 0.0
-        while not done.wait(_LIVE_TICK_S):
-            now_s = min(time.time() - start_s, config.duration_s)
-            if writer is not None:
-                for event in simulation.truth_events(written_s, now_s):
-                    writer.write(event.topic, event.log_ns, event.message)
-            written_s = now_s
-            progress.update(now_s)
-            if now_s >= config.duration_s:
-                break
-        if hold and not done.is_set():
-            print("drive ended", flush=True)
-            done.wait()
-    sent = [f"imu {imu.packets_sent} packets"]
-    sent += [f"{d.config.receiver.value} {d.epochs_sent} epochs" for d in gnss_devices]
-    print(f"sent: {', '.join(sent)}", flush=True)
-    if writer is not None:
-        print(writer.summary.format(f"truth bag {truth_output} ({storage})"))
-    return 0
