@@ -33,6 +33,7 @@ from ins_fusion.calibration_id.model import BiasInstability, Site
 from ins_fusion.calibration_id.plot import plot_positions, plot_segments
 from ins_fusion.calibration_id.result import CalibrationResult, Quantity
 from ins_fusion.calibration_id.segments import DetectorSettings, Kind, detect
+from ins_fusion.calibration_id.unknown_attitude import unknown_attitude
 from ins_fusion.sim.imu_model import IMU400CC, STIM300, ImuErrorModel, ImuProfile
 from ins_fusion.tools.cli import main as gnss_ins
 
@@ -163,7 +164,7 @@ METHODS = [
             f"unknown-attitude (S4), 26 x 30 s, {name}",
             profile,
             lambda seed: procedures.multi_position(procedures.positions_26(), 30.0, 4.0),
-            lambda rec, segs, profile=profile: static.unknown_attitude(
+            lambda rec, segs, profile=profile: unknown_attitude(
                 segs, static.StaticOptions(SITE, 0.0, _instability(profile))
             ),
         )

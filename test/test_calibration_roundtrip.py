@@ -20,6 +20,7 @@ from ins_fusion.calibration_id import procedures, rotation, static
 from ins_fusion.calibration_id.model import BiasInstability, Site
 from ins_fusion.calibration_id.result import Quantity
 from ins_fusion.calibration_id.segments import DetectorSettings, Kind, detect
+from ins_fusion.calibration_id.unknown_attitude import unknown_attitude
 from ins_fusion.sim.imu_model import IMU400CC, STIM300, ImuProfile
 
 SITE = Site.at(57.0, 50.0)
@@ -211,7 +212,7 @@ def test_unknown_attitude_recovers_accelerometer_and_gyro_bias():
     steps = procedures.multi_position(procedures.positions_26(), 20.0, 4.0)
     record, model = procedures.simulate(steps, profile, SITE, 5)
     options = static.StaticOptions(SITE, 0.0, _instability(profile))
-    result = static.unknown_attitude(_segments(record), options)
+    result = unknown_attitude(_segments(record), options)
     _within(result, Quantity.ACCEL_BIAS, model.accel.bias)
     _within(result, Quantity.ACCEL_SCALE_POSITIVE, model.accel.scale_pos)
     _within(result, Quantity.ACCEL_MISALIGNMENT, model.accel.misalignment)
@@ -221,7 +222,7 @@ def test_unknown_attitude_recovers_accelerometer_and_gyro_bias():
 def test_unknown_attitude_refuses_a_noisy_gyro_for_the_earth_rate():
     steps = procedures.multi_position(procedures.positions_26()[:10], 20.0, 4.0)
     record, _ = procedures.simulate(steps, IMU400CC, SITE, 6)
-    result = static.unknown_attitude(_segments(record), static.StaticOptions(SITE, 0.0))
+    result = unknown_attitude(_segments(record), static.StaticOptions(SITE, 0.0))
     assert not any(e.quantity is Quantity.GYRO_BIAS for e in result.estimates)
     assert any("earth rate" in note for note in result.notes)
 

@@ -36,6 +36,7 @@ from ins_fusion.calibration_id.segments import (
     from_window,
     static_only,
 )
+from ins_fusion.calibration_id.unknown_attitude import unknown_attitude
 from ins_fusion.core.nav.calibration import CalibrationError, ImuCalibration
 from ins_fusion.core.nav.units import STANDARD_GRAVITY_M_S2, deg_h, mg
 from ins_fusion.core.settings.config import NODE_NAME as FUSION_NODE
@@ -226,7 +227,7 @@ def _run_method(
         if method == "known-attitude":
             return static.known_attitude(statics, args.attitudes, options), None
         if method == "unknown-attitude":
-            return static.unknown_attitude(statics, options), None
+            return unknown_attitude(statics, options), None
         result = static.six_position(statics, options, salychev=method == "salychev")
         if args.positions is not None:
             _check_positions(result, args.positions)
