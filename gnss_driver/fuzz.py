@@ -15,9 +15,9 @@ import random
 import string
 
 from gnss_driver.driver import EpochOutput
+from gnss_driver.fix_type import VALID_FIX_TYPES
 from gnss_driver.plausibility import MAX_SPEED_M_S
 from gnss_driver.reader import frame_sentence
-from gnss_driver.solution import VALID_FIX_TYPES
 
 #: One valid body (no ``$``, no checksum) per sentence type, all of 12:35:19 UTC.
 TEMPLATES: tuple[str, ...] = (

@@ -26,11 +26,11 @@ from gnss_driver import geoid
 from gnss_driver.commands import Answer, CommandResult, run_setup
 from gnss_driver.corrections import CorrectionQueue
 from gnss_driver.driver import EpochOutput, GnssDriver
+from gnss_driver.fix_type import FixType
 from gnss_driver.messages import TOPICS, MessageClasses, epoch_messages
 from gnss_driver.parameters import DRIVER_PARAMETERS, adu5_setup, driver_config
 from gnss_driver.profiles import PROFILES, Receiver, default_setup_commands
 from gnss_driver.ros_receiver_io import ReceiverTraffic
-from gnss_driver.solution import FixType
 from gnss_ins_common import ros_diagnostics as diag
 from gnss_ins_common.message_fields import seconds_of_ns, stamp_ns
 from gnss_ins_common.rates import RateMeter

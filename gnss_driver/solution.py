@@ -29,7 +29,6 @@ from __future__ import annotations
 import datetime
 import math
 from dataclasses import dataclass, field
-from enum import IntEnum
 from typing import Any
 
 import pynmea2
@@ -39,6 +38,16 @@ from gnss_driver.attitude import AttitudeConverter, Orientation
 from gnss_driver.epoch import Epoch
 from gnss_driver.fix_covariance import LLQ_HORIZONTAL_FRACTION, FixCovariance
 from gnss_driver.fix_rules import HeldAltitude, gsa_mode, gsa_satellites, is_2d
+from gnss_driver.fix_type import (
+    GNS_MODE_RANK,
+    LLQ_FIX,
+    MODE_FIX,
+    NAV_SAT_STATUS,
+    VALID_FIX_TYPES,
+    FixType,
+    gga_fix_type,
+    gns_fix_type,
+)
 from gnss_driver.grid import GridProjection
 from gnss_driver.plausibility import KNOTS_TO_M_S, FieldReader
 from gnss_driver.sentences import ASHRATT, ASHRPAT, LLQ, sentence_id, text
@@ -52,50 +61,6 @@ from gnss_ins_common.navsat import (
     CovarianceType,
     NavSatStatus,
 )
-
-
-class FixType(IntEnum):
-    """GGA quality indicator values."""
-
-    NO_FIX = 0
-    SPS = 1
-    DGPS = 2
-    PPS = 3
-    RTK_FIXED = 4
-    RTK_FLOAT = 5
-    ESTIMATED = 6
-    MANUAL = 7
-    SIMULATION = 8
-
-
-#: Fix types that are measured positions.
-VALID_FIX_TYPES = frozenset(
-    {FixType.SPS, FixType.DGPS, FixType.PPS, FixType.RTK_FIXED, FixType.RTK_FLOAT}
-)
-
-#: RMC / GLL / VTG mode letters (NMEA 2.3+) -> fix type.
-_MODE_FIX = {
-    "A": FixType.SPS,
-    "D": FixType.DGPS,
-    "P": FixType.PPS,
-    "R": FixType.RTK_FIXED,
-    "F": FixType.RTK_FLOAT,
-    "E": FixType.ESTIMATED,
-    "M": FixType.MANUAL,
-    "S": FixType.SIMULATION,
-    "N": FixType.NO_FIX,
-}
-
-
-#: Fix type -> NavSatStatus, as ros-drivers' nmea_navsat_driver maps GGA quality: DGPS counts as
-#: SBAS-augmented, RTK as ground-based augmentation.
-NAV_SAT_STATUS = {
-    FixType.SPS: NavSatStatus.FIX,
-    FixType.PPS: NavSatStatus.FIX,
-    FixType.DGPS: NavSatStatus.SBAS_FIX,
-    FixType.RTK_FLOAT: NavSatStatus.GBAS_FIX,
-    FixType.RTK_FIXED: NavSatStatus.GBAS_FIX,
-}
 
 #: sensor_msgs/NavSatStatus service bits per NMEA talker; GN (combined), proprietary and
 #: unknown talkers name no system, and an epoch naming none is taken as GPS.
@@ -267,15 +232,15 @@ class EpochSolver:
             mode = self._mode_fix_type(gll)
         if isinstance(gga, pynmea2.GGA):
             quality = self.fields.integer(gga, "gps_qual", required=True)
-            fix_type = _fix_type(quality) if quality is not None else FixType.NO_FIX
+            fix_type = gga_fix_type(quality) if quality is not None else FixType.NO_FIX
             source: pynmea2.NMEASentence = gga
         elif gga is not None:
-            fix_type, source = _gns_fix_type(text(gga, "mode_indicator")), gga
+            fix_type, source = gns_fix_type(text(gga, "mode_indicator")), gga
         elif pat is not None:
             fix_type, source = (FixType.SPS if mode is None else mode), pat
         elif (llq := epoch.get(LLQ)) is not None and self._grid is not None:
             quality = self.fields.integer(llq, "gps_qual", required=True)
-            fix_type = FixType.NO_FIX if quality is None else _LLQ_FIX.get(quality, FixType.NO_FIX)
+            fix_type = FixType.NO_FIX if quality is None else LLQ_FIX.get(quality, FixType.NO_FIX)
             source = llq
             gga = None
         elif rmc is not None or gll is not None:
@@ -357,7 +322,7 @@ class EpochSolver:
             return FixType.NO_FIX
         mode = text(sentence, "mode_indicator" if isinstance(sentence, pynmea2.RMC) else "faa_mode")
         if mode is not None:
-            return _MODE_FIX.get(mode[0], FixType.NO_FIX)
+            return MODE_FIX.get(mode[0], FixType.NO_FIX)
         return FixType.SPS if status == "A" else None
 
     def _grid_position(self, llq: LLQ) -> tuple[float, float] | None:
@@ -457,28 +422,6 @@ class EpochSolver:
         return None
 
 
-#: LLQ GPS quality -> fix type: 1 navigation fix, 2 RTK float, 3 RTK fixed (notes §7.2).
-_LLQ_FIX = {1: FixType.SPS, 2: FixType.RTK_FLOAT, 3: FixType.RTK_FIXED}
-#: GNS mode letters from the best fix to the weakest valid one.
-_GNS_MODE_RANK = "RFPDA"
-
-
-def _gns_fix_type(modes: str | None) -> FixType:
-    """The best fix type among a GNS sentence's per-system mode letters (GPS, GLONASS, Galileo,
-    BeiDou, ...; NMEA 0183 4.10), NO_FIX when none is valid."""
-    for letter in _GNS_MODE_RANK:
-        if modes is not None and letter in modes:
-            return _MODE_FIX[letter]
-    return FixType.NO_FIX
-
-
-def _fix_type(quality: int) -> FixType:
-    try:
-        return FixType(quality)
-    except ValueError:
-        return FixType.NO_FIX
-
-
 def _scaled(value: float | None, factor: float) -> float | None:
     return None if value is None else value * factor
 
@@ -491,7 +434,7 @@ def _service(epoch: Epoch) -> int:
         if isinstance(sentence, pynmea2.GNS):
             modes = text(sentence, "mode_indicator") or ""
             for letter, bit in zip(modes, _GNS_MODE_SERVICE, strict=False):
-                bits |= bit if letter in _GNS_MODE_RANK else 0
+                bits |= bit if letter in GNS_MODE_RANK else 0
     return bits or SERVICE_GPS
 
 

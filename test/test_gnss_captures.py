@@ -18,7 +18,7 @@ from nmea_captures import CAPTURES, DATA, chunk_ends, feed, on_the_wire
 
 from gnss_driver.driver import DriverConfig, GnssDriver
 from gnss_driver.epoch import EPOCH_TYPES
-from gnss_driver.solution import FixType
+from gnss_driver.fix_type import FixType
 
 START_S = 1_699_965_319.0  # 2023-11-14T12:35:19Z, the captures' first epoch
 BAUDS = (4800, 9600, 115200)

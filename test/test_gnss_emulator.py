@@ -22,9 +22,9 @@ from gnss_driver.emulator import (
     constant_velocity,
     leica_sentences,
 )
+from gnss_driver.fix_type import FixType
 from gnss_driver.profiles import Receiver
 from gnss_driver.reader import frame_sentence
-from gnss_driver.solution import FixType
 from gnss_ins_common.rtcm import make_frame
 
 UTC = 1_735_689_599.0  # 2024-12-31T23:59:59Z

@@ -12,8 +12,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from gnss_driver.driver import DriverConfig, GnssDriver
+from gnss_driver.fix_type import FixType
 from gnss_driver.reader import frame_sentence as nmea
-from gnss_driver.solution import FixType
 from gnss_driver.utc import DateSource, UtcResolver, gps_time_of_week_to_time_of_day_ms
 
 T0 = 1_700_000_000.0  # an arbitrary host time [s]

@@ -17,9 +17,10 @@ from hypothesis import strategies as st
 
 from gnss_driver.driver import DriverConfig, GnssDriver
 from gnss_driver.fix_rules import HOLD_VERTICAL_RATE_M_S, gsa_mode, gsa_satellites
+from gnss_driver.fix_type import FixType
 from gnss_driver.reader import NmeaReader
 from gnss_driver.reader import frame_sentence as nmea
-from gnss_driver.solution import FixType, GnssFix, SolutionConfig
+from gnss_driver.solution import GnssFix, SolutionConfig
 from gnss_ins_common.navsat import HEIGHT_UNKNOWN_VARIANCE_M2, NavSatStatus
 
 T0 = 1_700_000_000.0

@@ -13,6 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from gnss_driver.driver import DriverConfig, GnssDriver
+from gnss_driver.fix_type import FixType
 from gnss_driver.fuzz import (
     FIELD_CHARACTERS,
     SPECIAL_VALUES,
@@ -23,7 +24,7 @@ from gnss_driver.fuzz import (
     output_problems,
 )
 from gnss_driver.reader import frame_sentence as nmea
-from gnss_driver.solution import FixType, SolutionConfig
+from gnss_driver.solution import SolutionConfig
 
 T0 = 1_700_000_000.0
 LLQ_GRID = SolutionConfig(llq_projection="EPSG:25832")

@@ -19,9 +19,10 @@ from gnss_driver.attitude import (
     brf_rotation,
 )
 from gnss_driver.epoch import Epoch
+from gnss_driver.fix_type import FixType
 from gnss_driver.reader import NmeaReader
 from gnss_driver.reader import frame_sentence as nmea
-from gnss_driver.solution import EpochSolver, FixType, SolutionConfig, UereTable
+from gnss_driver.solution import EpochSolver, SolutionConfig, UereTable
 from gnss_ins_common.navsat import CovarianceType, NavSatStatus
 
 GGA_SPS = "GPGGA,184353.07,1929.045,S,02410.506,E,1,04,2.6,100.00,M,-33.9,M,,0000"
