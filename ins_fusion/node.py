@@ -270,6 +270,8 @@ class InsFusionNode(Node):
         level, message = self._state_level(
             status.state, solution.t_s if solution else None, status.measurements["gnss_position"]
         )
+        if status.aligning:
+            message = f"aligning: {status.aligning}"
         temperature_ok = self._temperature_ok(self._temperature_c)
         if status.last_reset_reason:
             message = f"{message}; last reset: {status.last_reset_reason}"

@@ -128,3 +128,16 @@ def test_the_variance_ceiling_bounds_what_a_fading_may_grow(optional: bool) -> N
     if layout.mt is not None:
         config = FusionConfig.from_parameters(PARAMETERS)
         np.testing.assert_allclose(ceiling[layout.mt : layout.mt + 2], config.mounting_sigma_rad**2)
+
+
+def test_what_the_alignment_waits_for_is_said() -> None:
+    startup, latest = _startup(StateLayout(False, False, False, False, False))
+    assert startup.waiting_for(10.0, True, False) == "no GNSS fix yet"
+    latest.fix = _fix(0.0)
+    assert startup.waiting_for(10.0, True, False).startswith("last GNSS fix 10.0 s old")
+    _level(startup, 1.0)
+    latest.fix = _fix(1.0)
+    assert startup.waiting_for(1.0, True, False) == "levelling at rest, 1 of 2 s"
+    moving = startup.waiting_for(1.0, False, False)
+    assert moving.startswith("moving before 2 s at rest") and "course above 3 m/s" in moving
+    assert startup.waiting_for(1.0, False, True).startswith("heading unknown")

@@ -57,6 +57,7 @@ from ins_fusion.core.engine.intake import (
     S_GAPS,
     S_IMPLAUSIBLE,
     S_LAST_RATE,
+    S_LAST_T,
     S_OUT_OF_ORDER,
     S_SAMPLES,
     take_sample,
@@ -237,8 +238,10 @@ class InsEngine(EngineLoop):
     def status(self) -> EngineStatus:
         """Counters and diagnostics (see EngineStatus)."""
         self._catch_up()
+        state = self._state_name()
+        t_s, stationary = float(self._intake[S_LAST_T]), self._detector.stationary
         return EngineStatus(
-            state=self._state_name(),
+            state=state,
             measurements={name: dict(c) for name, c in self._counters.items()},
             resets=self._resets,
             last_reset_reason=self._last_reset_reason,
@@ -250,10 +253,13 @@ class InsEngine(EngineLoop):
             nis=dict(self._corrections.nis),
             rollbacks=self._rollbacks,
             replayed_samples=self._replayed_samples,
-            stationary=self._detector.stationary,
+            stationary=stationary,
             adapted=self.adapted_noise(),
             calibration=self.self_calibration(),
             warnings=self._startup.warnings,
+            aligning=self._startup.waiting_for(t_s, stationary, self._state is not None)
+            if state == "aligning"
+            else "",
         )
 
     def self_calibration(self) -> dict[str, float]:

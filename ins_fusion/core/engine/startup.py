@@ -104,6 +104,25 @@ class Startup:
             return self._start_moving(t, fix, vel, None)
         return None
 
+    def waiting_for(self, t: float, stationary: bool, started: bool) -> str:
+        """What the alignment waits for at IMU time t [s] (the reason of the state
+        'aligning'): a fix, the standstill's levelling, or, ``started``, the heading."""
+        course = f"the GNSS course above {self._config.course_speed_m_s:g} m/s"
+        if started:
+            return f"heading unknown: waiting for the attitude receiver or {course}"
+        fix = self._latest.fix
+        if fix is None:
+            return "no GNSS fix yet"
+        if abs(t - fix.t_s) > ALIGN_FIX_MAX_AGE_S:
+            return f"last GNSS fix {abs(t - fix.t_s):.1f} s old (at most {ALIGN_FIX_MAX_AGE_S:g} s)"
+        needed_s = self._config.alignment_duration_s
+        if stationary:
+            return f"levelling at rest, {self.levelling.duration_s:.0f} of {needed_s:.0f} s"
+        return (
+            f"moving before {needed_s:.0f} s at rest: waiting for a standstill, or a heading "
+            f"from the attitude receiver or {course}"
+        )
+
     def _start_static(self, t: float, fix: GnssFixMeasurement) -> Started:
         """Start the filter after levelling on a standstill."""
         noise = self._config.imu_noise

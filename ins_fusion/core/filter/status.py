@@ -42,7 +42,8 @@ class EngineStatus:
     measurements, the stop detector's decision, and the noise the filter adapted to
     (``adapted``, flat names with units; InsEngine.adapted_noise) and the self-calibration
     (``calibration``; InsEngine.self_calibration); ``warnings``: set-up problems the data show
-    (e.g. a unit levelled far from its configured mounting), each once, for the log."""
+    (e.g. a unit levelled far from its configured mounting), each once, for the log;
+    ``aligning``: what the alignment waits for while the state is 'aligning' (else empty)."""
 
     state: str
     measurements: Counters
@@ -60,3 +61,4 @@ class EngineStatus:
     adapted: dict[str, float]
     calibration: dict[str, float]
     warnings: tuple[str, ...] = ()
+    aligning: str = ""
