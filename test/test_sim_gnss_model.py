@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from gnss_driver.fix_type import FixType
 from ins_fusion.bags.topics import GNSS_FIX
 from ins_fusion.core.nav import earth
 from ins_fusion.core.nav.rotation import euler_from_quat, quat_nb_from_enu_flu
@@ -15,7 +16,6 @@ from ins_fusion.sim.drive import Simulation, SimulationConfig
 from ins_fusion.sim.gnss_model import (
     FIX_NOISE,
     PROFILES,
-    FixType,
     GnssErrorModel,
     GnssFix,
     GnssSchedule,
@@ -83,7 +83,7 @@ def test_rtk_fixes_have_centimetre_noise_and_no_vertical_velocity():
 
 def test_outage_then_float_until_reconverged_then_scheduled_fix_changes():
     schedule = GnssSchedule(
-        outages=((100.0, 20.0),), fix_changes=((200.0, FixType.DGPS), (220.0, FixType.NONE))
+        outages=((100.0, 20.0),), fix_changes=((200.0, FixType.DGPS), (220.0, FixType.NO_FIX))
     )
     model = GnssErrorModel(TRUTH_AT, PROFILES["leica_rtk"], schedule, seed=2)
     fixes = {round(f.t_s): f for f in model.fixes(0.0, 240.0)}

@@ -8,10 +8,10 @@ import math
 import numpy as np
 import pytest
 
+from gnss_driver.fix_type import FixType
 from ins_fusion.core.nav import earth
 from ins_fusion.sim.gnss_model import (
     PROFILES,
-    FixType,
     GnssErrorModel,
     GnssSchedule,
     SkyMask,
@@ -35,7 +35,7 @@ def test_fewer_satellites_degrade_the_fix_step_by_step():
     assert masked_fix(FixType.RTK_FIXED, 5) == FixType.RTK_FLOAT
     assert masked_fix(FixType.RTK_FIXED, 4) == FixType.DGPS
     assert masked_fix(FixType.SPS, 4) == FixType.SPS
-    assert masked_fix(FixType.DGPS, 3) == FixType.NONE
+    assert masked_fix(FixType.DGPS, 3) == FixType.NO_FIX
     assert masked_fix(FixType.SPS, 9) == FixType.SPS  # never better than the receiver
 
 

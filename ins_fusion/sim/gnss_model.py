@@ -26,13 +26,13 @@ the sky opens again.
 
 from __future__ import annotations
 
-import enum
 import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from gnss_driver.fix_type import FixType
 from gnss_ins_common.types import FloatArray, Vec3
 from ins_fusion.core.nav import earth
 from ins_fusion.core.nav.rotation import (
@@ -49,16 +49,6 @@ from ins_fusion.sim.vehicle import GnssTruth, TruthCache
 _TIME_TOLERANCE_S = 1e-6
 #: Reorders per-axis standard deviations from NED to ENU (no sign change, unlike vectors).
 _NED_TO_ENU_AXES = [1, 0, 2]
-
-
-class FixType(enum.IntEnum):
-    """Fix quality, numbered as the NMEA GGA quality indicator."""
-
-    NONE = 0
-    SPS = 1
-    DGPS = 2
-    RTK_FIXED = 4
-    RTK_FLOAT = 5
 
 
 @dataclass(frozen=True)
@@ -196,18 +186,18 @@ class SkyMask:
 
 def masked_fix(fix_type: FixType, visible: int | None) -> FixType:
     """The best fix type no better than ``fix_type`` that ``visible`` satellites allow."""
-    if visible is None or fix_type == FixType.NONE:
+    if visible is None or fix_type == FixType.NO_FIX:
         return fix_type
     for candidate in _FIX_ORDER[_FIX_ORDER.index(fix_type) :]:
         if visible >= MIN_SATELLITES[candidate]:
             return candidate
-    return FixType.NONE
+    return FixType.NO_FIX
 
 
 @dataclass(frozen=True)
 class GnssSchedule:
     """Scripted events: outages as (start_s, duration_s) without any fix, fix-type changes as
-    (time_s, fix type in force from then on; FixType.NONE suppresses fixes), and the sky mask
+    (time_s, fix type in force from then on; FixType.NO_FIX suppresses fixes), and the sky mask
     along the route."""
 
     outages: tuple[tuple[float, float], ...] = ()
@@ -378,14 +368,14 @@ class GnssErrorModel:
         if outage_end is not None:
             self._reconverged_s = outage_end + profile.reconvergence_s
             return GnssEpoch(t_s, arrival, None, 0)
-        if fix_type == FixType.NONE:
+        if fix_type == FixType.NO_FIX:
             return GnssEpoch(t_s, arrival, None, 0)
         truth = self.truth(t_s)
         visible = self.schedule.sky_mask.visible_satellites(truth.lat_rad, truth.lon_rad)
         fix_type = masked_fix(fix_type, visible)
         if visible is not None and visible < MIN_SATELLITES[FixType.RTK_FIXED]:
             self._reconverged_s = t_s + profile.reconvergence_s
-        if fix_type == FixType.NONE:
+        if fix_type == FixType.NO_FIX:
             return GnssEpoch(t_s, arrival, None, visible or 0)
         noise = FIX_NOISE[fix_type]
         satellites = noise.satellites if visible is None else min(noise.satellites, visible)
