@@ -18,7 +18,8 @@ from hypothesis.extra.numpy import arrays
 
 from gnss_ins_common.message_fields import fill_imu, fill_navsatfix, fill_orientation, fill_velocity
 from gnss_ins_common.navsat import HEIGHT_UNKNOWN_VARIANCE_M2
-from ins_fusion.adapters import messages_in
+from ins_fusion.adapters import cdr_fields, messages_in
+from ins_fusion.bags.bag_io import jazzy_typestore
 from ins_fusion.bags.messages import new_message
 from ins_fusion.bags.topics import FIX_TYPE, IMU_TYPE, VELOCITY_TYPE
 
@@ -33,6 +34,7 @@ def _fix(status=2, cov_type=2, alt=41.5, cov=COV3):
 
 
 def test_imu_sample_reads_stamp_rate_and_specific_force():
+    """The IMU as its driver fills it, read from the bytes as the node and a replay read it."""
     msg = fill_imu(
         new_message(IMU_TYPE),
         T_NS,
@@ -42,7 +44,7 @@ def test_imu_sample_reads_stamp_rate_and_specific_force():
         [1e-6] * 3,
         [1e-4] * 3,
     )
-    sample = messages_in.imu_sample(msg)
+    sample = cdr_fields.imu_sample(bytes(jazzy_typestore().serialize_cdr(msg, IMU_TYPE)))
     assert sample.t_s == pytest.approx(T_S, abs=1e-9)
     assert sample.rate_flu_rad_s == (0.01, -0.02, 0.03)
     assert sample.force_flu_m_s2 == (0.1, 0.2, 9.81)

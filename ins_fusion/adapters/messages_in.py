@@ -1,9 +1,9 @@
 """Incoming ROS messages -> fusion engine inputs, for rclpy and rosbags message objects alike.
 
 One definition of how ins_fusion_node and ``gnss_ins replay`` read their topics (the IMU, at
-134 Hz, straight from its bytes with the same fields: ins_fusion.adapters.cdr_fields): the functions
-only read fields by attribute (rclpy messages and rosbags-deserialized ones have the same field
-names) and return the engine's plain types. No ROS import.
+134 Hz, only from its bytes: ins_fusion.adapters.cdr_fields; ``ImuSample`` is its record): the
+functions only read fields by attribute (rclpy messages and rosbags-deserialized ones have the
+same field names) and return the engine's plain types. No ROS import.
 
 Conventions (ARCHITECTURE.md): every time is the message's ``header.stamp`` [s since the
 epoch, host clock]; REP-103 ENU world and FLU body; REP-145 IMU data; a covariance whose first
@@ -11,7 +11,7 @@ element is -1 marks a quantity the message does not carry.
 
 | topic | type | function | InsEngine input |
 |---|---|---|---|
-| imu/data_raw | Imu | ``imu_sample`` (or ``cdr_fields.imu_sample``) | ``add_imu(*sample)`` |
+| imu/data_raw | Imu | ``cdr_fields.imu_sample`` (from the bytes) | ``add_imu(*sample)`` |
 | gnss/fix | NavSatFix | ``fix_measurement`` | ``add_gnss_fix`` |
 | gnss/vel | TwistWithCovarianceStamped (ENU) | ``velocity_measurement`` | ``add_gnss_velocity`` |
 | gnss/attitude | Imu (orientation only) | ``attitude_measurement`` | ``add_attitude`` |
@@ -71,11 +71,6 @@ def positive_definite(cov: FloatArray) -> BoolArray:
         positive = (a > 0.0) & (minor2 > 0.0) & (minor3 > 0.0)
     result: BoolArray = np.isfinite(cov).all(axis=(-2, -1)) & ~asymmetric & positive
     return result
-
-
-def imu_sample(msg: Any) -> ImuSample:
-    """sensor_msgs/Imu of imu/data_raw -> ``ImuSample`` (angular_velocity, linear_acceleration)."""
-    return ImuSample(stamp_s(msg), _vec3(msg.angular_velocity), _vec3(msg.linear_acceleration))
 
 
 def fix_measurement(msg: Any) -> GnssFixMeasurement:
