@@ -265,7 +265,8 @@ class GnssNode(ManagedSerialDriver):
         elif self._rate.settled(now) and not 0.5 <= rate / self._rate_hz <= 1.5:
             level, message = diag.WARN, f"{rate:.1f} epochs/s, expected {self._rate_hz:g}"
         elif no_fix:
-            level, message = diag.WARN, "no fix"
+            satellites = "?" if self._last_satellites is None else self._last_satellites
+            level, message = diag.WARN, f"no fix ({satellites} satellites in the last epoch)"
         elif self.params["use_gnss_time"] and abs(offset_s) > self.params["gnss_time_offset_warn"]:
             level = diag.WARN
             message = f"host - UTC {offset_s * 1e3:.1f} ms: is the host clock disciplined to UTC?"

@@ -275,8 +275,13 @@ class InsFusionNode(Node):
         temperature_ok = self._temperature_ok(self._temperature_c)
         if status.last_reset_reason:
             message = f"{message}; last reset: {status.last_reset_reason}"
-        if not temperature_ok:
-            level, message = diag.WARN, f"{message}; IMU temperature outside the calibration range"
+        if not temperature_ok and (calibration := self.engine.calibration) is not None:
+            low, high = calibration.temperature_range_c or (math.nan, math.nan)
+            level = diag.WARN
+            message = (
+                f"{message}; IMU temperature {self._temperature_c:.1f} °C outside the"
+                f" calibration's {low:g}..{high:g} °C"
+            )
         logger = self.get_logger()
         for log_level, line in self._status_log.update(status, time.monotonic()):
             if log_level == WARN:  # one severity per call site (rclpy)

@@ -297,7 +297,8 @@ def test_imu_temperature_outside_the_calibration_range_is_reported():
         node.destroy_node()
         collector.node.destroy_node()
     last = collector.get("/diagnostics")[-1].status[0]
-    assert "outside the calibration range" in last.message
+    assert f"IMU temperature {high + 7.0:.1f} °C outside the calibration's" in last.message
+    assert f"{low:g}..{high:g} °C" in last.message
 
 
 def _reported(collector: Collector, in_range: str) -> bool:
