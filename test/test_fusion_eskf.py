@@ -23,6 +23,7 @@ from hypothesis import strategies as st
 from scipy.linalg import expm
 from scipy.spatial.transform import Rotation
 
+from ins_fusion.core.compiled import kernel_array
 from ins_fusion.core.filter.eskf import (
     ATT,
     AXIS_ERROR_TIME_S,
@@ -34,7 +35,9 @@ from ins_fusion.core.filter.eskf import (
     StateLayout,
     gyro_misalignment_variance,
 )
+from ins_fusion.core.filter.propagation import covariance_step
 from ins_fusion.core.filter.records import GnssFixMeasurement, GnssVelocityMeasurement, Prediction
+from ins_fusion.core.filter.state import X_COV_DT, X_COV_DTH, X_COV_DV, X_COV_VEL0, FilterState
 from ins_fusion.core.filter.update_algebra import chi2_threshold
 from ins_fusion.core.measurements.attitude import attitude
 from ins_fusion.core.measurements.common import euler_jacobian
@@ -104,6 +107,34 @@ def _mechanize(nav: NavState, rate_i: np.ndarray, force_i: np.ndarray, steps: in
     return nav
 
 
+def _covariance_steps(
+    kf: ErrorStateFilter,
+    nav: NavState,
+    force_i: np.ndarray,
+    rate_i: np.ndarray,
+    dt_s: float,
+    steps: int,
+    mat_bi: np.ndarray = MAT_BI,
+) -> None:
+    """``steps`` covariance steps of ``dt_s`` [s] the engine's way (propagation.covariance_step)
+    at a nominal state that stays ``nav``, with a constant corrected specific force and rate
+    [imu FRD]: each interval holds their increments and the velocity change that makes the
+    specific force in NED (nav.mat_nb · mat_bi · force_i)."""
+    x = FilterState(0.0, nav, (0.0, 0.0, 0.0), True).x
+    sin_lat, cos_lat = math.sin(nav.lat_rad), math.cos(nav.lat_rad)
+    gravity = earth.normal_gravity_from_sin_cos(sin_lat, cos_lat, nav.height_m)
+    force_n = nav.mat_nb @ mat_bi @ force_i
+    vel0 = nav.vel_ned_m_s - (force_n + np.array([0.0, 0.0, gravity])) * dt_s
+    for _ in range(steps):
+        x[X_COV_DT] = dt_s
+        x[X_COV_DTH : X_COV_DTH + 3] = rate_i * dt_s
+        x[X_COV_DV : X_COV_DV + 3] = force_i * dt_s
+        x[X_COV_VEL0 : X_COV_VEL0 + 3] = vel0
+        kf.P, kf.phi = covariance_step(
+            kernel_array(kf.P), x, mat_bi, kf.process_model(), kf.layout.columns, 60.0
+        )
+
+
 def test_error_dynamics_match_finite_differences_of_the_mechanization():
     steps, dt = 20, 0.0025
     horizon = steps * dt
@@ -159,8 +190,7 @@ def test_discretisation_matches_van_loan_over_ten_seconds(interval_s):
     P0 = np.diag(np.square(sigmas))
     kf.P = P0
     steps = round(10.0 / interval_s)
-    for _ in range(steps):
-        kf.propagate(interval_s, *args)
+    _covariance_steps(kf, _nav(), FORCE_I, RATE_I, interval_s, steps)
     phi, q = van_loan_discretization(F, G, steps * interval_s)
     exact = phi @ P0 @ phi.T + q
     scale = np.sqrt(np.outer(np.diag(exact), np.diag(exact)))
@@ -398,13 +428,13 @@ def test_misalignment_noise_matches_a_constant_misalignment_after_its_time():
         gyro_misalignment=1e-3,
     )
     rate = np.array([0.0, 0.0, 0.25])  # a turn about imu z [rad/s]
-    args = (np.eye(3), np.array([0.0, 0.0, -9.8]), np.array([0.0, 0.0, -9.8]), rate, 0.0, 0.0)
     layout = StateLayout()
     kf = ErrorStateFilter(layout, quiet)
     assert np.count_nonzero(kf.noise_density(np.eye(3), np.zeros(3))) == 0
     kf.P = np.zeros((layout.size, layout.size))
-    for _ in range(round(AXIS_ERROR_TIME_S / 0.01)):
-        kf.propagate(0.01, *args, (0.0, 0.0, 0.0))
+    level = NavState(0.0, 0.0, 0.0, np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]))
+    force = np.array([0.0, 0.0, -9.8])
+    _covariance_steps(kf, level, force, rate, 0.01, round(AXIS_ERROR_TIME_S / 0.01), np.eye(3))
     variance = np.diagonal(kf.P)[ATT : ATT + 3]
     assert variance[:2] == pytest.approx([(1e-3 * 0.25 * AXIS_ERROR_TIME_S) ** 2] * 2, rel=0.01)
     assert variance[2] < 1e-10

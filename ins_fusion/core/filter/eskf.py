@@ -216,7 +216,7 @@ class ErrorStateFilter:
         #: Largest variance of each error state after a fading (``scale``), inf: none; set by
         #: the start to what is known of the state before any measurement (faded_covariance).
         self.variance_ceiling: FloatArray = np.full(n, math.inf)
-        #: Transition matrix Φ of the last ``propagate`` (a new array per call).
+        #: Transition matrix Φ of the last covariance step (a new array per step).
         self.phi: FloatArray = np.eye(n)
         #: Observer of the covariance's changes (the RTS smoother's recorder), set by the engine.
         self.recorder: SmootherHooks | None = None
@@ -299,36 +299,8 @@ class ErrorStateFilter:
         )
         return self._Q
 
-    def propagate(
-        self,
-        dt_s: float,
-        mat_ni: FloatArray,
-        force_n: FloatArray,
-        force_i: FloatArray,
-        rate_i: FloatArray,
-        lat_rad: float,
-        height_m: float,
-        vel_ned_m_s: tuple[float, float, float],
-    ) -> None:
-        """Propagate P over an interval of dt_s [s] (one or a few IMU samples); arguments as
-        for ``dynamics`` (mean force and rate over the interval, state at its end)."""
-        inputs = (mat_ni, force_n, force_i, rate_i, lat_rad, height_m, vel_ned_m_s)
-        self.P, self.phi = propagate_kernel(
-            kernel_array(self.P),
-            self._F,
-            self._Q,
-            dt_s,
-            *inputs,
-            *self.scale_columns,
-            self._gyro_psd,
-            self._gyro_misalignment_q,
-            self._accel_psd,
-            self._markov_idx,
-            self._markov_q,
-        )
-
     def process_model(self) -> ProcessModel:
-        """What ``propagate`` hands its kernel besides P and the interval: the F and Q buffers
+        """What a covariance step hands its kernel besides P and the interval: the F and Q buffers
         (filled in place), the white-noise densities in force, the gyro misalignment's noise
         and the Gauss-Markov states' indices and densities (propagation.covariance_step)."""
         return ProcessModel(
@@ -485,7 +457,7 @@ def propagate_kernel(
     markov_idx: IntArray,
     markov_q: FloatArray,
 ) -> tuple[FloatArray, FloatArray]:
-    """(P, Φ) after an interval (ErrorStateFilter.propagate); F and Q are filled in place."""
+    """(P, Φ) after an interval (propagation.covariance_step); F and Q are filled in place."""
     _fill_dynamics(F, mat_ni, force_n, force_i, rate_i, lat_rad, height_m, vel_ned_m_s, sg, sa)
     _fill_noise(Q, mat_ni, rate_i, gyro_psd, gyro_misalignment_q, accel_psd, markov_idx, markov_q)
     f_dt = F * dt_s

@@ -212,7 +212,7 @@ def advance(x: FloatArray, inc: FloatArray, r_bi: FloatArray, bridged: bool, t: 
 def covariance_interval(
     x: FloatArray, mat_bi: FloatArray
 ) -> tuple[float, FloatArray, FloatArray, FloatArray, FloatArray, float, float, Vec3]:
-    """The arguments of ErrorStateFilter.propagate for the interval accumulated in ``x``
+    """The arguments of eskf.propagate_kernel for the interval accumulated in ``x``
     (X_COV_* of core.filter.state; ``mat_bi`` imu -> body): its length [s], the rotation imu -> NED,
     the mean specific force in NED (from the velocity change and normal gravity) and in imu
     FRD, the mean rate (imu FRD), latitude, height and NED velocity at its end; the interval
