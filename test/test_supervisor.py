@@ -316,6 +316,7 @@ def test_recorded_topics_are_the_nodes_topics():
         "/leica/to_device/nmea",
         "/adu5/to_device/nmea",
         "/leica/rtcm",
+        "/leica/to_device/rtcm",
         "/ins/odometry",
         "/ins/fix",
         "/diagnostics",

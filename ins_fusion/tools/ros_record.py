@@ -15,11 +15,12 @@ log-time order, flushed on a bounded interval, the disk's free space guarded; a 
 otherwise (SIGKILL, power cut) leaves all but its last fraction of a second on disk.
 
 The node also watches its topics (a streaming topic silent for ``silence_s`` while it has a
-publisher, a topic without a first message for FIRST_MESSAGE_FACTOR times that, a topic whose
-publishers all left: a warning in its log, which ``gnss_ins launch`` shows) and publishes its
-state on /diagnostics every DIAGNOSTICS_PERIOD_S. A topic that carries messages on events only
-(a port opened, set-up commands written) is never silent: a topic streams once it has carried
-messages for ``silence_s`` at least two per ``silence_s``.
+publisher, a topic whose publishers all left: a warning in its log, which ``gnss_ins launch``
+shows, and a WARN status; a topic with a publisher but without a first message for
+FIRST_MESSAGE_FACTOR times ``silence_s``: said once in the log) and publishes its state on
+/diagnostics every DIAGNOSTICS_PERIOD_S. A topic that carries messages on events only (a port
+opened, set-up commands written) is never silent: a topic streams once it has carried messages
+for ``silence_s`` at least two per ``silence_s``.
 """
 
 from __future__ import annotations
@@ -64,9 +65,9 @@ SUBSCRIPTION_DEPTH = 1000
 SPIN_PERIOD_S = 1.0
 #: How often the writer thread takes the queued messages (s): one wake-up for all of them.
 WRITE_PERIOD_S = 0.05
-#: How many times ``silence_s`` a subscribed topic may go without its first message before it
-#: counts as silent: 60 s by default (the fusion's outputs start when it has aligned, 15-40 s on
-#: a vehicle at rest).
+#: How many times ``silence_s`` a subscribed topic may go without its first message before the
+#: log says so: 60 s by default (the fusion's outputs start when it has aligned, 15-40 s on a
+#: vehicle at rest).
 FIRST_MESSAGE_FACTOR = 12
 #: Spins in a row that take no message before the recorder stops taking them after a stop.
 DRAIN_IDLE_SPINS = 3
@@ -241,7 +242,11 @@ class Recorder:
             watch.first = time.monotonic()
         if watch.silent_warned:
             silent = time.monotonic() - watch.last
-            self.node.get_logger().info(f"{topic} recorded again after {silent:.1f} s of silence")
+            self.node.get_logger().info(
+                f"{topic} recorded again after {silent:.1f} s of silence"
+                if watch.count > 1
+                else f"{topic}: its first message, {silent:.0f} s after its subscription"
+            )
             watch.silent_warned = False
         watch.last = time.monotonic()
 
@@ -258,20 +263,27 @@ class Recorder:
             if publishers == 0 and watch.had_publishers:
                 logger.warning(f"{topic}: no publisher any more (its node stopped?)")
             watch.had_publishers = publishers > 0
-            # A topic that has not carried a message yet gets longer: an output that starts
-            # later by design (the fusion's while it aligns) is not silent.
-            allowed_s = self.silence_s * (1 if watch.count else FIRST_MESSAGE_FACTOR)
-            expected = watch.count == 0 or watch.streams(self.silence_s)
-            if publishers and expected and now - watch.last > allowed_s:
+            if not publishers:
+                continue
+            if watch.streams(self.silence_s) and now - watch.last > self.silence_s:
                 silent.append(topic)
                 if not watch.silent_warned:
                     watch.silent_warned = True
                     logger.warning(
                         f"{topic} silent for {now - watch.last:.1f} s although it has a publisher"
-                        if watch.count
-                        else f"{topic}: no message yet, {now - watch.last:.1f} s after its"
-                        " subscription"
                     )
+            elif (
+                not watch.count
+                and not watch.silent_warned
+                and now - watch.last > self.silence_s * FIRST_MESSAGE_FACTOR
+            ):
+                # Said once, not a warning: an output that starts late by design (the fusion's
+                # while it aligns) or a topic of events that have not happened (no set-up
+                # commands for this receiver) is not a fault; its node's own status says more.
+                watch.silent_warned = True
+                logger.info(
+                    f"{topic}: no message yet, {now - watch.last:.0f} s after its subscription"
+                )
         self._diagnostics.publish(self._status(now, silent))
 
     def _status(self, now: float, silent: list[str]) -> DiagnosticArray:
