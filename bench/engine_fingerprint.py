@@ -8,7 +8,7 @@ with damaged IMU data (test/test_sample_runs.py), the real comma2k19 segment wit
 parameters (test/fixtures/comma2k19). Parameter sets: the defaults, every optional state on
 (mounting, time offset, scale factors), no pseudo-measurements. Paths: the replay's compiled runs
 (``run_fusion``, with and without the RTS smoother) and, on the figure eight, the engine fed
-sample by sample (``add_imu``, ``solution_row``) with the smoother's recorder attached (every
+sample by sample (``add_imu``, ``solution_row``) with the smoother's history attached (every
 update the general way).
 
 Usage: python bench/engine_fingerprint.py OUT.npz [--compare BASELINE.npz]   (~2-4 min)

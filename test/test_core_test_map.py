@@ -25,7 +25,7 @@ TESTS: dict[str, tuple[str, ...]] = {
     "nav/units.py": ("test_fusion_config.py",),
     "settings/config.py": ("test_fusion_config.py",),
     "settings/params.py": ("test_fusion_config.py",),
-    "smoother/recorder.py": ("test_smoother.py",),
+    "smoother/history.py": ("test_smoother.py",),
     "smoother/rts.py": ("test_smoother.py",),
     "filter/adaptation.py": ("test_fusion_adaptation.py",),
     "filter/eskf.py": ("test_fusion_eskf.py",),

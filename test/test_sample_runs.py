@@ -3,7 +3,7 @@ runs after late measurements: the same rows and counters, to the bit, as feeding
 sample by sample with add_imu and solution_row and re-propagating entry by entry, on
 a drive with late GNSS data and with damaged IMU data (corrupt samples, a gap, a duplicate
 stamp, a stamp out of order, a clock that goes back). With the fused NHC (core.measurements.nhc) as
-well, against the engine with the smoother's recorder attached, which takes every sample and
+well, against the engine with the smoother's history attached, which takes every sample and
 every update the general way."""
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from gnss_ins_common.params import validate_all
 from ins_fusion.core.compiled import kernel_array
 from ins_fusion.core.engine import sample_runs
 from ins_fusion.core.engine.engine import InsEngine
-from ins_fusion.core.engine.smoothed_solution import attach_recorder
+from ins_fusion.core.engine.smoothed_solution import attach_history
 from ins_fusion.core.measurements.attitude import FusedAttitude
 from ins_fusion.core.measurements.gnss_position import FusedPosition
 from ins_fusion.core.measurements.gnss_velocity import FusedVelocity
@@ -93,7 +93,7 @@ def _sample_by_sample(inputs: ReplayInputs, parameters: dict[str, object], smoot
     # Re-propagation entry by entry, as before the runs: no entry is taken in a run.
     engine._runs.repropagate = lambda _s, _kf, k: k
     if smooth:
-        attach_recorder(engine)
+        attach_history(engine)
     feed = {
         "fix": engine.add_gnss_fix,
         "vel": engine.add_gnss_velocity,
@@ -149,9 +149,9 @@ def test_the_fast_paths_equal_the_general_path(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     """Compiled runs, the fused NHC, ZUPT, ZARU, GNSS velocity, attitude and position (no
-    smoother) against sample by sample with the recorder attached (no run, every update the
-    general way; the recorder only listens): on the figure eight (driving) and on the test
-    pattern (mostly at rest)."""
+    smoother) against sample by sample with the smoother's history attached (no run, every
+    update the general way; the history only listens): on the figure eight (driving) and on
+    the test pattern (mostly at rest)."""
     inputs = request.getfixturevalue(drive)
     if damage:
         inputs = _damaged(inputs)

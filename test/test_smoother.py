@@ -1,6 +1,6 @@
 """The RTS smoother of the closed-loop error-state filter (core.smoother.rts,
-core.smoother.recorder) on a linear-Gaussian toy problem, against filterpy's open-loop Kalman filter
-+ rts_smoother and against the batch solution of the whole trajectory; the recorder's rollbacks and
+core.smoother.history) on a linear-Gaussian toy problem, against filterpy's open-loop Kalman filter
++ rts_smoother and against the batch solution of the whole trajectory; the history's rollbacks and
 its chunks on disk.
 
 The toy: position, velocity and a Gauss-Markov measurement bias; position measurements (two at
@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from filterpy.kalman import KalmanFilter, rts_smoother
 
-from ins_fusion.core.smoother.recorder import SmootherRecorder, Snapshot
+from ins_fusion.core.smoother.history import SmootherHistory, Snapshot
 from ins_fusion.core.smoother.rts import Smoothed, backward_step, smoother_gain
 
 DT = 0.5
@@ -53,16 +53,16 @@ def _toy(seed: int) -> tuple[np.ndarray, dict[int, list[float]]]:
 class _ClosedLoop:
     """The toy's closed-loop error-state filter, recorded through the engine's hooks."""
 
-    def __init__(self, recorder_kwargs: dict | None = None) -> None:
+    def __init__(self, history_kwargs: dict | None = None) -> None:
         self.x, self.P, self.t = X0.copy(), P0.copy(), 0.0
-        options = {"horizon_s": 1e9, **(recorder_kwargs or {})}
-        self.recorder = SmootherRecorder(3, np.arange(3), self._snapshot, **options)
+        options = {"horizon_s": 1e9, **(history_kwargs or {})}
+        self.history = SmootherHistory(3, np.arange(3), self._snapshot, **options)
 
     def _snapshot(self) -> Snapshot:
         return Snapshot(self.t, self.x.copy(), np.eye(3), True)
 
     def transition(self, k: int) -> None:
-        rec = self.recorder
+        rec = self.history
         self.t = float(k)
         before, self.x, self.P = self.P, F @ self.x, F @ self.P @ F.T + Q
         rec.on_transition(before, F, self.P)
@@ -82,7 +82,7 @@ class _ClosedLoop:
         self.x = self.x + dx
         ikh = np.eye(3) - K @ H
         self.P = ikh @ self.P @ ikh.T + K @ R @ K.T
-        self.recorder.on_correction(dx)
+        self.history.on_correction(dx)
 
     def run(self, zs: dict[int, list[float]]) -> None:
         for k in range(1, STEPS + 1):
@@ -92,9 +92,9 @@ class _ClosedLoop:
 
     def smoothed(self) -> tuple[np.ndarray, np.ndarray]:
         """Smoothed states and covariances at steps 1..STEPS (the snapshot is the prior)."""
-        self.recorder.finish(self.P)
+        self.history.finish(self.P)
         epochs, last_t = [], np.inf
-        for epoch in self.recorder.backward():  # of several records at a step, the last holds it
+        for epoch in self.history.backward():  # of several records at a step, the last holds it
             if epoch.t_s < last_t:
                 epochs.append(epoch)
                 last_t = epoch.t_s
@@ -199,7 +199,7 @@ def test_a_rollback_leaves_the_records_of_the_final_timeline():
 
     # Rollbacks reach 3 steps back; chunks of 7 records go to disk on the way.
     loop = _ClosedLoop({"chunk_records": 7, "horizon_s": 3.0})
-    rec = loop.recorder
+    rec = loop.history
     for k in range(1, STEPS + 1):
         loop.transition(k)
         state = (loop.x.copy(), loop.P, loop.t)
@@ -225,7 +225,7 @@ def test_segments_do_not_share_information():
     for k in range(1, STEPS + 1):
         loop.transition(k)
         if k == 30:
-            loop.recorder.on_break(loop.P)
+            loop.history.on_break(loop.P)
         for z in zs.get(k, []):
             loop.update(z)
     smoothed, cov = loop.smoothed()

@@ -1,4 +1,4 @@
-"""The smoother's recorder on the real engine (core.engine.smoothed_solution.attach_recorder): the
+"""The smoother's history on the real engine (core.engine.smoothed_solution.attach_history): the
 hooks do not change the forward solution, late measurements (rollbacks, re-propagation) leave the
 records of the final timeline, and the smoothed solution beats the forward one in an outage."""
 
@@ -11,7 +11,7 @@ import pytest
 from test_fusion_drives import CALIBRATION, Drive, config, feed, simulate
 
 from ins_fusion.core.engine.engine import InsEngine, InsSolution
-from ins_fusion.core.engine.smoothed_solution import attach_recorder, smoothed_rows
+from ins_fusion.core.engine.smoothed_solution import attach_history, smoothed_rows
 from ins_fusion.core.nav import earth
 from ins_fusion.core.nav.calibration import ImuCalibration
 from ins_fusion.core.output.solution_rows import unpack
@@ -37,18 +37,18 @@ def _late(drive: Drive, after_s: float, delay_s: float) -> list:
 
 
 def _smoothed(engine: InsEngine, drive: Drive, events=None) -> list[InsSolution]:
-    recorder = attach_recorder(engine, chunk_records=256)  # several chunks go to disk
+    history = attach_history(engine, chunk_records=256)  # several chunks go to disk
     feed(engine, drive, events=events)
-    recorder.finish(engine.covariance)
-    assert recorder.bytes_on_disk > 0
-    solutions = [unpack(row) for row in smoothed_rows(recorder)]
-    recorder.close()
+    history.finish(engine.covariance)
+    assert history.bytes_on_disk > 0
+    solutions = [unpack(row) for row in smoothed_rows(history)]
+    history.close()
     return solutions
 
 
 def test_the_hooks_leave_the_forward_solution_unchanged(drive):
     plain, recorded = _engine(), _engine()
-    attach_recorder(recorded)
+    attach_history(recorded)
     events = _late(drive, 20.0, 0.3)  # with rollbacks
     outputs: dict[str, list[InsSolution]] = {"plain": [], "recorded": []}
     for name, engine in (("plain", plain), ("recorded", recorded)):
@@ -113,10 +113,10 @@ def test_the_smoothed_solution_bridges_the_outage(drive):
 
     start, end = OUTAGE[0], OUTAGE[0] + OUTAGE[1]
     events = [(t, m) for t, m in drive.events if not start <= m.t_s < end]
-    recorder = attach_recorder(engine)
+    history = attach_history(engine)
     feed(engine, drive, events=events, after_sample=after)
-    recorder.finish(engine.covariance)
-    smoothed = [unpack(row) for row in smoothed_rows(recorder)]
+    history.finish(engine.covariance)
+    smoothed = [unpack(row) for row in smoothed_rows(history)]
     t_f, e_f = _horizontal_errors(forward, drive)
     t_s, e_s = _horizontal_errors(smoothed, drive)
     forward_max = e_f[(t_f >= start) & (t_f < end)].max()

@@ -147,7 +147,7 @@ class InsEngine(EngineLoop):
             if (
                 self._filter is None
                 or self.datum is None
-                or self._recorder is not None
+                or self._smoother_hooks is not None
                 or self._timeline.replay_from is not None
             ):
                 self.add_imu(t_s[k], rate_flu_rad_s[k], force_flu_m_s2[k])
@@ -290,16 +290,17 @@ class InsEngine(EngineLoop):
         return values
 
     @property
-    def recorder(self) -> SmootherHooks | None:
-        """The RTS smoother's recorder told of every covariance change, correction, checkpoint
-        and rollback (core.engine.smoothed_solution.attach_recorder sets it); None: no smoothing."""
-        return self._recorder
+    def smoother_hooks(self) -> SmootherHooks | None:
+        """What is told of every covariance change, correction, checkpoint and rollback for the
+        RTS smoother (its history, which core.engine.smoothed_solution.attach_history sets);
+        None: no smoothing."""
+        return self._smoother_hooks
 
-    @recorder.setter
-    def recorder(self, recorder: SmootherHooks | None) -> None:
-        self._recorder = recorder
+    @smoother_hooks.setter
+    def smoother_hooks(self, hooks: SmootherHooks | None) -> None:
+        self._smoother_hooks = hooks
         if self._filter is not None:
-            self._filter.recorder = recorder
+            self._filter.smoother_hooks = hooks
 
     @property
     def solution_jacobian(self) -> FloatArray:

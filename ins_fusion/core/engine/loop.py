@@ -141,7 +141,7 @@ class EngineLoop:
         self._replayed_samples = 0
         self._detector = StopDetector(config.stop_detector, geometry.mat_bi)
         self._integrator = SampleIntegrator()
-        self._recorder: SmootherHooks | None = None
+        self._smoother_hooks: SmootherHooks | None = None
         self._runs = CompiledRuns(
             config,
             geometry,
@@ -216,8 +216,8 @@ class EngineLoop:
 
     def _clear(self) -> None:
         """Forget everything but the counters and the datum (start, reset)."""
-        if self._recorder is not None:  # smoother hook: the filter starts again
-            self._recorder.on_reset(None if self._filter is None else self._filter.P)
+        if self._smoother_hooks is not None:  # smoother hook: the filter starts again
+            self._smoother_hooks.on_reset(None if self._filter is None else self._filter.P)
         self._filter = None
         self._state = None
         self._timeline.clear()
@@ -263,14 +263,14 @@ class EngineLoop:
 
     def _checkpoint(self) -> Checkpoint:
         assert self._state is not None and self._filter is not None
-        if self._recorder is not None:  # smoother hook: what a rollback to here keeps
-            self._recorder.on_checkpoint(self._state.t_s)
+        if self._smoother_hooks is not None:  # smoother hook: what a rollback to here keeps
+            self._smoother_hooks.on_checkpoint(self._state.t_s)
         return self._state.copy(), self._filter.P
 
     def _restore(self, checkpoint: Checkpoint) -> None:
         assert self._filter is not None
-        if self._recorder is not None:  # smoother hook: drop what the rollback undoes
-            self._recorder.on_rollback(checkpoint[0].t_s)
+        if self._smoother_hooks is not None:  # smoother hook: drop what the rollback undoes
+            self._smoother_hooks.on_rollback(checkpoint[0].t_s)
         self._state = checkpoint[0].copy()
         self._filter.P = checkpoint[1]
         self._filter.gnss_variance = self._state.gnss_variance
@@ -298,7 +298,7 @@ class EngineLoop:
         assert s is not None and kf is not None
         i, stop = k + 1, len(timeline)
         while i < stop:
-            if self._recorder is None and (after := self._runs.repropagate(s, kf, i)) > i:
+            if self._smoother_hooks is None and (after := self._runs.repropagate(s, kf, i)) > i:
                 i = after  # a run of entries without gap or measurement
                 continue
             entry = timeline.entry(i)
@@ -391,7 +391,7 @@ class EngineLoop:
         if started is None:
             return
         self._state, self._filter = started
-        self._filter.recorder = self._recorder
+        self._filter.smoother_hooks = self._smoother_hooks
         zero: Vec3 = (0.0, 0.0, 0.0)
         self._timeline.start(Entry(t, increment(0.0, zero, zero), None, None, self._checkpoint()))
 

@@ -1,6 +1,6 @@
 """The engine's side of the RTS smoother: what a record snapshots, and the smoothed solution.
 
-``attach_recorder(engine)`` gives the engine a ``SmootherRecorder`` (core.smoother.recorder)
+``attach_history(engine)`` gives the engine a ``SmootherHistory`` (core.smoother.history)
 whose snapshot at each transition is the engine's ``solution()`` at that moment (the prior x̂_j⁻
 of the step, on the engine's final timeline) packed into a row, with ``engine.solution_jacobian``:
 the derivatives of base_link's ENU position, velocity and attitude (errors about the ENU axes)
@@ -10,7 +10,7 @@ while the engine re-propagates after a late measurement has the newest IMU sampl
 (solution() holds no other): its rate and the lever arm's ω × r part of the velocity are those
 of up to one measurement latency later.
 
-``smoothed_rows(recorder)`` runs the backward pass and moves each snapshot (a row of
+``smoothed_rows(history)`` runs the backward pass and moves each snapshot (a row of
 core.output.solution_rows: the solution, compact) by the smoothed change J (e + c): position (the
 ENU offset also to latitude, longitude, height), velocity, orientation (the small rotation about the
 ENU axes, left-multiplied: R_true = exp([δθ×]) R, as the engine injects ψ), the gyro and
@@ -33,7 +33,7 @@ from ins_fusion.core.filter.eskf import BA, BG, StateLayout
 from ins_fusion.core.nav import earth
 from ins_fusion.core.nav.rotation import frd_to_flu, quat_from_rotvec, quat_multiply, quat_normalize
 from ins_fusion.core.output import solution_rows as rows
-from ins_fusion.core.smoother.recorder import SmoothedEpoch, SmootherRecorder, Snapshot
+from ins_fusion.core.smoother.history import SmoothedEpoch, SmootherHistory, Snapshot
 
 #: Extra margin on the engine's history for rollbacks [s].
 _HORIZON_MARGIN_S = 2.0
@@ -46,10 +46,10 @@ def solution_states(layout: StateLayout) -> IntArray:
     return np.array([*range(BG + 3), *extra], dtype=np.int64)
 
 
-def attach_recorder(
+def attach_history(
     engine: InsEngine, chunk_records: int = 4096, directory: Path | None = None
-) -> SmootherRecorder:
-    """A recorder of ``engine``'s forward run, set as its hooks (see SmootherRecorder for
+) -> SmootherHistory:
+    """The history of ``engine``'s forward run, set as its smoother hooks (see SmootherHistory for
     ``chunk_records`` and ``directory``)."""
 
     def snapshot() -> Snapshot:
@@ -62,7 +62,7 @@ def attach_recorder(
             rows.STATES[int(row[rows.STATE])] != "aligning",
         )
 
-    recorder = SmootherRecorder(
+    history = SmootherHistory(
         engine.layout.size,
         solution_states(engine.layout),
         snapshot,
@@ -70,8 +70,12 @@ def attach_recorder(
         chunk_records,
         directory,
     )
-    engine.recorder = recorder
-    return recorder
+    engine.smoother_hooks = history
+    return history
+
+
+#: attach_history's former name, which ins_fusion/replay/run.py still imports.
+attach_recorder = attach_history
 
 
 def _smoothed(epoch: SmoothedEpoch) -> FloatArray:
@@ -95,12 +99,12 @@ def _smoothed(epoch: SmoothedEpoch) -> FloatArray:
     return row
 
 
-def smoothed_rows(recorder: SmootherRecorder) -> FloatArray:
+def smoothed_rows(history: SmootherHistory) -> FloatArray:
     """The smoothed base_link solution at every recorded stamp, as rows of
     core.output.solution_rows (see the module docstring), in time order."""
     buffer = rows.RowBuffer()
     last_t = math.inf
-    for epoch in recorder.backward():
+    for epoch in history.backward():
         if epoch.t_s < last_t:
             buffer.append(_smoothed(epoch))
             last_t = epoch.t_s

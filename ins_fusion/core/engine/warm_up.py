@@ -5,7 +5,7 @@ its on-disk cache in ~0.3 s), for the argument types of that call. ``warm_up`` m
 first calls through the engine's own code, so that neither happens on a live sample and no
 kernel's arguments are written out a second time: a short synthetic drive (``synthetic_drive``:
 a standstill, a start, a drive, late GNSS data and an IMU gap) through two engines, one with
-every optional error state (the vehicle speed's too) and the smoother's recorder attached
+every optional error state (the vehicle speed's too) and the smoother's history attached
 (every update the general way, sample by sample) and one with the defaults fed as a replay
 feeds it (compiled runs, the fused updates, re-propagations), and the output kernel on a row of
 each. InsEngine calls it when it is built, ``make venv`` once after the install. A kernel called
@@ -81,14 +81,14 @@ def _drive_engines() -> None:
     """The synthetic drive through both engines (module docstring) and the output kernel."""
     # engine imports this module: imported here, when the first engine is being built.
     from ins_fusion.core.engine.engine import InsEngine
-    from ins_fusion.core.engine.smoothed_solution import attach_recorder
+    from ins_fusion.core.engine.smoothed_solution import attach_history
 
     imu, measurements = synthetic_drive()
     for parameters, smooth in ((_EVERY_STATE, True), (_QUICK, False)):
         config = FusionConfig.from_parameters(parameters)
         engine = InsEngine(config)
         if smooth:
-            attach_recorder(engine)
+            attach_history(engine)
         rows = RowBuffer()
         start = 0
         for index, measurement in measurements:

@@ -218,8 +218,8 @@ class ErrorStateFilter:
         self.variance_ceiling: FloatArray = np.full(n, math.inf)
         #: Transition matrix Φ of the last covariance step (a new array per step).
         self.phi: FloatArray = np.eye(n)
-        #: Observer of the covariance's changes (the RTS smoother's recorder), set by the engine.
-        self.recorder: SmootherHooks | None = None
+        #: Observer of the covariance's changes (the RTS smoother's history), set by the engine.
+        self.smoother_hooks: SmootherHooks | None = None
         # F and Q are rebuilt block by block through views; constant blocks are set once.
         F = self._F = np.zeros((n, n))
         F[POS : POS + 3, VEL : VEL + 3] = np.eye(3)

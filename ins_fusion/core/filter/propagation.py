@@ -316,8 +316,8 @@ class Propagator:
             P_before = kf.P
             kf.add_noise(ATT, (mat_ni * gap.angle_var_rad2) @ mat_ni.T)
             kf.add_noise(VEL, (mat_ni * gap.velocity_var_m2_s2) @ mat_ni.T)
-            if kf.recorder is not None:  # smoother hook: the gap's noise
-                kf.recorder.on_noise(P_before, kf.P)
+            if kf.smoother_hooks is not None:  # smoother hook: the gap's noise
+                kf.smoother_hooks.on_noise(P_before, kf.P)
         if s.x[X_COV_DT] >= self._covariance_interval_s:
             self.propagate_covariance(s, kf)
 
@@ -336,8 +336,8 @@ class Propagator:
             kf.layout.columns,
             self._gnss_correlation_time_s,
         )
-        if kf.recorder is not None:  # smoother hook: a covariance step
-            kf.recorder.on_transition(P_before, kf.phi, kf.P)
+        if kf.smoother_hooks is not None:  # smoother hook: a covariance step
+            kf.smoother_hooks.on_transition(P_before, kf.phi, kf.P)
         if not s.heading_known:
             decouple_yaw(kf)
 

@@ -404,8 +404,8 @@ def mounting_rpy_from(r_bi: FloatArray, pitch: float, yaw: float) -> Vec3:
 def inject(s: FilterState, kf: ErrorStateFilter, dx: FloatArray) -> None:
     """Closed-loop feedback of an error estimate ``dx`` (layout ``kf.layout``) into the nominal
     state."""
-    if kf.recorder is not None:  # smoother hook: the correction of this step
-        kf.recorder.on_correction(dx)
+    if kf.smoother_hooks is not None:  # smoother hook: the correction of this step
+        kf.smoother_hooks.on_correction(dx)
     inject_nominal(s.x, dx, kf.layout.columns)
     s.changed()
     if not s.heading_known:

@@ -56,7 +56,7 @@ class FusedUpdates:
         covariance step the kernel made (core.measurements.gnss_position)."""
         kind, t_m, payload = record
         if kind in _PSEUDO:
-            if kf.recorder is not None or not s.heading_known:
+            if kf.smoother_hooks is not None or not s.heading_known:
                 return False
             if kind == "nhc":
                 self._nhc.apply(s, kf, t_m, live)

@@ -92,8 +92,8 @@ class Corrections:
                 self.fading = factor
             else:
                 kf.widen(z, H, R, block)
-            if kf.recorder is not None:  # smoother hook: the recovery's noise
-                kf.recorder.on_noise(P_before, kf.P)
+            if kf.smoother_hooks is not None:  # smoother hook: the recovery's noise
+                kf.smoother_hooks.on_noise(P_before, kf.P)
             result = kf.update(z, H, R, math.inf)
             recovered = True
         self.book(s, kind, (result.accepted, nis), len(z), live, recovered)
@@ -199,10 +199,10 @@ class FusedUpdate:
 
     def _sensor_usable(self, s: FilterState, kf: ErrorStateFilter, kind: str) -> bool:
         """Whether the general way would apply a sensor's update of ``kind`` just as its
-        kernel does: the heading known, no smoother (its recorder hears each step), no
+        kernel does: the heading known, no smoother (its history hears each step), no
         time-offset state (its terms) and no gate recovery possible (fewer gated updates in a
         row than the recovery needs)."""
-        if kf.recorder is not None or kf.layout.td is not None or not s.heading_known:
+        if kf.smoother_hooks is not None or kf.layout.td is not None or not s.heading_known:
             return False
         recover = self._config.gate_recovery_count
         return not recover or s.gated_runs.get(kind, 0) + 1 < recover

@@ -106,8 +106,8 @@ class GnssNoise:
         s.gnss_reported = (float(reported[0]), float(reported[1]), float(reported[2]))
         s.gnss_error = (0.0, 0.0, 0.0)
         self.set_correlated_variance(s, kf, correlated)
-        if kf.recorder is not None:  # smoother hook: the GNSS error states restart
-            kf.recorder.on_restart(P_before, kf.P, range(gp, gp + 3))
+        if kf.smoother_hooks is not None:  # smoother hook: the GNSS error states restart
+            kf.smoother_hooks.on_restart(P_before, kf.P, range(gp, gp + 3))
 
     @staticmethod
     def set_correlated_variance(
@@ -127,8 +127,8 @@ class GnssNoise:
             kernel_array(kf.P), s.x, kernel_array(correlated), -1 if gp is None else gp
         )
         kf.gnss_variance = s.gnss_variance
-        if shrunk and kf.recorder is not None:  # smoother hook: a transition x -> D x
-            kf.recorder.on_transition(P_before, np.diag(factors), kf.P)
+        if shrunk and kf.smoother_hooks is not None:  # smoother hook: a transition x -> D x
+            kf.smoother_hooks.on_transition(P_before, np.diag(factors), kf.P)
 
 
 @jit

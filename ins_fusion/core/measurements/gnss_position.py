@@ -259,7 +259,7 @@ class FusedPosition(FusedUpdate):
 
     def usable(self, s: FilterState, kf: ErrorStateFilter, fix: GnssFixMeasurement) -> bool:
         """Whether the general way would do what ``apply`` does (or go on where it stops)."""
-        if kf.recorder is not None or kf.layout.td is not None or not s.heading_known:
+        if kf.smoother_hooks is not None or kf.layout.td is not None or not s.heading_known:
             return False
         if not (fix.valid and np.isfinite(fix.cov_enu_m2).all()):
             return False

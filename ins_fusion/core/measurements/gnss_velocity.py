@@ -15,7 +15,7 @@ kernels with Python between them; ``velocity_apply`` runs the same kernels in th
 one call (``step_to`` and ``update_rows`` of core.measurements.common), so the numbers are the
 same to the bit, and ``FusedVelocity`` keeps the books (NIS, process-noise adaptation, gated
 runs, counters). Taken only where the general way would do nothing else: the heading known, velocity
-updates on, no time-offset state (its terms), no smoother (its recorder hears each step), and
+updates on, no time-offset state (its terms), no smoother (its history hears each step), and
 no gate recovery possible (fewer gated updates in a row than the recovery needs).
 """
 

@@ -48,8 +48,8 @@ def set_heading(
 ) -> None:
     """Turn the attitude about the vertical to ``yaw`` keeping the antenna position; the
     heading is known from now on."""
-    if kf.recorder is not None:  # smoother hook: the heading is set, not estimated
-        kf.recorder.on_break(kf.P)
+    if kf.smoother_hooks is not None:  # smoother hook: the heading is set, not estimated
+        kf.smoother_hooks.on_break(kf.P)
     turn = float(wrap_angle(np.array(yaw - euler_rad(s.mat_nb)[2])))
     nav = s.nav
     antenna_n = s.mat_nb @ geometry.antenna_arm_b

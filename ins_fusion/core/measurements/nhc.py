@@ -15,7 +15,7 @@ five kernels with Python between them: the covariance step to the epoch
 every compiled update shares, core.measurements.common: ``step_to``, ``update_and_restart``), so
 the numbers are the same to the bit; ``FusedNhc`` gives it its arguments and keeps the books
 (core.measurements.gate: FusedUpdate, Corrections.book). While the heading is known (the NHC is
-filed only then) and without the smoother (its recorder is told of the steps in between); else
+filed only then) and without the smoother (its history is told of the steps in between); else
 the general way.
 """
 

@@ -1,1 +1,1 @@
-"""The Rauch-Tung-Striebel smoother: its backward pass and the recorder of a forward run."""
+"""The Rauch-Tung-Striebel smoother: its backward pass and the history of a forward run."""

@@ -1,5 +1,5 @@
 """Rauch–Tung–Striebel smoother for the closed-loop error-state filter: the backward pass on the
-error states (pure math; the records come from core.smoother.recorder).
+error states (pure math; the records come from core.smoother.history).
 
 Forward filter (core.filter.eskf, core.engine.engine). Between two covariance steps the nominal
 state is mechanised sample by sample; at each *transition* j the error covariance goes from the
@@ -49,7 +49,7 @@ from gnss_ins_common.types import FloatArray
 
 
 class SmootherHooks(Protocol):
-    """What the engine tells a smoother recorder (core.smoother.recorder); P arrays are the
+    """What the engine tells the smoother's history (core.smoother.history); P arrays are the
     engine's, never modified in place after the call. Every hook runs on the engine's current
     timeline: a rollback (``on_rollback``) undoes what followed the checkpoint."""
 

@@ -1,6 +1,6 @@
 """What the RTS smoother (core.smoother.rts) needs from one forward run, and its backward pass.
 
-``SmootherRecorder`` implements the engine's ``SmootherHooks``. One record per transition (a
+``SmootherHistory`` implements the engine's ``SmootherHooks``. One record per transition (a
 covariance step, a restarted state, noise added at one instant): its time, its segment, a
 snapshot of the engine's outputs at that moment (the prior x̂_j⁻: a row of numbers, opaque here,
 and the Jacobian J of those outputs over some of the error states), P before (P_{j-1}⁺), Φ, P
@@ -42,7 +42,7 @@ from ins_fusion.core.smoother.rts import Smoothed, backward_step
 class Snapshot:
     """The engine's outputs at a transition: stamp t_s [s], ``row`` (values, any meaning),
     ``jacobian`` (len(row'), k): derivatives of the smoothed outputs with respect to the error
-    states ``states`` of the recorder; ``smoothable``: False where the step is not smoothed (the
+    states ``states`` of the history; ``smoothable``: False where the step is not smoothed (the
     heading still unknown)."""
 
     t_s: float
@@ -98,7 +98,7 @@ class _Record:
 
 
 class _Mark(NamedTuple):
-    """Recorder state at a checkpoint: stamp, records so far, the newest one's correction (an
+    """History state at a checkpoint: stamp, records so far, the newest one's correction (an
     array replaced, never changed in place) and the segment counter."""
 
     t_s: float
@@ -170,7 +170,7 @@ class _Layout:
         return P
 
 
-class SmootherRecorder:
+class SmootherHistory:
     """Records a forward run through the engine's hooks (see the module docstring).
 
     ``size``: error-state dimension; ``states``: the error states the snapshots' Jacobians are
@@ -230,7 +230,7 @@ class SmootherRecorder:
             newest.correction = newest.correction + dx
 
     def on_checkpoint(self, t_s: float) -> None:
-        """Remember the recorder's state at a checkpoint; forget marks beyond the horizon."""
+        """Remember the history's state at a checkpoint; forget marks beyond the horizon."""
         marks = self._marks
         while marks and marks[-1].t_s >= t_s:
             marks.pop()
@@ -246,11 +246,11 @@ class SmootherRecorder:
         while marks and marks[-1].t_s > t_s:
             marks.pop()
         if not marks or marks[-1].t_s != t_s:
-            raise RuntimeError(f"smoother recorder: no checkpoint at {t_s:.6f} s to roll back to")
+            raise RuntimeError(f"smoother history: no checkpoint at {t_s:.6f} s to roll back to")
         mark = marks[-1]
         keep = mark.records - self._spilled
         if keep < 0:
-            raise RuntimeError("smoother recorder: a rollback reaches records already on disk")
+            raise RuntimeError("smoother history: a rollback reaches records already on disk")
         del self._recent[keep:]
         if self._recent and mark.correction is not None:
             self._recent[-1].correction = mark.correction
@@ -322,7 +322,7 @@ class SmootherRecorder:
             )
 
     def close(self) -> None:
-        """Forget the records and delete the chunks on disk (also done when the recorder is
+        """Forget the records and delete the chunks on disk (also done when the history is
         garbage-collected)."""
         if self._finalizer is not None:
             self._finalizer()
