@@ -109,10 +109,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="append",
         default=None,
         metavar="START:DURATION",
-        help="GNSS outage injected in the offline replay [s after the first IMU sample] "
-        f"(repeatable; default: 20 s outages at {STANDSTILL_S + 20:g} s and"
-        f" {STANDSTILL_S + 55:g} s, i.e. 20 s and 55 s after the {STANDSTILL_S:g} s standstill,"
-        " each where the drive lasts 5 s past its end)",
+        help="a GNSS outage for the offline replay, START and DURATION in seconds, START counted "
+        "from the first IMU sample (repeatable). Default: two 20 s outages, at "
+        f"{STANDSTILL_S + 20:g} s and {STANDSTILL_S + 55:g} s (20 s and 55 s into the drive, "
+        f"which starts after a {STANDSTILL_S:g} s standstill); an outage is left out when the "
+        "drive ends less than 5 s after it, and a drive too short for either gets one over its "
+        "middle third",
     )
     parser.epilog = (
         f"Writes into the output directory: {REPORT} (live and replay errors against the truth,"
@@ -270,7 +272,8 @@ def run(args: argparse.Namespace) -> int:
     print(_describe_outages(outages, args.duration))
     print(
         f"  ROS_DOMAIN_ID={env['ROS_DOMAIN_ID']} (localhost only): watch with e.g."
-        f" ROS_DOMAIN_ID={env['ROS_DOMAIN_ID']} ros2 topic echo /ins/odometry",
+        f" ROS_DOMAIN_ID={env['ROS_DOMAIN_ID']} .venv/bin/gnss_ins echo /ins/odometry"
+        " (or gnss_ins topics)",
         flush=True,
     )
     for signum in (signal.SIGTERM, signal.SIGHUP):
