@@ -2,7 +2,7 @@
 numbers, asserts nothing.
 
 For each damage kind (one byte dropped / inserted / changed, anywhere in the packet), a stream
-of PACKETS realistic packets (bench/framer_damage.py: half at rest, half driving) with every
+of PACKETS realistic packets (test/framer_damage.py: half at rest, half driving) with every
 5th packet damaged, framed in continuous mode (timer-step fit or next-packet confirmation) and
 in polled mode (checksum only). Targets (issue 12): at most 1 false packet per 10 000 damaged
 ones, and no intact packet lost after a single dropped byte.
@@ -10,10 +10,16 @@ ones, and no intact packet lost after a single dropped byte.
 
 from __future__ import annotations
 
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
-from framer_damage import KINDS, realistic_packets, run_damaged
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "test"))  # the harness is a test helper
+
+from framer_damage import KINDS, realistic_packets, run_damaged  # noqa: E402
 
 PACKETS = 500_000
 SEED = 3

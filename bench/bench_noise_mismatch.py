@@ -1,8 +1,9 @@
 """Ordinary noise models and vibration (issue 10 acceptance, simulated part): the engine given
 datasheet noise parameters on drives whose noise differs from them; prints tables and verdicts.
 
-Harness: bench/noise_mismatch.py (streams from the ins_fusion.sim API, figure-eight drive of
-200 s, errors of base_link from 30 s on at 10 Hz). Baseline: bench/reference_ekf.py, a
+Harness: test/mismatch_drives.py (streams from the ins_fusion.sim API, figure-eight drive of
+200 s) and test/noise_mismatch.py (errors of base_link from 30 s on at 10 Hz). Baseline:
+test/reference_ekf.py, a
 position-only 15-state EKF told the exact simulated noise and started at the true state.
 
 1. IMU {stim300 (tactical, 500 Hz), imu400cc (MEMS, 134 Hz)} x GNSS {Leica RTK 1 Hz, white
@@ -26,28 +27,36 @@ Usage: python bench/bench_noise_mismatch.py [--seeds 1 2 3] [--case 1 3 4] [--pe
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
-from noise_mismatch import (
-    DURATION_S,
-    EVALUATE_FROM_S,
-    SCENARIO,
-    Streams,
-    Track,
-    build_streams,
-    datasheet_parameters,
-    drive_truth,
-    exact_parameters,
-    run_engine,
-    run_reference,
-    scaled_vibration,
-)
 
 from ins_fusion.core.nav.units import to_deg_sqrt_h, to_m_s_sqrt_h
 from ins_fusion.sim.imu_model import PROFILES as IMU_PROFILES
 from ins_fusion.sim.vibration import CAR
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "test"))  # the harness is a test helper
+
+from mismatch_drives import (  # noqa: E402
+    DURATION_S,
+    SCENARIO,
+    Streams,
+    build_streams,
+    drive_truth,
+    scaled_vibration,
+)
+from noise_mismatch import (  # noqa: E402
+    EVALUATE_FROM_S,
+    Track,
+    datasheet_parameters,
+    exact_parameters,
+    run_engine,
+    run_reference,
+)
 
 IMUS = (("stim300", "tactical"), ("imu400cc", "MEMS"))
 GNSS = (("rtk", "RTK"), ("white5", "white 5 m"))

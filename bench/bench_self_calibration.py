@@ -4,7 +4,7 @@ run told the true values.
 
     .venv/bin/python bench/bench_self_calibration.py        (about 3 min)
 
-Streams from bench/noise_mismatch.py (imu400cc, no calibration file, Leica RTK, figure-eight
+Streams from test/mismatch_drives.py (imu400cc, no calibration file, Leica RTK, figure-eight
 at 10 m/s, 200 s). Filter: the datasheet parameters, ``self_calibration.time_offset: true``
 (the time offset is a calibration run's), the mounting estimate on (the default). The run
 "given the truth" configures ``imu_time_offset`` and ``imu_mounting_rpy_deg`` and estimates
@@ -17,12 +17,18 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 from typing import Any
 
 import numpy as np
-from noise_mismatch import build_streams, datasheet_parameters, run_engine
 
 from ins_fusion.sim.imu_model import PROFILES as IMU_PROFILES
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "test"))  # the harness is a test helper
+
+from mismatch_drives import build_streams  # noqa: E402
+from noise_mismatch import datasheet_parameters, run_engine  # noqa: E402
 
 #: (IMU late [s], mounting roll, pitch, yaw [deg]) of the cases.
 CASES = ((0.05, (0.0, 1.0, 1.0)), (0.13, (0.0, 3.0, 2.0)), (0.2, (0.0, 5.0, -3.0)))

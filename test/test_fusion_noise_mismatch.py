@@ -5,20 +5,15 @@ datasheet (the profile's own densities; the vibration's equivalent density is ab
 gyro's and 60-100x the accelerometer's), on a 120 s figure-eight; GNSS either the Leica RTK
 model or a white 5 m receiver at 5 Hz whose error the default GNSS noise split (5 % white, the
 rest correlated) does not expect.
-Streams and evaluation: bench/noise_mismatch.py (bench/bench_noise_mismatch.py prints the full
-matrix over seeds for docs/accuracy.md).
+Drives: test/mismatch_drives.py; runs and evaluation: test/noise_mismatch.py
+(bench/bench_noise_mismatch.py prints the full matrix over seeds for docs/accuracy.md).
 """
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import pytest
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
-
-from noise_mismatch import Track, build_streams, datasheet_parameters, run_engine, run_reference
+from mismatch_drives import build_streams
+from noise_mismatch import Track, datasheet_parameters, run_engine, run_reference
 
 DURATION_S = 120.0
 

@@ -5,17 +5,13 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import random
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
+from framer_damage import KINDS, realistic_packets, run_damaged
 from hypothesis import given
 from hypothesis import strategies as st
 from imu_strategies import raw_packets
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
-from framer_damage import KINDS, realistic_packets, run_damaged
 
 from imu400cc_driver.framer import FramerStats, PacketFramer
 from imu400cc_driver.protocol import PACKET_LENGTH, RawPacket, decode_packet, encode_packet

@@ -1,4 +1,4 @@
-"""A reference loosely coupled INS/GNSS filter for bench_noise_mismatch.py (issue 10), written
+"""A reference loosely coupled INS/GNSS filter for the noise-mismatch harness (issue 10), written
 independently of ins_fusion.core: numpy, scipy's rotations and pymap3d only.
 
 What it is: a 15-state error-state EKF (position, velocity, attitude, gyro bias, accelerometer
