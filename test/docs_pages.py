@@ -10,7 +10,9 @@ A fenced block with commands (``sh``/``bash``/no language, a line starting with 
 - ``<!-- docs-test: run [timeout=S] -->``: run in the page's scratch directory (a copy of the
   repository root's ``config``, ``test`` and ``.venv`` as links), after the page's earlier
   blocks, in one bash session per block whose exports carry over; a line whose comment says
-  ``Ctrl-C`` gets SIGINT after CTRL_C_S seconds, as a reader would press it; background jobs
+  ``Ctrl-C`` gets SIGINT after CTRL_C_S seconds, as a reader would press it, or, with the
+  option ``until=SCRIPT``, once the Python script SCRIPT (run beside it) has ended, whose exit
+  status is then the line's (a check of what the command does while it runs); background jobs
   left at the end are stopped.
 - ``<!-- docs-test: example [from=REGEX] [ignore=REGEX] [tolerance=PCT] -->``: ``$ `` lines
   (with ``\\`` continuations) and their printed output (stdout and stderr); the output must
@@ -95,7 +97,7 @@ def _options(text: str) -> tuple[dict[str, str], list[str]]:
     options, words = {}, []
     for word in shlex.split(text):
         key, sep, value = word.partition("=")
-        if sep and key in ("timeout", "from", "ignore", "tolerance"):
+        if sep and key in ("timeout", "from", "ignore", "tolerance", "until"):
             options[key] = value
         else:
             words.append(word)
@@ -159,7 +161,10 @@ class Session:
                 f"[ -f {self.state} ] && . {self.state}",
                 f"trap 'rc=$?; export -p > {self.state}; jobs -p | xargs -r kill; exit $rc' EXIT",
                 "set -e",
-                *map(_interruptible, block.commands().splitlines()),
+                *(
+                    _interruptible(line, block.options.get("until"))
+                    for line in block.commands().splitlines()
+                ),
             ]
         )
         limit = float(block.options.get("timeout", TIMEOUT_S))
@@ -184,13 +189,20 @@ class Session:
         return Result(output, process.returncode)
 
 
-def _interruptible(line: str) -> str:
-    """A line whose comment says Ctrl-C, interrupted after CTRL_C_S s (0 or 130 accepted)."""
+def _interruptible(line: str, until: str | None = None) -> str:
+    """A line whose comment says Ctrl-C, interrupted after CTRL_C_S s, or once the script
+    ``until`` has ended and then failing as it failed (its exit status 0 or 130 accepted)."""
     command, hash_, comment = line.partition(" #")
     if not hash_ or "Ctrl-C" not in comment or command.rstrip().endswith(("&", "\\")):
         return line
+    if until is None:
+        return (
+            f"{{ timeout --preserve-status -s INT {CTRL_C_S:g} {command.strip()}"
+            " || [ $? -eq 130 ]; }"
+        )
     return (
-        f"{{ timeout --preserve-status -s INT {CTRL_C_S:g} {command.strip()} || [ $? -eq 130 ]; }}"
+        f"{{ {command.strip()} & running=$!; .venv/bin/python {until} && checked=0 || checked=$?;"
+        " kill -INT $running; wait $running || [ $? -eq 130 ]; [ $checked -eq 0 ]; }"
     )
 
 

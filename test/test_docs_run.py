@@ -100,3 +100,18 @@ def test_a_stale_number_or_a_failing_command_fails_the_page(tmp_path: Path) -> N
     (tmp_path / "broken").mkdir()
     failures = run_page(BAGS, tmp_path / "broken", broken)
     assert failures and "exit status 2" in failures[0]
+
+
+def test_a_check_run_beside_a_command_decides_its_line(tmp_path: Path) -> None:
+    """``until=SCRIPT``: the line marked Ctrl-C runs until the script has ended, is then
+    interrupted, and the script's failure is the block's."""
+    text = "<!-- docs-test: run until=check.py -->\n```sh\nsleep 600  # Ctrl-C\necho after\n```\n"
+    for status in (0, 1):
+        scratch = tmp_path / str(status)
+        scratch.mkdir()
+        (scratch / "check.py").write_text(f"import sys\nsys.exit({status})\n")
+        failures = run_page(BAGS, scratch, text)
+        if status == 0:
+            assert failures == []
+        else:
+            assert failures and "exit status 1" in failures[0]
