@@ -20,7 +20,7 @@ import numpy as np
 from gnss_ins_common.types import BoolArray, FloatArray
 from ins_fusion.core.compiled import kernel_array
 from ins_fusion.core.engine.engine import EngineStatus, InsEngine, InsSolution
-from ins_fusion.core.engine.smoothed_solution import attach_recorder, smoothed_rows
+from ins_fusion.core.engine.smoothed_solution import attach_history, smoothed_rows
 from ins_fusion.core.filter.records import GnssFixMeasurement
 from ins_fusion.core.output import solution_rows
 from ins_fusion.core.output.output_clock import output_ticks
@@ -125,7 +125,7 @@ def run_fusion(
         parameters = {**parameters, "speed.use": True}
     config = FusionConfig.from_parameters(parameters)
     engine = InsEngine(config)
-    recorder = attach_recorder(engine) if smooth else None
+    history = attach_history(engine) if smooth else None
     start = time.perf_counter()
     t0 = inputs.t0_s
     kept: list[tuple[int, str, Measurement]] = []
@@ -167,10 +167,10 @@ def run_fusion(
     status = engine.status()
     fusion_time = time.perf_counter() - start
     smoothed, smoothing_time = None, 0.0
-    if recorder is not None:
-        recorder.finish(engine.covariance)
-        smoothed = SolutionTrack.from_rows(smoothed_rows(recorder))
-        recorder.close()
+    if history is not None:
+        history.finish(engine.covariance)
+        smoothed = SolutionTrack.from_rows(smoothed_rows(history))
+        history.close()
         smoothing_time = time.perf_counter() - start - fusion_time
     return FusionRun(
         SolutionTrack.from_rows(solutions.rows()),

@@ -74,10 +74,6 @@ def attach_history(
     return history
 
 
-#: attach_history's former name, which ins_fusion/replay/run.py still imports.
-attach_recorder = attach_history
-
-
 def _smoothed(epoch: SmoothedEpoch) -> FloatArray:
     row, delta, cov = epoch.row.copy(), epoch.delta, epoch.cov
     lat_rad, height = math.radians(row[rows.LAT]), float(row[rows.HEIGHT])
