@@ -157,8 +157,11 @@ def test_gnss_topics_follow_gnss_node(bag):
             assert m.position_covariance_type == 0
         elif t < 4:
             assert m.status.status == 2 and m.status.service == 1  # RTK: GBAS fix
-            assert m.position_covariance_type == 2  # from the LLQ coordinate quality
-            assert 0.0 < m.position_covariance[0] < 0.001 and m.altitude > 0.0
+            # From the GST σ: the error model's own, 2 / 2 / 3 cm E / N / U for RTK fixed.
+            assert m.position_covariance_type == 3 and m.altitude > 0.0
+            assert m.position_covariance == pytest.approx(
+                [0.0004, 0, 0, 0, 0.0004, 0, 0, 0, 0.0009], abs=1e-12
+            )
     by_second = {m.header.stamp.sec % 60: m for _, m in fixes}
     assert by_second[11].status.status == -1  # under the bridge of the sky zone at t = 11 s
     # After it: RTK float (also GBAS_FIX) while re-converging, a wider covariance than fixed.

@@ -1,9 +1,9 @@
 """Simulated GNSS epochs as the receivers send them and as gnss_node decodes them (no ROS).
 
 An epoch of the error model (sim.gnss_model) is printed with the GNSS emulators' own sentence
-writers (gnss_driver.emulator: the Leica rover's VTG, GGA, LLQ; the ADU5's PASHR,PAT) and read
-back with the GNSS driver core's reader and solver configured as gnss_node's defaults, so the
-fix, velocity and attitude and their covariances are what gnss_node publishes for it, NMEA
+writers (gnss_driver.emulator: the Leica rover's VTG, GGA, LLQ and GST; the ADU5's PASHR,PAT)
+and read back with the GNSS driver core's reader and solver configured as gnss_node's defaults,
+so the fix, velocity and attitude and their covariances are what gnss_node publishes for it, NMEA
 rounding included. The live mode hands the same inputs (``emulator_truth``, ``epoch_config``) to
 the emulators on pseudo-terminals.
 """
@@ -31,10 +31,14 @@ _NO_FIX_TRUTH = Truth(math.nan, math.nan, math.nan)
 def emulator_config(receiver: Receiver) -> EmulatorConfig:
     """The emulated receiver of a simulation. The ADU5 antenna frame is mounted with the
     report car's offsets (Aalborg notes §7.3), which gnss_node uploads with $PASHS,3DF,OFS, so
-    its PAT angles are those of base_link."""
+    its PAT angles are those of base_link. The Leica adds GST after its LLQ: the LLQ's
+    coordinate quality is one sum σ_h + σ_v, which gnss_node splits by an assumed ratio
+    (``llq_horizontal_fraction``) that need not be the error model's (RTK fixed: 2.8 cm
+    horizontal for 3.0 cm vertical, read back as 1.6 cm per horizontal axis instead of 2.0 and
+    3.5 cm vertical); GST's σ per axis, which gnss_node takes first, is the model's own."""
     if receiver is Receiver.ADU5:
         return EmulatorConfig(receiver=receiver, mount_offsets_deg=CAR_OFFSETS_DEG)
-    return EmulatorConfig(receiver=receiver)
+    return EmulatorConfig(receiver=receiver, leica_extra=("GST",))
 
 
 def emulator_truth(fix: GnssFix | None) -> Truth:
