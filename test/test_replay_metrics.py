@@ -14,7 +14,7 @@ from ins_fusion.core.nav import earth
 from ins_fusion.replay import metrics
 from ins_fusion.replay.inputs import Reference, Series
 from ins_fusion.replay.outages import Outage, mask, parse_outage
-from ins_fusion.replay.report import to_json
+from ins_fusion.replay.report import smoothed_report, to_json
 from ins_fusion.replay.run import SolutionTrack
 
 DATUM = (57.0, 10.0, 40.0)
@@ -55,9 +55,12 @@ def _reference(t_s, pos_enu, quats=None):
     return Reference(position, attitude, None)
 
 
+def evaluation_track(solutions):
+    return SolutionTrack.from_solutions(solutions)
+
+
 def _evaluate(solutions, reference, outages=(), max_gap_s=1.5):
-    track = SolutionTrack.from_solutions(solutions)
-    return metrics.evaluate(track, reference, DATUM, T0, outages, max_gap_s)
+    return metrics.evaluate(evaluation_track(solutions), reference, DATUM, T0, outages, max_gap_s)
 
 
 def test_position_statistics_of_known_errors():
@@ -148,16 +151,64 @@ def test_nees_and_3sigma_fraction_of_a_constructed_case():
     np.testing.assert_allclose(metrics.nees(errors), expected, rtol=1e-12)
     np.testing.assert_array_equal(metrics.within_3sigma(errors), [True, True, True, False])
     stats = metrics.consistency_stats(errors)
-    assert stats["position_mean"] == pytest.approx(np.mean(expected), rel=1e-12)
-    assert stats["position_within_3sigma_fraction"] == 0.75
+    assert stats["mean"] == pytest.approx(np.mean(expected), rel=1e-12)
+    assert stats["within_3sigma_fraction"] == 0.75
+    assert stats["axis_within_3sigma_fraction"] == [1.0, 0.75, 1.0]
     inside = metrics.consistency_stats(errors, errors.in_outage)
     assert inside == {
-        "position_mean": pytest.approx(5.5),
-        "position_within_3sigma_fraction": 1.0,
+        "mean": pytest.approx(5.5),
+        "within_3sigma_fraction": 1.0,
+        "axis_within_3sigma_fraction": [1.0, 1.0, 1.0],
         "samples": 2,
     }
     empty = metrics.consistency_stats(errors, np.zeros(4, bool))
-    assert empty == {"position_mean": None, "position_within_3sigma_fraction": None, "samples": 0}
+    assert empty == {
+        "mean": None,
+        "within_3sigma_fraction": None,
+        "axis_within_3sigma_fraction": [None, None, None],
+        "samples": 0,
+    }
+
+
+def test_attitude_nees_is_that_of_the_small_rotation_about_the_enu_axes():
+    # Level truth heading 30° (ENU yaw); the estimate turned by δθ about the ENU axes (R_est =
+    # exp([δθ×]) R_true, as the engine injects its attitude error) with the attitude covariance
+    # P about the ENU axes: the NEES is δθᵀ P⁻¹ δθ (to first order in δθ: rtol 1e-3 at 1e-4 rad).
+    truth = Rotation.from_quat(_quat(yaw=30.0))
+    P = np.array([[1.0, 0.3, 0.1], [0.3, 2.0, -0.2], [0.1, -0.2, 0.5]]) * 1e-8
+    turns = np.array([[1.0, -2.0, 0.5], [0.0, 0.0, 4.0], [0.0, 0.0, 0.0]]) * 1e-4
+    stamps = T0 + np.arange(3.0)
+    solutions = [
+        _solution(t, [0, 0, 0], (Rotation.from_rotvec(d) * truth).as_quat(), cov_att=P)
+        for t, d in zip(stamps, turns, strict=True)
+    ]
+    reference = _reference(stamps, np.zeros((3, 3)), [truth.as_quat()] * 3)
+    evaluation = _evaluate(solutions, reference, outages=[Outage(0.5, 2.0)])
+    assert evaluation.attitude is not None
+    closed_form = np.einsum("ij,jk,ik->i", turns, np.linalg.inv(P), turns)
+    np.testing.assert_allclose(metrics.nees(evaluation.attitude), closed_form, rtol=1e-3)
+    # The second stamp's yaw error is 4e-4 rad against σ_yaw = sqrt(0.5e-8) = 0.71e-4: outside.
+    nees = smoothed_report(evaluation_track(solutions), 0.0, evaluation, [Outage(0.5, 2.0)], None)[
+        "nees"
+    ]
+    assert nees["dof"] == 3 and nees["attitude_samples"] == 3
+    assert nees["attitude_mean"] == pytest.approx(closed_form.mean(), rel=1e-3)
+    assert nees["yaw_within_3sigma_fraction"] == pytest.approx(2.0 / 3.0)
+    assert nees["attitude_within_3sigma_fraction"] == pytest.approx(2.0 / 3.0)
+    assert nees["in_outage"]["attitude_mean"] == pytest.approx(closed_form[1:].mean(), rel=1e-3)
+    assert nees["in_outage"]["yaw_within_3sigma_fraction"] == 0.5
+    assert nees["out_of_outage"]["attitude_mean"] == pytest.approx(closed_form[0], rel=1e-3)
+    assert nees["out_of_outage"]["yaw_within_3sigma_fraction"] == 1.0
+
+
+def test_without_an_attitude_reference_the_attitude_nees_is_none():
+    stamps = T0 + np.arange(3.0)
+    solutions = [_solution(t, [0, 0, 0]) for t in stamps]
+    evaluation = _evaluate(solutions, _reference(stamps, np.zeros((3, 3))))
+    nees = smoothed_report(evaluation_track(solutions), 0.0, evaluation, [], None)["nees"]
+    assert nees["samples"] == 3 and nees["position_mean"] is not None
+    assert nees["attitude_mean"] is None and nees["yaw_within_3sigma_fraction"] is None
+    assert nees["attitude_samples"] == 0
 
 
 def test_outage_statistics_take_the_stamps_inside_the_window():

@@ -5,9 +5,11 @@ Columns: bag, status ("ok", "no solution", "failed"), error, duration_s, aligned
 final_state, resets, ``gated_<measurement>`` (gated / (used + rejected) of each measurement the
 engine counts), horizontal_rms_m (against the reference), outage_end_max_m (worst horizontal
 error at an outage's end, against the reference), withheld_end_max_m (worst fused antenna minus
-withheld fix at an outage's last fix), nees_mean and nees_within_3sigma (position, dof 3), the
-same five figures of the RTS-smoothed solution (``smoothed_*``) when the batch smoothed, and
-the task's seconds and worker host. Empty where a bag has no such figure.
+withheld fix at an outage's last fix), nees_mean and nees_within_3sigma (position, dof 3),
+attitude_nees_mean (roll, pitch, yaw, dof 3) and yaw_within_3sigma (the share of the stamps
+with the yaw error inside its ±3σ), the same seven figures of the RTS-smoothed solution
+(``smoothed_*``) when the batch smoothed, and the task's seconds and worker host. Empty where a
+bag has no such figure.
 """
 
 from __future__ import annotations
@@ -36,6 +38,8 @@ def _accuracy(report: Mapping[str, Any], prefix: str) -> Row:
     nees = report["nees"]
     row[f"{prefix}nees_mean"] = nees["position_mean"]
     row[f"{prefix}nees_within_3sigma"] = nees["position_within_3sigma_fraction"]
+    row[f"{prefix}attitude_nees_mean"] = nees["attitude_mean"]
+    row[f"{prefix}yaw_within_3sigma"] = nees["yaw_within_3sigma_fraction"]
     return row
 
 
@@ -110,8 +114,13 @@ _TABLE = (
     ("outage end m", "outage_end_max_m"),
     ("withheld end m", "withheld_end_max_m"),
     ("NEES", "nees_mean"),
+    ("att NEES", "attitude_nees_mean"),
+    ("yaw in 3σ", "yaw_within_3sigma"),
     ("smoothed rms m", "smoothed_horizontal_rms_m"),
     ("smoothed withheld m", "smoothed_withheld_end_max_m"),
+    ("smoothed NEES", "smoothed_nees_mean"),
+    ("smoothed att NEES", "smoothed_attitude_nees_mean"),
+    ("smoothed yaw in 3σ", "smoothed_yaw_within_3sigma"),
 )
 
 

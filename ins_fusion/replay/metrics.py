@@ -8,14 +8,18 @@ position and velocity in the ENU tangent plane at the engine's datum [m, m/s], a
 differences of the REP-103 roll, pitch, yaw angles (z-y'-x'' of FLU in ENU) [deg], wrapped to
 (-180, 180].
 
-Consistency: the position NEES e^T P^-1 e (3 degrees of freedom; mean 3 for a consistent filter)
-and the fraction of stamps at which every ENU component of the error lies within its ±3σ bound.
+Consistency: the NEES e^T P^-1 e (3 degrees of freedom; mean 3 for a consistent filter) of the
+position errors with the fused position covariance, and of the attitude errors with the fused
+attitude covariance (the small rotations about the ENU axes of the filter's attitude error,
+taken to the roll, pitch and yaw errors by ``rpy_covariance``), and the fraction of stamps at
+which every component (or one: the yaw) lies within its ±3σ bound.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -27,8 +31,8 @@ from ins_fusion.replay.inputs import Reference, Series
 from ins_fusion.replay.outages import Outage, mask
 from ins_fusion.replay.run import SolutionTrack
 
-#: Degrees of freedom of the position NEES.
-POSITION_DOF = 3
+#: Degrees of freedom of the position and of the attitude NEES.
+NEES_DOF = 3
 
 
 @dataclass(frozen=True)
@@ -271,21 +275,32 @@ def nees(errors: Errors) -> FloatArray:
     return np.asarray(np.einsum("ij,ij->i", errors.error, solved), dtype=np.float64)
 
 
-def within_3sigma(errors: Errors) -> BoolArray:
-    """Per stamp: every component of the error within ±3σ of its own variance (m,)."""
-    inside: BoolArray = np.all(np.abs(errors.error) <= 3.0 * errors.sigma, axis=1)
+def inside_3sigma(errors: Errors) -> BoolArray:
+    """Per stamp and component: the error within ±3σ of its own variance (m, 3)."""
+    inside: BoolArray = np.abs(errors.error) <= 3.0 * errors.sigma
     return inside
 
 
-def consistency_stats(errors: Errors, select: BoolArray | None = None) -> dict[str, float | None]:
-    """position_mean (NEES, POSITION_DOF dof), position_within_3sigma_fraction and samples,
-    over the stamps ``select`` (all when None)."""
-    values, inside = nees(errors), within_3sigma(errors)
+def within_3sigma(errors: Errors) -> BoolArray:
+    """Per stamp: every component of the error within ±3σ of its own variance (m,)."""
+    every: BoolArray = np.all(inside_3sigma(errors), axis=1)
+    return every
+
+
+def consistency_stats(errors: Errors, select: BoolArray | None = None) -> dict[str, Any]:
+    """Over the stamps ``select`` (all when None): mean (of the NEES, NEES_DOF dof),
+    within_3sigma_fraction (every component inside its ±3σ), axis_within_3sigma_fraction (a
+    list: each component's own) and samples; None where no stamp is selected."""
+    values, inside = nees(errors), inside_3sigma(errors)
     if select is not None:
         values, inside = values[select], inside[select]
+    some = bool(values.size)
     return {
-        "position_mean": float(values.mean()) if values.size else None,
-        "position_within_3sigma_fraction": float(inside.mean()) if inside.size else None,
+        "mean": float(values.mean()) if some else None,
+        "within_3sigma_fraction": float(np.all(inside, axis=1).mean()) if some else None,
+        "axis_within_3sigma_fraction": [float(f) for f in inside.mean(axis=0)]
+        if some
+        else [None] * inside.shape[1],
         "samples": int(values.size),
     }
 

@@ -7,7 +7,8 @@ realtime_factor, aligned_at_s, final_state, resets, last_reset_reason, warnings 
 the engine found, e.g. a unit levelled upside down), datum, reference,
 reference_frame (the frame compared in: base_link, or the IMU's for a reference of the IMU),
 reference_frame_id (the reference's own), dropped_messages, measurements, evaluated_samples,
-position_error_m, velocity_error_m_s, attitude_error_deg, outages, nees, withheld_fixes (per
+position_error_m, velocity_error_m_s, attitude_error_deg, outages, nees (position and attitude,
+``_nees``), withheld_fixes (per
 outage: the fused antenna against the GNSS fixes the outage withheld,
 ins_fusion.replay.withheld; with or without a reference), and with smoothing ``smoothed``: the
 same accuracy keys for the RTS-smoothed track, with its epochs and the backward pass's time.
@@ -111,7 +112,7 @@ def _accuracy(evaluation: Evaluation | None, outages: Sequence[Outage]) -> Repor
             "velocity_error_m_s": None,
             "attitude_error_deg": None,
             "outages": [metrics.outage_stats(empty, o) for o in outages],
-            "nees": _nees(empty),
+            "nees": _nees(empty, None),
         }
     position = evaluation.position
     return {
@@ -124,17 +125,44 @@ def _accuracy(evaluation: Evaluation | None, outages: Sequence[Outage]) -> Repor
         if evaluation.attitude is None
         else metrics.attitude_stats(evaluation.attitude),
         "outages": [metrics.outage_stats(position, o) for o in outages],
-        "nees": _nees(position),
+        "nees": _nees(position, evaluation.attitude),
     }
 
 
-def _nees(position: metrics.Errors) -> Report:
-    """Overall position consistency, and separately inside and outside the outages."""
+def _nees(position: metrics.Errors, attitude: metrics.Errors | None) -> Report:
+    """The position and attitude consistency (``_consistency``) over every stamp, and
+    separately inside and outside the outages."""
     return {
-        "dof": metrics.POSITION_DOF,
-        **metrics.consistency_stats(position),
-        "in_outage": metrics.consistency_stats(position, position.in_outage),
-        "out_of_outage": metrics.consistency_stats(position, ~position.in_outage),
+        "dof": metrics.NEES_DOF,
+        **_consistency(position, attitude, None),
+        "in_outage": _consistency(position, attitude, True),
+        "out_of_outage": _consistency(position, attitude, False),
+    }
+
+
+def _consistency(
+    position: metrics.Errors, attitude: metrics.Errors | None, in_outage: bool | None
+) -> Report:
+    """position_mean (NEES), position_within_3sigma_fraction (every ENU component) and samples;
+    attitude_mean (NEES of roll, pitch, yaw), attitude_within_3sigma_fraction,
+    yaw_within_3sigma_fraction and attitude_samples (None and 0 without an attitude
+    reference); over the stamps inside (``in_outage`` True) or outside (False) the outages, or
+    all of them (None)."""
+
+    def stats(errors: metrics.Errors) -> Report:
+        select = None if in_outage is None else errors.in_outage == in_outage
+        return metrics.consistency_stats(errors, select)
+
+    pos = stats(position)
+    att = stats(attitude if attitude is not None else metrics.Errors.empty())
+    return {
+        "position_mean": pos["mean"],
+        "position_within_3sigma_fraction": pos["within_3sigma_fraction"],
+        "samples": pos["samples"],
+        "attitude_mean": att["mean"],
+        "attitude_within_3sigma_fraction": att["within_3sigma_fraction"],
+        "yaw_within_3sigma_fraction": att["axis_within_3sigma_fraction"][2],
+        "attitude_samples": att["samples"],
     }
 
 
@@ -186,6 +214,18 @@ def _accuracy_lines(report: Report) -> list[str]:
         f" outside {_num(nees['out_of_outage']['position_mean'], 2)}"
         f" ({_percent(nees['out_of_outage']['position_within_3sigma_fraction'])})"
     )
+    if att is not None:
+        parts = [nees, nees["in_outage"], nees["out_of_outage"]]
+        mean, within, yaw = (
+            [_num(p["attitude_mean"], 2) for p in parts],
+            [_percent(p["attitude_within_3sigma_fraction"]) for p in parts],
+            [_percent(p["yaw_within_3sigma_fraction"]) for p in parts],
+        )
+        lines.append(
+            f"attitude NEES (dof {nees['dof']})  mean {mean[0]} ({within[0]} within 3σ,"
+            f" yaw {yaw[0]}); in outages {mean[1]} ({within[1]}, yaw {yaw[1]});"
+            f" outside {mean[2]} ({within[2]}, yaw {yaw[2]})"
+        )
     if report["outages"]:
         lines.append("outage  start s  length s  end horiz m  end 1σ m  max horiz m  max vert m")
         lines.extend(

@@ -99,8 +99,7 @@ def withheld_stats(evaluation: WithheldEvaluation, outage: Outage) -> dict[str, 
     withheld = evaluation.withheld_t_rel_s
     h = metrics.horizontal(errors)[inside]
     cov = evaluation.filter_cov[inside]
-    values = metrics.nees(errors)[inside]
-    within = metrics.within_3sigma(errors)[inside]
+    consistency = metrics.consistency_stats(errors, inside)
     return {
         "start_s": outage.start_s,
         "duration_s": outage.duration_s,
@@ -111,9 +110,7 @@ def withheld_stats(evaluation: WithheldEvaluation, outage: Outage) -> dict[str, 
         "horizontal_error_max_m": float(h.max()) if h.size else None,
         "vertical_error_max_m": float(np.abs(errors.error[inside, 2]).max()) if h.size else None,
         "nees": {
-            "dof": metrics.POSITION_DOF,
-            "mean": float(values.mean()) if values.size else None,
-            "within_3sigma_fraction": float(within.mean()) if within.size else None,
-            "samples": int(values.size),
+            "dof": metrics.NEES_DOF,
+            **{k: consistency[k] for k in ("mean", "within_3sigma_fraction", "samples")},
         },
     }
