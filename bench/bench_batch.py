@@ -37,7 +37,7 @@ EXPORT = "track.csv"
 def _bags(root: Path, duration_s: float) -> list[Path]:
     """The eight bags (written when missing)."""
     from ins_fusion.sim.drive import SimulationConfig
-    from ins_fusion.tools.simulate import write_bag
+    from ins_fusion.sim.simulated_bag import write_bag
 
     bags = []
     for seed in SEEDS:

@@ -47,7 +47,7 @@ from gnss_ins_common.rates import IMU400CC_RATE_HZ
 from gnss_ins_common.ros_node_main import EXECUTOR_ENV
 from ins_fusion.bags.topics import GNSS_ATTITUDE, GNSS_FIX, GNSS_VEL, IMU_DATA
 from ins_fusion.sim.drive import SimulationConfig
-from ins_fusion.tools.simulate import write_bag
+from ins_fusion.sim.simulated_bag import write_bag
 
 # The node's main() under cProfile, timed by the CPU time of the executor's thread (wall time
 # would count the waits and, on a loaded machine, the time the thread was not scheduled).

@@ -45,7 +45,7 @@ from ins_fusion.replay.pipeline import replay
 from ins_fusion.replay.report import Report
 from ins_fusion.sim.drive import SimulationConfig
 from ins_fusion.sim.scenarios import SURVEY_CAR
-from ins_fusion.tools.simulate import write_bag
+from ins_fusion.sim.simulated_bag import write_bag
 
 DRIVE_START_S = 60.0
 OUTAGE_STARTS_S = (50.0, 85.0, 145.0)

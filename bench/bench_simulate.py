@@ -31,8 +31,8 @@ from ins_fusion.sim.gnss_model import PROFILES as GNSS_PROFILES
 from ins_fusion.sim.gnss_model import GnssErrorModel
 from ins_fusion.sim.imu_model import IMU400CC, ImuErrorModel
 from ins_fusion.sim.scenarios import SURVEY_CAR, seed_test_pattern
+from ins_fusion.sim.simulated_bag import write_bag
 from ins_fusion.sim.vehicle import TruthCache, VehicleTruth
-from ins_fusion.tools.simulate import write_bag
 
 DURATION_S = 600.0
 BLOCK_S = 10.0

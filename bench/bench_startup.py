@@ -27,7 +27,7 @@ from pathlib import Path
 from speed_bag import gnss_ins_command
 
 from ins_fusion.sim.drive import SimulationConfig
-from ins_fusion.tools.simulate import write_bag
+from ins_fusion.sim.simulated_bag import write_bag
 
 #: Imports the node's modules, feeds the engine until its first solution (argv: bag).
 _FIRST_SOLUTION = """

@@ -36,7 +36,7 @@ from ins_fusion.core.settings.params import PARAMETERS  # noqa: E402
 from ins_fusion.replay.inputs import ReplayInputs, load_bag  # noqa: E402
 from ins_fusion.replay.run import run_fusion  # noqa: E402
 from ins_fusion.replay.topics import TopicMap  # noqa: E402
-from ins_fusion.tools.simulate import write_bag  # noqa: E402
+from ins_fusion.sim.simulated_bag import write_bag  # noqa: E402
 
 COMMA = REPO / "test" / "fixtures" / "comma2k19"
 RELATIVE = 1e-9

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from ins_fusion.sim.drive import SimulationConfig
-from ins_fusion.tools.simulate import write_bag
+from ins_fusion.sim.simulated_bag import write_bag
 
 #: 90 s of the figure-eight scenario (10 s standstill, accelerating to 10 m/s, one lap of two
 #: 40 m circles, braking), imu400cc IMU, Leica RTK at 1 Hz, ADU5 at 5 Hz, truth at 50 Hz.

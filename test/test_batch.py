@@ -25,8 +25,8 @@ import pytest
 from distributed import Client
 
 from ins_fusion.sim.drive import SimulationConfig
+from ins_fusion.sim.simulated_bag import write_bag
 from ins_fusion.tools import cli
-from ins_fusion.tools.simulate import write_bag
 
 REAL = Path(__file__).resolve().parent / "fixtures" / "comma2k19" / "comma2k19_ex1_seg40"
 SEEDS = (31, 32, 33, 34, 35, 36)

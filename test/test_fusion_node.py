@@ -42,7 +42,7 @@ from ins_fusion.core.settings.config import FusionConfig
 from ins_fusion.node import MAX_HELD, InsFusionNode
 from ins_fusion.sim import odometer_model
 from ins_fusion.sim.drive import SimulationConfig
-from ins_fusion.tools.simulate import write_bag
+from ins_fusion.sim.simulated_bag import write_bag
 
 pytestmark = pytest.mark.ros
 

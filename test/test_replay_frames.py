@@ -27,8 +27,8 @@ from ins_fusion.replay.inputs import ImuSeries, Reference, ReplayInputs, Series
 from ins_fusion.replay.run import FusionRun, SolutionTrack
 from ins_fusion.replay.topics import TopicMap
 from ins_fusion.sim.drive import SimulationConfig
+from ins_fusion.sim.simulated_bag import write_bag
 from ins_fusion.tools import cli
-from ins_fusion.tools.simulate import write_bag
 
 DATUM = (57.0, 10.0, 40.0)
 T0 = 1000.0

@@ -24,8 +24,8 @@ from sim_bags import FIGURE_EIGHT_90_S, TEST_PATTERN_75_S, shared_bag
 from ins_fusion.bags.bag_io import BagReader
 from ins_fusion.replay.inputs import load_bag
 from ins_fusion.replay.pipeline import replay
+from ins_fusion.sim.simulated_bag import write_bag
 from ins_fusion.tools import cli
-from ins_fusion.tools.simulate import write_bag
 
 OUTAGE = (40.0, 12.0)
 ACCURACY_KEYS = {"position_error_m", "attitude_error_deg", "outages", "nees"}

@@ -24,8 +24,8 @@ from ins_fusion.replay.ranking import RANK_METRICS
 from ins_fusion.replay.run import SolutionTrack
 from ins_fusion.replay.withheld import evaluate_withheld, withheld_stats
 from ins_fusion.sim.drive import SimulationConfig
+from ins_fusion.sim.simulated_bag import write_bag
 from ins_fusion.tools import cli
-from ins_fusion.tools.simulate import write_bag
 
 DATUM = (57.0, 10.0, 40.0)
 T0 = 1000.0

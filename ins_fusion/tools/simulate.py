@@ -17,21 +17,17 @@ import sys
 from datetime import datetime
 from pathlib import Path
 
-from ins_fusion.bags.bag_io import STORAGES, BagError, BagWriter
-from ins_fusion.runtime.progress import Progress
+from ins_fusion.bags.bag_io import STORAGES, BagError
 from ins_fusion.sim import imu_model, odometer_model, vibration
 from ins_fusion.sim.drive import (
     DEFAULT_START_NS,
     POSITION_RECEIVERS,
-    Simulation,
     SimulationConfig,
     SkyZoneSpec,
 )
 from ins_fusion.sim.live import LiveOptions, run_live
 from ins_fusion.sim.scenarios import SCENARIOS
-
-#: Messages written between progress-bar updates.
-_PROGRESS_EVERY = 2000
+from ins_fusion.sim.simulated_bag import write_bag
 
 
 def _numbers(text: str, count: tuple[int, int], what: str) -> list[float]:
@@ -267,33 +263,3 @@ def _odometer(args: argparse.Namespace) -> odometer_model.OdometerProfile:
     }
     given = {name: value for name, value in changes.items() if value is not None}
     return dataclasses.replace(odometer_model.DMI, **given)
-
-
-def write_bag(config: SimulationConfig, path: Path, storage: str = "mcap") -> None:
-    """Simulate and write the bag at ``path``; print its summary."""
-    simulation = Simulation(config)
-    with (
-        BagWriter(path, storage=storage) as writer,
-        Progress("simulate", total=config.duration_s, unit="s") as progress,
-    ):
-        for topic, msgtype in simulation.topics.items():
-            writer.add_topic(topic, msgtype)
-        for count, event in enumerate(simulation.stream()):
-            writer.write(event.topic, event.log_ns, event.message)
-            if count % _PROGRESS_EVERY == 0:
-                progress.update((event.log_ns - config.start_ns) / 1e9)
-        progress.update(config.duration_s)
-    title = (
-        f"bag {path} ({storage}): {config.scenario}, {config.duration_s:g} s, imu {config.imu},"
-        f" gnss {config.gnss or 'none'}, adu5 {'on' if config.adu5 else 'off'}, seed {config.seed}"
-    )
-    if config.vibration != "none":
-        title += f", vibration {config.vibration}"
-    rates = (("imu", config.imu_rate_hz), ("gnss", config.gnss_rate_hz))
-    title += "".join(f", {name} at {hz:g} Hz" for name, hz in rates if hz is not None)
-    if (dmi := config.odometer) is not None:
-        title += (
-            f", speed {dmi.name} at {dmi.rate_hz:g} Hz (scale {dmi.scale_error:+.2%},"
-            f" slip above {dmi.slip_threshold_m_s2:g} m/s²)"
-        )
-    print(writer.summary.format(title))
