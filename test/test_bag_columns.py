@@ -14,8 +14,9 @@ import pytest
 from rosbags.rosbag2.storage_mcap import McapReader
 
 from ins_fusion.bags import columns as bag_columns
-from ins_fusion.bags.bag_io import BagError, BagReader, BagWriter, jazzy_typestore
+from ins_fusion.bags.bag_io import BagError, BagReader, BagWriter
 from ins_fusion.bags.columns import read_topics
+from ins_fusion.bags.typestore import jazzy_typestore
 
 TS = jazzy_typestore()
 T = TS.types

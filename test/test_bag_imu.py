@@ -6,10 +6,11 @@ import numpy as np
 import pytest
 
 from gnss_ins_common.message_fields import fill_imu, stamp_ns
-from ins_fusion.bags.bag_io import BagError, BagReader, BagWriter, jazzy_typestore
+from ins_fusion.bags.bag_io import BagError, BagReader, BagWriter
 from ins_fusion.bags.imu import ImuRecord, read_imu, write_imu_bag
 from ins_fusion.bags.messages import new_message
 from ins_fusion.bags.topics import IMU_DATA, IMU_TYPE
+from ins_fusion.bags.typestore import jazzy_typestore
 
 T0_S = 1_717_236_000.123456789
 

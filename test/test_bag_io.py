@@ -11,14 +11,8 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from ins_fusion.bags.bag_io import (
-    BagError,
-    BagReader,
-    BagSummary,
-    BagWriter,
-    jazzy_typestore,
-    read_messages,
-)
+from ins_fusion.bags.bag_io import BagError, BagReader, BagSummary, BagWriter, read_messages
+from ins_fusion.bags.typestore import jazzy_typestore
 
 TS = jazzy_typestore()
 T = TS.types

@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from ins_fusion.adapters import cdr_fields, messages_in
 from ins_fusion.adapters.cdr_fields import CdrError
-from ins_fusion.bags.bag_io import jazzy_typestore
+from ins_fusion.bags.typestore import jazzy_typestore
 
 TS = jazzy_typestore()
 T = TS.types

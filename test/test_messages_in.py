@@ -19,9 +19,9 @@ from hypothesis.extra.numpy import arrays
 from gnss_ins_common.message_fields import fill_imu, fill_navsatfix, fill_orientation, fill_velocity
 from gnss_ins_common.navsat import HEIGHT_UNKNOWN_VARIANCE_M2
 from ins_fusion.adapters import cdr_fields, messages_in
-from ins_fusion.bags.bag_io import jazzy_typestore
 from ins_fusion.bags.messages import new_message
 from ins_fusion.bags.topics import FIX_TYPE, IMU_TYPE, VELOCITY_TYPE
+from ins_fusion.bags.typestore import jazzy_typestore
 
 T_NS = 1_717_236_000_123_456_789
 T_S = 1_717_236_000 + 0.123456789

@@ -27,8 +27,9 @@ from imu400cc_driver.driver import ImuDriver
 from imu400cc_driver.messages import sample_messages
 from imu400cc_driver.parameters import driver_config as imu_config
 from imu400cc_driver.protocol import RawPacket, encode_packet
-from ins_fusion.bags.bag_io import BagReader, BagWriter, jazzy_typestore
+from ins_fusion.bags.bag_io import BagReader, BagWriter
 from ins_fusion.bags.messages import new_message
+from ins_fusion.bags.typestore import jazzy_typestore
 from ins_fusion.redecode.decoders import (
     DATA,
     GNSS_CLASSES,

@@ -26,7 +26,8 @@ import rclpy
 from ros_harness import wait_for
 from test_launch import launched, node_pids
 
-from ins_fusion.bags.bag_io import BagReader, jazzy_typestore
+from ins_fusion.bags.bag_io import BagReader
+from ins_fusion.bags.typestore import jazzy_typestore
 from ins_fusion.redecode.decoders import OPENED, STARTED, header_ns
 from ins_fusion.runtime.processes import gnss_ins_command
 

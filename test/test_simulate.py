@@ -25,8 +25,9 @@ from imu400cc_driver.axes import ImuMeasurement, measurement_to_packet, packet_t
 from imu400cc_driver.driver import ImuDriver, ImuSample
 from imu400cc_driver.protocol import Scaling
 from ins_fusion.bags import topics as T  # noqa: N812
-from ins_fusion.bags.bag_io import BagReader, jazzy_typestore
+from ins_fusion.bags.bag_io import BagReader
 from ins_fusion.bags.messages import new_message
+from ins_fusion.bags.typestore import jazzy_typestore
 from ins_fusion.sim.drive import DEFAULT_START_NS, Simulation, SimulationConfig, SkyZoneSpec
 from ins_fusion.tools import cli
 

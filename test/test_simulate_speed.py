@@ -12,7 +12,8 @@ import pytest
 
 from gnss_ins_common.message_fields import UNKNOWN_VARIANCE
 from ins_fusion.bags import topics as T  # noqa: N812
-from ins_fusion.bags.bag_io import BagReader, jazzy_typestore
+from ins_fusion.bags.bag_io import BagReader
+from ins_fusion.bags.typestore import jazzy_typestore
 from ins_fusion.sim.drive import DEFAULT_START_NS, Simulation, SimulationConfig
 from ins_fusion.sim.odometer_model import DMI
 from ins_fusion.tools import cli

@@ -17,7 +17,6 @@ import shutil
 import struct
 from collections.abc import Collection, Iterator, Sequence
 from dataclasses import dataclass
-from functools import cache
 from pathlib import Path, PurePath
 from types import TracebackType
 from typing import Any, Literal, NamedTuple, cast
@@ -28,12 +27,12 @@ from rosbags.interfaces import Connection, Qos
 from rosbags.rosbag2 import ReaderError, StoragePlugin, Writer
 from rosbags.rosbag2.storage_mcap import McapWriter
 from rosbags.rosbag2.storage_sqlite3 import Sqlite3Writer
-from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
 from ins_fusion.bags.resume import PARTS_DIR, existing_recording, keep_part_metadata
 from ins_fusion.bags.salvage import Salvaged, salvage
 from ins_fusion.bags.summary import BagSummary
+from ins_fusion.bags.typestore import jazzy_typestore
 
 #: ``--storage`` choices -> rosbags storage plugin (MCAP is the Jazzy default).
 STORAGES: dict[str, StoragePlugin] = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}
@@ -45,29 +44,6 @@ RawMessage = bytes | memoryview
 
 class BagError(Exception):
     """A bag cannot be written or read as asked."""
-
-
-#: Messages that rosbags' Jazzy store lacks, as their packages define them (the same fields as
-#: ros_interfaces/, which builds them for rclpy): the ROS ecosystem's corrections and NMEA
-#: sentences, and gnss_ins_msgs' serial chunks (a device's reads with their times: imu/raw).
-EXTRA_MESSAGES = {
-    "rtcm_msgs/msg/Message": "std_msgs/Header header\nuint8[] message\n",
-    "nmea_msgs/msg/Sentence": "std_msgs/Header header\nstring sentence\n",
-    "gnss_ins_msgs/msg/SerialChunk": (
-        "std_msgs/Header header\nuint8 DATA=0\nuint8 OPENED=1\nuint8 STARTED=2\n"
-        "uint8 event\nuint8[] data\nuint32[] read_ends\nint64[] read_times_ns\n"
-    ),
-}
-
-
-@cache
-def jazzy_typestore() -> Typestore:
-    """The rosbags typestore of ROS 2 Jazzy (common_interfaces, rosgraph_msgs, ...) with
-    EXTRA_MESSAGES."""
-    store = get_typestore(Stores.ROS2_JAZZY)
-    for name, text in EXTRA_MESSAGES.items():
-        store.register(get_types_from_msg(text, name))
-    return store
 
 
 # --------------------------------------------------------------------------------------------

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 from rosbags.interfaces import Nodetype
 
-from ins_fusion.bags.bag_io import jazzy_typestore
+from ins_fusion.bags.typestore import jazzy_typestore
 
 _STRINGS = ("string", "wstring")
 #: ROS base types numpy does not name the same way.
