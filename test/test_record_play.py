@@ -313,12 +313,25 @@ def test_a_topic_is_silent_after_its_messages_stop_and_before_its_first_only_muc
 
     recorder = gnss_ins(
         "record", "-o", str(tmp_path / "bag"), "--silence-warning", "0.5", "/test/stops",
-        "/test/quiet", "/test/burst",
+        "/test/quiet", "/test/burst", "/test/nobody",
     )  # fmt: skip
     try:
         with spinning(collector.node):
             assert wait_for(lambda: stops.get_subscription_count() > 0, 20.0)
             assert wait_for(lambda: burst.get_subscription_count() > 0, 20.0)
+
+            def statuses() -> list[tuple[bytes, str]]:
+                return [
+                    (s.level, s.message)
+                    for array in collector.get("/diagnostics")
+                    for s in array.status
+                    if s.name.startswith("gnss_ins_record")
+                ]
+
+            # A requested topic nobody publishes (corrections without a caster) is no fault.
+            assert wait_for(
+                lambda: (b"\x00", "recording; no publisher yet: /test/nobody") in statuses(), 10.0
+            )
             start = time.time()
             for _ in range(5):
                 burst.publish(String(data="set-up"))
@@ -344,4 +357,4 @@ def test_a_topic_is_silent_after_its_messages_stop_and_before_its_first_only_muc
     assert "/test/stops silent for" in err and "although it has a publisher" in err
     assert err.count("/test/quiet: no message yet") == 1 and "/test/quiet silent for" not in err
     assert "/test/burst silent" not in err and "/test/burst: no message" not in err
-    assert not any("burst" in m for _, m in silent_since(start))
+    assert not any("burst" in m or "nobody" in m for _, m in silent_since(start))

@@ -305,10 +305,12 @@ class Recorder:
             level, message = ERROR, recording.stopped or f"writing failed: {self.error!r}"
         elif recording.low_disk:
             level, message = WARN, "disk space low"
-        elif silent or self.waiting_for:
-            level, message = WARN, f"silent: {', '.join(silent or self.waiting_for)}"
-        else:
+        elif silent:
+            level, message = WARN, f"silent: {', '.join(silent)}"
+        else:  # a requested topic nobody publishes (corrections without --ntrip) is no fault
             level, message = OK, "recording"
+            if self.waiting_for:
+                message += f"; no publisher yet: {', '.join(self.waiting_for)}"
         status = make_status(
             f"{self.node.get_name()}: recording", str(self.writer.path), level, message, values
         )
