@@ -19,8 +19,11 @@ from ins_fusion.tools.ros_record import message_class
 
 #: Longest spin between two looks at the time and at a stop request [s].
 SPIN_PERIOD_S = 0.1
-#: Listening after the first topic appears, for the rest of the graph to be discovered [s].
+#: The graph counts as discovered once it has not changed for this long [s] (endpoints of a
+#: dozen processes come in over a few seconds) ...
 SETTLE_S = 1.0
+#: ... or after this long past the first topic [s].
+SETTLE_LIMIT_S = 10.0
 
 
 class _Look:
@@ -57,27 +60,33 @@ class _Look:
 
 
 def topics(wait_s: float) -> list[tuple[str, str, int, int]]:
-    """(name, type, publishers, subscribers) of every topic seen within ``wait_s`` (listening
-    SETTLE_S more after the first), this process's own endpoints left out."""
+    """(name, type, publishers, subscribers) of every topic seen within ``wait_s``, once the
+    graph has settled (unchanged for SETTLE_S, at most SETTLE_LIMIT_S), this process's own
+    endpoints left out."""
     with _Look() as look:
         node = look.node
-
-        def graph() -> list[tuple[str, list[str]]]:
-            return node.get_topic_names_and_types()
-
-        first = look.spin_until(lambda: any(n != "/rosout" for n, _ in graph()), wait_s)
-        if first:
-            look.spin_until(lambda: False, SETTLE_S)
         own = node.get_name()
-        return [
-            (
-                name,
-                ", ".join(types),
-                sum(i.node_name != own for i in node.get_publishers_info_by_topic(name)),
-                sum(i.node_name != own for i in node.get_subscriptions_info_by_topic(name)),
-            )
-            for name, types in sorted(graph())
-        ]
+
+        def graph() -> list[tuple[str, str, int, int]]:
+            return [
+                (
+                    name,
+                    ", ".join(types),
+                    sum(i.node_name != own for i in node.get_publishers_info_by_topic(name)),
+                    sum(i.node_name != own for i in node.get_subscriptions_info_by_topic(name)),
+                )
+                for name, types in sorted(node.get_topic_names_and_types())
+            ]
+
+        if look.spin_until(lambda: any(t[0] != "/rosout" for t in graph()), wait_s):
+            end = time.monotonic() + SETTLE_LIMIT_S
+            seen = graph()
+            while not look.stop and time.monotonic() < end:
+                look.spin_until(lambda: False, SETTLE_S)
+                if (now := graph()) == seen:
+                    break
+                seen = now
+        return graph()
 
 
 def echo(
