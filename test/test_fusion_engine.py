@@ -14,8 +14,10 @@ from scipy.spatial.transform import Rotation
 from test_fusion_drives import CALIBRATION, Drive, config, deliver, feed, simulate
 
 from ins_fusion.core.engine.engine import MEASUREMENT_NAMES, GnssFixMeasurement, InsEngine
+from ins_fusion.core.filter.eskf import ATT
 from ins_fusion.core.filter.records import AttitudeMeasurement
 from ins_fusion.core.nav.calibration import ImuCalibration
+from ins_fusion.core.nav.rotation import MAT_ENU_NED
 
 #: Figure-eight: 10 s standstill, then 10 m/s circles of 40 m radius.
 DURATION_S = 70.0
@@ -75,6 +77,13 @@ def test_alignment_states_and_the_solution_frames(eight_adu5):
         assert np.allclose(cov, cov.T) and np.linalg.eigvalsh(cov).min() > 0.0
     # Attitude covariance about the ENU axes: yaw (about up) is the best known angle with ADU5.
     assert math.sqrt(sol.cov_att_enu_rad2[2, 2]) < math.radians(0.1)
+    # imu_link's: the engine's attitude error ψ alone (NED -> ENU); base_link's adds the
+    # estimated mounting's (self_calibration.mounting, on by default).
+    last, P = engine.solution(), engine.covariance
+    assert last is not None and P is not None and engine.layout.mt is not None
+    psi = MAT_ENU_NED @ P[ATT : ATT + 3, ATT : ATT + 3] @ MAT_ENU_NED.T
+    np.testing.assert_allclose(last.cov_att_imu_enu_rad2, psi, rtol=1e-12, atol=1e-20)
+    assert not np.allclose(last.cov_att_enu_rad2, psi, rtol=1e-3, atol=0.0)
     status = engine.status()
     assert status.state == "navigating" and status.resets == 0
     # Every kind but the vehicle speed, which an engine without speed.use does not report.

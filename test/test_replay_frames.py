@@ -89,9 +89,11 @@ def _truth(t_s, frame):
     )
 
 
-def _replay(monkeypatch, frame_id, imu_frame="imu_link"):
-    """pipeline.replay with the engine run replaced by the synthetic track."""
-    track = SolutionTrack.from_solutions([_solution(t) for t in np.arange(0.0, 10.01, 0.02)])
+def _replay(monkeypatch, frame_id, imu_frame="imu_link", track=None):
+    """pipeline.replay with the engine run replaced by the synthetic track (``track``: of
+    ``_solution`` when None)."""
+    if track is None:
+        track = SolutionTrack.from_solutions([_solution(t) for t in np.arange(0.0, 10.01, 0.02)])
     parameters = {"imu_lever_arm": list(IMU_ARM), "imu_mounting_rpy_deg": list(MOUNTING_DEG)}
     config = FusionConfig.from_parameters(parameters)
     status = SimpleNamespace(
@@ -135,6 +137,30 @@ def test_reference_of_the_imu_is_compared_with_the_moved_solution(monkeypatch):
     unmoved = metrics.evaluate(track, reference, DATUM, T0, [], 0.5)
     assert metrics.position_stats(unmoved.position)["horizontal_rms"] > 0.8
     assert metrics.attitude_stats(unmoved.attitude)["pitch_rms"] == pytest.approx(3.0, abs=0.01)
+
+
+def test_reference_of_the_imu_is_compared_with_the_imu_attitude_covariance(monkeypatch):
+    # The engine's attitude error is the IMU's; base_link's adds the mounting's: an IMU
+    # reference is scored against imu_link's own covariance, a base_link one against base_link's.
+    imu_cov = np.diag([4e-6, 9e-6, 16e-6])
+    solutions = [
+        replace(_solution(t), cov_att_imu_enu_rad2=imu_cov) for t in np.arange(0.0, 10.01, 0.02)
+    ]
+    track = SolutionTrack.from_solutions(solutions)
+    np.testing.assert_array_equal(track.cov_att_imu_enu_rad2[0], imu_cov)
+    moved = moved_track(track, IMU_ARM, np.radians(MOUNTING_DEG), track.cov_att_imu_enu_rad2)
+    np.testing.assert_array_equal(moved.cov_att_enu_rad2, track.cov_att_imu_enu_rad2)
+    # Without its own (a solution of no estimated mounting) a row holds base_link's.
+    plain = SolutionTrack.from_solutions([_solution(0.0)])
+    np.testing.assert_array_equal(plain.cov_att_imu_enu_rad2, plain.cov_att_enu_rad2)
+    result, _, _ = _replay(monkeypatch, "imu_link", track=track)
+    assert result.evaluation.attitude is not None
+    # Yaw about up as it is; roll and pitch are E and N turned by the heading (their sum stays).
+    variances = np.diagonal(result.evaluation.attitude.cov, axis1=1, axis2=2) / np.degrees(1) ** 2
+    np.testing.assert_allclose(variances[:, 2], 16e-6, rtol=1e-9)
+    np.testing.assert_allclose(variances[:, 0] + variances[:, 1], 13e-6, rtol=1e-9)
+    base, _, _ = _replay(monkeypatch, "base_link", track=track)
+    np.testing.assert_allclose(base.evaluation.attitude.sigma, np.degrees(1e-3), rtol=1e-9)
 
 
 def test_moved_track_adds_the_attitude_covariance_through_the_lever_arm():

@@ -13,8 +13,10 @@ intrinsic, core.nav.rotation.quat_from_euler). Per recorded solution, with R = R
 - position covariance P_pos + [a×] P_att [a×]^T with a = R r, P_att the attitude covariance
   about the ENU axes (a small rotation error ψ moves the point by ψ × a). The position-attitude
   cross-covariance is not in the solution and is left out, as are the covariances of ω and of
-  the lever arm itself; velocity and attitude covariances are kept as they are (rotating by a
-  fixed q_base_s does not change errors about the ENU axes).
+  the lever arm itself; the velocity covariance is kept as it is, and so is the attitude's
+  (rotating by a fixed q_base_s does not change errors about the ENU axes) unless the frame
+  has one of its own: imu_link, whose attitude is the engine's mechanised one while base_link's
+  adds the estimated mounting's uncertainty (InsSolution.cov_att_imu_enu_rad2).
 """
 
 from __future__ import annotations
@@ -63,10 +65,12 @@ def moved_track(
     track: SolutionTrack,
     lever_arm_flu_m: Sequence[float],
     mounting_rpy_rad: Sequence[float] | FloatArray = (0.0, 0.0, 0.0),
+    cov_att_enu_rad2: FloatArray | None = None,
 ) -> SolutionTrack:
     """``track`` of the frame at ``lever_arm_flu_m`` (base_link FLU [m]) with orientation
     ``mounting_rpy_rad`` in base_link (see the module docstring; one (3,) mounting, or one per
-    solution (n, 3) when the engine estimated it); ``solutions`` stay those of base_link."""
+    solution (n, 3) when the engine estimated it) and attitude covariance ``cov_att_enu_rad2``
+    (n, 3, 3) [rad²] (None: base_link's); ``solutions`` stay those of base_link."""
     if not len(track.t_s):
         return track
     r = np.asarray(lever_arm_flu_m, dtype=np.float64).reshape(3)
@@ -85,6 +89,7 @@ def moved_track(
         quat_enu_flu_xyzw=np.asarray(quat, dtype=np.float64),
         vel_enu_m_s=track.vel_enu_m_s + rot.apply(np.cross(rate, r)),
         cov_pos_enu_m2=track.cov_pos_enu_m2 + lever_arm_covariance(track.cov_att_enu_rad2, arm_enu),
+        cov_att_enu_rad2=track.cov_att_enu_rad2 if cov_att_enu_rad2 is None else cov_att_enu_rad2,
     )
 
 

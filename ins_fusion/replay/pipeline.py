@@ -75,7 +75,9 @@ def _score(
         configured = np.asarray(config.imu_mounting_rpy_rad, dtype=np.float64)
         estimated = track.imu_mounting_rpy_rad  # the engine's estimate where it has one
         mounting = np.where(np.isnan(estimated), configured, estimated)
-        compared = moved_track(track, config.imu_lever_arm_flu_m, mounting)
+        compared = moved_track(
+            track, config.imu_lever_arm_flu_m, mounting, track.cov_att_imu_enu_rad2
+        )
     if inputs.reference is not None and run.datum is not None:
         evaluation = evaluate(
             compared, inputs.reference, run.datum, inputs.t0_s, outages, max_gap_s
@@ -104,7 +106,7 @@ def replay(
     hold a reference (``reference``: its prefix, for the report), and compare it with the GNSS
     fixes the outages withheld. A reference of the IMU (its frame_id is the IMU's) is compared
     with the solution moved to the IMU by ``imu_lever_arm`` and the mounting (the engine's estimate,
-    else ``imu_mounting_rpy_deg``)
+    else ``imu_mounting_rpy_deg``), with the IMU's own attitude covariance
     (ins_fusion.replay.frames). ``smooth``: the RTS-smoothed track too, scored the same way,
     under ``smoothed`` in the report."""
     run = run_fusion(inputs, parameters, outages, progress, smooth)

@@ -38,9 +38,10 @@ class SolutionTrack:
     ``solutions``: each InsSolution built when asked for; see InsSolution for frames and units),
     with the fields the evaluation uses stacked over time: t_s (n,), pos_enu_m (n, 3),
     quat_enu_flu_xyzw (n, 4), vel_enu_m_s (n, 3), cov_pos_enu_m2 / cov_vel_enu /
-    cov_att_enu_rad2 (n, 3, 3); ``aligned`` (n,) is False while the engine is still
-    'aligning' (heading unknown). A track moved to another frame (replay.frames) replaces the
-    stacked fields; ``rows`` stay those of base_link."""
+    cov_att_enu_rad2 / cov_att_imu_enu_rad2 (imu_link's attitude, InsSolution) (n, 3, 3);
+    ``aligned`` (n,) is False while the engine is still 'aligning' (heading unknown). A track
+    moved to another frame (replay.frames) replaces the stacked fields; ``rows`` stay those of
+    base_link."""
 
     rows: FloatArray
     t_s: FloatArray
@@ -51,6 +52,7 @@ class SolutionTrack:
     cov_vel_enu: FloatArray
     cov_att_enu_rad2: FloatArray
     aligned: BoolArray
+    cov_att_imu_enu_rad2: FloatArray
 
     @classmethod
     def from_rows(cls, rows: FloatArray) -> SolutionTrack:
@@ -66,6 +68,7 @@ class SolutionTrack:
             rows[:, solution_rows.COV_VEL].reshape(-1, 3, 3),
             rows[:, solution_rows.COV_ATT].reshape(-1, 3, 3),
             rows[:, solution_rows.STATE] != solution_rows.STATES.index("aligning"),
+            rows[:, solution_rows.COV_ATT_IMU].reshape(-1, 3, 3),
         )
 
     @classmethod

@@ -3,9 +3,10 @@
 ``attach_history(engine)`` gives the engine a ``SmootherHistory`` (core.smoother.history)
 whose snapshot at each transition is the engine's ``solution()`` at that moment (the prior x̂_j⁻
 of the step, on the engine's final timeline) packed into a row, with ``engine.solution_jacobian``:
-the derivatives of base_link's ENU position, velocity and attitude (errors about the ENU axes)
-with respect to the error states ``solution_states`` (position, velocity, attitude, gyro bias and
-the mounting states), the same Jacobian that gives the solution's covariances. A snapshot taken
+the derivatives of base_link's ENU position, velocity and attitude and of imu_link's attitude
+(errors about the ENU axes) with respect to the error states ``solution_states`` (position,
+velocity, attitude, gyro bias and the mounting states), the same Jacobian that gives the
+solution's covariances. A snapshot taken
 while the engine re-propagates after a late measurement has the newest IMU sample's rate
 (solution() holds no other): its rate and the lever arm's ω × r part of the velocity are those
 of up to one measurement latency later.
@@ -90,6 +91,7 @@ def _smoothed(epoch: SmoothedEpoch) -> FloatArray:
     row[rows.COV_POS] = cov[0:3, 0:3].ravel()
     row[rows.COV_VEL] = cov[3:6, 3:6].ravel()
     row[rows.COV_ATT] = cov[6:9, 6:9].ravel()
+    row[rows.COV_ATT_IMU] = cov[9:12, 9:12].ravel()
     row[rows.GYRO] += frd_to_flu(epoch.error[BG : BG + 3])
     row[rows.ACCEL] += frd_to_flu(epoch.error[BA : BA + 3])
     return row

@@ -2,7 +2,8 @@
 from the nominal state and the error covariance, and the self-calibration figures.
 
 The covariances come from one Jacobian over the position, velocity, attitude and gyro bias
-error states (the first 12, which the lever arm couples), rows in ENU.
+error states (the first 12, which the lever arm couples) and the mounting's when estimated, rows
+in ENU.
 """
 
 from __future__ import annotations
@@ -59,6 +60,10 @@ class InsSolution:
     imu_mounting_rpy_rad: REP-103 roll, pitch, yaw of imu_link in base_link with the estimated
     residual mounting (None when it is not estimated: the configured one). base_link is the
     vehicle frame of that mounting: position, velocity, orientation and rate include it.
+    cov_att_imu_enu_rad2: the attitude covariance of imu_link (errors about the ENU axes): the
+    mechanised frame's own, without the estimated mounting's uncertainty that base_link's holds
+    (the vehicle's attitude error is the IMU's plus the mounting's; a straight drive knows the
+    vehicle's heading from its course far better than the IMU's); None: cov_att_enu_rad2.
     """
 
     t_s: float
@@ -76,13 +81,15 @@ class InsSolution:
     accel_bias_flu_m_s2: FloatArray
     state: str
     imu_mounting_rpy_rad: FloatArray | None = None
+    cov_att_imu_enu_rad2: FloatArray | None = None
 
 
 #: ``InsSolution`` as one row of float64 numbers (core.output.solution_rows holds many): t_s;
 #: lat_deg, lon_deg, height_m; pos_enu_m (3); vel_enu_m_s (3); quat_enu_flu_xyzw (4); rate_flu_rad_s
 #: (3); cov_pos_enu_m2, cov_vel_enu, cov_att_enu_rad2 (9 each, row-major); gyro_bias_flu_rad_s (3);
 #: accel_bias_flu_m_s2 (3); imu_mounting_rpy_rad (3, NaN = None); the state as its index in
-#: ``STATES``. Units and frames as InsSolution.
+#: ``STATES``; cov_att_imu_enu_rad2 (9, that of base_link when None). Units and frames as
+#: InsSolution.
 STATES = ("aligning", "navigating", "degraded")
 
 
@@ -102,7 +109,8 @@ T, LAT, LON, HEIGHT = 0, 1, 2, 3
 POS, VEL, QUAT, RATE = slice(4, 7), slice(7, 10), slice(10, 14), slice(14, 17)
 COV_POS, COV_VEL, COV_ATT = slice(17, 26), slice(26, 35), slice(35, 44)
 GYRO, ACCEL, MOUNTING, STATE = slice(44, 47), slice(47, 50), slice(50, 53), 53
-WIDTH = 54
+COV_ATT_IMU = slice(54, 63)
+WIDTH = 63
 
 
 def unpack(row: FloatArray) -> InsSolution:
@@ -124,6 +132,7 @@ def unpack(row: FloatArray) -> InsSolution:
         accel_bias_flu_m_s2=row[ACCEL].copy(),
         state=STATES[int(row[STATE])],
         imu_mounting_rpy_rad=None if np.isnan(mounting).any() else mounting.copy(),
+        cov_att_imu_enu_rad2=row[COV_ATT_IMU].reshape(3, 3).copy(),
     )
 
 
@@ -133,19 +142,19 @@ class SolutionBuilder:
     def __init__(self, geometry: Geometry, layout: StateLayout) -> None:
         self._geometry = geometry
         self._mt = layout.mt
-        # ENU position, velocity and attitude of base_link over the first 12 error states (and
-        # the two mounting states when they are estimated); the blocks that depend on the state
-        # are filled in per call.
+        # ENU position, velocity and attitude of base_link and the attitude of imu_link over the
+        # first 12 error states (and the two mounting states when they are estimated); the
+        # blocks that depend on the state are filled in per call.
         mt = layout.mt
         self._solution_states = np.r_[0 : BG + 3, [] if mt is None else [mt, mt + 1]].astype(int)
-        self._jacobian = np.zeros((9, len(self._solution_states)))
-        for row, col in ((0, POS_STATE), (3, VEL_STATE), (6, ATT)):
+        self._jacobian = np.zeros((12, len(self._solution_states)))
+        for row, col in ((0, POS_STATE), (3, VEL_STATE), (6, ATT), (9, ATT)):
             self._jacobian[row : row + 3, col : col + 3] = MAT_ENU_NED
         self._plane: earth.TangentPlane | None = None
         self._datum_deg = (math.nan, math.nan, math.nan)  # that of _plane
-        #: Jacobian of the last ``row`` (rows ENU position, velocity, attitude of base_link,
-        #: columns the error states of core.engine.smoothed_solution.solution_states); reused per
-        #: call.
+        #: Jacobian of the last ``row`` (rows ENU position, velocity, attitude of base_link and
+        #: attitude of imu_link, columns the error states of
+        #: core.engine.smoothed_solution.solution_states); reused per call.
         self.jacobian: FloatArray = self._jacobian
 
     def row(
@@ -222,7 +231,7 @@ def _fill_row(
 ) -> None:
     """The numbers of a solution row but its state (``SolutionBuilder.row``), and its Jacobian
     ``J`` (first 12 columns; the mounting's two when ``J`` has them: then the row's mounting,
-    else NaN)."""
+    else NaN; imu_link's attitude rows are ψ's alone, constant)."""
     C = mat_from_quat(x[X_QUAT], x[X_QUAT + 1], x[X_QUAT + 2], x[X_QUAT + 3])
     # base_link of the estimated mounting: the lever arm turned by it (arm_b), and below the
     # orientation and rate turned into it (C_bv = I + [μ×]). The lever arm in NED, and its
@@ -277,6 +286,7 @@ def _fill_row(
     out[COV_POS] = cov[0:3, 0:3].copy().ravel()
     out[COV_VEL] = cov[3:6, 3:6].copy().ravel()
     out[COV_ATT] = cov[6:9, 6:9].copy().ravel()
+    out[COV_ATT_IMU] = cov[9:12, 9:12].copy().ravel()
     out[44], out[45], out[46] = x[X_BG], -x[X_BG + 1], -x[X_BG + 2]
     out[47], out[48], out[49] = x[X_BA], -x[X_BA + 1], -x[X_BA + 2]
 

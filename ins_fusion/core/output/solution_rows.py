@@ -1,5 +1,5 @@
 """``InsSolution`` as one row of float64 numbers, to hold many of them compactly (a replay's
-tracks, the smoother's records): 54 numbers (432 bytes) against about 2 kB for the object.
+tracks, the smoother's records): 63 numbers (504 bytes) against about 2 kB for the object.
 The columns (T, LAT, ... WIDTH) are those of core.output.solution, which builds the rows.
 """
 
@@ -15,6 +15,7 @@ from gnss_ins_common.types import FloatArray
 from ins_fusion.core.output.solution import (
     ACCEL,
     COV_ATT,
+    COV_ATT_IMU,
     COV_POS,
     COV_VEL,
     GYRO,
@@ -37,6 +38,7 @@ from ins_fusion.core.output.solution import (
 __all__ = [
     "ACCEL",
     "COV_ATT",
+    "COV_ATT_IMU",
     "COV_POS",
     "COV_VEL",
     "GYRO",
@@ -77,6 +79,11 @@ def pack(solution: InsSolution) -> FloatArray:
             solution.accel_bias_flu_m_s2,
             _NO_MOUNTING if mounting is None else mounting,
             (STATES.index(solution.state),),
+            np.ravel(
+                solution.cov_att_enu_rad2
+                if solution.cov_att_imu_enu_rad2 is None
+                else solution.cov_att_imu_enu_rad2
+            ),
         ),
         dtype=np.float64,
     )

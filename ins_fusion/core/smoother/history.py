@@ -18,7 +18,7 @@ chunks (``chunk_records``) are held, the oldest chunk is packed (P as upper tria
 written to disk as one ``.npy`` file in a temporary directory (removed by ``close``), unless a
 rollback could still reach it (``horizon_s`` covers the engine's history). The backward pass
 reads the chunks back newest first, memory-mapped. With the 20 error states of the default
-configuration a record takes 1 023 numbers (8.2 kB); 10–20 records per second of drive.
+configuration a record takes 1 074 numbers (8.6 kB); 10–20 records per second of drive.
 """
 
 from __future__ import annotations
