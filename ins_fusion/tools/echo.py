@@ -14,6 +14,8 @@ import sys
 from collections.abc import Iterator
 from typing import Any
 
+from ins_fusion.runtime.priority import run_as_a_look
+
 #: Longest sequence printed in full; longer ones are shortened to their first elements.
 SHOWN_ELEMENTS = 32
 
@@ -36,6 +38,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Print the topic's messages; 1 when no publisher appears within --wait, 2 on bad input."""
+    run_as_a_look()  # below the vehicle's nodes (runtime.priority)
     from ins_fusion.tools.ros_echo import echo
 
     if args.count < 0 or not args.wait >= 0.0:

@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from ins_fusion.runtime.health import Health, exit_code, format_view
+from ins_fusion.runtime.priority import run_as_a_look
 from ins_fusion.runtime.processes import default_log_dir
 from ins_fusion.runtime.watchdog import HEARD_FILE, Heard, write_heard
 
@@ -58,6 +59,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Listen and show (exit code: module docstring)."""
+    if not args.serve:  # a look, not the daemon's server: below the nodes (runtime.priority)
+        run_as_a_look()
     from ins_fusion.tools.ros_status import watch
 
     log_dir = args.log_dir if args.log_dir is not None else default_log_dir()

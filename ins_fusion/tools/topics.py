@@ -7,6 +7,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from ins_fusion.runtime.priority import run_as_a_look
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Command-line options of ``gnss_ins topics``."""
@@ -21,6 +23,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Print one line per topic; 1 when none is seen within --wait."""
+    run_as_a_look()  # below the vehicle's nodes (runtime.priority)
     from ins_fusion.tools.ros_echo import topics
 
     if not args.wait >= 0.0:
