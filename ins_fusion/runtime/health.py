@@ -126,17 +126,20 @@ class Health:
     def unheard(self) -> list[str]:
         """The expected processes not known to have ended that have sent no status since their
         (re)start: a look should listen longer before it calls them silent."""
-        unheard = []
-        for name in self.expected:
-            supervised = self.supervised.get(name, {})
-            status, started_s = self.latest.get(name), supervised.get("started_s")
-            if supervised.get("running") is False:
-                continue
-            if status is None or (
-                isinstance(started_s, int | float) and status.received_s < started_s
-            ):
-                unheard.append(name)
-        return unheard
+        return [
+            name
+            for name in self.expected
+            if self.supervised.get(name, {}).get("running") is not False
+            and (name not in self.latest or self._restarted_since(name) is not None)
+        ]
+
+    def _restarted_since(self, name: str) -> float | None:
+        """When the running process started (monotonic s) if its latest status is from the
+        process before it, else None."""
+        status, started_s = self.latest.get(name), self.supervised.get(name, {}).get("started_s")
+        if status is None or not isinstance(started_s, int | float):
+            return None
+        return float(started_s) if status.received_s < started_s else None
 
     def view(self, now_s: float) -> dict[str, Any]:
         """The system's state at monotonic ``now_s``: its level and one entry per process (the
@@ -153,12 +156,7 @@ class Health:
         if supervised.get("running") is False:  # ended, launch restarts it (or gave up)
             entry.update(level=LEVELS[ERROR], message="not running", age_s=None, values={})
             return entry
-        started_s = supervised.get("started_s")
-        if (
-            status is not None
-            and isinstance(started_s, int | float)
-            and status.received_s < started_s
-        ):
+        if (started_s := self._restarted_since(name)) is not None:
             # The process before the restart said it: nothing of the running one yet.
             since_s = now_s - started_s
             level = STALE if since_s > STALE_AFTER_S else WARN
