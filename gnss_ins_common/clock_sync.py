@@ -197,7 +197,6 @@ class _FrontRebuild:
         for p in self.snapshot[self.todo : expired]:
             self.front.undo(self.front_hidden.popleft())
             self.front_moments.remove(p)
-        self.todo = max(self.todo, expired)
 
 
 class _Fit(NamedTuple):
