@@ -1,20 +1,16 @@
 """The rclpy half of ``gnss_ins echo`` and ``gnss_ins topics``: the graph's topics and a
-subscription that hands each message to a callback. A look at the graph writes no ROS log file."""
+subscription that hands each message to a callback, on a look's node (ros_look)."""
 
 from __future__ import annotations
 
-import signal
 import sys
 import time
 from collections.abc import Callable
 from typing import Any
 
-import rclpy
-from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.signals import SignalHandlerOptions
 
-from gnss_ins_common.ros_node_main import SpinSlices, make_executor
+from ins_fusion.tools.ros_look import LookNode
 from ins_fusion.tools.ros_record import message_class
 
 #: Longest spin between two looks at the time and at a stop request [s].
@@ -26,44 +22,11 @@ SETTLE_S = 1.0
 SETTLE_LIMIT_S = 10.0
 
 
-class _Look:
-    """A node on the domain until Ctrl-C/SIGTERM or the end of ``with``."""
-
-    def __enter__(self) -> _Look:
-        rclpy.init(
-            args=["--ros-args", "--disable-external-lib-logs"],
-            signal_handler_options=SignalHandlerOptions.NO,
-        )
-        self.node: Node = rclpy.create_node("gnss_ins_look", start_parameter_services=False)
-        self.executor = make_executor()
-        self.executor.add_node(self.node)
-        self.slices = SpinSlices(self.node, SPIN_PERIOD_S)
-        self.stop = False
-        for signum in (signal.SIGINT, signal.SIGTERM):
-            signal.signal(signum, self._request_stop)
-        return self
-
-    def _request_stop(self, *_: object) -> None:
-        self.stop = True
-
-    def spin_until(self, done: Callable[[], bool], seconds: float) -> bool:
-        """Spin until ``done()``, a stop request or ``seconds``; whether ``done()``."""
-        end = time.monotonic() + seconds
-        while not self.stop and not done() and time.monotonic() < end:
-            self.slices.spin(self.executor, min(SPIN_PERIOD_S, max(end - time.monotonic(), 0.0)))
-        return done()
-
-    def __exit__(self, *_: object) -> None:
-        self.executor.shutdown(timeout_sec=2.0)
-        self.node.destroy_node()
-        rclpy.try_shutdown()
-
-
 def topics(wait_s: float) -> list[tuple[str, str, int, int]]:
     """(name, type, publishers, subscribers) of every topic seen within ``wait_s``, once the
     graph has settled (unchanged for SETTLE_S, at most SETTLE_LIMIT_S), this process's own
     endpoints left out."""
-    with _Look() as look:
+    with LookNode("gnss_ins_look", SPIN_PERIOD_S) as look:
         node = look.node
         own = node.get_name()
 
@@ -99,7 +62,7 @@ def echo(
     """Hand each message of ``topic`` to ``show`` until ``count`` (0: no limit) or a stop;
     1 when no publisher appears within ``wait_s`` or ``refuse(message class)`` names a reason
     not to listen."""
-    with _Look() as look:
+    with LookNode("gnss_ins_look", SPIN_PERIOD_S) as look:
         node = look.node
 
         def publisher_types() -> list[str]:

@@ -5,19 +5,16 @@ system", the worst level) and one per process, with the values the view shows.""
 
 from __future__ import annotations
 
-import signal
 import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from rclpy.signals import SignalHandlerOptions
 
 from gnss_ins_common.ros_diagnostics import make_status
-from gnss_ins_common.ros_node_main import SpinSlices, make_executor
 from ins_fusion.runtime.health import LEVELS, STATUS_TOPIC, Health, Status
+from ins_fusion.tools.ros_look import LookNode
 
 #: Seconds between two views (screen refresh, /gnss_ins/status).
 PERIOD_S = 1.0
@@ -70,30 +67,13 @@ def watch(
     """Collect /diagnostics into ``health``; ``first_after_s`` after the start and then every
     PERIOD_S, read the supervisor file in ``log_dir``, build the view and call ``on_view`` (and,
     serving, publish it) until ``on_view`` returns False or Ctrl-C/SIGTERM."""
-    # A look (not serving) writes no ROS log file: each call left an empty one in ~/.ros/log.
-    rclpy.init(
-        args=None if serve else ["--ros-args", "--disable-external-lib-logs"],
-        signal_handler_options=SignalHandlerOptions.NO,
-    )
-    node = rclpy.create_node("gnss_ins_status")
-    node.create_subscription(DiagnosticArray, "/diagnostics", lambda a: _take(health, a), 100)
-    publisher = node.create_publisher(DiagnosticArray, STATUS_TOPIC, 10) if serve else None
-    executor = make_executor()  # the nodes' (EventsExecutor): no wait set rebuilt per message
-    executor.add_node(node)
-    slices = SpinSlices(node, SPIN_PERIOD_S)
-    stop = False
-
-    def request_stop(*_: object) -> None:
-        nonlocal stop
-        stop = True
-        slices.wake()
-
-    for signum in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(signum, request_stop)
-    due = time.monotonic() + first_after_s
-    try:
-        while not stop:
-            slices.spin(executor, max(0.0, min(SPIN_PERIOD_S, due - time.monotonic())))
+    with LookNode("gnss_ins_status", SPIN_PERIOD_S, log_file=serve) as look:
+        node = look.node
+        node.create_subscription(DiagnosticArray, "/diagnostics", lambda a: _take(health, a), 100)
+        publisher = node.create_publisher(DiagnosticArray, STATUS_TOPIC, 10) if serve else None
+        due = time.monotonic() + first_after_s
+        while not look.stop:
+            look.spin(max(0.0, min(SPIN_PERIOD_S, due - time.monotonic())))
             if time.monotonic() < due:
                 continue
             due += PERIOD_S
@@ -105,7 +85,3 @@ def watch(
                 publisher.publish(array)
             if not on_view(view):
                 break
-    finally:
-        executor.shutdown(timeout_sec=2.0)  # its callbacks off the node's endpoints before they go
-        node.destroy_node()
-        rclpy.try_shutdown()
