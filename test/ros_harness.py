@@ -134,3 +134,32 @@ def assert_executable_refuses(name: str, parameter: str, value: str) -> None:
     )
     assert result.returncode == 2, result.stderr
     assert f"parameter '{parameter}'" in result.stderr
+
+
+#: How a program for ``other_process`` ends: it says it is ready and spins ``node`` until it
+#: is terminated.
+_SPIN_UNTIL_TERMINATED = """
+print("ready", flush=True)
+try:
+    rclpy.spin(node)
+except Exception:
+    pass
+"""
+
+
+@contextmanager
+def other_process(program: str, *args: str) -> Iterator[subprocess.Popen[str]]:
+    """A plain rclpy program (not one of ours) in a process of its own: ``program`` (its
+    ``sys.argv[1:]`` are ``args``) creates the publishers and timers of ``node``; yielded once
+    the node spins, terminated at the end."""
+    process = subprocess.Popen(
+        [sys.executable, "-c", program + _SPIN_UNTIL_TERMINATED, *args],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert process.stdout is not None and process.stdout.readline() == "ready\n"
+        yield process
+    finally:
+        process.terminate()
+        process.wait(timeout=10)

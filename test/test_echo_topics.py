@@ -5,12 +5,12 @@ another process that is not ours: a NavSatFix and a DiagnosticArray at 10 Hz."""
 from __future__ import annotations
 
 import subprocess
-import sys
 from collections.abc import Iterator
 
 import numpy as np
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from ros_harness import other_process
 from sensor_msgs.msg import Imu, NavSatFix
 
 from ins_fusion.runtime.processes import gnss_ins_command
@@ -71,21 +71,13 @@ def tick():
     fixes.publish(NavSatFix(latitude=57.0 + count, altitude=float(count)))
     diagnostics.publish(DiagnosticArray(status=[DiagnosticStatus(name="n", message=str(count))]))
 node.create_timer(0.1, tick)
-print("ready", flush=True)
-try:
-    rclpy.spin(node)
-except Exception:
-    pass
 """
 
 
 @pytest.fixture(scope="module")
 def publisher() -> Iterator[subprocess.Popen[str]]:
-    process = subprocess.Popen([sys.executable, "-c", PUBLISHER], stdout=subprocess.PIPE, text=True)
-    assert process.stdout is not None and process.stdout.readline() == "ready\n"
-    yield process
-    process.terminate()
-    process.wait(timeout=10)
+    with other_process(PUBLISHER) as process:
+        yield process
 
 
 def _gnss_ins(*args: str) -> subprocess.CompletedProcess[str]:

@@ -6,11 +6,11 @@ from __future__ import annotations
 
 import json
 import subprocess
-import sys
 import time
 from pathlib import Path
 
 import pytest
+from ros_harness import other_process
 
 from ins_fusion.runtime.health import write_supervisor_state
 from ins_fusion.runtime.processes import gnss_ins_command
@@ -31,21 +31,12 @@ def report():
         status = DiagnosticStatus(level=b"\\x00", name="leica_gnss: GNSS leica", message="late OK")
         publisher.publish(DiagnosticArray(status=[status]))
 node.create_timer(0.5, report)
-print("ready", flush=True)
-try:
-    rclpy.spin(node)
-except Exception:
-    pass
 """
 DELAY_S, WAIT_S = 4.0, 1.0
 
 
 def test_a_running_node_first_heard_after_the_wait_is_shown_with_its_status(tmp_path: Path):
-    node = subprocess.Popen(
-        [sys.executable, "-c", LATE_NODE, str(DELAY_S)], stdout=subprocess.PIPE, text=True
-    )
-    try:
-        assert node.stdout is not None and node.stdout.readline() == "ready\n"
+    with other_process(LATE_NODE, str(DELAY_S)) as node:
         write_supervisor_state(
             tmp_path,
             {
@@ -64,9 +55,6 @@ def test_a_running_node_first_heard_after_the_wait_is_shown_with_its_status(tmp_
             text=True,
             timeout=60,
         )
-    finally:
-        node.terminate()
-        node.wait(timeout=10)
     view = json.loads(look.stdout)
     assert view["processes"]["leica_gnss"]["level"] == "OK", view
     assert view["processes"]["leica_gnss"]["message"] == "late OK"
