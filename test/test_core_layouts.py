@@ -38,7 +38,7 @@ HAND_NUMBERED = {
         **{"COV_DT": 45, "COV_DTH": 46, "COV_DV": 49, "COV_VEL0": 52, "T": 55},
         **{"GNSS_ERROR": 56, "GNSS_VARIANCE": 59, "GNSS_REPORTED": 62, "MOUNTING": 65},
         **{"TIME_OFFSET": 67, "NIS_MEAN": 68, "Q_SCALE": 69, "LAST_POSITION_T": 70},
-        **{"HEADING_KNOWN": 71, "SPEED_SCALE": 72, "SIZE": 73},
+        **{"HEADING_KNOWN": 71, "SPEED_SCALE": 72, "SR": 73, "SIZE": 76},
     },
     "S_": {
         **{"LAST_T": 0, "NOMINAL_DT": 1, "LAST_RATE": 2, "LAST_FORCE": 5, "ZARU_SUM": 8},

@@ -33,9 +33,10 @@ from ins_fusion.core.filter.eskf import (
     VEL,
     ErrorStateFilter,
     StateLayout,
+    gyro_asymmetry_sigma,
     gyro_misalignment_variance,
 )
-from ins_fusion.core.filter.propagation import covariance_step
+from ins_fusion.core.filter.propagation import corrected_gyro, covariance_step
 from ins_fusion.core.filter.records import GnssFixMeasurement, GnssVelocityMeasurement, Prediction
 from ins_fusion.core.filter.state import X_COV_DT, X_COV_DTH, X_COV_DV, X_COV_VEL0, FilterState
 from ins_fusion.core.filter.update_algebra import chi2_threshold
@@ -53,7 +54,7 @@ from ins_fusion.core.settings.config import FusionConfig
 
 REPO = Path(__file__).resolve().parents[1]
 NOISE = FusionConfig.default().imu_noise
-LAYOUT = StateLayout(gyro_scale=True, accel_scale=True)
+LAYOUT = StateLayout(gyro_scale=True, accel_scale=True, gyro_asymmetry=True)
 #: A car at 57° N turning left at 15 m/s on a slope, IMU yawed 90° and tilted in base_link.
 LAT, LON, HEIGHT = math.radians(57.0), math.radians(9.987), 40.0
 VEL_NED = np.array([12.0, -8.0, 0.6])
@@ -147,15 +148,15 @@ def test_error_dynamics_match_finite_differences_of_the_mechanization():
     )
     transition = expm(F * horizon)
     nominal_end = _mechanize(nav, RATE_I, FORCE_I, steps, dt)
-    sizes = [1.0] * 3 + [0.1] * 3 + [1e-3] * 3 + [1e-4] * 3 + [1e-2] * 3 + [1e-3] * 6
+    sizes = [1.0] * 3 + [0.1] * 3 + [1e-3] * 3 + [1e-4] * 3 + [1e-2] * 3 + [1e-3] * 9
     for j, size in enumerate(sizes):
         dx = np.zeros(LAYOUT.size)
         dx[j] = size
         # Sensor errors: the true sensor output corrected with the nominal estimates is off
-        # by -δb (and -δs∘y): ω_true = ω̂ - δb_g - δs_g∘ω̂.
-        sg, sa = LAYOUT.sg, LAYOUT.sa
-        assert sg is not None and sa is not None
-        rate = RATE_I - dx[BG : BG + 3] - dx[sg : sg + 3] * RATE_I
+        # by -δb (and -δs∘y, -δa∘|y|): ω_true = ω̂ - δb_g - δs_g∘ω̂ - δa_g∘|ω̂|.
+        sg, sa, sr = LAYOUT.sg, LAYOUT.sa, LAYOUT.sr
+        assert sg is not None and sa is not None and sr is not None
+        rate = RATE_I - dx[BG : BG + 3] - dx[sg : sg + 3] * RATE_I - dx[sr : sr + 3] * abs(RATE_I)
         force = FORCE_I - dx[BA : BA + 3] - dx[sa : sa + 3] * FORCE_I
         true_end = _mechanize(_plus(nav, dx[:9]), rate, force, steps, dt)
         measured = _minus(true_end, nominal_end)
@@ -186,7 +187,7 @@ def test_discretisation_matches_van_loan_over_ten_seconds(interval_s):
     args = (mat_ni, mat_ni @ FORCE_I, FORCE_I, RATE_I, LAT, HEIGHT, tuple(VEL_NED))
     F = kf.dynamics(*args).copy()
     G = _noise_root(kf.noise_density(mat_ni, RATE_I).copy())
-    sigmas = [0.02] * 3 + [0.02] * 3 + [1e-3] * 3 + [1e-4] * 3 + [1e-3] * 3 + [1e-3] * 6
+    sigmas = [0.02] * 3 + [0.02] * 3 + [1e-3] * 3 + [1e-4] * 3 + [1e-3] * 3 + [1e-3] * 9
     P0 = np.diag(np.square(sigmas))
     kf.P = P0
     steps = round(10.0 / interval_s)
@@ -255,7 +256,7 @@ def test_problem_reports_bad_numbers():
 
 # ------------------------------------------------------------------ measurement models
 
-LAYOUT_GNSS = StateLayout(gyro_scale=True, gnss_error=True)
+LAYOUT_GNSS = StateLayout(gyro_scale=True, gnss_error=True, gyro_asymmetry=True)
 
 
 def _prediction(dx: np.ndarray, layout: StateLayout = LAYOUT_GNSS) -> Prediction:
@@ -263,7 +264,8 @@ def _prediction(dx: np.ndarray, layout: StateLayout = LAYOUT_GNSS) -> Prediction
     differ from the nominal one)."""
     nav = _plus(_nav(), dx[:9])
     sg = dx[layout.sg : layout.sg + 3] if layout.sg is not None else 0.0
-    rate_i = RATE_I - dx[BG : BG + 3] - sg * RATE_I
+    sr = dx[layout.sr : layout.sr + 3] if layout.sr is not None else 0.0
+    rate_i = RATE_I - dx[BG : BG + 3] - sg * RATE_I - sr * abs(RATE_I)
     return Prediction(
         nav.lat_rad,
         nav.lon_rad,
@@ -291,7 +293,7 @@ def _check_jacobian(model, sizes, layout: StateLayout = LAYOUT_GNSS, rel: float 
         )
 
 
-SIZES = [0.1] * 3 + [0.01] * 3 + [1e-4] * 3 + [1e-5] * 3 + [1e-3] * 3 + [1e-5] * 3 + [0.05] * 3
+SIZES = [0.1] * 3 + [0.01] * 3 + [1e-4] * 3 + [1e-5] * 3 + [1e-3] * 3 + [1e-5] * 6 + [0.05] * 3
 LEVER_B = np.array([-0.8, 0.1, -0.15])  # IMU -> antenna, base_link FRD [m]
 
 
@@ -454,3 +456,32 @@ def test_misalignment_variance_comes_from_the_calibration_when_it_corrects_one()
     aligned = replace(file, misalignment_rad=((0.0, 1e-3, 0.0), (0.0,) * 3, (0.0,) * 3))
     aligned = replace(aligned, misalignment_sigma_rad=sigma)
     assert np.allclose(gyro_misalignment_variance(noise, aligned), np.square(sigma))
+
+
+def test_asymmetry_sigma_comes_from_a_calibration_that_corrects_sign_dependent_scales():
+    """Without a calibration the datasheet's σ on every axis; the IMU400CC file corrects
+    sign-dependent gyro scale factors and leaves its own σ, √(σ₊² + σ₋²)/2 per axis; a
+    calibration with the same scale for both signs leaves the asymmetry to the datasheet."""
+    assert np.array_equal(gyro_asymmetry_sigma(NOISE), np.full(3, NOISE.gyro_asymmetry_sigma))
+    file = ImuCalibration.from_yaml(REPO / "config" / "imu400cc_calibration.yaml").gyro
+    expected = 0.5 * np.hypot(file.scale_positive_sigma, file.scale_negative_sigma)
+    assert np.allclose(gyro_asymmetry_sigma(NOISE, file), expected)
+    assert (expected > 0.0).all() and (expected < NOISE.gyro_asymmetry_sigma).all()
+    symmetric = replace(file, scale_negative=file.scale_positive)
+    assert np.array_equal(gyro_asymmetry_sigma(NOISE, symmetric), gyro_asymmetry_sigma(NOISE))
+
+
+@given(
+    rate=st.floats(-2.0, 2.0),
+    bias=st.floats(-0.02, 0.02),
+    scale=st.floats(-0.02, 0.02),
+    asymmetry=st.floats(-0.02, 0.02),
+)
+def test_corrected_gyro_inverts_the_sensor_model(rate, bias, scale, asymmetry):
+    """ω̃ = (1 + s)ω + a|ω| + b corrected back to ω; without an asymmetry the plain
+    (ω̃ - b) / (1 + s), to the bit."""
+    measured = (1.0 + scale) * rate + asymmetry * abs(rate) + bias
+    corrected = corrected_gyro(measured, bias, scale, asymmetry)
+    assert corrected == pytest.approx(rate, rel=1e-9, abs=1e-15)
+    if asymmetry == 0.0:
+        assert corrected == (measured - bias) / (1.0 + scale)

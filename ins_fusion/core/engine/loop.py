@@ -94,6 +94,7 @@ class EngineLoop:
             config.estimate_mounting,
             config.estimate_time_offset,
             config.use_speed and config.speed_scale_sigma > 0.0,
+            noise.gyro_asymmetry_sigma > 0.0,
         )
         geometry = self._geometry = Geometry(config, self.layout)
         self.datum: tuple[float, float, float] | None = config.datum_deg

@@ -23,6 +23,7 @@ from ins_fusion.core.filter.eskf import (
     VEL,
     ErrorStateFilter,
     StateLayout,
+    gyro_asymmetry_sigma,
     gyro_misalignment_variance,
 )
 from ins_fusion.core.filter.records import (
@@ -240,11 +241,13 @@ class Startup:
         state.move(-(state.mat_nb @ self._geometry.antenna_arm_b) + vel_ned * (t - fix.t_s))
         layout = self._layout
         calibration = None if self._calibration is None else self._calibration.gyro
+        asymmetry_sigma = gyro_asymmetry_sigma(noise, calibration)
         kf = ErrorStateFilter(
             layout,
             noise,
             config.gnss_correlation_time_s,
             gyro_misalignment_variance(noise, calibration),
+            asymmetry_sigma,
         )
         n = layout.size
         P = np.zeros((n, n))
@@ -266,6 +269,10 @@ class Startup:
         if layout.sa is not None:
             P[layout.sa : layout.sa + 3, layout.sa : layout.sa + 3] = (
                 np.eye(3) * noise.accel_scale_sigma**2
+            )
+        if layout.sr is not None:
+            P[layout.sr : layout.sr + 3, layout.sr : layout.sr + 3] = np.diag(
+                np.square(asymmetry_sigma)
             )
         kf.P = P
         kf.variance_ceiling = self._variance_ceiling(np.diagonal(P))

@@ -50,6 +50,7 @@ _EVERY_STATE = {
     "self_calibration.time_offset": True,
     "imu_noise.gyro_scale_sigma": 0.001,
     "imu_noise.accel_scale_sigma": 0.001,
+    "imu_noise.gyro_asymmetry_sigma": 0.001,
     "speed.use": True,
 }
 

@@ -7,23 +7,24 @@ update), with x_true = x_nominal + δx:
     ψ    attitude error, NED [rad]: C_nb,true = (I + [ψ×]) C_nb,nominal
     δb_g gyro bias error, imu FRD [rad/s]   δb_a accelerometer bias error, imu FRD [m/s²]
     δs_g, δs_a optional scale-factor errors [fraction] (imu FRD)
+    δa_g optional gyro scale asymmetry [fraction] (imu FRD): an error per unit of |rate|
     ε_g  optional time-correlated GNSS position error, NED [m] (first-order Gauss-Markov)
     δμ   optional residual IMU-to-vehicle mounting, pitch and yaw about base_link FRD y, z [rad]
     δt_d optional residual IMU time offset [s]: how much later than the GNSS the IMU is stamped
     δk_s optional scale error of the vehicle speed [fraction]: measured = (1 + k_s) true
 
-Sensor model (imu FRD axes i): ω̃ = (1 + s_g)∘ω + b_g + n_g, f̃ = (1 + s_a)∘f + b_a + n_a, with
-b and s first-order Gauss-Markov processes (Oslo notes §2 (3.15)/(3.16), §7 F1/G1;
-shared/reference/mems-noise-oslo-notes.md). The mechanization body frame b is base_link FRD,
-C_ni = C_nb R_bi with R_bi the imu -> base_link mounting. Linearised error dynamics (the
-"phi-angle" form of Shin 2001 / KF-GINS; the position terms of order v/R, Ω v/R and ∂g/∂φ,
-below 5e-6 s⁻¹ at car speeds, are left out: they change a position error of 1 m by < 0.1 mm in a
-20 s outage; test_fusion_eskf.py checks every block against finite differences of the
-strapdown):
+Sensor model (imu FRD axes i): ω̃ = (1 + s_g)∘ω + a_g∘|ω| + b_g + n_g,
+f̃ = (1 + s_a)∘f + b_a + n_a, with b, s and a first-order Gauss-Markov processes (Oslo notes §2
+(3.15)/(3.16), §7 F1/G1; shared/reference/mems-noise-oslo-notes.md). The mechanization body
+frame b is base_link FRD, C_ni = C_nb R_bi with R_bi the imu -> base_link mounting. Linearised
+error dynamics (the "phi-angle" form of Shin 2001 / KF-GINS; the position terms of order v/R,
+Ω v/R and ∂g/∂φ, below 5e-6 s⁻¹ at car speeds, are left out: they change a position error of
+1 m by < 0.1 mm in a 20 s outage; test_fusion_eskf.py checks every block against finite
+differences of the strapdown):
 
     δṗ = δv
     δv̇ = -[f_n×]ψ + F_vv δv + (2g/(R+h)) δp_D e_D - C_ni (δb_a + diag(f_i) δs_a) - C_ni n_a
-    ψ̇ = -[ω_in×]ψ - ∂ω_en/∂v δv - C_ni (δb_g + diag(ω_i) δs_g) - C_ni n_g
+    ψ̇ = -[ω_in×]ψ - ∂ω_en/∂v δv - C_ni (δb_g + diag(ω_i) δs_g + diag(|ω_i|) δa_g) - C_ni n_g
     δḃ = -δb/T + w_b,   E[w_b²] = 2σ_b²/T (and the same for the scale factors)
     ε̇_g = -ε_g/T_g + w_g, E[w_g²] = 2σ_g²/T_g with σ_g² from the latest fix (gnss_variance)
     δμ̇ = w_μ, δṫ_d = w_t, δk̇_s = w_k: random constants with a small random walk
@@ -40,6 +41,10 @@ density grows as σ_m ω √(T_m t): the two agree after T_m = 10 s, about a car
 misalignment at 14 °/s (50 °/h) turns the attitude by several times its σ and the position
 leaves its fixes (docs/accuracy.md). Scale factors are states instead (δs_g): as noise of this
 kind they hid the gyro bias's signature in turns and lengthened outage drifts several times.
+The asymmetry a_g is the part of a scale factor that depends on the sign of the rate
+(S± = s_g ± a_g for positive / negative input): the IMU400CC's is its largest scale error
+(Aalborg §3.3: y +0.83 % / -0.82 %, a rate-independent offset while turning either way), which
+symmetric states cannot follow (docs/fusion.md).
 
 Discretisation over an interval Δt: Φ = I + FΔt + (FΔt)²/2 and Q_d = (Φ Q_c Φᵀ + Q_c)Δt/2, both
 second-order accurate; propagated in steps of 1/134 s or 0.1 s for 10 s they agree with Van Loan's
@@ -94,6 +99,8 @@ class Columns(NamedTuple):
     sg: int
     #: Accelerometer scale factors.
     sa: int
+    #: Gyro scale asymmetry.
+    sr: int
     #: Correlated GNSS position error.
     gp: int
     #: Residual mounting (pitch, yaw).
@@ -112,9 +119,10 @@ AXIS_ERROR_TIME_S = 10.0
 @dataclass(frozen=True)
 class StateLayout:
     """Named indices of the error state: the 15 core states, then the optional gyro and
-    accelerometer scale factors, the GNSS position error (NED [m], time-correlated part of the
-    receiver's error), the residual mounting (pitch, yaw [rad]), the residual IMU time
-    offset [s] and the vehicle speed's scale error [fraction]. An absent block has index None."""
+    accelerometer scale factors, the gyro scale asymmetry, the GNSS position error (NED [m],
+    time-correlated part of the receiver's error), the residual mounting (pitch, yaw [rad]),
+    the residual IMU time offset [s] and the vehicle speed's scale error [fraction]. An absent
+    block has index None."""
 
     gyro_scale: bool = False
     accel_scale: bool = False
@@ -122,14 +130,16 @@ class StateLayout:
     mounting: bool = False
     time_offset: bool = False
     speed_scale: bool = False
+    gyro_asymmetry: bool = False
     sg: int | None = field(init=False)
     sa: int | None = field(init=False)
+    sr: int | None = field(init=False)
     gp: int | None = field(init=False)
     mt: int | None = field(init=False)
     td: int | None = field(init=False)
     ks: int | None = field(init=False)
     size: int = field(init=False)
-    #: (sg, sa, gp, mt, td, ks) for compiled code: -1 for an absent block.
+    #: (sg, sa, sr, gp, mt, td, ks) for compiled code: -1 for an absent block.
     columns: Columns = field(init=False)
 
     def __post_init__(self) -> None:
@@ -138,6 +148,7 @@ class StateLayout:
         for name, present, width in (
             ("sg", self.gyro_scale, 3),
             ("sa", self.accel_scale, 3),
+            ("sr", self.gyro_asymmetry, 3),
             ("gp", self.gnss_error, 3),
             ("mt", self.mounting, 2),
             ("td", self.time_offset, 1),
@@ -163,6 +174,17 @@ def gyro_misalignment_variance(
         variance = np.full((3, 3), noise.gyro_misalignment**2)
     np.fill_diagonal(variance, 0.0)
     return variance
+
+
+def gyro_asymmetry_sigma(
+    noise: ImuNoise, calibration: TriadCalibration | None = None
+) -> FloatArray:
+    """σ of the gyro scale asymmetry per imu axis [fraction] (module docstring): what a
+    calibration that corrects sign-dependent scale factors leaves, sqrt(σ₊² + σ₋²) / 2 from its
+    own σ of S₊ and S₋ (a = (S₊ - S₋) / 2), else the datasheet's ``gyro_asymmetry_sigma``."""
+    if calibration is not None and calibration.scale_positive != calibration.scale_negative:
+        return 0.5 * np.hypot(calibration.scale_positive_sigma, calibration.scale_negative_sigma)
+    return np.full(3, noise.gyro_asymmetry_sigma)
 
 
 class ProcessModel(NamedTuple):
@@ -206,10 +228,12 @@ class ErrorStateFilter:
         noise: ImuNoise,
         gnss_correlation_time_s: float = 60.0,
         gyro_misalignment_var: FloatArray | None = None,
+        asymmetry_sigma: FloatArray | None = None,
     ) -> None:
         """P starts at zero; set it before use. P arrays are replaced, never modified in place,
-        so a reference to ``P`` is a snapshot. ``gyro_misalignment_var``: from
-        ``gyro_misalignment_variance`` (None: from ``noise`` alone)."""
+        so a reference to ``P`` is a snapshot. ``gyro_misalignment_var``, ``asymmetry_sigma``:
+        from ``gyro_misalignment_variance`` and ``gyro_asymmetry_sigma`` (None: from ``noise``
+        alone)."""
         n = layout.size
         self.layout = layout
         self.P: FloatArray = np.zeros((n, n))
@@ -224,17 +248,21 @@ class ErrorStateFilter:
         F = self._F = np.zeros((n, n))
         F[POS : POS + 3, VEL : VEL + 3] = np.eye(3)
         Q = self._Q = np.zeros((n, n))
-        #: Columns of the gyro and accelerometer scale factors (-1: not estimated).
-        self.scale_columns = (layout.columns.sg, layout.columns.sa)
+        #: Columns of the gyro and accelerometer scale factors and of the gyro scale asymmetry
+        #: (-1: not estimated).
+        self.scale_columns = (layout.columns.sg, layout.columns.sa, layout.columns.sr)
         # Gauss-Markov states: F = -1/T, continuous noise 2σ²/T.
         t_b = noise.bias_correlation_time_s
         markov = [(BG, t_b, noise.gyro_bias_instability), (BA, t_b, noise.accel_bias_instability)]
+        if asymmetry_sigma is None:
+            asymmetry_sigma = gyro_asymmetry_sigma(noise)
         for start, sigma in (
-            (layout.sg, noise.gyro_scale_sigma),
-            (layout.sa, noise.accel_scale_sigma),
+            (layout.sg, np.full(3, noise.gyro_scale_sigma)),
+            (layout.sa, np.full(3, noise.accel_scale_sigma)),
+            (layout.sr, asymmetry_sigma),
         ):
             if start is not None:
-                markov.append((start, t_b, (sigma, sigma, sigma)))
+                markov.append((start, t_b, (float(sigma[0]), float(sigma[1]), float(sigma[2]))))
         if layout.gp is not None:
             markov.append((layout.gp, gnss_correlation_time_s, (0.0, 0.0, 0.0)))
         walks = [(layout.mt, 2, CALIBRATION_WALK["mounting"])]
@@ -374,9 +402,10 @@ def _fill_dynamics(
     vel_ned_m_s: tuple[float, float, float],
     sg: int,
     sa: int,
+    sr: int,
 ) -> None:
-    """The state-dependent blocks of F (ErrorStateFilter.dynamics; ``sg``, ``sa``: columns of
-    the scale factors, -1 when not estimated)."""
+    """The state-dependent blocks of F (ErrorStateFilter.dynamics; ``sg``, ``sa``, ``sr``:
+    columns of the scale factors and the gyro scale asymmetry, -1 when not estimated)."""
     vn, ve, vd = vel_ned_m_s
     sin_lat = math.sin(lat_rad)
     r_m, r_n = earth.radii_from_sin(sin_lat)
@@ -415,6 +444,8 @@ def _fill_dynamics(
                 F[ATT + i, sg + j] = mat_ni[i, j] * -rate_i[j]
             if sa >= 0:
                 F[VEL + i, sa + j] = mat_ni[i, j] * -force_i[j]
+            if sr >= 0:
+                F[ATT + i, sr + j] = mat_ni[i, j] * -abs(rate_i[j])
 
 
 @jit
@@ -451,6 +482,7 @@ def propagate_kernel(
     vel_ned_m_s: tuple[float, float, float],
     sg: int,
     sa: int,
+    sr: int,
     gyro_psd: FloatArray,
     gyro_misalignment_q: FloatArray,
     accel_psd: FloatArray,
@@ -458,7 +490,7 @@ def propagate_kernel(
     markov_q: FloatArray,
 ) -> tuple[FloatArray, FloatArray]:
     """(P, Φ) after an interval (propagation.covariance_step); F and Q are filled in place."""
-    _fill_dynamics(F, mat_ni, force_n, force_i, rate_i, lat_rad, height_m, vel_ned_m_s, sg, sa)
+    _fill_dynamics(F, mat_ni, force_n, force_i, rate_i, lat_rad, height_m, vel_ned_m_s, sg, sa, sr)
     _fill_noise(Q, mat_ni, rate_i, gyro_psd, gyro_misalignment_q, accel_psd, markov_idx, markov_q)
     f_dt = F * dt_s
     phi = np.eye(len(P)) + f_dt + 0.5 * (f_dt @ f_dt)

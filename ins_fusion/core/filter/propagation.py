@@ -47,6 +47,7 @@ from ins_fusion.core.filter.state import (
     X_RATE_LP,
     X_SA,
     X_SG,
+    X_SR,
     X_T,
     X_VEL,
     FilterState,
@@ -99,6 +100,16 @@ class ImuDensities:
             self._measured = measured
             self._effective = densities_in_force(self.floor, measured[0], measured[1])
         return self._effective
+
+
+@compilable
+def corrected_gyro(measured: float, bias: float, scale: float, asymmetry: float) -> float:
+    """One gyro axis's rate [rad/s] or angle increment [rad] with its ``bias`` (in the same
+    unit), scale factor and scale asymmetry [fraction] removed: the sensor model
+    ω̃ = (1 + s)ω + a|ω| + b (core.filter.eskf), that is (1 + s ± a)ω + b for either sign of ω,
+    inverted (ω has the sign of ω̃ - b while |a| < 1 + s)."""
+    unbiased = measured - bias
+    return unbiased / (1.0 + scale + asymmetry * math.copysign(1.0, unbiased))
 
 
 @compilable
@@ -163,13 +174,13 @@ def bridge(
 def advance(x: FloatArray, inc: FloatArray, r_bi: FloatArray, bridged: bool, t: float) -> None:
     """The time update of the nominal state ``x`` (core.filter.state X_* layout) over one increment
     ``inc`` (imu FRD; ``bridged``: it spans missing samples, no coning/sculling history):
-    correct it with the estimated biases and scale factors, turn it into base_link FRD with
-    ``r_bi`` (row-major imu -> body), mechanize, and update the derived rates, the low-passed
-    acceleration and rate and the covariance interval; stamp ``t`` [s]."""
+    correct it with the estimated biases, scale factors and gyro scale asymmetry, turn it into
+    base_link FRD with ``r_bi`` (row-major imu -> body), mechanize, and update the derived
+    rates, the low-passed acceleration and rate and the covariance interval; stamp ``t`` [s]."""
     dt = inc[INC_DT]
-    ti0 = (inc[INC_ANGLE] - x[X_BG] * dt) / (1.0 + x[X_SG])
-    ti1 = (inc[INC_ANGLE + 1] - x[X_BG + 1] * dt) / (1.0 + x[X_SG + 1])
-    ti2 = (inc[INC_ANGLE + 2] - x[X_BG + 2] * dt) / (1.0 + x[X_SG + 2])
+    ti0 = corrected_gyro(inc[INC_ANGLE], x[X_BG] * dt, x[X_SG], x[X_SR])
+    ti1 = corrected_gyro(inc[INC_ANGLE + 1], x[X_BG + 1] * dt, x[X_SG + 1], x[X_SR + 1])
+    ti2 = corrected_gyro(inc[INC_ANGLE + 2], x[X_BG + 2] * dt, x[X_SG + 2], x[X_SR + 2])
     vi0 = (inc[INC_VEL] - x[X_BA] * dt) / (1.0 + x[X_SA])
     vi1 = (inc[INC_VEL + 1] - x[X_BA + 1] * dt) / (1.0 + x[X_SA + 1])
     vi2 = (inc[INC_VEL + 2] - x[X_BA + 2] * dt) / (1.0 + x[X_SA + 2])
@@ -263,6 +274,7 @@ def covariance_step(
         vel,
         columns.sg,
         columns.sa,
+        columns.sr,
         gyro_psd,
         misalignment_q,
         accel_psd,

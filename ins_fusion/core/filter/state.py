@@ -92,6 +92,7 @@ X_LAYOUT = (
     ("last_position_t", 1),  # stamp of the last GNSS position used [s]
     ("heading_known", 1),  # 1.0 while the heading is known
     ("speed_scale", 1),  # the vehicle speed's scale error (measured / true - 1)
+    ("sr", 3),  # gyro scale asymmetry: error per unit of |rate|, imu FRD [fraction]
 )
 (
     X_NAV,
@@ -121,6 +122,7 @@ X_LAYOUT = (
     X_LAST_POSITION_T,
     X_HEADING_KNOWN,
     X_SPEED_SCALE,
+    X_SR,
     X_SIZE,
 ) = offsets(X_LAYOUT)
 #: The navigation's fields in FilterState.x: latitude, longitude [rad], height [m], NED velocity
@@ -416,7 +418,7 @@ def inject(s: FilterState, kf: ErrorStateFilter, dx: FloatArray) -> None:
 def inject_nominal(x: FloatArray, dx: FloatArray, columns: Columns) -> None:
     """The part of ``inject`` kept in ``x`` (X_* layout): attitude (the error rotation applied
     on the NED side), position (a NED offset), velocity, the biases and the optional blocks
-    whose ``columns`` (StateLayout.columns: sg, sa, gp, mt, td, ks) are not -1: scale factors,
+    whose ``columns`` (StateLayout.columns: sg, sa, sr, gp, mt, td, ks) are not -1: scale factors,
     correlated GNSS error, residual mounting, time offset and speed scale."""
     q_err = quat_from_rotvec(dx[ATT], dx[ATT + 1], dx[ATT + 2])
     q = quat_normalize(
@@ -435,6 +437,8 @@ def inject_nominal(x: FloatArray, dx: FloatArray, columns: Columns) -> None:
             x[X_SG + k] += dx[columns.sg + k]
         if columns.sa >= 0:
             x[X_SA + k] += dx[columns.sa + k]
+        if columns.sr >= 0:
+            x[X_SR + k] += dx[columns.sr + k]
         if columns.gp >= 0:
             x[X_GNSS_ERROR + k] += dx[columns.gp + k]
     if columns.mt >= 0:

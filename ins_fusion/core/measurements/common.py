@@ -62,14 +62,17 @@ def ned_cov(cov_enu: FloatArray) -> FloatArray:
 
 @compilable
 def gyro_error_columns(
-    H: FloatArray, d_rate: FloatArray, mat_bi: FloatArray, rate_i: FloatArray, sg: int
+    H: FloatArray, d_rate: FloatArray, mat_bi: FloatArray, rate_i: FloatArray, columns: Columns
 ) -> None:
-    """H's columns of the gyro bias and scale errors (``sg``: the scale's first column, -1
-    when not estimated) for a measurement that depends on the body rate through ``d_rate``
-    (rows x 3, d(measured)/dω_b, base FRD): dω_b/dδb_g = -R_bi, dω_b/dδs_g = -R_bi diag(ω_i)."""
+    """H's columns of the gyro bias, scale and scale asymmetry errors (``columns``:
+    StateLayout.columns, -1 when not estimated) for a measurement that depends on the body
+    rate through ``d_rate`` (rows x 3, d(measured)/dω_b, base FRD): dω_b/dδb_g = -R_bi,
+    dω_b/dδs_g = -R_bi diag(ω_i), dω_b/dδa_g = -R_bi diag(|ω_i|)."""
     H[:, BG : BG + 3] = d_rate @ -mat_bi
-    if sg >= 0:
-        H[:, sg : sg + 3] = d_rate @ (-mat_bi * rate_i)
+    if columns.sg >= 0:
+        H[:, columns.sg : columns.sg + 3] = d_rate @ (-mat_bi * rate_i)
+    if columns.sr >= 0:
+        H[:, columns.sr : columns.sr + 3] = d_rate @ (-mat_bi * np.abs(rate_i))
 
 
 @compilable

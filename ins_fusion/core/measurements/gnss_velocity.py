@@ -78,7 +78,7 @@ def gnss_velocity(
         kernel_array(meas.vel_enu_m_s),
         kernel_array(meas.cov_enu_m2_s2),
         layout.size,
-        layout.columns.sg,
+        layout.columns,
     )
     return None if rows == 0 else (z, H, R)
 
@@ -94,11 +94,11 @@ def velocity_model(
     vel_enu: FloatArray,
     cov_enu: FloatArray,
     size: int,
-    sg: int,
+    columns: Columns,
 ) -> tuple[int, FloatArray, FloatArray, FloatArray]:
     """``gnss_velocity``'s model (rows, z, H, R; 0 rows: unusable) from the prediction's
-    arrays, the measured ENU velocity and covariance, the layout's size and the gyro scale
-    column (-1: not estimated)."""
+    arrays, the measured ENU velocity and covariance, the layout's size and columns (-1: not
+    estimated)."""
     measured = np.array((vel_enu[1], vel_enu[0], -vel_enu[2]))
     cov = ned_cov(cov_enu)
     if not np.isfinite(measured[:2]).all() or not np.isfinite(cov[:2, :2]).all():
@@ -110,7 +110,7 @@ def velocity_model(
     for k in range(3):
         H[k, VEL + k] = 1.0
     H[:, ATT : ATT + 3] = -skew(rot_n)
-    gyro_error_columns(H, -(mat_nb @ skew(lever_b)), mat_bi, rate_i, sg)
+    gyro_error_columns(H, -(mat_nb @ skew(lever_b)), mat_bi, rate_i, columns)
     z = measured - vel - rot_n
     return rows, z[:rows].copy(), H[:rows].copy(), cov[:rows, :rows].copy()
 
@@ -193,7 +193,7 @@ def velocity_apply(
         vel_enu,
         cov_enu,
         size,
-        columns.sg,
+        columns,
     )
     accepted, nis, P_new = update_rows(P, x, rows, (z, H, R), gates, columns)
     return stepped, phi, rows, accepted, nis, P_new

@@ -71,8 +71,7 @@ def nhc(
         sigma_m_s,
         mounting_rad,
         layout.size,
-        layout.columns.sg,
-        layout.columns.mt,
+        layout.columns,
     )
 
 
@@ -87,8 +86,7 @@ def nhc_model(
     sigma_m_s: float,
     mounting_rad: tuple[float, float],
     size: int,
-    sg: int,
-    mt: int,
+    columns: Columns,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """``nhc``'s model from the prediction's arrays and the layout's size and columns (-1:
     state not estimated)."""
@@ -97,7 +95,8 @@ def nhc_model(
     H = np.zeros((3, size))
     H[:, VEL : VEL + 3] = c_bn
     H[:, ATT : ATT + 3] = c_bn @ skew(vel)
-    gyro_error_columns(H, -skew(arm_b), mat_bi, rate_i, sg)
+    gyro_error_columns(H, -skew(arm_b), mat_bi, rate_i, columns)
+    mt = columns.mt
     pitch, yaw = mounting_rad
     forward = v_b[0]
     predicted = np.array((v_b[1] - yaw * forward, v_b[2] + pitch * forward))
@@ -157,8 +156,7 @@ def nhc_apply(
         sigma_m_s,
         mounting,
         size,
-        columns.sg,
-        columns.mt,
+        columns,
     )
     accepted, nis, _, P_new = update_and_restart(P, x, model, threshold, columns)
     return stepped, phi, accepted, nis, P_new

@@ -69,7 +69,7 @@ def speed_model(
     mat_nb, vel, rate_b, rate_i = prediction
     (pitch, yaw), scale = calibration
     measured, variance = reading
-    sg, mt, ks = columns.sg, columns.mt, columns.ks
+    mt, ks = columns.mt, columns.ks
     c_bn = np.ascontiguousarray(mat_nb.T)
     v_b = c_bn @ vel + skew(rate_b) @ arm_b
     axis = np.array((1.0, yaw, -pitch))  # e_xᵀ (I - [μ×]): the vehicle's forward axis in b
@@ -78,7 +78,7 @@ def speed_model(
     H = np.zeros((1, size))
     H[0, VEL : VEL + 3] = gain * (axis @ c_bn)
     H[0, ATT : ATT + 3] = gain * (axis @ (c_bn @ skew(vel)))
-    gyro_error_columns(H, gain * (axis @ -skew(arm_b)).reshape((1, 3)), mat_bi, rate_i, sg)
+    gyro_error_columns(H, gain * (axis @ -skew(arm_b)).reshape((1, 3)), mat_bi, rate_i, columns)
     if mt >= 0:
         H[0, mt] = -gain * v_b[2]
         H[0, mt + 1] = gain * v_b[1]

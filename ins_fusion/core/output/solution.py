@@ -18,6 +18,7 @@ from ins_fusion.core.compiled import compilable, jit, kernel_array
 from ins_fusion.core.filter.eskf import ATT, BG, ErrorStateFilter, StateLayout
 from ins_fusion.core.filter.eskf import POS as POS_STATE
 from ins_fusion.core.filter.eskf import VEL as VEL_STATE
+from ins_fusion.core.filter.propagation import corrected_gyro
 from ins_fusion.core.filter.state import (
     X_BA,
     X_BG,
@@ -28,6 +29,7 @@ from ins_fusion.core.filter.state import (
     X_LON,
     X_QUAT,
     X_SG,
+    X_SR,
     X_T,
     X_VEL,
     FilterState,
@@ -240,9 +242,9 @@ def _fill_row(
     n0 = C[0, 0] * ax + C[0, 1] * ay + C[0, 2] * az
     n1 = C[1, 0] * ax + C[1, 1] * ay + C[1, 2] * az
     n2 = C[2, 0] * ax + C[2, 1] * ay + C[2, 2] * az
-    c0 = (rate_i[0] - x[X_BG]) / (1.0 + x[X_SG])
-    c1 = (rate_i[1] - x[X_BG + 1]) / (1.0 + x[X_SG + 1])
-    c2 = (rate_i[2] - x[X_BG + 2]) / (1.0 + x[X_SG + 2])
+    c0 = corrected_gyro(rate_i[0], x[X_BG], x[X_SG], x[X_SR])
+    c1 = corrected_gyro(rate_i[1], x[X_BG + 1], x[X_SG + 1], x[X_SR + 1])
+    c2 = corrected_gyro(rate_i[2], x[X_BG + 2], x[X_SG + 2], x[X_SR + 2])
     wx = r_bi[0] * c0 + r_bi[1] * c1 + r_bi[2] * c2
     wy = r_bi[3] * c0 + r_bi[4] * c1 + r_bi[5] * c2
     wz = r_bi[6] * c0 + r_bi[7] * c1 + r_bi[8] * c2

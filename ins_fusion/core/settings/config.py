@@ -36,6 +36,7 @@ class ImuNoise:
     gyro_bias_instability [rad/s] and accel_bias_instability [m/s²]: stationary σ of the
     first-order Gauss-Markov biases with correlation time bias_correlation_time_s;
     gyro_scale_sigma / accel_scale_sigma: σ of the scale-factor states [fraction], 0 = none;
+    gyro_asymmetry_sigma: σ of the gyro scale-asymmetry states [fraction], 0 = none;
     gyro_turn_on_bias [rad/s] / accel_turn_on_bias [m/s²]: initial bias σ without better
     knowledge (no standstill seed, no calibration file).
     """
@@ -47,6 +48,7 @@ class ImuNoise:
     bias_correlation_time_s: float
     gyro_scale_sigma: float
     accel_scale_sigma: float
+    gyro_asymmetry_sigma: float
     gyro_misalignment: float
     gyro_turn_on_bias: float
     accel_turn_on_bias: float
@@ -144,6 +146,7 @@ class FusionConfig:
                 bias_correlation_time_s=p["imu_noise.bias_correlation_time"],
                 gyro_scale_sigma=ppm(p["imu_noise.gyro_scale_sigma"]),
                 accel_scale_sigma=ppm(p["imu_noise.accel_scale_sigma"]),
+                gyro_asymmetry_sigma=ppm(p["imu_noise.gyro_asymmetry_sigma"]),
                 gyro_misalignment=1e-3 * p["imu_noise.gyro_misalignment"],
                 gyro_turn_on_bias=deg_s(p["imu_noise.gyro_turn_on_bias"]),
                 accel_turn_on_bias=mg(p["imu_noise.accel_turn_on_bias"]),

@@ -133,6 +133,15 @@ PARAMETERS: tuple[Param, ...] = (
         1.0e5,
     ),
     Param(
+        "imu_noise.gyro_asymmetry_sigma",
+        10000.0,
+        "sigma of the gyro scale-asymmetry states [ppm] (the part of the scale factor that"
+        " changes sign with the rate: S+/- = s +/- a); 0 = none; default: the datasheet's"
+        " < 1 % scale accuracy",
+        0.0,
+        1.0e5,
+    ),
+    Param(
         "imu_noise.gyro_misalignment",
         0.0,
         "gyro axis misalignment sigma (datasheet) [mrad]: turn-rate-dependent attitude noise",
