@@ -22,8 +22,8 @@ from dataclasses import dataclass, field
 
 from gnss_ins_common.rtcm import RtcmFramer, message_number
 
-#: How often the writer looks at the link while it cannot write, and waits for a frame [s].
-_POLL_S = 0.05
+#: The longest the writer sleeps without a frame [s] (a frame or ``stop`` wakes it at once).
+_IDLE_WAIT_S = 5.0
 
 
 @dataclass(slots=True)
@@ -98,6 +98,19 @@ class CorrectionQueue:
             self._stats.dropped_overflow += max(0, overflow)
             self._ready.notify()
 
+    def wait(self, timeout_s: float) -> bool:
+        """Wait up to ``timeout_s`` [s] for a frame (or ``wake``); True when one is queued."""
+        with self._ready:
+            if not self._frames:
+                self._ready.wait(timeout_s)
+            return bool(self._frames)
+
+    def wake(self) -> None:
+        """End every ``wait`` and ``take`` in progress now (they see no frame unless one is
+        queued)."""
+        with self._ready:
+            self._ready.notify_all()
+
     def take(self, now_s: float, timeout_s: float) -> bytes | None:
         """The next frame no older than ``max_age_s`` at host time ``now_s`` [s] (older ones are
         dropped), waiting up to ``timeout_s`` [s] for one; None when none came."""
@@ -169,6 +182,7 @@ class CorrectionWriter:
     def stop(self) -> None:
         """Stop the writer thread (a write in progress completes)."""
         self._stop.set()
+        self.queue.wake()
         if self._thread is not None:
             self._thread.join(timeout=2.0)
             self._thread = None
@@ -176,11 +190,12 @@ class CorrectionWriter:
     def _run(self) -> None:
         queue = self.queue
         while not self._stop.is_set():
+            if not queue.wait(_IDLE_WAIT_S) or self._stop.is_set():
+                continue
             if not self._ready():
                 queue.clear()
-                self._stop.wait(_POLL_S)
                 continue
-            frame = queue.take(self._now(), _POLL_S)
+            frame = queue.take(self._now(), 0.0)
             if frame is None:
                 continue
             ok = self._write(frame)
