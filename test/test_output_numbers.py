@@ -81,6 +81,20 @@ def test_rounding_below_the_tolerance_is_still_psd():
     assert not output_numbers(row, 1e-5, np.empty(NUMBERS))
 
 
+def test_symmetry_is_judged_against_the_variances_not_the_element():
+    # A smoothed attitude covariance (variances ~1e-6 rad²) whose roll-yaw term, 6.4e-14, differs
+    # from its mirror by 1e-9 of itself: rounding, publishable; the same difference in a term
+    # as large as the variances' scale times 1e-8 is not.
+    row = _row(5, 0.0)
+    cov = np.diag([7.5e-7, 8.7e-7, 2.7e-7])
+    cov[0, 2], cov[2, 0] = -6.4134561118640142e-14, -6.4134561187171026e-14
+    row[COV_ATT] = cov.ravel()
+    assert row_fault(row) == 0
+    cov[0, 2] = cov[2, 0] + 1e-8 * np.sqrt(cov[0, 0] * cov[2, 2])
+    row[COV_ATT] = cov.ravel()
+    assert FAULTS[row_fault(row)] == "attitude covariance not symmetric"
+
+
 def test_fault_names_the_first_check_that_fails():
     row = _row(3, 0.0)
     assert row_fault(row) == 0 and fault_report(row) == "publishable"

@@ -37,7 +37,9 @@ NUMBERS = 134
 
 #: Relative tolerance on negative covariance eigenvalues (rounding in a PSD matrix).
 PSD_TOLERANCE = 1e-9
-#: Relative tolerance on the asymmetry of a covariance.
+#: Tolerance on the asymmetry of a covariance, relative to the scale of the element's row and
+#: column (√(C_ii C_jj)): an off-diagonal element many orders below the variances differs from
+#: its mirror by rounding of that size, not of its own.
 SYMMETRY_TOLERANCE = 1e-9
 
 _O_QUAT, _O_POSE_COV, _O_VEL, _O_RATE, _O_TWIST_COV = 3, 7, 43, 46, 49
@@ -70,7 +72,8 @@ def _matrix_fault(row: FloatArray, start: int) -> int:
             c[i, j] = value
     for i in range(3):
         for j in range(3):
-            if abs(c[i, j] - c[j, i]) > SYMMETRY_TOLERANCE * abs(c[j, i]):
+            scale = math.sqrt(abs(c[i, i] * c[j, j]))
+            if abs(c[i, j] - c[j, i]) > SYMMETRY_TOLERANCE * scale:
                 return 2
     eigenvalues = np.linalg.eigvalsh(c)
     return 0 if eigenvalues.min() >= -PSD_TOLERANCE * max(1.0, eigenvalues.max()) else 3
