@@ -1,10 +1,10 @@
 """Speed and accuracy of the IMU time stamping on a 10-minute synthetic 134 Hz stream.
 
-The stream is test/test_clock_sync.py's ``simulate``: +100 ppm drift, 1 % single drops and three
-runs of 20, exponential receive delays (1 ms mean) with 1 % 20 ms stalls, reads of 1-3 packets.
-Errors are |host stamp - true sample time| after a 5 s warm-up. The slowest call is the CPU time
-of this thread (a preemption on a busy machine does not count); the garbage collector is off
-while timing, as its pauses here scale with this script's own heap of results.
+The stream is test/support/clock_streams.py's ``simulate``: +100 ppm drift, 1 % single drops and
+three runs of 20, exponential receive delays (1 ms mean) with 1 % 20 ms stalls, reads of 1-3
+packets. Errors are |host stamp - true sample time| after a 5 s warm-up. The slowest call is the
+CPU time of this thread (a preemption on a busy machine does not count); the garbage collector is
+off while timing, as its pauses here scale with this script's own heap of results.
 """
 
 from __future__ import annotations
@@ -21,8 +21,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "test"))
 
-from test_clock_sync import simulate
-from test_device_clock import FIRST_TIMER
+from support.clock_streams import FIRST_TIMER, simulate
 
 from gnss_ins_common.clock_sync import EnvelopeClockSync
 from imu400cc_driver.device_clock import PACKET_TRANSMISSION_S, TIMER_MODULUS, DeviceClock

@@ -19,7 +19,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "test"))  # the harness is a test helper
 
-from framer_damage import KINDS, realistic_packets, run_damaged  # noqa: E402
+from support.framer_damage import KINDS, realistic_packets, run_damaged  # noqa: E402
 
 PACKETS = 500_000
 SEED = 3

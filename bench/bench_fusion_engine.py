@@ -1,6 +1,6 @@
 """Fusion engine: speed, accuracy in GNSS outages, consistency; prints numbers, asserts nothing.
 
-Simulated drives in-process (test/test_fusion_drives.py harness: simulator IMU400CC profile on the
+Simulated drives in-process (test/support/drives.py harness: simulator IMU400CC profile on the
 survey car, Leica RTK 1 Hz with its 0.053 s latency, optional ADU5 attitude 5 Hz). Sections:
 
 1. speed: CPU time of the engine alone per IMU sample (best of 3) for covariance intervals 0
@@ -30,7 +30,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "test"))
 
-from test_fusion_drives import (
+from support.drives import (
     AALBORG_OUTAGES,
     CALIBRATION,
     DRIVE_START_S,

@@ -41,7 +41,7 @@ from ins_fusion.sim.vibration import CAR
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "test"))  # the harness is a test helper
 
-from mismatch_drives import (  # noqa: E402
+from support.mismatch_drives import (  # noqa: E402
     DURATION_S,
     SCENARIO,
     Streams,
@@ -49,7 +49,7 @@ from mismatch_drives import (  # noqa: E402
     drive_truth,
     scaled_vibration,
 )
-from noise_mismatch import (  # noqa: E402
+from support.noise_mismatch import (  # noqa: E402
     EVALUATE_FROM_S,
     Track,
     datasheet_parameters,

@@ -27,8 +27,8 @@ from ins_fusion.sim.imu_model import PROFILES as IMU_PROFILES
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "test"))  # the harness is a test helper
 
-from mismatch_drives import build_streams  # noqa: E402
-from noise_mismatch import datasheet_parameters, run_engine  # noqa: E402
+from support.mismatch_drives import build_streams  # noqa: E402
+from support.noise_mismatch import datasheet_parameters, run_engine  # noqa: E402
 
 #: (IMU late [s], mounting roll, pitch, yaw [deg]) of the cases.
 CASES = ((0.05, (0.0, 1.0, 1.0)), (0.13, (0.0, 3.0, 2.0)), (0.2, (0.0, 5.0, -3.0)))

@@ -4,7 +4,7 @@ drives, written to an .npz; ``--compare`` checks a new run against a saved one (
 within 1e-9 relative, every counter equal) and prints what differs.
 
 Drives: the simulated figure eight (90 s) and test pattern (75 s) of test/sim_bags.py, the same
-with damaged IMU data (test/test_sample_runs.py), the real comma2k19 segment with the phone
+with damaged IMU data (test/support/sample_runs.py), the real comma2k19 segment with the phone
 parameters (test/fixtures/comma2k19). Parameter sets: the defaults, every optional state on
 (mounting, time offset, scale factors), no pseudo-measurements. Paths: the replay's compiled runs
 (``run_fusion``, with and without the RTS smoother) and, on the figure eight, the engine fed
@@ -27,8 +27,8 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "test"))
 
-from sim_bags import FIGURE_EIGHT_90_S, TEST_PATTERN_75_S  # noqa: E402
-from test_sample_runs import _SETS, _damaged, _sample_by_sample  # noqa: E402
+from support.sample_runs import SETS, damaged, sample_by_sample  # noqa: E402
+from support.sim_bags import FIGURE_EIGHT_90_S, TEST_PATTERN_75_S  # noqa: E402
 
 from gnss_ins_common.params import load_yaml, validate_all  # noqa: E402
 from ins_fusion.core.settings.config import NODE_NAME  # noqa: E402
@@ -51,11 +51,11 @@ def fingerprint() -> dict[str, Any]:
             write_bag(sim, Path(tmp) / name)
             inputs = load_bag(Path(tmp) / name, TopicMap())
             drives[name] = (inputs, {})
-            drives[f"{name}_damaged"] = (_damaged(inputs), {})
+            drives[f"{name}damaged"] = (damaged(inputs), {})
         phone = load_yaml(COMMA / "ins_fusion_phone.yaml", NODE_NAME, PARAMETERS)
         drives["comma2k19"] = (load_bag(COMMA / "comma2k19_ex1_seg40", TopicMap()), phone)
         for drive, (inputs, base) in drives.items():
-            for set_name, overrides in _SETS.items():
+            for set_name, overrides in SETS.items():
                 parameters = validate_all(PARAMETERS, {**base, **overrides})
                 key = f"{drive}/{set_name}"
                 print(key, flush=True)
@@ -67,7 +67,7 @@ def fingerprint() -> dict[str, Any]:
                 if run.smoothed is not None:
                     out[f"{key}/smoothed"] = run.smoothed.rows
                 if drive == "eight" and set_name != "no_pseudo":
-                    rows, status = _sample_by_sample(inputs, parameters, smooth=True)
+                    rows, status = sample_by_sample(inputs, parameters, smooth=True)
                     out[f"{key}/general_rows"] = rows
                     out[f"{key}/general_status"] = repr(status)
     return out

@@ -23,12 +23,13 @@ from pathlib import Path
 import psutil
 import pytest
 from distributed import Client
+from support.paths import FIXTURES
 
 from ins_fusion.sim.drive import SimulationConfig
 from ins_fusion.sim.simulated_bag import write_bag
 from ins_fusion.tools import cli
 
-REAL = Path(__file__).resolve().parent / "fixtures" / "comma2k19" / "comma2k19_ex1_seg40"
+REAL = FIXTURES / "comma2k19" / "comma2k19_ex1_seg40"
 SEEDS = (31, 32, 33, 34, 35, 36)
 #: The replay options of every run: an outage in the second lap and the smoother.
 OPTIONS = ("--outage", "30:10", "--smooth")

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from support.paths import REPO
 
 from gnss_ins_common.axes import AxisMap
 from ins_fusion.bags.imu import write_imu_bag
@@ -23,7 +24,6 @@ from ins_fusion.sim.imu_model import IMU400CC
 from ins_fusion.tools.cli import main
 
 GNSS_INS = Path(sys.executable).parent / "gnss_ins"
-REPO = Path(__file__).resolve().parents[1]
 SITE = Site.at(57.0, 50.0)
 LEVEL_DEG = 0.05
 STATIC = ["--latitude", "57", "--height", "50", "--level-sigma", str(LEVEL_DEG)]

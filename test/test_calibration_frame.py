@@ -4,12 +4,11 @@ device axis) and is carried into imu_link by the driver's axis map and accelerom
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
+from support.paths import REPO
 
 from gnss_ins_common.axes import AxisMap
 from imu400cc_driver.axes import DEFAULT_ACCEL_SIGN, DEFAULT_AXIS_SPEC
@@ -17,7 +16,7 @@ from ins_fusion.core.nav.calibration import CalibrationError, ImuCalibration
 from ins_fusion.core.nav.units import STANDARD_GRAVITY_M_S2, deg_s, mg
 from ins_fusion.sim.imu_model import IMU400CC
 
-CONFIG = Path(__file__).resolve().parents[1] / "config" / "imu400cc_calibration.yaml"
+CONFIG = REPO / "config" / "imu400cc_calibration.yaml"
 DRIVER = AxisMap.from_spec(DEFAULT_AXIS_SPEC)
 #: Report Fig. 5-36 (gyro S2 bias, °/s) and Fig. 5-34 (accelerometer S2 bias, mg), device axes.
 GYRO_BIAS_DEG_S = (0.0246, -0.0343, -0.0153)

@@ -7,7 +7,8 @@ import subprocess
 import sys
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
+from support.paths import REPO
+
 EXECUTABLES = ("imu400cc_node", "gnss_node", "ntrip_node", "ins_fusion_node", "gnss_ins")
 
 

@@ -11,7 +11,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from sim_bags import FIGURE_EIGHT_90_S, shared_bag
+from support.compiled_tracks import OUTAGES, PARAMETER_SETS, track
+from support.paths import FIXTURES, TESTS
+from support.sim_bags import FIGURE_EIGHT_90_S, shared_bag
 
 from gnss_ins_common.params import validate_all
 from ins_fusion.core.compiled import jit
@@ -32,30 +34,18 @@ from ins_fusion.core.nav import strapdown
 from ins_fusion.core.output import output_numbers, solution
 from ins_fusion.core.settings.params import PARAMETERS
 from ins_fusion.replay.inputs import load_bag
-from ins_fusion.replay.outages import Outage
 from ins_fusion.replay.run import run_fusion
 from ins_fusion.replay.topics import TopicMap
 
-PARAMETER_SETS: dict[str, dict[str, object]] = {
-    "defaults": {},
-    "all_states": {
-        "self_calibration.mounting": True,
-        "self_calibration.time_offset": True,
-        "imu_noise.gyro_scale_sigma": 0.001,
-        "imu_noise.accel_scale_sigma": 0.001,
-    },
-}
-OUTAGES = (Outage(40.0, 15.0),)
-
-#: Saves the track of every parameter set, by _track below (argv: this folder, bag, output).
+#: Saves the track of every parameter set (argv: the test tree's root, bag, output folder).
 _RUN = """
 import sys
 from pathlib import Path
 import numpy as np
 sys.path.insert(0, sys.argv[1])
-from test_compiled import PARAMETER_SETS, _track
+from support.compiled_tracks import PARAMETER_SETS, track
 for name in PARAMETER_SETS:
-    np.save(Path(sys.argv[3]) / f"{name}.npy", _track(Path(sys.argv[2]), name))
+    np.save(Path(sys.argv[3]) / f"{name}.npy", track(Path(sys.argv[2]), name))
 """
 
 
@@ -69,14 +59,10 @@ def pure_tracks(drive: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[s
     """The track of every parameter set from the pure-Python source (one process)."""
     out = tmp_path_factory.mktemp("pure")
     env = {**os.environ, "NUMBA_DISABLE_JIT": "1"}
-    here = str(Path(__file__).parent)
-    subprocess.run([sys.executable, "-c", _RUN, here, str(drive), str(out)], check=True, env=env)
+    subprocess.run(
+        [sys.executable, "-c", _RUN, str(TESTS), str(drive), str(out)], check=True, env=env
+    )
     return {name: np.load(out / f"{name}.npy") for name in PARAMETER_SETS}
-
-
-def _track(bag: Path, parameter_set: str) -> np.ndarray:
-    params = validate_all(PARAMETERS, PARAMETER_SETS[parameter_set])
-    return run_fusion(load_bag(bag, TopicMap()), params, OUTAGES).track.rows
 
 
 #: The whole session runs uncompiled: nothing to compare with.
@@ -90,7 +76,7 @@ def test_compiled_track_equals_pure_python(
     if _PURE_SESSION:
         pytest.skip("pure-Python run requested")
     assert all(hasattr(kernel, "py_func") for kernel in _KERNELS)  # compiled, not Python
-    compiled = _track(drive, parameter_set)
+    compiled = track(drive, parameter_set)
     pure = pure_tracks[parameter_set]
     assert compiled.shape == pure.shape and len(compiled) > 2000
     assert np.isfinite(compiled[:, :50]).all()
@@ -134,7 +120,7 @@ _KERNELS = (
     stationary.zaru_model,
     vehicle_speed.speed_model,
 )
-_REAL = Path(__file__).parent / "fixtures" / "comma2k19" / "comma2k19_ex1_seg40"
+_REAL = FIXTURES / "comma2k19" / "comma2k19_ex1_seg40"
 _REAL_SPEED = _REAL.with_name("comma2k19_ex1_seg40_speed")
 
 

@@ -11,8 +11,8 @@ import time
 
 import pytest
 import rclpy
-from ros_harness import node_executable, wait_for
 from sensor_msgs.msg import Imu
+from support.ros_harness import node_executable, wait_for
 
 from ins_fusion.adapters.status_log import INFO, WARN, StatusLog
 from ins_fusion.core.engine.engine import InsEngine

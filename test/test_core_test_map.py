@@ -6,11 +6,10 @@ fails here until it has them or its entry says why not."""
 from __future__ import annotations
 
 import re
-from pathlib import Path
 
 import pytest
+from support.paths import REPO
 
-REPO = Path(__file__).resolve().parents[1]
 CORE = REPO / "ins_fusion" / "core"
 
 #: core module (relative to ins_fusion/core) -> the test modules that test it directly.
@@ -50,7 +49,7 @@ TESTS: dict[str, tuple[str, ...]] = {
     "output/output_numbers.py": ("test_output_numbers.py",),
     "output/solution.py": ("test_output_numbers.py", "test_fusion_engine.py"),
     "output/solution_rows.py": ("test_sample_runs.py", "test_smoother_engine.py"),
-    "engine/engine.py": ("test_fusion_engine.py", "test_fusion_drives.py"),
+    "engine/engine.py": ("test_fusion_engine.py",),
     "engine/intake.py": ("test_core_intake.py",),
     "engine/sample_runs.py": ("test_sample_runs.py",),
     "engine/smoothed_solution.py": ("test_smoother_engine.py",),
@@ -60,7 +59,7 @@ TESTS: dict[str, tuple[str, ...]] = {
 #: Modules only the engine reaches (InsEngine's base class, the choice of the compiled
 #: updates): tested through the engine's tests, which must drive it.
 THROUGH_THE_ENGINE: dict[str, tuple[str, ...]] = {
-    "engine/loop.py": ("test_fusion_engine.py", "test_fusion_drives.py"),
+    "engine/loop.py": ("test_fusion_engine.py",),
     "measurements/fused.py": ("test_sample_runs.py",),
 }
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from test_clock_sync import HOST_START_S, Stream, simulate
+from support.clock_streams import FIRST_TIMER, HOST_START_S, Stream, simulate
 
 from imu400cc_driver.device_clock import (
     NOMINAL_TICK_S,
@@ -17,9 +17,6 @@ from imu400cc_driver.device_clock import (
     DeviceClock,
     DeviceStamp,
 )
-
-#: The timer of the first App. D.5 example row (notes §2.6).
-FIRST_TIMER = 41606
 
 
 def run(clock: DeviceClock, stream: Stream, per_read: bool = True) -> list[DeviceStamp]:

@@ -10,7 +10,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
-from docs_pages import PAGES, REPO, Session, blocks, differences
+from support.docs_pages import PAGES, REPO, Session, blocks, differences
 
 # Real nodes run in the README's blocks: in the session of the real-time tests.
 pytestmark = pytest.mark.ros
@@ -80,7 +80,7 @@ def test_the_page_runs_and_its_examples_are_current(page: Path, tmp_path: Path) 
         assert not not_ignored(tmp_path), f"outputs git does not ignore: {not_ignored(tmp_path)}"
 
 
-BAGS = Path(__file__).resolve().parents[1] / "docs" / "bags.md"
+BAGS = REPO / "docs" / "bags.md"
 
 
 def test_a_stale_number_or_a_failing_command_fails_the_page(tmp_path: Path) -> None:

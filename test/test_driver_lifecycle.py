@@ -17,8 +17,8 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from lifecycle_msgs.msg import Transition
 from lifecycle_msgs.srv import ChangeState, GetState
 from rclpy.node import Node
-from ros_harness import Collector, diagnostic_values, node_executable, spinning, wait_for
 from sensor_msgs.msg import Imu, NavSatFix
+from support.ros_harness import Collector, diagnostic_values, node_executable, spinning, wait_for
 
 from gnss_driver.emulator import EmulatorConfig, GnssEmulator, constant_velocity
 from gnss_driver.profiles import Receiver

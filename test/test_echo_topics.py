@@ -10,8 +10,8 @@ from collections.abc import Iterator
 import numpy as np
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from ros_harness import other_process
 from sensor_msgs.msg import Imu, NavSatFix
+from support.ros_harness import other_process
 
 from ins_fusion.runtime.processes import gnss_ins_command
 from ins_fusion.tools.echo import SHOWN_ELEMENTS, field, lines

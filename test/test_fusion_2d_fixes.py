@@ -14,8 +14,8 @@ import dataclasses
 
 import numpy as np
 import pytest
-from test_fusion_drives import Drive, RunResult, run, simulate
-from test_sample_runs import _sample_by_sample, inputs  # noqa: F401  (the fixture)
+from support.drives import Drive, RunResult, run, simulate
+from support.sample_runs import figure_eight, sample_by_sample
 
 from gnss_ins_common.navsat import HEIGHT_UNKNOWN_VARIANCE_M2
 from gnss_ins_common.params import validate_all
@@ -46,6 +46,11 @@ def _drive_with_wrong_heights(drive: Drive, two_d: bool) -> Drive:
         for t, m in drive.events
     ]
     return dataclasses.replace(drive, events=events)
+
+
+@pytest.fixture(scope="module")
+def inputs(tmp_path_factory: pytest.TempPathFactory) -> ReplayInputs:
+    return figure_eight(tmp_path_factory)
 
 
 @pytest.fixture(scope="module")
@@ -94,12 +99,12 @@ def _two_d_inputs(replay: ReplayInputs) -> ReplayInputs:
 
 
 def test_2d_fixes_take_the_same_update_compiled_and_the_general_way(
-    inputs: ReplayInputs,  # noqa: F811
+    inputs: ReplayInputs,
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     two_d = _two_d_inputs(inputs)
     parameters = validate_all(PARAMETERS, {})
-    expected_rows, expected_status = _sample_by_sample(two_d, parameters, smooth=True)
+    expected_rows, expected_status = sample_by_sample(two_d, parameters, smooth=True)
     fused = {"2d": 0}
     apply = FusedPosition.apply
 

@@ -4,14 +4,14 @@ levelling and the stop detector."""
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
-from config_checks import assert_file_holds_defaults
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
+from support.config_checks import assert_file_holds_defaults
+from support.paths import REPO
 
 from gnss_ins_common.params import ParameterValueError, load_yaml
 from ins_fusion.core.measurements.stop_detector import StopDetector
@@ -24,7 +24,6 @@ from ins_fusion.core.settings.config import NODE_NAME, FusionConfig, StopDetecto
 from ins_fusion.core.settings.params import PARAMETERS
 from ins_fusion.sim.imu_model import IMU400CC, ImuErrorModel, ImuProfile, TriadErrors
 
-REPO = Path(__file__).resolve().parents[1]
 CONFIG = REPO / "config" / "ins_fusion.yaml"
 CALIBRATION = REPO / "config" / "imu400cc_calibration.yaml"
 

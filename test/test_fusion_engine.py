@@ -11,7 +11,7 @@ import numpy as np
 import pymap3d
 import pytest
 from scipy.spatial.transform import Rotation
-from test_fusion_drives import CALIBRATION, Drive, config, deliver, feed, simulate
+from support.drives import CALIBRATION, Drive, config, deliver, feed, simulate
 
 from ins_fusion.core.engine.engine import MEASUREMENT_NAMES, GnssFixMeasurement, InsEngine
 from ins_fusion.core.filter.eskf import ATT

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -22,6 +21,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.linalg import expm
 from scipy.spatial.transform import Rotation
+from support.paths import REPO
 
 from ins_fusion.core.compiled import kernel_array
 from ins_fusion.core.filter.eskf import (
@@ -52,7 +52,6 @@ from ins_fusion.core.nav.rotation import MAT_ENU_NED, euler_rad, quat_from_euler
 from ins_fusion.core.nav.strapdown import NavState, increment, propagate
 from ins_fusion.core.settings.config import FusionConfig
 
-REPO = Path(__file__).resolve().parents[1]
 NOISE = FusionConfig.default().imu_noise
 LAYOUT = StateLayout(gyro_scale=True, accel_scale=True, gyro_asymmetry=True)
 #: A car at 57° N turning left at 15 m/s on a slope, IMU yawed 90° and tilted in base_link.

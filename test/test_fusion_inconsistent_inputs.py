@@ -8,12 +8,12 @@ overflow: every solution publishable, no reset, the biases within what they can 
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pymap3d
 import pytest
 from scipy.spatial.transform import Rotation
+from support.paths import REPO
 
 from gnss_ins_common.params import load_yaml
 from ins_fusion.core.engine.engine import InsEngine
@@ -29,7 +29,6 @@ from ins_fusion.core.output.solution import GYRO
 from ins_fusion.core.settings.config import NODE_NAME, FusionConfig
 from ins_fusion.core.settings.params import PARAMETERS
 
-REPO = Path(__file__).resolve().parents[1]
 IMU_RATE_HZ = 134.0
 VELOCITY_ENU = np.array([3.0, 4.0, 0.0])  # the README's emulators: 5 m/s
 DATUM = (57.014871838333335, 9.986598768333334, 50.0)  # the emulators' start (Aalborg)

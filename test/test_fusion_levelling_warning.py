@@ -8,7 +8,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-from test_fusion_drives import Drive, config, feed, simulate
+from support.drives import Drive, config, feed, simulate
 
 from ins_fusion.core.engine.engine import InsEngine
 from ins_fusion.replay.report import format_table

@@ -18,7 +18,9 @@ from geometry_msgs.msg import TwistWithCovarianceStamped
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import Log
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from ros_harness import (
+from sensor_msgs.msg import Imu, NavSatFix, Temperature
+from support.paths import REPO
+from support.ros_harness import (
     Collector,
     assert_executable_refuses,
     diagnostic_values,
@@ -28,7 +30,6 @@ from ros_harness import (
     stamp_s,
     wait_for,
 )
-from sensor_msgs.msg import Imu, NavSatFix, Temperature
 from tf2_msgs.msg import TFMessage
 
 from gnss_ins_common.params import ParameterValueError
@@ -276,7 +277,7 @@ def test_a_solution_that_is_not_publishable_is_counted_and_not_sent():
 
 
 def test_imu_temperature_outside_the_calibration_range_is_reported():
-    calibration = Path(__file__).resolve().parents[1] / "config" / "imu400cc_calibration.yaml"
+    calibration = REPO / "config" / "imu400cc_calibration.yaml"
     node = InsFusionNode(
         parameter_overrides=overrides(calibration_file=str(calibration), diagnostics_period=0.2)
     )

@@ -12,8 +12,8 @@ Drives: test/mismatch_drives.py; runs and evaluation: test/noise_mismatch.py
 from __future__ import annotations
 
 import pytest
-from mismatch_drives import build_streams
-from noise_mismatch import Track, datasheet_parameters, run_engine, run_reference
+from support.mismatch_drives import build_streams
+from support.noise_mismatch import Track, datasheet_parameters, run_engine, run_reference
 
 DURATION_S = 120.0
 

@@ -7,11 +7,11 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
-from test_fusion_drives import CALIBRATION, Drive, _from_fix, config, run
+from support.drives import CALIBRATION, Drive, config, from_fix, run
+from support.paths import FIXTURES
 
 from ins_fusion.core.nav.calibration import ImuCalibration
 from ins_fusion.replay.inputs import load_bag
@@ -31,7 +31,7 @@ MOUNTING_DEG = (0.0, 3.0, 2.0)
 IMU_LATE_S = 0.13
 #: The time offset is a calibration run's (off by default); the mounting is on by default.
 CALIBRATING = {"self_calibration__time_offset": True}
-REAL_BAG = Path(__file__).resolve().parent / "fixtures" / "comma2k19" / "comma2k19_ex1_seg40"
+REAL_BAG = FIXTURES / "comma2k19" / "comma2k19_ex1_seg40"
 
 
 def mounted_drive(
@@ -58,7 +58,7 @@ def mounted_drive(
     events = [
         (fix.arrival_t_s, dataclasses.replace(m, t_s=m.t_s - imu_late_s))
         for fix in rtk.fixes(0.0, duration_s)
-        for m in _from_fix(fix)
+        for m in from_fix(fix)
     ]
     events.sort(key=lambda e: e[0])
     return Drive(truth, t, rate, force, events)

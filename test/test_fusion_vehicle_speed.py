@@ -8,7 +8,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,6 +15,7 @@ from geometry_msgs.msg import TwistWithCovarianceStamped
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from nav_msgs.msg import Odometry
+from support.paths import FIXTURES
 
 from gnss_ins_common.params import load_yaml
 from ins_fusion.adapters import messages_in
@@ -34,7 +34,7 @@ from ins_fusion.replay.pipeline import replay
 from ins_fusion.replay.topics import DEFAULT_REFERENCE, TopicMap
 from ins_fusion.tools import cli
 
-FIXTURE = Path(__file__).resolve().parent / "fixtures" / "comma2k19"
+FIXTURE = FIXTURES / "comma2k19"
 SPEED_BAG = FIXTURE / "comma2k19_ex1_seg40_speed"
 #: CAN speed / reference speed on this segment (fixture README: least squares, 0.9914).
 CAR_SCALE_ERROR_PCT = -0.86

@@ -14,7 +14,7 @@ import os
 import random
 
 import pytest
-from nmea_captures import CAPTURES, DATA, chunk_ends, feed, on_the_wire
+from support.nmea_captures import CAPTURES, DATA, chunk_ends, feed, on_the_wire
 
 from gnss_driver.driver import DriverConfig, GnssDriver
 from gnss_driver.epoch import EPOCH_TYPES

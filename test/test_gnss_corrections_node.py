@@ -6,14 +6,14 @@ from __future__ import annotations
 import random
 import time
 from collections.abc import Callable
-from pathlib import Path
 
 import pytest
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from ros_harness import Collector, diagnostic_values, overrides, spinning, wait_for
 from rtcm_msgs.msg import Message
+from support.paths import FIXTURES
+from support.ros_harness import Collector, diagnostic_values, overrides, spinning, wait_for
 
 from gnss_driver.emulator import EmulatorConfig, GnssEmulator
 from gnss_driver.node import GnssNode
@@ -21,7 +21,7 @@ from gnss_ins_common.rtcm import make_frame, split_frames
 
 pytestmark = pytest.mark.ros
 
-CAPTURE = Path(__file__).resolve().parent / "fixtures" / "rtcm" / "pygpsdata-NTRIP-USCL00CHL0.log"
+CAPTURE = FIXTURES / "rtcm" / "pygpsdata-NTRIP-USCL00CHL0.log"
 #: The capture's 35 frames (RTCM 1001..1230 of a real NTRIP caster's stream).
 FRAMES, _ = split_frames(CAPTURE.read_bytes())
 TOPICS = {"/diagnostics": DiagnosticArray, "to_device/rtcm": Message}

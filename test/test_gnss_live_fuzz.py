@@ -16,8 +16,8 @@ import time
 import pytest
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
-from ros_harness import Collector, diagnostic_values, node_executable, spinning, wait_for
 from sensor_msgs.msg import NavSatFix, NavSatStatus
+from support.ros_harness import Collector, diagnostic_values, node_executable, spinning, wait_for
 
 from gnss_driver.fuzz import TEMPLATES, FuzzSource
 from gnss_driver.reader import frame_sentence

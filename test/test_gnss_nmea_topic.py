@@ -11,7 +11,7 @@ import pytest
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from nmea_msgs.msg import Sentence
-from ros_harness import Collector, diagnostic_values, overrides, spinning, stamp_s, wait_for
+from support.ros_harness import Collector, diagnostic_values, overrides, spinning, stamp_s, wait_for
 
 from gnss_driver.emulator import EmulatorConfig, GnssEmulator
 from gnss_driver.node import GnssNode

@@ -7,17 +7,19 @@ import os
 import subprocess
 import threading
 import time
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pymap3d
 import pytest
 import rclpy
-from config_checks import assert_file_holds_defaults
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import TwistWithCovarianceStamped
-from ros_harness import (
+from scipy.spatial.transform import Rotation
+from sensor_msgs.msg import Imu, NavSatFix, NavSatStatus, TimeReference
+from support.config_checks import assert_file_holds_defaults
+from support.paths import REPO
+from support.ros_harness import (
     Collector,
     assert_executable_refuses,
     diagnostic_values,
@@ -27,8 +29,6 @@ from ros_harness import (
     stamp_s,
     wait_for,
 )
-from scipy.spatial.transform import Rotation
-from sensor_msgs.msg import Imu, NavSatFix, NavSatStatus, TimeReference
 
 from gnss_driver.emulator import EmulatorConfig, GnssEmulator, Truth, constant_velocity
 from gnss_driver.node import PARAMETERS, GnssNode
@@ -37,7 +37,6 @@ from gnss_ins_common.params import ParameterValueError
 
 pytestmark = pytest.mark.ros
 
-REPO = Path(__file__).resolve().parents[1]
 TOPICS = {
     "gnss/fix": NavSatFix,
     "gnss/vel": TwistWithCovarianceStamped,

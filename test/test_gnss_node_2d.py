@@ -11,9 +11,9 @@ import time
 import pytest
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
-from ros_harness import Collector, diagnostic_values, overrides, spinning, wait_for
 from sensor_msgs.msg import NavSatFix, NavSatStatus
-from test_gnss_fix_rules import ALT, GSA_GLONASS, GSA_GPS, gga, rmc
+from support.nmea_sentences import ALT, GSA_GLONASS, GSA_GPS, gga, rmc
+from support.ros_harness import Collector, diagnostic_values, overrides, spinning, wait_for
 
 from gnss_driver.node import GnssNode
 from gnss_driver.reader import frame_sentence

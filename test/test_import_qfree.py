@@ -13,13 +13,14 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
+from support.paths import FIXTURES
 
 from gnss_ins_common.navsat import CovarianceType, NavSatStatus
 from ins_fusion.bags.bag_io import BagReader
 from ins_fusion.qfree import checks, logs, mems_conversion
 from ins_fusion.tools.cli import main
 
-FIXTURES = Path(__file__).parent / "fixtures" / "qfree"
+FIXTURES = FIXTURES / "qfree"
 GNSS = FIXTURES / "Rosenborg-test-pos-2.txt"
 MEMS = FIXTURES / "Rosenborg-test-mems-2.txt"
 REFERENCE = FIXTURES / "Rosenborg-test-pos-6.txt"

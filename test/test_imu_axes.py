@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-from imu_strategies import raw_packets
 from scipy.spatial.transform import Rotation
+from support.imu_strategies import raw_packets
 
 from gnss_ins_common.axes import AxisMap
 from imu400cc_driver.axes import (

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from imu_strategies import int16s
+from support.imu_strategies import int16s
 
 from gnss_ins_common.axes import AxisMap
 from gnss_ins_common.rates import IMU400CC_RATE_HZ

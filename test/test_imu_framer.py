@@ -8,10 +8,10 @@ import random
 
 import numpy as np
 import pytest
-from framer_damage import KINDS, realistic_packets, run_damaged
 from hypothesis import given
 from hypothesis import strategies as st
-from imu_strategies import raw_packets
+from support.framer_damage import KINDS, realistic_packets, run_damaged
+from support.imu_strategies import raw_packets
 
 from imu400cc_driver.framer import FramerStats, PacketFramer
 from imu400cc_driver.protocol import PACKET_LENGTH, RawPacket, decode_packet, encode_packet

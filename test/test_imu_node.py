@@ -6,14 +6,15 @@ import math
 import os
 import subprocess
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
 import rclpy
-from config_checks import assert_file_holds_defaults
 from diagnostic_msgs.msg import DiagnosticArray
-from ros_harness import (
+from sensor_msgs.msg import Imu, Temperature
+from support.config_checks import assert_file_holds_defaults
+from support.paths import REPO
+from support.ros_harness import (
     Collector,
     assert_executable_refuses,
     diagnostic_values,
@@ -23,7 +24,6 @@ from ros_harness import (
     stamp_s,
     wait_for,
 )
-from sensor_msgs.msg import Imu, Temperature
 
 from gnss_ins_common.params import ParameterValueError
 from imu400cc_driver.emulator import (
@@ -36,7 +36,6 @@ from imu400cc_driver.node import PARAMETERS, Imu400ccNode
 
 pytestmark = pytest.mark.ros
 
-REPO = Path(__file__).resolve().parents[1]
 TOPICS = {"imu/data_raw": Imu, "imu/temperature": Temperature, "/diagnostics": DiagnosticArray}
 
 

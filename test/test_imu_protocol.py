@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-from imu_strategies import int16s, raw_packets, uint16s
+from support.imu_strategies import int16s, raw_packets, uint16s
 
 from imu400cc_driver.protocol import (
     HEADER,

@@ -33,8 +33,8 @@ import rclpy
 from nav_msgs.msg import Odometry
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from ros_harness import spinning, wait_for
 from sensor_msgs.msg import Imu
+from support.ros_harness import spinning, wait_for
 
 from ins_fusion.runtime.processes import gnss_ins_command
 from ins_fusion.runtime.vehicle_nodes import FUSION, IMU, LEICA, command, discovery_environment

@@ -12,8 +12,8 @@ import re
 from pathlib import Path
 
 import pytest
+from support.paths import REPO
 
-REPO = Path(__file__).resolve().parents[1]
 PACKAGES = ("gnss_ins_common", "imu400cc_driver", "gnss_driver", "ntrip_client", "ins_fusion")
 #: Folder (dotted prefix) -> layer, lowest 0; the longest prefix of a module names its folder.
 LAYERS: dict[str, int] = {

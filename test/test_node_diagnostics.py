@@ -14,8 +14,8 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from ros_harness import Collector, diagnostic_values, overrides, spinning, wait_for
 from sensor_msgs.msg import Temperature
+from support.ros_harness import Collector, diagnostic_values, overrides, spinning, wait_for
 
 from gnss_driver.emulator import GnssEmulator, constant_velocity
 from gnss_driver.node import GnssNode

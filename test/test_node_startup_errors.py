@@ -6,7 +6,7 @@ from __future__ import annotations
 import subprocess
 
 import pytest
-from ros_harness import node_executable
+from support.ros_harness import node_executable
 
 pytestmark = pytest.mark.ros
 

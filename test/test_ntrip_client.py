@@ -20,6 +20,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
+from support.paths import FIXTURES
 
 from gnss_ins_common.rtcm import MAX_FRAME_BYTES
 from ntrip_client.caster_emulator import CasterEmulator
@@ -27,9 +28,7 @@ from ntrip_client.caster_url import parse_caster_url
 from ntrip_client.client import CasterState, ClientSettings, NtripClient
 from ntrip_client.gga import fixed_gga
 
-CAPTURE = (
-    Path(__file__).parent / "fixtures" / "rtcm" / "pygpsdata-NTRIP-USCL00CHL0.log"
-).read_bytes()
+CAPTURE = (FIXTURES / "rtcm" / "pygpsdata-NTRIP-USCL00CHL0.log").read_bytes()
 AALBORG = (57.0148, 9.9865)
 MOUNTPOINTS = {
     "AAU00DNK": AALBORG,

@@ -20,8 +20,9 @@ import pytest
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from nmea_msgs.msg import Sentence
-from ros_harness import Collector, overrides, spinning, stamp_s, wait_for
 from rtcm_msgs.msg import Message
+from support.paths import FIXTURES
+from support.ros_harness import Collector, overrides, spinning, stamp_s, wait_for
 
 from gnss_driver.emulator import EmulatorConfig, GnssEmulator, constant_velocity
 from gnss_driver.node import GnssNode
@@ -34,7 +35,7 @@ from ntrip_client.node import NtripNode
 
 pytestmark = pytest.mark.ros
 
-CAPTURE = Path(__file__).parent / "fixtures" / "rtcm" / "pygpsdata-NTRIP-USCL00CHL0.log"
+CAPTURE = FIXTURES / "rtcm" / "pygpsdata-NTRIP-USCL00CHL0.log"
 PASSWORD = "Corr3ct-Horse"
 USER = "rover"
 MOUNTPOINTS = {"AAU00DNK": (57.01, 9.99)}

@@ -10,17 +10,18 @@ from pathlib import Path
 
 import pytest
 import rclpy
-from config_checks import assert_file_holds_defaults
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from nmea_msgs.msg import Sentence
-from ros_harness import (
+from rtcm_msgs.msg import Message
+from support.config_checks import assert_file_holds_defaults
+from support.paths import FIXTURES
+from support.ros_harness import (
     Collector,
     assert_executable_refuses,
     overrides,
     spinning,
     wait_for,
 )
-from rtcm_msgs.msg import Message
 
 from gnss_driver.reader import frame_sentence
 from ntrip_client.caster_emulator import CasterEmulator
@@ -29,7 +30,7 @@ from ntrip_client.node import PARAMETERS, NtripNode
 
 pytestmark = pytest.mark.ros
 
-CAPTURE = Path(__file__).parent / "fixtures" / "rtcm" / "pygpsdata-NTRIP-USCL00CHL0.log"
+CAPTURE = FIXTURES / "rtcm" / "pygpsdata-NTRIP-USCL00CHL0.log"
 PASSWORD = "s3cret-Pass"
 USER = "rover"
 MOUNTPOINTS = {"AAU00DNK": (57.01, 9.99), "CPH00DNK": (55.68, 12.57)}

@@ -2,16 +2,14 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import pytest
+from support.paths import REPO
 
 from gnss_driver.node import PARAMETERS as GNSS_PARAMETERS
 from imu400cc_driver.node import PARAMETERS as IMU_PARAMETERS
 from ins_fusion.core.settings.params import PARAMETERS as FUSION_PARAMETERS
 from ntrip_client.node import PARAMETERS as NTRIP_PARAMETERS
 
-REPO = Path(__file__).resolve().parents[1]
 NODES = {
     "imu400cc_node": IMU_PARAMETERS,
     "gnss_node": GNSS_PARAMETERS,

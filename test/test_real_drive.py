@@ -11,10 +11,11 @@ import math
 from pathlib import Path
 
 import pytest
+from support.paths import FIXTURES
 
 from ins_fusion.tools import cli
 
-FIXTURE = Path(__file__).resolve().parent / "fixtures" / "comma2k19"
+FIXTURE = FIXTURES / "comma2k19"
 BAG = FIXTURE / "comma2k19_ex1_seg40"
 PHONE = FIXTURE / "ins_fusion_phone.yaml"
 #: 10-15 s outages, in straight driving and in the gentle curves of the segment.

@@ -11,12 +11,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from support.paths import FIXTURES
 
 from gnss_ins_common.message_fields import UNKNOWN_VARIANCE
 from ins_fusion.bags import topics as T  # noqa: N812
 from ins_fusion.bags.bag_io import BagReader
 
-FIXTURE = Path(__file__).resolve().parent / "fixtures" / "comma2k19"
+FIXTURE = FIXTURES / "comma2k19"
 BAG = FIXTURE / "comma2k19_ex1_seg40"
 SPEED_BAG = FIXTURE / "comma2k19_ex1_seg40_speed"
 SPEED = "/vehicle/speed"

@@ -15,8 +15,8 @@ import pytest
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from ros_harness import Collector, spinning, wait_for
 from std_msgs.msg import String
+from support.ros_harness import Collector, spinning, wait_for
 
 from ins_fusion.bags.bag_io import BagReader
 from ins_fusion.runtime.processes import gnss_ins_command

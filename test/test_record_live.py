@@ -14,8 +14,8 @@ import pytest
 import rclpy
 from geometry_msgs.msg import TwistWithCovarianceStamped
 from rclpy.serialization import deserialize_message
-from ros_harness import Collector, spinning, wait_for
 from sensor_msgs.msg import Imu, NavSatFix
+from support.ros_harness import Collector, spinning, wait_for
 
 from gnss_driver.emulator import EmulatorConfig, GnssEmulator, constant_velocity
 from gnss_driver.profiles import Receiver

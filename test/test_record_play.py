@@ -21,17 +21,17 @@ from rclpy.duration import Duration
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from rclpy.serialization import deserialize_message, serialize_message
-from ros_harness import Collector, spinning, wait_for
 from rosbags.interfaces import QosReliability
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, NavSatFix
+from support.paths import REPO
+from support.ros_harness import Collector, spinning, wait_for
 
 from ins_fusion.bags.bag_io import BagReader, BagWriter
 from ins_fusion.tools.cli import main
 
 pytestmark = pytest.mark.ros
 
-REPO = Path(__file__).resolve().parents[1]
 N_IMU, N_FIX, N_SENSOR = 200, 20, 10
 PLAYED = ["/test/imu", "/test/fix"]
 

@@ -23,8 +23,8 @@ import time
 
 import pytest
 import rclpy
-from ros_harness import wait_for
-from test_launch import launched, node_pids
+from support.launching import launched, node_pids
+from support.ros_harness import wait_for
 
 from ins_fusion.bags.bag_io import BagReader
 from ins_fusion.bags.typestore import jazzy_typestore

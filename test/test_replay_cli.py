@@ -11,7 +11,7 @@ import json
 
 import numpy as np
 import pytest
-from sim_bags import FIGURE_EIGHT_90_S, shared_bag
+from support.sim_bags import FIGURE_EIGHT_90_S, shared_bag
 
 from gnss_ins_common.params import validate_all
 from ins_fusion.bags.bag_io import BagReader, BagWriter

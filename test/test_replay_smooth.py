@@ -19,7 +19,7 @@ import gpxpy
 import numpy as np
 import pynmea2
 import pytest
-from sim_bags import FIGURE_EIGHT_90_S, TEST_PATTERN_75_S, shared_bag
+from support.sim_bags import FIGURE_EIGHT_90_S, TEST_PATTERN_75_S, shared_bag
 
 from ins_fusion.bags.bag_io import BagReader
 from ins_fusion.replay.inputs import load_bag

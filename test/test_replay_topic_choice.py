@@ -6,7 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from sim_bags import FIGURE_EIGHT_90_S, shared_bag
+from support.sim_bags import FIGURE_EIGHT_90_S, shared_bag
 
 from ins_fusion.bags.bag_io import BagReader, BagWriter
 from ins_fusion.bags.topics import FIX_TYPE, IMU_TYPE, VELOCITY_TYPE

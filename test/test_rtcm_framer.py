@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import itertools
 from collections import Counter
-from pathlib import Path
 
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
+from support.paths import FIXTURES
 
 from gnss_ins_common.rtcm import (
     MAX_FRAME_BYTES,
@@ -20,7 +20,7 @@ from gnss_ins_common.rtcm import (
     split_frames,
 )
 
-FIXTURES = Path(__file__).parent / "fixtures" / "rtcm"
+FIXTURES = FIXTURES / "rtcm"
 NTRIP_CAPTURE = (FIXTURES / "pygpsdata-NTRIP-USCL00CHL0.log").read_bytes()
 MIXED_CAPTURE = (FIXTURES / "pygpsdata-RTCM3.log").read_bytes()
 CAPTURE_FRAMES, _ = split_frames(NTRIP_CAPTURE)

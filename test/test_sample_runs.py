@@ -8,18 +8,15 @@ every update the general way."""
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import pytest
-from sim_bags import FIGURE_EIGHT_90_S, TEST_PATTERN_75_S, shared_bag
-from test_compiled import PARAMETER_SETS
+from support.sample_runs import SETS, damaged, figure_eight, sample_by_sample
+from support.sim_bags import TEST_PATTERN_75_S, shared_bag
 
 from gnss_ins_common.params import validate_all
 from ins_fusion.core.compiled import kernel_array
 from ins_fusion.core.engine import sample_runs
 from ins_fusion.core.engine.engine import InsEngine
-from ins_fusion.core.engine.smoothed_solution import attach_history
 from ins_fusion.core.measurements.attitude import FusedAttitude
 from ins_fusion.core.measurements.gnss_position import FusedPosition
 from ins_fusion.core.measurements.gnss_velocity import FusedVelocity
@@ -28,30 +25,14 @@ from ins_fusion.core.output.output_clock import output_ticks
 from ins_fusion.core.output.solution_rows import RowBuffer
 from ins_fusion.core.settings.config import FusionConfig
 from ins_fusion.core.settings.params import PARAMETERS
-from ins_fusion.replay.inputs import ImuSeries, ReplayInputs, load_bag
+from ins_fusion.replay.inputs import ReplayInputs, load_bag
 from ins_fusion.replay.run import run_fusion
 from ins_fusion.replay.topics import TopicMap
-
-#: test_compiled's parameter sets, the second also with an IMU time offset taken off its stamps,
-#: and one without pseudo-measurements.
-_SETS: dict[str, dict[str, object]] = {
-    "defaults": PARAMETER_SETS["defaults"],
-    "all_states": {**PARAMETER_SETS["all_states"], "imu_time_offset": 0.004},
-    # no pseudo-measurement epoch, a short covariance interval: re-propagations reach it
-    "no_pseudo": {
-        "use_nhc": False,
-        "use_zupt": False,
-        "use_zaru": False,
-        "covariance_interval": 0.02,
-    },
-}
 
 
 @pytest.fixture(scope="module")
 def inputs(tmp_path_factory: pytest.TempPathFactory) -> ReplayInputs:
-    return load_bag(
-        shared_bag(tmp_path_factory, "figure_eight_90_s", FIGURE_EIGHT_90_S), TopicMap()
-    )
+    return figure_eight(tmp_path_factory)
 
 
 @pytest.fixture(scope="module")
@@ -61,65 +42,13 @@ def standstill(tmp_path_factory: pytest.TempPathFactory) -> ReplayInputs:
     )
 
 
-def _damaged(inputs: ReplayInputs) -> ReplayInputs:
-    """Corrupt samples, a 0.3 s gap, a duplicate, one stamp out of order, and at 70 s the clock
-    back by 2 s for the rest (a restarted stream: the engine resets)."""
-    t, rate, force = (
-        a.copy() for a in (inputs.imu.t_s, inputs.imu.rate_flu_rad_s, inputs.imu.force_flu_m_s2)
-    )
-    n = len(t)
-    rate[n // 5, 1] = np.nan
-    force[n // 4, 2] = 1e6  # beyond the range
-    t[n // 3 + 7] = t[n // 3 + 6]  # duplicate stamp
-    t[n // 2 + 3] = t[n // 2 + 1] - 0.001  # one sample in the past
-    back = int(0.78 * n)
-    t[back:] -= 2.0
-    keep = np.ones(n, dtype=bool)
-    keep[int(0.6 * n) : int(0.6 * n) + 40] = False  # 0.3 s gap at 134 Hz
-    kept_before = np.cumsum(keep)  # [k]: samples kept among the first k + 1
-    measurements = [
-        (int(kept_before[k - 1]) if k else 0, role, m) for k, role, m in inputs.measurements
-    ]
-    imu = ImuSeries(t[keep], rate[keep], force[keep])
-    return dataclasses.replace(inputs, imu=imu, measurements=measurements)
-
-
-def _sample_by_sample(inputs: ReplayInputs, parameters: dict[str, object], smooth: bool):
-    """The replay's loop before the compiled runs: add_imu per sample, a row at each tick, the
-    re-propagations entry by entry."""
-    config = FusionConfig.from_parameters(parameters)
-    engine = InsEngine(config)
-
-    # Re-propagation entry by entry, as before the runs: no entry is taken in a run.
-    engine._runs.repropagate = lambda _s, _kf, k: k
-    if smooth:
-        attach_history(engine)
-    feed = {
-        "fix": engine.add_gnss_fix,
-        "vel": engine.add_gnss_velocity,
-        "attitude": engine.add_attitude,
-    }
-    ticks = output_ticks(inputs.imu.t_s, inputs.t0_s, config.output_rate_hz)
-    rows, j, kept = [], 0, inputs.measurements
-    for k, (t, rate, force) in enumerate(inputs.imu.samples()):
-        while j < len(kept) and kept[j][0] <= k:
-            feed[kept[j][1]](kept[j][2])
-            j += 1
-        engine.add_imu(t, rate, force)
-        if ticks[k] and (row := engine.solution_row()) is not None:
-            rows.append(row)
-    for _, role, measurement in kept[j:]:
-        feed[role](measurement)
-    return np.array(rows), engine.status()
-
-
 @pytest.mark.parametrize("damage", [False, True], ids=["clean", "damaged"])
-@pytest.mark.parametrize("name", list(_SETS))
+@pytest.mark.parametrize("name", list(SETS))
 def test_runs_equal_sample_by_sample(inputs: ReplayInputs, name: str, damage: bool) -> None:
     if damage:
-        inputs = _damaged(inputs)
-    parameters = validate_all(PARAMETERS, _SETS[name])
-    expected_rows, expected_status = _sample_by_sample(inputs, parameters, smooth=False)
+        inputs = damaged(inputs)
+    parameters = validate_all(PARAMETERS, SETS[name])
+    expected_rows, expected_status = sample_by_sample(inputs, parameters, smooth=False)
     run = run_fusion(inputs, parameters)
     assert run.status.rollbacks > 100  # late GNSS data: re-propagation between the runs
     if damage:
@@ -132,7 +61,7 @@ def test_runs_equal_sample_by_sample(inputs: ReplayInputs, name: str, damage: bo
 
 def test_with_the_smoother_attached_the_engine_goes_sample_by_sample(inputs: ReplayInputs):
     parameters = validate_all(PARAMETERS, {})
-    expected_rows, expected_status = _sample_by_sample(inputs, parameters, smooth=True)
+    expected_rows, expected_status = sample_by_sample(inputs, parameters, smooth=True)
     run = run_fusion(inputs, parameters, smooth=True)
     np.testing.assert_array_equal(run.track.rows, expected_rows)
     assert repr(run.status) == repr(expected_status)
@@ -154,9 +83,9 @@ def test_the_fast_paths_equal_the_general_path(
     the test pattern (mostly at rest)."""
     inputs = request.getfixturevalue(drive)
     if damage:
-        inputs = _damaged(inputs)
-    parameters = validate_all(PARAMETERS, _SETS[name])
-    expected_rows, expected_status = _sample_by_sample(inputs, parameters, smooth=True)
+        inputs = damaged(inputs)
+    parameters = validate_all(PARAMETERS, SETS[name])
+    expected_rows, expected_status = sample_by_sample(inputs, parameters, smooth=True)
     taken = _count_runs(monkeypatch)
     fused = {"velocity": 0, "position": 0, "attitude": 0, "zupt": 0, "zaru": 0}
     for kind, update, method in (

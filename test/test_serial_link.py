@@ -5,7 +5,7 @@ from __future__ import annotations
 import threading
 import time
 
-from ros_harness import wait_for
+from support.ros_harness import wait_for
 
 from gnss_ins_common.pty_device import PtyDevice
 from gnss_ins_common.serial_link import LinkSettings, SerialLink

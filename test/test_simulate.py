@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 import pytest
 from rclpy.serialization import serialize_message
+from support.paths import REPO
 
 from gnss_driver.driver import EpochOutput
 from gnss_driver.messages import TOPICS as GNSS_TOPICS
@@ -376,14 +377,13 @@ def test_the_option_table_of_simulator_md_gives_the_parser_defaults() -> None:
     """docs/simulator.md's `| --option | `default` |` rows say what `simulate --help` does."""
     import argparse
     import re
-    from pathlib import Path
 
     from ins_fusion.tools import simulate
 
     parser = argparse.ArgumentParser()
     simulate.add_arguments(parser)
     defaults = {a.option_strings[-1]: a.default for a in parser._actions if a.option_strings}
-    page = (Path(__file__).resolve().parents[1] / "docs" / "simulator.md").read_text()
+    page = (REPO / "docs" / "simulator.md").read_text()
     rows = re.findall(r"^\| `(--[a-z0-9-]+)` \| `([^`|]+)` \|", page, re.M)
     assert len(rows) >= 4, rows
     for option, default in rows:

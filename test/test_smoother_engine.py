@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 import pytest
-from test_fusion_drives import CALIBRATION, Drive, config, feed, simulate
+from support.drives import CALIBRATION, Drive, config, feed, simulate
 
 from ins_fusion.core.engine.engine import InsEngine, InsSolution
 from ins_fusion.core.engine.smoothed_solution import attach_history, smoothed_rows

@@ -10,7 +10,7 @@ import time
 from pathlib import Path
 
 import pytest
-from ros_harness import other_process
+from support.ros_harness import other_process
 
 from ins_fusion.runtime.health import write_supervisor_state
 from ins_fusion.runtime.processes import gnss_ins_command

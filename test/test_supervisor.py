@@ -19,6 +19,7 @@ from datetime import datetime, timedelta, timezone
 from pathlib import Path
 
 import pytest
+from support.paths import REPO
 
 from ins_fusion.runtime.processes import (
     Backoff,
@@ -32,7 +33,6 @@ from ins_fusion.runtime.vehicle_nodes import LEICA, VEHICLE
 from ins_fusion.tools import launch
 from ins_fusion.tools.cli import build_parser
 
-REPO = Path(__file__).resolve().parents[1]
 SLEEPER = [sys.executable, "-c", "import time; time.sleep(120)"]
 #: Ignores SIGINT, then says so on its output.
 STUBBORN = [

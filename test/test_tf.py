@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 import rclpy
 from rclpy.qos import DurabilityPolicy, QoSProfile
-from ros_harness import overrides, spinning, wait_for
 from scipy.spatial.transform import Rotation
+from support.ros_harness import overrides, spinning, wait_for
 from tf2_msgs.msg import TFMessage
 
 from ins_fusion.adapters.tf_frames import quat_from_rpy_deg, static_transforms, world_frame

@@ -3,14 +3,12 @@
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from pathlib import Path
 from typing import Any
 
 import pytest
 
 from gnss_ins_common.params import Param, file_values
-
-CONFIG = Path(__file__).resolve().parents[1] / "config"
+from support.paths import CONFIG
 
 
 def assert_file_holds_defaults(

@@ -21,8 +21,6 @@ from typing import Any
 
 import numpy as np
 import pymap3d
-from mismatch_drives import Streams
-from reference_ekf import ReferenceEkf, ReferenceNoise
 from scipy.spatial.transform import Rotation
 
 from ins_fusion.core.engine.engine import (
@@ -36,6 +34,8 @@ from ins_fusion.core.settings.config import FusionConfig
 from ins_fusion.sim.imu_model import ImuProfile
 from ins_fusion.sim.scenarios import SURVEY_CAR
 from ins_fusion.sim.vehicle import VehicleTruth
+from support.mismatch_drives import Streams
+from support.reference_ekf import ReferenceEkf, ReferenceNoise
 
 Array = np.ndarray
 #: Errors count from here on (20 s into the drive, after the engine's course alignment).

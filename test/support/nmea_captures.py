@@ -7,11 +7,11 @@ time or when the previous one has left, whichever is later, at 10 bits per byte 
 from __future__ import annotations
 
 import random
-from pathlib import Path
 
 from gnss_driver.driver import EpochOutput, GnssDriver
+from support.paths import TESTS
 
-DATA = Path(__file__).resolve().parent / "data" / "gnss"
+DATA = TESTS / "data" / "gnss"
 CAPTURES = ("mixed_rate_oxts", "ublox_gsv_block", "cut_first_line")
 
 

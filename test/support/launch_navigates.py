@@ -1,5 +1,5 @@
 """Whether `gnss_ins launch` navigates on the emulated devices: run by the docs test while the
-README's launch example runs (the block's ``until=`` option, test/docs_pages.py).
+README's launch example runs (the block's ``until=`` option, test/support/docs_pages.py).
 
 Listens to /diagnostics. Once ins_fusion_node reports 'navigating' at level OK (aligned and
 settled), it counts the Leica's position fixes (its gnss_node's ``fixes_*`` counters) and the
@@ -9,7 +9,7 @@ stayed 'navigating' at level OK throughout; 1 otherwise, or when it did not sett
 did not deliver within the time limits. Prints one line with the numbers either way, then the
 `gnss_ins status --json` view of the fusion as an operator would read it.
 
-    .venv/bin/python test/launch_navigates.py [--fixes N]
+    .venv/bin/python test/support/launch_navigates.py [--fixes N]
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 outputs compared with what the commands print now (test/test_docs_run.py); also the script
 that rewrites those examples from real runs:
 
-    .venv/bin/python test/docs_pages.py docs/replay.md ...     # rewrites their examples
+    .venv/bin/python test/support/docs_pages.py docs/replay.md ...     # rewrites their examples
 
 A fenced block with commands (``sh``/``bash``/no language, a line starting with ``$ ``,
 ``gnss_ins``, ``.venv/bin/``, ``ros2 ``, ``sudo `` ...) carries a marker on the line before it:
@@ -38,7 +38,7 @@ import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 PAGES = [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]
 #: Default numeric tolerance of an example [%].
 TOLERANCE_PCT = 3.0
