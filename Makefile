@@ -17,8 +17,8 @@ ROS_SYSTEM := $(shell [ "$$ROS_DISTRO" = "jazzy" ] && $(PYTHON) -c 'import rclpy
 # ros_*.py: thin rclpy glue) and keeps them silent when a pure module imports one lazily.
 MYPY_TARGETS := gnss_ins_common imu400cc_driver gnss_driver ntrip_client ins_fusion
 MYPY := $(BIN)/mypy $(MYPY_TARGETS)
-# Test files with real-node tests (marker ros): the node session collects only these.
-ROS_TEST_FILES = $(shell grep -l 'mark\.ros' test/test_*.py)
+# The real-node tests (marker ros) live under test/ros: the node session collects only these.
+ROS_TEST_FILES = test/ros
 
 .PHONY: all venv demo test lint typecheck pytest group-seconds bench colcon clean
 
