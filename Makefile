@@ -20,7 +20,7 @@ MYPY := $(BIN)/mypy $(MYPY_TARGETS)
 # The real-node tests (marker ros) live under test/ros: the node session collects only these.
 ROS_TEST_FILES = test/ros
 
-.PHONY: all venv demo test lint typecheck pytest group-seconds bench colcon clean
+.PHONY: all venv demo test lint typecheck pytest bench colcon clean
 
 all: test
 
@@ -92,14 +92,6 @@ test: lint
 	@log=$$(mktemp); nice -n $(PURE_NICE) $(MYPY) >$$log 2>&1 & types=$$!; \
 	$(MAKE) --no-print-directory pytest; tests=$$?; wait $$types; typed=$$?; \
 	echo "mypy:"; cat $$log; rm -f $$log; [ $$tests -eq 0 ] && [ $$typed -eq 0 ]
-
-# The seconds of each xdist group in the last `make pytest` (pytest's cache) as the order of a
-# run without a cache (a fresh clone, CI): test/group_seconds.json, read by test/conftest.py.
-group-seconds:
-	$(BIN)/python -c "import json, pathlib; \
-	seconds = json.loads(pathlib.Path('.pytest_cache/v/gnss_ins/group_seconds').read_text()); \
-	table = {group: round(s, 1) for group, s in sorted(seconds.items())}; \
-	pathlib.Path('test/group_seconds.json').write_text(json.dumps(table, indent=1) + '\\n')"
 
 bench: venv
 	@for b in bench/bench_*.py; do echo "== $$b"; $(BIN)/python $$b || exit 1; done

@@ -29,6 +29,8 @@ from ins_fusion.sim.drive import SimulationConfig
 from ins_fusion.sim.simulated_bag import write_bag
 from ins_fusion.tools import cli
 
+pytestmark = pytest.mark.slow
+
 REAL = FIXTURES / "comma2k19" / "comma2k19_ex1_seg40"
 SEEDS = (31, 32, 33, 34, 35, 36)
 #: The replay options of every run: an outage in the second lap and the smoother.

@@ -61,6 +61,8 @@ from ins_fusion.noise_id.terms import GAUSS_MARKOV, fit_noise_terms
 from ins_fusion.sim.imu_model import ImuProfile, TriadErrors
 from ins_fusion.sim.noise import allan_variance
 
+pytestmark = pytest.mark.slow
+
 
 def _same(value: float) -> tuple[float, float, float]:
     return (value, value, value)

@@ -27,6 +27,8 @@ from ins_fusion.noise_id.whittle import (
 from ins_fusion.sim.imu_model import ImuProfile, TriadErrors
 from ins_fusion.sim.noise import GaussMarkov, RandomWalk, WhiteNoise
 
+pytestmark = pytest.mark.slow
+
 
 def _same(value: float) -> tuple[float, float, float]:
     return (value, value, value)

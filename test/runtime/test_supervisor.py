@@ -33,6 +33,8 @@ from ins_fusion.runtime.vehicle_nodes import LEICA, VEHICLE
 from ins_fusion.tools import launch
 from ins_fusion.tools.cli import build_parser
 
+pytestmark = pytest.mark.slow
+
 SLEEPER = [sys.executable, "-c", "import time; time.sleep(120)"]
 #: Ignores SIGINT, then says so on its output.
 STUBBORN = [

@@ -25,6 +25,8 @@ from imu400cc_driver.framer import PacketFramer
 from imu400cc_driver.protocol import Scaling
 from ins_fusion.runtime.vehicle_nodes import VEHICLE
 
+pytestmark = pytest.mark.slow
+
 #: The figure-eight of 120 s (ins_fusion.sim.scenarios): 10 s standing, 10 s accelerating to
 #: 10 m/s, then a left circle of 40 m radius whose yaw rate ramps in over 1.5 s from 20 s on [s].
 STANDING_S = (1.0, 9.0)

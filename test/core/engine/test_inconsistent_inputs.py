@@ -29,6 +29,8 @@ from ins_fusion.core.output.solution import GYRO
 from ins_fusion.core.settings.config import NODE_NAME, FusionConfig
 from ins_fusion.core.settings.params import PARAMETERS
 
+pytestmark = pytest.mark.slow
+
 IMU_RATE_HZ = 134.0
 VELOCITY_ENU = np.array([3.0, 4.0, 0.0])  # the README's emulators: 5 m/s
 DATUM = (57.014871838333335, 9.986598768333334, 50.0)  # the emulators' start (Aalborg)
