@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import os
 import subprocess
-import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 
@@ -98,6 +97,21 @@ def _fresh_status(collector: Collector, name: str) -> tuple[int, str, dict[str, 
     return _status(collector, name)
 
 
+def _held_once(collector: Collector, name: str, state: str, held: int) -> int:
+    """Wait for a status of ``name`` in ``state`` that has held more than ``held`` inputs while
+    inactive (read from the device, not published); returns its count."""
+    collector.clear()
+
+    def reported() -> bool:
+        if collector.count("/diagnostics") == 0:
+            return False
+        _, message, values = _status(collector, name)
+        return message.startswith(state) and int(values["held_while_inactive"]) > held
+
+    assert wait_for(reported, 10.0), _status(collector, name)
+    return int(_status(collector, name)[2]["held_while_inactive"])
+
+
 def test_imu_driver_follows_its_lifecycle():
     topics = {"imu/data_raw": Imu, "/diagnostics": DiagnosticArray}
     with (
@@ -115,10 +129,7 @@ def test_imu_driver_follows_its_lifecycle():
             assert manager.change(Transition.TRANSITION_CONFIGURE)
             assert manager.state() == "inactive"
             assert wait_for(lambda: device.commands["C"] == 1, 10.0)  # set up and streaming
-            time.sleep(1.0)
-            _, message, values = _fresh_status(collector, "imu400cc_node")
-            assert message.startswith("inactive")
-            assert int(values["held_while_inactive"]) > 100
+            held = _held_once(collector, "imu400cc_node", "inactive", 100)  # read, not published
             assert collector.count("imu/data_raw") == 0
 
             assert manager.change(Transition.TRANSITION_ACTIVATE)
@@ -128,9 +139,11 @@ def test_imu_driver_follows_its_lifecycle():
             assert (level, message) == (DiagnosticStatus.OK, "streaming")
 
             assert manager.change(Transition.TRANSITION_DEACTIVATE)
-            time.sleep(0.3)  # messages in flight
+            # Reported inactive (the samples in flight before it have arrived), then a second
+            # of samples (134) read while inactive: none of them published.
+            held = _held_once(collector, "imu400cc_node", "inactive", held)
             collector.clear()
-            time.sleep(1.0)
+            _held_once(collector, "imu400cc_node", "inactive", held + 134)
             assert collector.count("imu/data_raw") == 0
 
             stops = device.commands["P"]
@@ -161,21 +174,21 @@ def test_gnss_driver_follows_its_lifecycle():
         with spinning(collector.node):
             manager = Manager(collector.node, "gnss_node")
             assert manager.state() == "unconfigured"
-            time.sleep(1.0)
             _, message, values = _fresh_status(collector, "gnss_node")
             assert message.startswith("unconfigured") and values["held_while_inactive"] == "0"
             assert manager.change(Transition.TRANSITION_CONFIGURE)
-            time.sleep(2.0)  # the port opened on configure: epochs read, none published
-            _, message, values = _fresh_status(collector, "gnss_node")
-            assert message.startswith("inactive") and int(values["held_while_inactive"]) >= 1
+            # the port opened on configure: epochs read, none published
+            held = _held_once(collector, "gnss_node", "inactive", 0)
             assert collector.count("gnss/fix") == 0
 
             assert manager.change(Transition.TRANSITION_ACTIVATE)
             assert wait_for(lambda: collector.count("gnss/fix") >= 2, 6.0)  # 1 Hz
             assert manager.change(Transition.TRANSITION_DEACTIVATE)
-            time.sleep(0.3)
+            # Reported inactive (a fix in flight before it has arrived), then two epochs (1 Hz)
+            # read while inactive: neither published.
+            held = _held_once(collector, "gnss_node", "inactive", held)
             collector.clear()
-            time.sleep(2.5)  # two epochs at 1 Hz
+            _held_once(collector, "gnss_node", "inactive", held + 1)
             assert collector.count("gnss/fix") == 0
             assert manager.change(Transition.TRANSITION_CLEANUP)
             assert manager.state() == "unconfigured"
