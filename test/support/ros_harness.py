@@ -53,6 +53,12 @@ class Collector:
             self.messages.clear()
             self.receive_times.clear()
 
+    def more(self, topic: str, count: int = 1, timeout_s: float = 10.0) -> bool:
+        """Wait for ``count`` messages on ``topic`` beyond those received so far (a status
+        published after this moment, the next samples)."""
+        start = self.count(topic)
+        return wait_for(lambda: self.count(topic) >= start + count, timeout_s)
+
 
 @contextmanager
 def spinning(*nodes: Node) -> Iterator[SingleThreadedExecutor]:
@@ -102,6 +108,19 @@ def wait_for(predicate: Callable[[], bool], timeout_s: float, poll_s: float = 0.
             return True
         time.sleep(poll_s)
     return predicate()
+
+
+def wait_until_steady(value: Callable[[], int], quiet_s: float, timeout_s: float) -> int:
+    """Poll ``value`` until it has not changed for ``quiet_s`` (a node done with its input:
+    nothing tells when it has read the last byte); returns it. Fails after ``timeout_s``."""
+    deadline = time.monotonic() + timeout_s
+    last, since = value(), time.monotonic()
+    while time.monotonic() - since < quiet_s:
+        assert time.monotonic() < deadline, f"still changing after {timeout_s} s"
+        time.sleep(0.02)
+        if (now := value()) != last:
+            last, since = now, time.monotonic()
+    return last
 
 
 def overrides(**values: Any) -> list[Parameter]:

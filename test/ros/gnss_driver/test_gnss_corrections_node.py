@@ -12,6 +12,7 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rtcm_msgs.msg import Message
+from support.pacing import pause
 from support.paths import FIXTURES
 from support.ros_harness import Collector, diagnostic_values, overrides, spinning, wait_for
 
@@ -105,7 +106,7 @@ def test_valid_frames_reach_the_rover_whole_and_in_order_and_its_fix_follows():
                     base.send(FRAMES[0])
                     valid.append(FRAMES[0])
                     streamed += 1
-                    time.sleep(0.5)  # the stream's pace
+                    pause(0.5)  # the stream's pace
                 assert _fix_type_is(collector, "RTK_FIXED")(), _status(collector)
                 assert wait_for(lambda: device.rtcm_frames == len(valid), 10.0)
                 assert wait_for(_fix_type_is(collector, "RTK_FLOAT"), 10.0), _status(collector)

@@ -11,13 +11,20 @@ from __future__ import annotations
 import math
 import os
 import subprocess
-import time
 
 import pytest
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from sensor_msgs.msg import NavSatFix, NavSatStatus
-from support.ros_harness import Collector, diagnostic_values, node_executable, spinning, wait_for
+from support.pacing import pause
+from support.ros_harness import (
+    Collector,
+    diagnostic_values,
+    node_executable,
+    spinning,
+    wait_for,
+    wait_until_steady,
+)
 
 from gnss_driver.fuzz import TEMPLATES, FuzzSource
 from gnss_driver.reader import frame_sentence
@@ -50,7 +57,7 @@ def write_whole(device: PtyDevice, data: bytes) -> None:
     """Write every byte, as fast as the node reads them: the pty takes what fits in its buffer
     (the rest would be dropped), the remainder once the node has read some."""
     while data := data[device.write(data) :]:
-        time.sleep(0.002)
+        pause(0.002)  # the node reads meanwhile
 
 
 def test_gnss_node_survives_a_live_fuzz():
@@ -88,15 +95,11 @@ def test_gnss_node_survives_a_live_fuzz():
                         stream.append(valid_epoch(second))
                 write_whole(device, b"".join(stream))
                 # Until the node has read and published the last of it: no new fix for 0.5 s.
-                fuzz_fixes, deadline = -1, time.monotonic() + 30.0
-                while (count := collector.count("gnss/fix")) != fuzz_fixes:
-                    assert time.monotonic() < deadline, "the fixes keep coming"
-                    fuzz_fixes = count
-                    time.sleep(0.5)
+                fuzz_fixes = wait_until_steady(lambda: collector.count("gnss/fix"), 0.5, 30.0)
                 for _ in range(5):
                     second += 1
                     device.write(valid_epoch(second))
-                    time.sleep(0.2)
+                    pause(0.2)  # one epoch at a time
                 assert wait_for(lambda: collector.count("gnss/fix") >= fuzz_fixes + 4, 5.0)
                 assert wait_for(lambda: collector.count("/diagnostics") >= 3, 3.0)
                 assert proc.poll() is None, "gnss_node exited"

@@ -18,6 +18,7 @@ from geometry_msgs.msg import TwistWithCovarianceStamped
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import Imu, NavSatFix, NavSatStatus, TimeReference
 from support.config_checks import assert_file_holds_defaults
+from support.pacing import pause
 from support.paths import REPO
 from support.ros_harness import (
     Collector,
@@ -86,7 +87,7 @@ def _run(device: GnssEmulator, receiver: Receiver, until, timeout_s: float, **pa
     try:
         with spinning(node, collector.node):
             assert wait_for(lambda: until(collector), timeout_s), "not enough messages"
-            time.sleep(0.2)  # let the diagnostics timer see the last epoch
+            assert collector.more("/diagnostics", 1, 5.0)  # a report after the last epoch
     finally:
         node.close()
         node.destroy_node()
@@ -110,6 +111,20 @@ def _utc_by_stamp(collector: Collector) -> dict[float, float]:
         round(stamp_s(m), 6): m.time_ref.sec + m.time_ref.nanosec * 1e-9
         for m in collector.get("gnss/time_reference")
     }
+
+
+def _published_by(
+    collector: Collector, sent: list[tuple[float, float]], opened: float, end: float
+) -> bool:
+    """Whether the receiver wrote past ``end`` and every epoch it wrote from ``opened`` + 0.2 s
+    to ``end`` (host times) has been published as an attitude."""
+    written = list(sent)
+    if not written or written[-1][1] < end:
+        return False
+    expected = {round(utc, 2) for utc, at in written if opened + 0.2 < at < end}
+    utc_of = _utc_by_stamp(collector)
+    stamps = (round(stamp_s(m), 6) for m in collector.get("gnss/attitude"))
+    return expected <= {round(utc_of[s], 2) for s in stamps if s in utc_of}
 
 
 def _timed(messages: list[Any], utc_of: dict[float, float]) -> list[Any]:
@@ -231,11 +246,11 @@ def test_adu5_that_never_answers_loses_no_epoch_to_the_setup():
             with spinning(node, collector.node):
                 assert wait_for(lambda: dev.commands, 10.0)
                 opened = time.time()  # the port opened before the first command came
-                # 7 commands x 0.5 s without an answer, then 1 s more.
+                # 7 commands x 0.5 s without an answer, then 1 s more: until every epoch
+                # the receiver wrote by then is published.
                 assert wait_for(lambda: len(dev.commands) == 7, 6.0)
-                time.sleep(1.0)
-                end = time.time()
-                time.sleep(0.3)
+                end = time.time() + 1.0
+                wait_for(lambda: _published_by(collector, sent, opened, end), 10.0)
         finally:
             node.close()
             node.destroy_node()
@@ -331,7 +346,7 @@ def test_adu5_fault_run():
                 received(3)
                 before = collector.count("gnss/fix")
                 dev.unplug()
-                time.sleep(1.0)
+                pause(1.0)  # unplugged for a second: at most the fix in flight arrives
                 assert collector.count("gnss/fix") - before <= 1
                 dev.plug()
                 assert wait_for(lambda: collector.count("gnss/fix") > before + 5, 10.0)

@@ -6,13 +6,13 @@ real node, which publishes them as fixes on gnss/fix."""
 from __future__ import annotations
 
 import math
-import time
 
 import pytest
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from sensor_msgs.msg import NavSatFix, NavSatStatus
 from support.nmea_sentences import ALT, GSA_GLONASS, GSA_GPS, gga, rmc
+from support.pacing import pause
 from support.ros_harness import Collector, diagnostic_values, overrides, spinning, wait_for
 
 from gnss_driver.node import GnssNode
@@ -50,12 +50,12 @@ def test_fixes_with_00_satellites_2d_fixes_and_held_altitudes_are_published():
         )
         try:
             with spinning(node, collector.node):
-                time.sleep(0.5)  # the port opens
+                assert wait_for(lambda: node.port_open, 10.0)
                 for bodies in epochs:
                     device.write(b"".join(frame_sentence(b) for b in bodies))
-                    time.sleep(0.25)
+                    pause(0.25)  # one epoch, ended by the idle time-out (0.1 s)
                 assert wait_for(lambda: collector.count("gnss/fix") >= len(epochs), 5.0)
-                time.sleep(0.3)  # a diagnostics report after the last epoch
+                assert collector.more("/diagnostics", 1, 5.0)  # a report after the last epoch
         finally:
             node.close()
             node.destroy_node()

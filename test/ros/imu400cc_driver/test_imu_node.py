@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 import os
 import subprocess
-import time
 
 import numpy as np
 import pytest
@@ -13,6 +12,7 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from sensor_msgs.msg import Imu, Temperature
 from support.config_checks import assert_file_holds_defaults
+from support.pacing import pause
 from support.paths import REPO
 from support.ros_harness import (
     Collector,
@@ -46,13 +46,14 @@ def ros_context():
     rclpy.shutdown()
 
 
-def _run(device: Imu400ccEmulator, seconds: float, **params):
-    """Run node + collector for ``seconds``; returns (collector, node) after the node closed."""
+def _run(device: Imu400ccEmulator, until, timeout_s: float, **params):
+    """Run node + collector until ``until(collector)``; returns (collector, node) after the node
+    closed."""
     node = Imu400ccNode(parameter_overrides=overrides(port=device.path, **params))
     collector = Collector(TOPICS)
     try:
         with spinning(node, collector.node):
-            time.sleep(seconds)
+            assert wait_for(lambda: until(collector), timeout_s), "not enough messages"
     finally:
         node.close()
         node.destroy_node()
@@ -60,10 +61,20 @@ def _run(device: Imu400ccEmulator, seconds: float, **params):
     return collector, node
 
 
+def _seconds_of_samples(seconds: float, temperatures: int = 0, reports: int = 0):
+    """Until the collector holds ``seconds`` of samples at 134 Hz, ``temperatures`` temperature
+    messages and ``reports`` diagnostics."""
+    return lambda c: (
+        c.count("imu/data_raw") >= seconds * 134
+        and c.count("imu/temperature") >= temperatures
+        and c.count("/diagnostics") >= reports
+    )
+
+
 def test_continuous_stream_values_units_covariance_and_rate():
     config = EmulatorConfig(temperature_c=23.5)
     with Imu400ccEmulator(resting_source(seed=3), config) as dev:
-        collector, _ = _run(dev, 4.0)
+        collector, _ = _run(dev, _seconds_of_samples(3.0, temperatures=2, reports=1), 15.0)
     imu = collector.get("imu/data_raw")
     assert len(imu) > 300
     stamps = np.array([stamp_s(m) for m in imu])
@@ -110,7 +121,7 @@ def test_continuous_stream_values_units_covariance_and_rate():
 def test_stamps_are_sample_times_not_read_times():
     sent: list[SentPacket] = []
     with Imu400ccEmulator(on_packet=sent.append) as dev:
-        collector, _ = _run(dev, 4.0)
+        collector, _ = _run(dev, _seconds_of_samples(4.0), 15.0)
     imu = collector.get("imu/data_raw")
     stamps = np.array([stamp_s(m) for m in imu])
     # The i-th message is the i-th streamed packet: the set-up's 'G' answer is not published.
@@ -129,12 +140,13 @@ def test_stamps_are_sample_times_not_read_times():
 
 def test_polled_mode_follows_poll_rate():
     with Imu400ccEmulator() as dev:
-        collector, _ = _run(dev, 3.0, mode="polled", poll_rate=20.0)
-        assert dev.commands["G"] >= 40
+        until = lambda c: c.count("imu/data_raw") >= 50  # noqa: E731
+        collector, _ = _run(dev, until, 15.0, mode="polled", poll_rate=20.0)
+        assert dev.commands["G"] >= 50
         assert dev.commands["C"] == 0
-    imu = collector.get("imu/data_raw")
-    assert 40 <= len(imu) <= 70
-    assert np.all(np.diff([stamp_s(m) for m in imu]) > 0)
+    stamps = np.array([stamp_s(m) for m in collector.get("imu/data_raw")])
+    assert np.all(np.diff(stamps) > 0)
+    assert (len(stamps) - 1) / (stamps[-1] - stamps[0]) == pytest.approx(20.0, rel=0.15)
 
 
 def test_fault_run_garbage_corruption_drops_and_a_vanishing_port():
@@ -146,14 +158,14 @@ def test_fault_run_garbage_corruption_drops_and_a_vanishing_port():
                 assert wait_for(lambda: collector.count("imu/data_raw") > 100, 5.0)
                 dev.send_garbage(bytes([0xFF, 0x00, 0x13, 0xFF, 0xFF, 0x42] * 10))
                 dev.corrupt_packets(5)
-                time.sleep(0.3)
+                pause(0.3)  # one fault at a time
                 dev.drop_packets(3)
-                time.sleep(0.3)
+                pause(0.3)
                 dev.drop_packets(20)  # longer than one timer wrap (~7 packets)
-                time.sleep(0.5)
+                pause(0.5)
                 before_unplug = collector.count("imu/data_raw")
                 dev.unplug()
-                time.sleep(1.0)
+                pause(1.0)  # unplugged for a second: at most the samples in flight arrive
                 assert collector.count("imu/data_raw") - before_unplug < 10
                 dev.plug()
                 assert wait_for(
