@@ -19,6 +19,7 @@ from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import Log
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, NavSatFix, Temperature
+from support.pacing import pause
 from support.paths import REPO
 from support.ros_harness import (
     Collector,
@@ -288,12 +289,13 @@ def test_imu_temperature_outside_the_calibration_range_is_reported():
         with spinning(node, collector.node):
             for celsius, expected in ((low + 0.5, "True"), (high + 7.0, "False")):
                 collector.clear()
-                for _ in range(50):  # publish until a status reflects it (discovery, timer)
+
+                def reported(celsius: float = celsius, expected: str = expected) -> bool:
+                    # published again until a status reflects it (discovery, the timer)
                     publisher.publish(Temperature(temperature=celsius))
-                    if _reported(collector, expected):
-                        break
-                    time.sleep(0.1)
-                assert _reported(collector, expected), (celsius, expected)
+                    return _reported(collector, expected)
+
+                assert wait_for(reported, 5.0, poll_s=0.1), (celsius, expected)
     finally:
         node.destroy_node()
         collector.node.destroy_node()
@@ -405,7 +407,7 @@ def test_an_imu_that_falls_silent_is_reported_within_a_second_and_its_return_too
             msg.header.frame_id = "imu_link"
             msg.linear_acceleration.z = 9.81
             publisher.publish(msg)
-            time.sleep(0.01)
+            pause(0.01)  # 100 Hz
 
     try:
         with spinning(node, collector.node):

@@ -7,11 +7,11 @@ import dataclasses
 import signal
 import subprocess
 import threading
-import time
 
 import pytest
 import rclpy
 from sensor_msgs.msg import Imu
+from support.pacing import pause
 from support.ros_harness import node_executable, wait_for
 
 from ins_fusion.adapters.status_log import INFO, WARN, StatusLog
@@ -74,7 +74,7 @@ def test_fusion_node_logs_a_reset_with_its_reason_at_warn():
             msg.header.stamp.sec, msg.header.stamp.nanosec = int(t), int(t % 1.0 * 1e9)
             msg.linear_acceleration.z = 9.81
             publisher.publish(msg)
-            time.sleep(0.002)
+            pause(0.002)  # the samples' pace
         assert wait_for(lambda: stderr.has("[WARN]", "filter reset", "IMU gap of 2.0"), 60.0), (
             "".join(stderr.lines)
         )

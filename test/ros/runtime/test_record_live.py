@@ -15,6 +15,7 @@ import rclpy
 from geometry_msgs.msg import TwistWithCovarianceStamped
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import Imu, NavSatFix
+from support.pacing import pause
 from support.ros_harness import Collector, spinning, wait_for
 
 from gnss_driver.emulator import EmulatorConfig, GnssEmulator, constant_velocity
@@ -93,7 +94,7 @@ def test_killed_recorder_loses_at_most_the_last_second(live_system, tmp_path, st
     )
     started = time.time()
     try:
-        time.sleep(RUN_S)
+        pause(RUN_S)  # the recording's length before the kill
         recorder.kill()
         killed = time.time()
         _, err = recorder.communicate(timeout=30)

@@ -8,7 +8,6 @@ import os
 import signal
 import subprocess
 import threading
-import time
 from pathlib import Path
 
 import pytest
@@ -16,6 +15,7 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
+from support.pacing import pause
 from support.ros_harness import Collector, spinning, wait_for
 
 from ins_fusion.bags.bag_io import BagReader
@@ -58,7 +58,7 @@ def publisher():
         while not done.is_set():
             pub.publish(String(data=f"{sent[0]:08d}" + "x" * 10_000))
             sent[0] += 1
-            time.sleep(0.02)
+            pause(0.02)  # 50 messages/s
 
     thread = threading.Thread(target=run, daemon=True)
     thread.start()
@@ -129,7 +129,9 @@ def test_rotation_keeps_recording_and_deletes_the_oldest_files(small_disk, publi
         "--max-bag-duration",
         "1",
     )
-    time.sleep(15)  # 7.5 MB published onto 4 MiB
+    # Until the disk guard has deleted the first file and the recording went on into a third.
+    files = lambda: {p.name for p in (small_disk / "bag").glob("*.mcap")}  # noqa: E731
+    assert wait_for(lambda: "bag_0.mcap" not in files() and bool(files() - {"bag_1.mcap"}), 60.0)
     assert recorder.poll() is None
     recorder.send_signal(signal.SIGINT)
     out, err = recorder.communicate(timeout=60)

@@ -24,6 +24,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from rosbags.interfaces import QosReliability
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, NavSatFix
+from support.pacing import pause
 from support.paths import REPO
 from support.ros_harness import Collector, spinning, wait_for
 
@@ -109,7 +110,7 @@ def publish_sequence(node) -> tuple[dict[str, list], int, int]:
             if k % every == 0:
                 pubs[topic].publish(msg)
                 sent[topic].append(msg)
-        time.sleep(0.002)  # >= 0.4 s of publishing in all
+        pause(0.002)  # >= 0.4 s of publishing in all
     for topic in PLAYED:
         assert pubs[topic].wait_for_all_acked(Duration(seconds=20))  # acks ride on heartbeats
     return sent, window_start, time.time_ns()
@@ -255,7 +256,7 @@ def test_killed_record_is_recovered_up_to_the_last_second(tmp_path: Path, storag
             sent_ns.append(time.time_ns())
             msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(sent_ns[-1], 10**9)
             publisher.publish(msg)
-            time.sleep(0.01)
+            pause(0.01)  # 100 Hz
         recorder.kill()
         killed_ns = time.time_ns()
         recorder.communicate(timeout=30)
@@ -337,7 +338,7 @@ def test_a_topic_is_silent_after_its_messages_stop_and_before_its_first_only_muc
                 burst.publish(String(data="set-up"))
             for _ in range(30):  # 1.5 s at 20 Hz: a stream
                 stops.publish(String(data="x"))
-                time.sleep(0.05)
+                pause(0.05)  # 20 Hz
             stopped = time.time()
             assert wait_for(lambda: silent_since(stopped), 5.0)
             at, message = silent_since(stopped)[0]
