@@ -15,7 +15,6 @@ import signal
 import socket
 import subprocess
 import sys
-import time
 from contextlib import redirect_stdout
 from io import StringIO
 from pathlib import Path
@@ -24,6 +23,7 @@ import psutil
 import pytest
 from distributed import Client
 from support.paths import FIXTURES
+from support.waiting import wait_for
 
 from ins_fusion.sim.drive import SimulationConfig
 from ins_fusion.sim.simulated_bag import write_bag
@@ -154,9 +154,7 @@ def test_an_interrupted_batch_completes_when_run_again(bags, singles, tmp_path, 
         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     try:
-        deadline = time.monotonic() + 120.0
-        while not _done_times(out) and time.monotonic() < deadline:
-            time.sleep(0.05)
+        wait_for(lambda: bool(_done_times(out)), 120.0, poll_s=0.05)
         children = psutil.Process(batch.pid).children(recursive=True)
         batch.send_signal(signal.SIGINT)
         _, stderr = batch.communicate(timeout=60)

@@ -7,7 +7,7 @@ import threading
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from support.ros_harness import wait_for
+from support.waiting import wait_for
 
 from gnss_driver.corrections import CorrectionQueue, CorrectionWriter
 from gnss_ins_common.rtcm import PREAMBLE, make_frame, message_number

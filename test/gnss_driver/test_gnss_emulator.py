@@ -9,7 +9,7 @@ import pymap3d
 import pytest
 import serial
 from scipy.spatial.transform import Rotation
-from support.ros_harness import wait_for
+from support.waiting import wait_for
 
 from gnss_driver.attitude import R_BRF_FLU, brf_rotation
 from gnss_driver.driver import DriverConfig, GnssDriver

@@ -5,7 +5,7 @@ from __future__ import annotations
 import threading
 import time
 
-from support.ros_harness import wait_for
+from support.waiting import wait_for
 
 from gnss_ins_common.pty_device import PtyDevice
 from gnss_ins_common.serial_link import LinkSettings, SerialLink
@@ -30,10 +30,14 @@ def test_noise_without_a_valid_message_is_an_invalid_stall():
         link = _link(device, chunks, stall_timeout_s=5.0, valid_timeout_s=0.3)
         try:
             assert wait_for(lambda: link.is_open, 5.0)
-            deadline = time.monotonic() + 10.0
-            while link.stats.stalls == 0 and time.monotonic() < deadline:
-                device.write(b"\x01\x02\x03")  # bytes, none of them valid
-                time.sleep(0.02)
+
+            def stalled() -> bool:  # bytes keep coming, none of them valid
+                if link.stats.stalls:
+                    return True
+                device.write(b"\x01\x02\x03")
+                return False
+
+            wait_for(stalled, 10.0)
         finally:
             link.stop()
     assert chunks

@@ -20,6 +20,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
+from support import waiting
 from support.paths import FIXTURES
 
 from gnss_ins_common.rtcm import MAX_FRAME_BYTES
@@ -41,13 +42,8 @@ DEADLINE_S = 20.0
 
 
 def wait_for(predicate: Callable[[], bool], timeout_s: float = DEADLINE_S) -> bool:
-    """Poll ``predicate`` until true or the deadline; its last value."""
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.02)
-    return predicate()
+    """``support.waiting.wait_for`` with this module's deadline."""
+    return waiting.wait_for(predicate, timeout_s)
 
 
 class Rover:

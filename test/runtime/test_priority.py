@@ -6,7 +6,8 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-import time
+
+from support.waiting import wait_for
 
 from ins_fusion.runtime.priority import LOOK_NICENESS
 from ins_fusion.runtime.processes import gnss_ins_command
@@ -36,10 +37,12 @@ def test_gnss_ins_status_runs_as_a_look(tmp_path) -> None:
     expected = min(os.nice(0) + LOOK_NICENESS, 19)
     seen: set[int | None] = set()
     try:
-        deadline = time.monotonic() + 30.0
-        while look.poll() is None and expected not in seen and time.monotonic() < deadline:
+
+        def niced() -> bool:  # seen at its niceness before it ended
             seen.add(_niceness(look.pid))
-            time.sleep(0.05)  # polling a process's state, not waiting for it
+            return expected in seen or look.poll() is not None
+
+        wait_for(niced, 30.0, poll_s=0.05)
     finally:
         look.kill()
         look.wait(timeout=10)

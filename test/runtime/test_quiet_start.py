@@ -9,8 +9,9 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
+
+from support.pacing import pause
 
 from ins_fusion.runtime.processes import python_main
 
@@ -50,7 +51,7 @@ def _start(
 
 def test_a_ctrl_c_during_the_import_ends_quietly(tmp_path):
     process = _start(tmp_path, 5.0, signal.SIG_DFL)
-    time.sleep(1.0)
+    pause(1.0)  # into its 5 s import
     process.send_signal(signal.SIGINT)
     stdout, stderr = process.communicate(timeout=20)
     assert process.returncode == 130
@@ -72,11 +73,11 @@ def test_after_the_import_the_program_handles_ctrl_c_itself(tmp_path):
 
 def test_an_ignored_sigint_stays_ignored(tmp_path):
     process = _start(tmp_path, 2.0, signal.SIG_IGN)
-    time.sleep(0.5)
+    pause(0.5)  # into its 2 s import
     process.send_signal(signal.SIGINT)  # during the import
     assert process.stdout is not None and process.stdout.readline() == "imported\n"
     process.send_signal(signal.SIGINT)  # in main
-    time.sleep(0.5)
+    pause(0.5)  # time to end, had it not ignored the signal
     assert process.poll() is None
     process.terminate()
     process.communicate(timeout=20)

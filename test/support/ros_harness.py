@@ -8,7 +8,7 @@ import sys
 import threading
 import time
 from collections import defaultdict
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -18,6 +18,8 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+from support.waiting import wait_for
 
 
 class Collector:
@@ -98,29 +100,6 @@ def spinning(*nodes: Node) -> Iterator[SingleThreadedExecutor]:
         if thread.is_alive():
             raise RuntimeError("the spin thread did not stop within 30 s (a callback hangs)")
         executor.shutdown(timeout_sec=2.0)
-
-
-def wait_for(predicate: Callable[[], bool], timeout_s: float, poll_s: float = 0.02) -> bool:
-    """Poll ``predicate`` until it is true or the time-out expires; returns its last value."""
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(poll_s)
-    return predicate()
-
-
-def wait_until_steady(value: Callable[[], int], quiet_s: float, timeout_s: float) -> int:
-    """Poll ``value`` until it has not changed for ``quiet_s`` (a node done with its input:
-    nothing tells when it has read the last byte); returns it. Fails after ``timeout_s``."""
-    deadline = time.monotonic() + timeout_s
-    last, since = value(), time.monotonic()
-    while time.monotonic() - since < quiet_s:
-        assert time.monotonic() < deadline, f"still changing after {timeout_s} s"
-        time.sleep(0.02)
-        if (now := value()) != last:
-            last, since = now, time.monotonic()
-    return last
 
 
 def overrides(**values: Any) -> list[Parameter]:

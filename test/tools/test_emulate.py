@@ -15,6 +15,7 @@ import numpy as np
 import pynmea2
 import pytest
 import serial
+from support.waiting import wait_for
 from test_simulate_live import port_lines
 
 from gnss_driver.reader import NmeaReader
@@ -135,12 +136,12 @@ def drive(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, object
         config_files = sorted(p.name for p in config.iterdir())
         ports = {device: Port(link, BAUD[device]) for device, link in links.items()}
         ports["imu"].serial.write(b"C")  # continuous mode: the unit powers up polled and silent
-        deadline = time.monotonic() + 120.0
-        while time.monotonic() < deadline:  # until the ADU5 has reported past the turn-in
+
+        def past_the_turn_in() -> bool:  # the ADU5 has reported past it
             utc, _ = _pat_headings(ports["adu5"], start_s)
-            if len(utc) and utc[-1] > start_s + TURN_IN_S[1] + 2.0:
-                break
-            time.sleep(0.5)
+            return bool(len(utc)) and utc[-1] > start_s + TURN_IN_S[1] + 2.0
+
+        wait_for(past_the_turn_in, 120.0, poll_s=0.5)
     finally:
         for port in ports.values():
             port.close()

@@ -6,7 +6,7 @@ import signal
 import subprocess
 
 import serial
-from support.ros_harness import wait_for
+from support.waiting import wait_for
 
 from imu400cc_driver.device_clock import PACKET_TRANSMISSION_S
 from imu400cc_driver.protocol import PACKET_LENGTH, decode_packet

@@ -14,6 +14,7 @@ import numpy as np
 import pynmea2
 import pytest
 import serial
+from support.pacing import pause
 
 from gnss_driver.reader import NmeaReader
 from gnss_driver.sentences import ASHRPAT, lat_lon_deg
@@ -135,7 +136,7 @@ def test_hold_keeps_the_devices_open_after_the_drive_until_sigterm():
         imu_port = port_lines(proc, {"imu"})["imu"]
         assert proc.stdout is not None
         assert proc.stdout.readline() == "drive ended\n"
-        time.sleep(1.0)  # past the drive: the process and its device are still there
+        pause(1.0)  # past the drive: the process and its device are still there
         assert proc.poll() is None
         with serial.Serial(imu_port, 38400, timeout=0.1) as imu:
             imu.write(b"C")

@@ -23,8 +23,8 @@ from support.ros_harness import (
     node_executable,
     spinning,
     wait_for,
-    wait_until_steady,
 )
+from support.waiting import wait_until_steady
 
 from gnss_driver.fuzz import TEMPLATES, FuzzSource
 from gnss_driver.reader import frame_sentence

@@ -12,9 +12,10 @@ import os
 import signal
 import subprocess
 import sys
-import time
 
 import pytest
+from support.pacing import pause
+from support.waiting import wait_for
 
 from gnss_ins_common.ros_node_main import StopSignals
 
@@ -66,7 +67,7 @@ def _busy_node() -> subprocess.Popen[str]:
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_a_busy_node_stops_in_order_on_a_signal(signum: int) -> None:
     process = _busy_node()
-    time.sleep(0.5)
+    pause(0.5)  # busy for a while
     process.send_signal(signum)
     try:
         output, _ = process.communicate(timeout=20)
@@ -84,13 +85,11 @@ def test_a_signal_is_a_request_while_spinning_and_an_interrupt_before() -> None:
     with StopSignals() as stop:
         with pytest.raises(KeyboardInterrupt):
             os.kill(os.getpid(), signal.SIGTERM)
-            time.sleep(1.0)  # the handler runs at the next bytecode; never this long
+            pause(1.0)  # interrupted: the handler runs at the next bytecode
         stop.spinning = True
         wait = stop.wait()
         os.kill(os.getpid(), signal.SIGINT)  # no exception now
-        deadline = time.monotonic() + 5.0
-        while not wait.done() and time.monotonic() < deadline:
-            time.sleep(0.01)
+        wait_for(wait.done, 5.0, poll_s=0.01)
         assert stop.requested and wait.done()
         assert stop.wait().done()  # a wait after the request ends at once
     assert (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)) == before
@@ -134,7 +133,7 @@ sys.exit(run_node(Compiling, sys.argv))
 
 def test_a_stop_while_a_native_library_builds_the_node_ends_it_quietly() -> None:
     process = _node_process(STARTING_NODE, "building")
-    time.sleep(0.5)
+    pause(0.5)  # building for a while
     process.send_signal(signal.SIGINT)
     try:
         output, _ = process.communicate(timeout=20)

@@ -341,10 +341,9 @@ def test_a_topic_is_silent_after_its_messages_stop_and_before_its_first_only_muc
                 pause(0.05)  # 20 Hz
             stopped = time.time()
             assert wait_for(lambda: silent_since(stopped), 5.0)
-            at, message = silent_since(stopped)[0]
-            assert message == "silent: /test/stops" and at - stopped < 2.0
+            _, message = silent_since(stopped)[0]
+            assert message == "silent: /test/stops"
             assert wait_for(no_message_yet_at, 15.0)
-            assert no_message_yet_at()[0] - start >= 12 * 0.5 - 1.0  # subscribed ≤ ~1 s before
             reports = collector.count("/diagnostics")
             assert wait_for(lambda: collector.count("/diagnostics") > reports + 1, 5.0)
             assert not any("quiet" in m for _, m in silent_since(start))
@@ -355,7 +354,12 @@ def test_a_topic_is_silent_after_its_messages_stop_and_before_its_first_only_muc
             recorder.kill()
         node.destroy_node()
         collector.node.destroy_node()
-    assert "/test/stops silent for" in err and "although it has a publisher" in err
+    # Called silent after the 0.5 s it was given, within a second; "no message yet" only
+    # after 12 x 0.5 s since the subscription (the recorder's own reckoning in its log).
+    silent = re.search(r"/test/stops silent for ([\d.]+) s although it has a publisher", err)
+    assert silent and 0.5 <= float(silent.group(1)) < 2.0, err
+    waited = re.search(r"/test/quiet: no message yet, (\d+) s after its subscription", err)
+    assert waited and int(waited.group(1)) >= 12 * 0.5, err
     assert err.count("/test/quiet: no message yet") == 1 and "/test/quiet silent for" not in err
     assert "/test/burst silent" not in err and "/test/burst: no message" not in err
     assert not any("burst" in m or "nobody" in m for _, m in silent_since(start))
