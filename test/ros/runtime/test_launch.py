@@ -189,43 +189,6 @@ def test_ros_launch_file_starts_the_ntrip_client_with_the_url_only(monkeypatch, 
     assert without_file.kwargs["parameters"][1] == {"url": url}  # NTRIP_PASSWORD, inherited
 
 
-def test_launch_starts_every_node_on_emulated_hardware_and_stops_cleanly(tmp_path):
-    with launched(tmp_path) as (launcher, collector, output, _):
-        assert wait_for(lambda: all(collector.count(t) > 2 for t in TOPICS), 30.0), {
-            t: collector.count(t) for t in TOPICS
-        }
-        # Every node reports on /diagnostics (the fusion node starts slowest).
-        assert wait_for(lambda: _reporters(collector) >= NODE_NAMES, 30.0), _reporters(collector)
-    assert launcher.returncode == 0, output[0]
-    for spec in VEHICLE:
-        assert f"started {spec.name}" in output[0]
-        assert (tmp_path / f"{spec.name}.log").exists()
-
-
-def test_launch_restarts_a_node_killed_with_sigkill_and_leaves_the_others(tmp_path):
-    with launched(tmp_path) as (launcher, collector, output, _):
-        assert wait_for(lambda: collector.count("leica/gnss/fix") > 2, 30.0)
-        assert wait_for(lambda: set(node_pids(launcher.pid)) == NODE_NAMES, 10.0)
-        before = node_pids(launcher.pid)
-        os.kill(before["leica_gnss"], signal.SIGKILL)
-        killed = before["leica_gnss"]
-        assert wait_for(lambda: node_pids(launcher.pid).get("leica_gnss", killed) != killed, 3.0)
-        after = node_pids(launcher.pid)
-        assert {n: p for n, p in after.items() if n != "leica_gnss"} == {
-            n: p for n, p in before.items() if n != "leica_gnss"
-        }
-        assert launcher.poll() is None
-        # The new process opens the emulated port again and publishes.
-        fixes = collector.count("leica/gnss/fix")
-        assert wait_for(lambda: collector.count("leica/gnss/fix") > fixes + 2, 30.0)
-        assert node_pids(launcher.pid) == after
-    assert launcher.returncode == 0, output[0]
-    assert "leica_gnss exited (signal SIGKILL) after " in output[0]
-    assert "leica_gnss restarted (pid " in output[0]
-    log = (tmp_path / "leica_gnss.log").read_text()
-    assert f"leica_gnss started (pid {after['leica_gnss']}, restart 1)" in log
-
-
 def test_a_hung_node_is_killed_and_restarted_and_the_others_left(tmp_path):
     """A node that stops without ending (SIGSTOP: hung in a call) goes silent on /diagnostics:
     launch kills it after --restart-silent and starts it again; the others keep their PIDs."""
@@ -269,39 +232,6 @@ def test_a_hung_node_is_killed_and_restarted_and_the_others_left(tmp_path):
 RECORDER = {"recorder": "--resume"}
 
 
-def test_a_recorder_killed_under_launch_continues_the_same_recording(tmp_path):
-    bags = tmp_path / "bags"
-    with launched(tmp_path, "--record", str(bags)) as (launcher, collector, output, _):
-        assert wait_for(lambda: collector.count("imu/data_raw") > 2, 30.0)
-        assert wait_for(lambda: "recorder" in node_pids(launcher.pid, RECORDER), 10.0)
-        recording = lambda: "recording /imu/data_raw" in (tmp_path / "recorder.log").read_text()  # noqa: E731
-        assert wait_for(recording, 30.0)  # subscribed (its start-up is slow on a loaded machine)
-        pause(3.0)  # recorded before the kill (checked: more than 2 s)
-        killed = node_pids(launcher.pid, RECORDER)["recorder"]
-        os.kill(killed, signal.SIGKILL)
-        killed_at = time.time()
-        assert wait_for(
-            lambda: node_pids(launcher.pid, RECORDER).get("recorder", killed) != killed, 3.0
-        )
-        # The second recorder has written (its log says so) and more than 2 s after the kill.
-        log = tmp_path / "recorder.log"
-        continued = lambda: "recording continued: gap of" in log.read_text()  # noqa: E731
-        assert wait_for(continued, 30.0)
-        pause(max(0.0, killed_at + 3.0 - time.time()))  # recorded after the kill: more than 2 s
-    assert launcher.returncode == 0, output[0]
-    (bag,) = bags.iterdir()
-    log = (tmp_path / "recorder.log").read_text()
-    assert "continuing " in log and "recording continued: gap of" in log
-    with BagReader(bag) as reader:  # closed by the second recorder: complete
-        times = [m.log_time_ns / 1e9 for m in reader.messages(["/imu/data_raw"])]
-    before = [t for t in times if t < killed_at]
-    after = [t for t in times if t > killed_at]
-    assert before and after and before[0] < killed_at - 2.0 and after[-1] > killed_at + 2.0
-    gap = after[0] - before[-1]
-    print(f"recording gap at the recorder's kill: {gap:.2f} s")
-    assert gap < 10.0  # 3.9 s on an idle machine: the restart and the recorder's start-up
-
-
 def _reporters(collector: Collector) -> set[str]:
     """Node names in the /diagnostics statuses received so far."""
     return {
@@ -334,22 +264,38 @@ def test_launch_refuses_a_free_space_limit_the_recorder_would_refuse(tmp_path):
     assert not list(tmp_path.iterdir())  # nothing started, nothing recorded
 
 
-def test_status_shows_every_process_its_restarts_and_an_unplugged_imu(tmp_path):
-    """`gnss_ins status --json` beside a launch: every node, OK IMU; after a kill -9 of the
-    Leica node its restart; the aggregate on /gnss_ins/status; the IMU unplugged for 5 s: the
-    IMU and the fusion (no_imu) in ERROR within a second, both back within 3 s of the replug."""
-    with launched(tmp_path) as (launcher, collector, _, imu):
+def test_launch_runs_every_node_restarts_a_killed_one_and_status_shows_it(tmp_path):
+    """`gnss_ins launch` on the emulated devices: every node started, publishing and reporting on
+    /diagnostics; a kill -9 of the Leica node restarts it alone (the others keep their PIDs) and
+    it publishes again. `gnss_ins status --json` beside it: every node, OK IMU, then the Leica
+    node's restart; the aggregate on /gnss_ins/status. The IMU unplugged for 5 s: the IMU and the
+    fusion (no_imu) in ERROR, both back within 3 s of the replug. SIGINT stops it cleanly."""
+    with launched(tmp_path) as (launcher, collector, output, imu):
+        assert wait_for(lambda: all(collector.count(t) > 2 for t in TOPICS), 60.0), {
+            t: collector.count(t) for t in TOPICS
+        }
+        # Every node reports on /diagnostics (the fusion node starts slowest).
         assert wait_for(lambda: _reporters(collector) >= NODE_NAMES, 60.0), _reporters(collector)
+        assert wait_for(lambda: set(node_pids(launcher.pid)) == NODE_NAMES, 10.0)
         view = _status(tmp_path)
         assert set(view["processes"]) == NODE_NAMES
         assert view["processes"]["imu400cc_node"]["level"] == "OK", view
         assert {p["restarts"] for p in view["processes"].values()} == {0}
-        killed = node_pids(launcher.pid)["leica_gnss"]
+
+        before = node_pids(launcher.pid)
+        killed = before["leica_gnss"]
         os.kill(killed, signal.SIGKILL)
         restarted = lambda: node_pids(launcher.pid).get("leica_gnss", killed) != killed  # noqa: E731
         assert wait_for(restarted, 3.0)
+        after = node_pids(launcher.pid)
+        assert {n: p for n, p in after.items() if n != "leica_gnss"} == {
+            n: p for n, p in before.items() if n != "leica_gnss"
+        }
         assert _status(tmp_path)["processes"]["leica_gnss"]["restarts"] == 1
-        assert wait_for(lambda: collector.count("/gnss_ins/status") > 0, 10.0)
+        # The new process opens the emulated port again and publishes.
+        fixes = collector.count("leica/gnss/fix")
+        assert wait_for(lambda: collector.count("leica/gnss/fix") > fixes + 2, 30.0)
+        assert node_pids(launcher.pid) == after
         system = collector.get("/gnss_ins/status")[-1].status[0]
         assert system.name == "gnss_ins: system"
 
@@ -371,6 +317,14 @@ def test_status_shows_every_process_its_restarts_and_an_unplugged_imu(tmp_path):
 
         assert wait_for(back, 3.0), _levels_since(collector, plugged)
         print(f"unplug seen after {took - unplugged:.2f} s")
+    assert launcher.returncode == 0, output[0]
+    for spec in VEHICLE:
+        assert f"started {spec.name}" in output[0]
+        assert (tmp_path / f"{spec.name}.log").exists()
+    assert "leica_gnss exited (signal SIGKILL) after " in output[0]
+    assert "leica_gnss restarted (pid " in output[0]
+    log = (tmp_path / "leica_gnss.log").read_text()
+    assert f"leica_gnss started (pid {after['leica_gnss']}, restart 1)" in log
 
 
 #: (status name prefix, level) of the IMU node and the fusion node once the IMU is unplugged.
@@ -451,12 +405,13 @@ LONGEST_GAP_S = {
 }
 
 
-def test_each_node_killed_in_turn_comes_back_and_the_recording_keeps_the_others(tmp_path):
+def test_each_node_and_the_recorder_killed_in_turn_come_back_and_the_recording_goes_on(tmp_path):
     """kill -9 of each node in turn under `launch --record`: running again within 3 s with the
-    other PIDs unchanged, publishing again; the recording has a gap in that node's topic only."""
+    other PIDs unchanged, publishing again; the recording has a gap in that node's topic only.
+    Then a kill -9 of the recorder: the next one continues the same recording, complete."""
     bags = tmp_path / "bags"
     kills: dict[str, float] = {}
-    with launched(tmp_path, "--record", str(bags)) as (launcher, collector, _, _imu):
+    with launched(tmp_path, "--record", str(bags)) as (launcher, collector, output, _imu):
         assert wait_for(lambda: _reporters(collector) >= NODE_NAMES, 60.0), _reporters(collector)
         recording = lambda: "recording /ins/odometry" in (tmp_path / "recorder.log").read_text()  # noqa: E731
         assert wait_for(recording, 30.0)
@@ -478,10 +433,23 @@ def test_each_node_killed_in_turn_comes_back_and_the_recording_keeps_the_others(
                 )
 
             assert wait_for(back, 30.0), name  # its status again: it runs and reports
-            # The next kill (or the end) outside the window this one's gaps are judged in.
+            # The next kill outside the window this one's gaps are judged in.
             pause(max(0.0, kills[name] + sum(KILL_WINDOW_S) - time.time()))
-    assert launcher.returncode == 0
+
+        killed = node_pids(launcher.pid, RECORDER)["recorder"]
+        os.kill(killed, signal.SIGKILL)
+        killed_at = time.time()
+        assert wait_for(
+            lambda: node_pids(launcher.pid, RECORDER).get("recorder", killed) != killed, 3.0
+        )
+        # The second recorder has written (its log says so) and more than 2 s after the kill.
+        log = tmp_path / "recorder.log"
+        continued = lambda: "recording continued: gap of" in log.read_text()  # noqa: E731
+        assert wait_for(continued, 30.0)
+        pause(max(0.0, killed_at + 3.0 - time.time()))  # recorded after the kill: more than 2 s
+    assert launcher.returncode == 0, output[0]
     (bag,) = bags.iterdir()
+    assert "continuing " in log.read_text()
     with BagReader(bag) as reader:
         times = {
             topic: np.array([m.log_time_ns / 1e9 for m in reader.messages([topic])])
@@ -497,3 +465,10 @@ def test_each_node_killed_in_turn_comes_back_and_the_recording_keeps_the_others(
                 assert t[t > killed + 1.0].size, (name, topic, "never again")
             else:
                 assert gap <= LONGEST_GAP_S[topic], (name, topic, gap)
+    # The recorder's kill: a gap in every topic (closed by the second recorder: complete).
+    imu = times["/imu/data_raw"]
+    before, after = imu[imu < killed_at], imu[imu > killed_at]
+    assert before.size and after.size and after[-1] > killed_at + 2.0
+    gap = after[0] - before[-1]
+    print(f"recording gap at the recorder's kill: {gap:.2f} s")
+    assert gap < 10.0  # 3.9 s on an idle machine: the restart and the recorder's start-up
