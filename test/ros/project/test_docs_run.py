@@ -12,9 +12,6 @@ from pathlib import Path
 import pytest
 from support.docs_pages import PAGES, REPO, Session, blocks, differences
 
-# Real nodes run in the README's blocks: in the session of the real-time tests.
-pytestmark = pytest.mark.ros
-
 #: Anything of these in a block's output fails it, whatever its exit status.
 FAILURE = re.compile(
     r"Traceback \(most recent call last\)|command not found|exists already"
@@ -50,6 +47,23 @@ def run_page(page: Path, scratch: Path, text: str | None = None) -> list[str]:
 
 
 RUN_PAGES = [p for p in PAGES if any(b.kind in ("run", "example") for b in blocks(p))]
+#: A command that starts real nodes (a live tool, a node's executable): a page that runs one is
+#: tested in the session of the real-time tests; the others beside it.
+NODES = re.compile(r"\bgnss_ins (demo|launch|play|record|echo|topics|status|imu-demo)\b|\w_node\b")
+
+
+def _runs_nodes(page: Path) -> bool:
+    return any(
+        NODES.search("\n".join(b.lines)) for b in blocks(page) if b.kind in ("run", "example")
+    )
+
+
+def _page(page: Path) -> object:
+    """The page as a parameter: marked ros when it runs real nodes, else slow (seconds of
+    commands)."""
+    return pytest.param(page, marks=pytest.mark.ros if _runs_nodes(page) else pytest.mark.slow)
+
+
 #: What the session puts in a scratch directory itself.
 SESSION_ENTRIES = {"config", "test", ".venv", ".docs_test_env"}
 
@@ -72,7 +86,7 @@ def not_ignored(scratch: Path) -> list[str]:
     return [name for name in names if name not in ignored]
 
 
-@pytest.mark.parametrize("page", RUN_PAGES, ids=lambda p: p.name)
+@pytest.mark.parametrize("page", [_page(p) for p in RUN_PAGES], ids=lambda p: p.name)
 def test_the_page_runs_and_its_examples_are_current(page: Path, tmp_path: Path) -> None:
     failures = run_page(page, tmp_path)
     assert not failures, "\n".join(failures)
