@@ -1,5 +1,6 @@
 """A recorder killed on a live system: three driver processes on emulated devices publish five
-topics, ``gnss_ins record`` is SIGKILLed 20 s in, ``gnss_ins recover`` restores the bag. A
+topics, ``gnss_ins record`` is SIGKILLed 5 s after it subscribed to all of them (split files:
+2 s into its second file), ``gnss_ins recover`` restores the bag. A
 collector in the test process is the reference: every message it received up to 1 s before the
 kill must be in the recovered bag, none missing before that. MCAP, sqlite3, and split files
 killed during the second file."""
@@ -8,6 +9,7 @@ from __future__ import annotations
 
 import signal
 import subprocess
+import threading
 import time
 
 import pytest
@@ -36,8 +38,9 @@ TOPICS = {
     "/adu5/gnss/fix": NavSatFix,
 }
 TYPES = {topic: kind for topic, kind in TOPICS.items()}
-#: Seconds the recorder runs before its kill.
-RUN_S = 20.0
+#: Seconds the recorder records after its subscriptions (split: after its second file began)
+#: before its kill.
+RECORD_S = 5.0
 
 
 @pytest.fixture(scope="module")
@@ -93,14 +96,32 @@ def test_killed_recorder_loses_at_most_the_last_second(live_system, tmp_path, st
         text=True,
     )
     started = time.time()
+    lines: list[str] = []
+
+    def read() -> None:
+        assert recorder.stderr is not None
+        for line in recorder.stderr:
+            lines.append(line)
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
     try:
-        pause(RUN_S)  # the recording's length before the kill
+        subscribed = lambda: all(f"recording {t} " in "".join(lines) for t in TOPICS)  # noqa: E731
+        assert wait_for(subscribed, 30.0), "".join(lines)
+        if split:
+            # the second file is written in its own folder until it is closed
+            assert wait_for(lambda: (bag / f"{bag.name}_1").exists(), 30.0)
+            pause(2.0)  # into the second file
+        else:
+            pause(RECORD_S)  # the recording before the kill
         recorder.kill()
         killed = time.time()
-        _, err = recorder.communicate(timeout=30)
+        recorder.wait(timeout=30)
+        reader.join(timeout=30)
     finally:
         if recorder.poll() is None:
             recorder.kill()
+    err = "".join(lines)
     assert "recording /adu5/gnss/fix" in err, err
     assert main(["recover", str(bag), "-o", str(tmp_path / "recovered")]) == 0
     with BagReader(tmp_path / "recovered") as reader:
