@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from test_bag_io import T0, cdr, fix, imu, twist
+from support.bag_messages import T0, cdr, fix, imu, twist
 
 from ins_fusion.bags.bag_io import BagError, BagReader, BagWriter, read_messages
 from ins_fusion.bags.recover import recover_bag

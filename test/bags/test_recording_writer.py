@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-from test_bag_io import T0, cdr, imu
+from support.bag_messages import T0, cdr, imu
 
 from ins_fusion.bags.bag_io import BagReader, BagWriter, read_messages
 from ins_fusion.bags.recording import FreeSpace, MinFree, RecordingWriter

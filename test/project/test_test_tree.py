@@ -2,11 +2,13 @@
 ins_fusion/core/filter/, test/gnss_driver/ the gnss_driver package, test/ros/<folder>/ the real
 nodes of one), every module with real-node tests lives under test/ros/ (the node session
 collects that folder), and no test sleeps except through support.pacing.pause (time let pass
-on purpose) or the polls of support.waiting."""
+on purpose) or the polls of support.waiting. What tests share is in the support package: no
+test module imports another."""
 
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 import pytest
@@ -78,7 +80,20 @@ def test_real_node_tests_live_under_test_ros():
     assert outside == []
 
 
+#: An import of a test module (test_*), at any indentation.
+TEST_IMPORT = re.compile(r"^\s*(from|import) test_\w+", re.M)
+
+
+def test_no_test_module_imports_another():
+    importing = [
+        str(path.relative_to(TESTS)) for path in _modules() if TEST_IMPORT.search(path.read_text())
+    ]
+    assert importing == [], "shared code belongs in test/support"
+
+
 def test_the_checks_see_a_sleep_and_a_stray_folder():
+    assert TEST_IMPORT.search("import os\nfrom test_bag_io import T0\n")
+    assert not TEST_IMPORT.search("from support.bag_messages import T0\n")
     assert _calls_sleep(ast.parse("import time\ntime.sleep(1)\n"))
     assert not _calls_sleep(ast.parse('SCRIPT = "import time; time.sleep(1)"\n'))
     assert _source_folder(Path("core/filter")) is not None

@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
+from support.solutions import quaternion, solution
 
-from ins_fusion.core.engine.engine import InsSolution
 from ins_fusion.core.nav import earth
 from ins_fusion.replay import metrics
 from ins_fusion.replay.inputs import Reference, Series
@@ -19,29 +19,6 @@ from ins_fusion.replay.run import SolutionTrack
 
 DATUM = (57.0, 10.0, 40.0)
 T0 = 1000.0
-
-
-def _quat(roll=0.0, pitch=0.0, yaw=0.0):
-    return Rotation.from_euler("ZYX", [yaw, pitch, roll], degrees=True).as_quat()
-
-
-def _solution(t, pos_enu, quat=None, cov_pos=None, state="navigating", cov_att=None):
-    return InsSolution(
-        t_s=t,
-        lat_deg=0.0,
-        lon_deg=0.0,
-        height_m=0.0,
-        pos_enu_m=np.asarray(pos_enu, dtype=float),
-        vel_enu_m_s=np.zeros(3),
-        quat_enu_flu_xyzw=_quat() if quat is None else quat,
-        rate_flu_rad_s=np.zeros(3),
-        cov_pos_enu_m2=np.eye(3) * 0.01 if cov_pos is None else cov_pos,
-        cov_vel_enu=np.eye(3) * 1e-4,
-        cov_att_enu_rad2=np.eye(3) * 1e-6 if cov_att is None else cov_att,
-        gyro_bias_flu_rad_s=np.zeros(3),
-        accel_bias_flu_m_s2=np.zeros(3),
-        state=state,
-    )
 
 
 def _reference(t_s, pos_enu, quats=None):
@@ -67,7 +44,7 @@ def test_position_statistics_of_known_errors():
     truth = np.array([[float(k), 2.0 * k, 0.5 * k] for k in range(5)])
     error = np.array([[0, 0, 0], [3, 4, 1], [0, 5, -1], [6, 8, 2], [1, 0, -0.5]], dtype=float)
     stamps = T0 + np.arange(5.0)
-    solutions = [_solution(t, p + e) for t, p, e in zip(stamps, truth, error, strict=True)]
+    solutions = [solution(t, p + e) for t, p, e in zip(stamps, truth, error, strict=True)]
     evaluation = _evaluate(solutions, _reference(stamps, truth))
     np.testing.assert_allclose(evaluation.position.error, error, atol=1e-6)
     np.testing.assert_allclose(evaluation.position.t_rel_s, np.arange(5.0))
@@ -83,9 +60,9 @@ def test_position_statistics_of_known_errors():
 
 def test_interpolation_is_exact_for_linear_motion_and_a_steady_turn():
     def pose(t):
-        return np.array([10.0 * t, 5.0 * t, 0.1 * t]), _quat(roll=1.0, yaw=30.0 * t)
+        return np.array([10.0 * t, 5.0 * t, 0.1 * t]), quaternion(roll=1.0, yaw=30.0 * t)
 
-    solutions = [_solution(T0 + t, *pose(t)) for t in (0.0, 1.0, 2.0)]
+    solutions = [solution(T0 + t, *pose(t)) for t in (0.0, 1.0, 2.0)]
     t_ref = np.array([0.25, 0.5, 1.0, 1.75])
     truth = [pose(t) for t in t_ref]
     reference = _reference(T0 + t_ref, [p for p, _ in truth], [q for _, q in truth])
@@ -98,11 +75,11 @@ def test_interpolation_is_exact_for_linear_motion_and_a_steady_turn():
 
 def test_only_stamps_between_close_aligned_solutions_are_evaluated():
     solutions = [
-        _solution(T0 + 0.0, [0, 0, 0], state="aligning"),
-        _solution(T0 + 1.0, [0, 0, 0]),
-        _solution(T0 + 2.0, [0, 0, 0]),
-        _solution(T0 + 5.0, [0, 0, 0]),
-        _solution(T0 + 6.0, [0, 0, 0]),
+        solution(T0 + 0.0, [0, 0, 0], state="aligning"),
+        solution(T0 + 1.0, [0, 0, 0]),
+        solution(T0 + 2.0, [0, 0, 0]),
+        solution(T0 + 5.0, [0, 0, 0]),
+        solution(T0 + 6.0, [0, 0, 0]),
     ]
     t_ref = np.array([-1.0, 0.5, 1.5, 3.0, 5.5, 7.0])  # before, aligning, ok, gap, ok, after
     evaluation = _evaluate(solutions, _reference(T0 + t_ref, np.zeros((6, 3))))
@@ -110,9 +87,9 @@ def test_only_stamps_between_close_aligned_solutions_are_evaluated():
 
 
 def test_attitude_errors_are_wrapped_roll_pitch_yaw_differences():
-    truth = _quat(roll=0.0, pitch=0.0, yaw=179.5)
-    estimate = _quat(roll=0.5, pitch=-0.25, yaw=-179.5)
-    solutions = [_solution(T0 + t, [0, 0, 0], estimate) for t in (0.0, 1.0)]
+    truth = quaternion(roll=0.0, pitch=0.0, yaw=179.5)
+    estimate = quaternion(roll=0.5, pitch=-0.25, yaw=-179.5)
+    solutions = [solution(T0 + t, [0, 0, 0], estimate) for t in (0.0, 1.0)]
     reference = _reference([T0 + 0.5], [[0, 0, 0]], [truth])
     evaluation = _evaluate(solutions, reference)
     assert evaluation.attitude is not None
@@ -174,12 +151,12 @@ def test_attitude_nees_is_that_of_the_small_rotation_about_the_enu_axes():
     # Level truth heading 30° (ENU yaw); the estimate turned by δθ about the ENU axes (R_est =
     # exp([δθ×]) R_true, as the engine injects its attitude error) with the attitude covariance
     # P about the ENU axes: the NEES is δθᵀ P⁻¹ δθ (to first order in δθ: rtol 1e-3 at 1e-4 rad).
-    truth = Rotation.from_quat(_quat(yaw=30.0))
+    truth = Rotation.from_quat(quaternion(yaw=30.0))
     P = np.array([[1.0, 0.3, 0.1], [0.3, 2.0, -0.2], [0.1, -0.2, 0.5]]) * 1e-8
     turns = np.array([[1.0, -2.0, 0.5], [0.0, 0.0, 4.0], [0.0, 0.0, 0.0]]) * 1e-4
     stamps = T0 + np.arange(3.0)
     solutions = [
-        _solution(t, [0, 0, 0], (Rotation.from_rotvec(d) * truth).as_quat(), cov_att=P)
+        solution(t, [0, 0, 0], (Rotation.from_rotvec(d) * truth).as_quat(), cov_att=P)
         for t, d in zip(stamps, turns, strict=True)
     ]
     reference = _reference(stamps, np.zeros((3, 3)), [truth.as_quat()] * 3)
@@ -203,7 +180,7 @@ def test_attitude_nees_is_that_of_the_small_rotation_about_the_enu_axes():
 
 def test_without_an_attitude_reference_the_attitude_nees_is_none():
     stamps = T0 + np.arange(3.0)
-    solutions = [_solution(t, [0, 0, 0]) for t in stamps]
+    solutions = [solution(t, [0, 0, 0]) for t in stamps]
     evaluation = _evaluate(solutions, _reference(stamps, np.zeros((3, 3))))
     nees = smoothed_report(evaluation_track(solutions), 0.0, evaluation, [], None)["nees"]
     assert nees["samples"] == 3 and nees["position_mean"] is not None

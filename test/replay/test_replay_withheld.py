@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
-from test_replay_metrics import _solution as metrics_solution
+from support.solutions import solution as metrics_solution
 
 from ins_fusion.bags.bag_io import BagReader, BagWriter
 from ins_fusion.core.filter.records import GnssFixMeasurement

@@ -1,6 +1,6 @@
 """The shell blocks of README.md and docs/*.md, run as a reader runs them, and their example
-outputs compared with what the commands print now (test/test_docs_run.py); also the script
-that rewrites those examples from real runs:
+outputs compared with what the commands print now (test/ros/project/test_docs_run.py); also the
+script that rewrites those examples from real runs:
 
     .venv/bin/python test/support/docs_pages.py docs/replay.md ...     # rewrites their examples
 

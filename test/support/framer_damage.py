@@ -1,7 +1,8 @@
 """Serial-line damage for the IMU400CC framer: realistic streams, one byte dropped, inserted or
 flipped in every DAMAGE_EVERY-th packet, and the false and lost packets that result.
 
-Shared by bench/bench_framer.py (large samples) and test/test_imu_framer.py (a smaller one).
+Shared by bench/bench_framer.py (large samples) and test/imu400cc_driver/test_imu_framer.py (a
+smaller one).
 """
 
 from __future__ import annotations

@@ -13,7 +13,7 @@ GNSS from either
   ENU axis and epoch at 5 Hz, reported covariance diag(25, 25, 25) m²; the true antenna
   velocity plus N(0, 0.1 m/s) per axis, covariance 0.01 m²/s² (no latency).
 
-Used by test/test_fusion_noise_mismatch.py and the benches bench/bench_noise_mismatch.py and
+Used by test/core/engine/test_noise_mismatch.py and the benches bench/bench_noise_mismatch.py and
 bench/bench_self_calibration.py.
 """
 

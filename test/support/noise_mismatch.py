@@ -1,12 +1,12 @@
 """The engine given a user's noise parameters on the simulated drives of mismatch_drives.py,
-and the reference filter on the same drives: the harness of test/test_fusion_noise_mismatch.py
+and the reference filter on the same drives: the harness of test/core/engine/test_noise_mismatch.py
 and of the benches bench/bench_noise_mismatch.py and bench/bench_self_calibration.py.
 
 The filter's parameters are what a user has (``datasheet_parameters``: the IMU profile's own
 white-noise densities and bias instabilities in the parameter units, everything else default;
 no calibration file), or, in the explicitly "exact" runs (``exact_parameters``), the densities
 root-sum-squared with the vibration's low-frequency-equivalent density. The reference filter
-(test/reference_ekf.py) gets the exact simulated noise and the true initial state.
+(test/support/reference_ekf.py) gets the exact simulated noise and the true initial state.
 
 Errors are of base_link, estimate minus truth, in the tangent plane at base_link's start
 (pymap3d), evaluated at 10 Hz stamps from ``EVALUATE_FROM_S`` on.
@@ -259,7 +259,7 @@ def reference_noise(streams: Streams) -> ReferenceNoise:
 
 
 def run_reference(streams: Streams, output_t: Array | None = None) -> Track:
-    """The reference filter (test/reference_ekf.py) on the same streams, started at the true
+    """The reference filter (test/support/reference_ekf.py) on the same streams, started at the true
     state of the IMU at the first sample; base_link position at ``output_t`` (default: every
     10 Hz stamp of the IMU grid)."""
     truth = streams.truth

@@ -15,8 +15,8 @@ import numpy as np
 import pynmea2
 import pytest
 import serial
+from support.live_ports import port_lines
 from support.waiting import wait_for
-from test_simulate_live import port_lines
 
 from gnss_driver.reader import NmeaReader
 from gnss_driver.sentences import ASHRPAT

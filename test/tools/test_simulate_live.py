@@ -7,13 +7,13 @@ from __future__ import annotations
 import math
 import subprocess
 import sys
-import threading
 import time
 
 import numpy as np
 import pynmea2
 import pytest
 import serial
+from support.live_ports import port_lines
 from support.pacing import pause
 
 from gnss_driver.reader import NmeaReader
@@ -25,25 +25,6 @@ from imu400cc_driver.protocol import Scaling
 from ins_fusion.bags.bag_io import BagReader
 
 DURATION_S = 6.0
-
-
-def port_lines(proc: subprocess.Popen[str], names: set[str]) -> dict[str, str]:
-    """The ``name: path`` lines of the live drive's ports ``names`` (simulate --live prints
-    them first, gnss_ins emulate after its own lines), read on a thread: no hang."""
-    ports: dict[str, str] = {}
-
-    def read() -> None:
-        assert proc.stdout is not None
-        while set(ports) != names and (line := proc.stdout.readline()):
-            name, _, path = line.strip().partition(": ")
-            if name in names:
-                ports[name] = path
-
-    reader = threading.Thread(target=read, daemon=True)
-    reader.start()
-    reader.join(timeout=30.0)
-    assert set(ports) == names, f"port lines of simulate --live: {ports}"
-    return ports
 
 
 def _read(port: serial.Serial, enough: int, timeout_s: float) -> bytes:

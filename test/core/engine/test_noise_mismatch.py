@@ -5,7 +5,7 @@ datasheet (the profile's own densities; the vibration's equivalent density is ab
 gyro's and 60-100x the accelerometer's), on a 120 s figure-eight; GNSS either the Leica RTK
 model or a white 5 m receiver at 5 Hz whose error the default GNSS noise split (5 % white, the
 rest correlated) does not expect.
-Drives: test/mismatch_drives.py; runs and evaluation: test/noise_mismatch.py
+Drives: test/support/mismatch_drives.py; runs and evaluation: test/support/noise_mismatch.py
 (bench/bench_noise_mismatch.py prints the full matrix over seeds for docs/accuracy.md).
 """
 

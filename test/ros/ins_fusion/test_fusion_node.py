@@ -440,7 +440,7 @@ def test_with_speed_use_the_node_fuses_the_vehicle_speed_and_reports_its_scale(t
     """speed.use: vehicle/speed from a simulated DMI (2 % scale error, on the left rear
     wheel, speed.lever_arm given) played with the other sensors: the speed readings are used
     and the scale estimate is on /diagnostics; vehicle/odometry (nav_msgs/Odometry) is subscribed
-    as well (its conversion: test_fusion_vehicle_speed.py)."""
+    as well (its conversion: test_vehicle_speed.py)."""
     bag = tmp_path / "drive_speed"
     config = SimulationConfig(
         scenario="figure_eight", duration_s=DURATION_S, seed=4, odometer=odometer_model.DMI

@@ -1,6 +1,6 @@
 """Docs that are true: every shell block of README.md and docs/*.md a reader is told to run
 without hardware runs (in a scratch directory, in page order, each within its time limit), and
-every example output on a page is what its commands print now (test/docs_pages.py has the
+every example output on a page is what its commands print now (test/support/docs_pages.py has the
 rules and rewrites the examples). Blocks not meant to run are marked with their reason."""
 
 from __future__ import annotations
