@@ -2,7 +2,7 @@
 numbers, asserts nothing.
 
 For each damage kind (one byte dropped / inserted / changed, anywhere in the packet), a stream
-of PACKETS realistic packets (test/framer_damage.py: half at rest, half driving) with every
+of PACKETS realistic packets (test/support/framer_damage.py: half at rest, half driving) with every
 5th packet damaged, framed in continuous mode (timer-step fit or next-packet confirmation) and
 in polled mode (checksum only). Targets (issue 12): at most 1 false packet per 10 000 damaged
 ones, and no intact packet lost after a single dropped byte.

@@ -1,9 +1,9 @@
 """Ordinary noise models and vibration (issue 10 acceptance, simulated part): the engine given
 datasheet noise parameters on drives whose noise differs from them; prints tables and verdicts.
 
-Harness: test/mismatch_drives.py (streams from the ins_fusion.sim API, figure-eight drive of
-200 s) and test/noise_mismatch.py (errors of base_link from 30 s on at 10 Hz). Baseline:
-test/reference_ekf.py, a
+Harness: test/support/mismatch_drives.py (streams from the ins_fusion.sim API, figure-eight drive of
+200 s) and test/support/noise_mismatch.py (errors of base_link from 30 s on at 10 Hz). Baseline:
+test/support/reference_ekf.py, a
 position-only 15-state EKF told the exact simulated noise and started at the true state.
 
 1. IMU {stim300 (tactical, 500 Hz), imu400cc (MEMS, 134 Hz)} x GNSS {Leica RTK 1 Hz, white

@@ -4,7 +4,7 @@ run told the true values.
 
     .venv/bin/python bench/bench_self_calibration.py        (about 3 min)
 
-Streams from test/mismatch_drives.py (imu400cc, no calibration file, Leica RTK, figure-eight
+Streams from test/support/mismatch_drives.py (imu400cc, no calibration file, Leica RTK, figure-eight
 at 10 m/s, 200 s). Filter: the datasheet parameters, ``self_calibration.time_offset: true``
 (the time offset is a calibration run's), the mounting estimate on (the default). The run
 "given the truth" configures ``imu_time_offset`` and ``imu_mounting_rpy_deg`` and estimates

@@ -3,8 +3,8 @@ none of them: every solution row and every counter of the engine on the reposito
 drives, written to an .npz; ``--compare`` checks a new run against a saved one (bit-identical or
 within 1e-9 relative, every counter equal) and prints what differs.
 
-Drives: the simulated figure eight (90 s) and test pattern (75 s) of test/sim_bags.py, the same
-with damaged IMU data (test/support/sample_runs.py), the real comma2k19 segment with the phone
+Drives: the simulated figure eight (90 s) and test pattern (75 s) of test/support/sim_bags.py, the
+same with damaged IMU data (test/support/sample_runs.py), the real comma2k19 segment with the phone
 parameters (test/fixtures/comma2k19). Parameter sets: the defaults, every optional state on
 (mounting, time offset, scale factors), no pseudo-measurements. Paths: the replay's compiled runs
 (``run_fusion``, with and without the RTS smoother) and, on the figure eight, the engine fed
