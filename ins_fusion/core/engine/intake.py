@@ -18,7 +18,7 @@ import math
 import numpy as np
 
 from gnss_ins_common.types import FloatArray
-from ins_fusion.core.compiled import jit
+from ins_fusion.core.compiled import compilable, jit
 from ins_fusion.core.filter.adaptation import block_push
 from ins_fusion.core.filter.propagation import advance
 from ins_fusion.core.layout import offsets
@@ -96,6 +96,14 @@ def forget_stream(buf: FloatArray) -> None:
     buf[S_LAST_T] = math.nan
     buf[S_NOMINAL_DT] = math.inf
     buf[S_LAST_RATE : S_ZARU_N + 1] = 0.0
+
+
+@compilable
+def start_pseudo_interval(buf: FloatArray, t: float, period_s: float) -> float:
+    """A pseudo-measurement interval starts at ``t`` [s]: the ZARU sums in ``buf`` cleared;
+    returns the stamp of its epoch, the next multiple of ``period_s`` after ``t`` [s]."""
+    buf[S_ZARU_SUM : S_ZARU_N + 1] = 0.0
+    return (math.floor(t / period_s) + 1.0) * period_s
 
 
 @jit

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from gnss_ins_common.types import FloatArray, Vec3
+from ins_fusion.core.compiled import kernel_array
 from ins_fusion.core.engine.intake import (
     BACK_RUN_RESET,
     GAP,
@@ -32,20 +33,22 @@ from ins_fusion.core.engine.intake import (
     forget_stream,
     new_intake,
     record_sample,
+    start_pseudo_interval,
 )
 from ins_fusion.core.engine.sample_runs import CompiledRuns
 from ins_fusion.core.engine.startup import Startup
 from ins_fusion.core.engine.warm_up import warm_up
-from ins_fusion.core.filter.eskf import ErrorStateFilter, StateLayout
+from ins_fusion.core.filter.eskf import ErrorStateFilter, StateLayout, problem_text
 from ins_fusion.core.filter.propagation import ImuDensities, Propagator, bridge
 from ins_fusion.core.filter.state import (
     X_COV_VEL0,
-    X_NAV,
     X_SIZE,
     X_VEL,
     FilterState,
     Geometry,
     LatestInputs,
+    filter_problem,
+    nav_speeds,
 )
 from ins_fusion.core.filter.status import SPEED_KIND, new_counters
 from ins_fusion.core.filter.timeline import Checkpoint, Entry, Gap, Record, Timeline
@@ -55,13 +58,13 @@ from ins_fusion.core.measurements.gate import Corrections
 from ins_fusion.core.measurements.gnss_noise import GnssNoise
 from ins_fusion.core.measurements.gnss_position import PositionUpdate
 from ins_fusion.core.measurements.gnss_velocity import VelocityUpdate
-from ins_fusion.core.measurements.nhc import NhcUpdate
+from ins_fusion.core.measurements.nhc import NhcUpdate, nhc_due
 from ins_fusion.core.measurements.stationary import ZaruUpdate, ZuptUpdate
 from ins_fusion.core.measurements.stop_detector import GNSS_SPEED_MAX_AGE_S, StopDetector
 from ins_fusion.core.measurements.vehicle_speed import SpeedUpdate
 from ins_fusion.core.nav.calibration import T_SIZE as CALIBRATION_SIZE
 from ins_fusion.core.nav.calibration import ImuCalibration
-from ins_fusion.core.nav.strapdown import NAV_SIZE, SampleIntegrator, increment
+from ins_fusion.core.nav.strapdown import SampleIntegrator, increment
 from ins_fusion.core.nav.units import STANDARD_GRAVITY_M_S2
 from ins_fusion.core.output.solution import STATES, SolutionBuilder, state_code
 from ins_fusion.core.settings.config import FusionConfig
@@ -255,10 +258,7 @@ class EngineLoop:
         return (wx, wy, wz), (fx, fy, fz)
 
     def _start_pseudo_interval(self, t: float) -> None:
-        self._next_pseudo_t_s = (
-            math.floor(t / self._pseudo_period_s) + 1.0
-        ) * self._pseudo_period_s
-        self._intake[S_ZARU_SUM : S_ZARU_N + 1] = 0.0
+        self._next_pseudo_t_s = start_pseudo_interval(self._intake, t, self._pseudo_period_s)
         self._zaru_start_s = t
 
     def _checkpoint(self) -> Checkpoint:
@@ -341,11 +341,7 @@ class EngineLoop:
         s, kf = self._state, self._filter
         assert s is not None and kf is not None
         cfg = self.config
-        x = s.x  # navigation at X_NAV (core.nav.strapdown.NAV_SIZE): position, velocity, attitude
-        vn, ve, vd = x[X_VEL], x[X_VEL + 1], x[X_VEL + 2]
-        horizontal = math.hypot(vn, ve)
-        speed = math.hypot(horizontal, vd)
-        stationary = self._detector.evaluate(t, self._recent_gnss_speed(t), speed)
+        stationary = self._detector.evaluate(t, self._recent_gnss_speed(t), nav_speeds(s.x)[1])
         buf = self._intake
         mean_rate = buf[S_ZARU_SUM : S_ZARU_SUM + 3] / max(int(buf[S_ZARU_N]), 1)
         span = t - self._zaru_start_s
@@ -356,7 +352,7 @@ class EngineLoop:
                 kinds.append(("zupt", None))
             if cfg.use_zaru:
                 kinds.append(("zaru", (mean_rate, span)))
-        elif cfg.use_nhc and s.heading_known and horizontal > cfg.nhc_min_speed_m_s:
+        elif nhc_due(s.x, cfg.use_nhc, cfg.nhc_min_speed_m_s):
             kinds.append(("nhc", None))
         for kind, payload in kinds:
             record = self._timeline.record(kind, t, payload)
@@ -368,10 +364,7 @@ class EngineLoop:
         """After a pseudo-measurement epoch: reset when the filter is unusable."""
         s, kf = self._state, self._filter
         assert s is not None and kf is not None
-        problem = kf.problem()
-        nav = s.x[X_NAV : X_NAV + NAV_SIZE].tolist()
-        if problem is None and not all(map(math.isfinite, nav)):
-            problem = "non-finite navigation state"
+        problem = problem_text(filter_problem(kernel_array(kf.P), s.x))
         if problem is not None:
             self._reset(problem)
 

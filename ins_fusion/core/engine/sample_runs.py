@@ -32,13 +32,13 @@ from ins_fusion.core.engine.intake import (
     PUSHED,
     REJECTED,
     S_LAST_RATE,
-    S_ZARU_N,
-    S_ZARU_SUM,
     STEPPED,
+    start_pseudo_interval,
     take_sample,
 )
 from ins_fusion.core.filter.adaptation import B_MEAN, B_VERSION
 from ins_fusion.core.filter.eskf import (
+    USABLE,
     Columns,
     ErrorStateFilter,
     ProcessModel,
@@ -55,21 +55,20 @@ from ins_fusion.core.filter.state import (
     X_COV_DT,
     X_HEADING_KNOWN,
     X_MOUNTING,
-    X_NAV,
     X_Q_SCALE,
     X_SIZE,
     X_T,
-    X_VEL,
     FilterState,
     Geometry,
+    filter_problem,
     mounted_arm,
+    nav_speeds,
 )
 from ins_fusion.core.filter.timeline import Record, RunEntries, Timeline
-from ins_fusion.core.filter.update_algebra import covariance_problem
 from ins_fusion.core.measurements.gate import Corrections
-from ins_fusion.core.measurements.nhc import nhc_apply
-from ins_fusion.core.measurements.stop_detector import StopDetector
-from ins_fusion.core.nav.strapdown import INCREMENT_SIZE, NAV_SIZE, SampleIntegrator
+from ins_fusion.core.measurements.nhc import nhc_apply, nhc_due
+from ins_fusion.core.measurements.stop_detector import StopDetector, vetoed
+from ins_fusion.core.nav.strapdown import INCREMENT_SIZE, SampleIntegrator
 from ins_fusion.core.output.solution import STATE, WIDTH, SolutionBuilder, _fill_row, state_code
 from ins_fusion.core.output.solution_rows import RowBuffer
 from ins_fusion.core.settings.config import FusionConfig
@@ -158,11 +157,17 @@ def take_run(
         if code != REJECTED:
             due = x[X_COV_DT] >= interval_s
             epoch = t >= pseudo_t
+            heading_known = x[X_HEADING_KNOWN] != 0.0
             if (
                 code != PUSHED + STEPPED
                 or c + 2 > len(covs)
-                or (due and x[X_HEADING_KNOWN] == 0.0)
-                or (epoch and not _moving_epoch(x, detector_idle, stop_speed_m_s))
+                or (due and not heading_known)
+                or (
+                    epoch
+                    and not (
+                        heading_known and vetoed(detector_idle, nav_speeds(x)[1], stop_speed_m_s)
+                    )
+                )
             ):
                 return i + 1, code, m, r, v, c, e
             if block[B_VERSION] != version:
@@ -183,11 +188,9 @@ def take_run(
             xs[m, :] = x
             m += 1
             if epoch:  # InsEngine._pseudo_epoch, moving (the detector decides no stop)
-                pseudo_t = (math.floor(t / period_s) + 1.0) * period_s
-                buf[S_ZARU_SUM : S_ZARU_N + 1] = 0.0
+                pseudo_t = start_pseudo_interval(buf, t, period_s)
                 pseudo_out[0], pseudo_out[1] = pseudo_t, t
-                horizontal = math.hypot(x[X_VEL], x[X_VEL + 1])
-                if use_nhc and horizontal > nhc_min_speed_m_s:  # FusedNhc.apply
+                if nhc_due(x, use_nhc, nhc_min_speed_m_s):  # FusedNhc.apply
                     gyro, accel = monitored_white_noise(block, floor, x[X_Q_SCALE])
                     stepped, phi, accepted, nis, P = nhc_apply(
                         P,
@@ -206,10 +209,7 @@ def take_run(
                     nhcs[e, 0], nhcs[e, 1], nhcs[e, 2] = m - 1, accepted, nis
                     e += 1
                     arm_b = mounted_arm(base_arm_b, x, has_mounting)
-                if (
-                    covariance_problem(P) != -1
-                    or not np.isfinite(x[X_NAV : X_NAV + NAV_SIZE]).all()
-                ):
+                if filter_problem(P, x) != USABLE:  # InsEngine._check_health
                     return i + 1, RUN_PROBLEM, m, r, v, c, e
         if ticks[i]:
             row = rows[r]
@@ -221,15 +221,6 @@ def take_run(
             row[STATE] = state_code(x, degraded_after_s)
             r += 1
     return stop, RUN_DONE, m, r, v, c, e
-
-
-@jit
-def _moving_epoch(x: FloatArray, detector_idle: bool, stop_speed_m_s: float) -> bool:
-    """Whether a pseudo-measurement epoch at state ``x`` can stay in the run: the heading is
-    known and StopDetector.evaluate would decide no stop without looking at the IMU (it is
-    idle and the filter's speed vetoes a stop: at or above ``stop_speed_m_s`` [m/s])."""
-    speed = math.hypot(math.hypot(x[X_VEL], x[X_VEL + 1]), x[X_VEL + 2])
-    return x[X_HEADING_KNOWN] != 0.0 and detector_idle and speed >= stop_speed_m_s
 
 
 @jit

@@ -354,12 +354,24 @@ class ErrorStateFilter:
 
     def problem(self) -> str | None:
         """Why the covariance is unusable (non-finite, negative variance), or None."""
-        worst = covariance_problem(kernel_array(self.P))
-        if worst == -2:
-            return "non-finite covariance"
-        if worst >= 0:
-            return f"negative variance in state {worst}"
+        return problem_text(covariance_problem(kernel_array(self.P)))
+
+
+#: What makes a filter unusable besides a negative variance (whose state index the checks
+#: return): nothing (usable), a non-finite covariance (update_algebra.covariance_problem), a
+#: non-finite navigation state (core.filter.state.filter_problem).
+USABLE, NONFINITE_COVARIANCE, NONFINITE_NAVIGATION = -1, -2, -3
+
+
+def problem_text(code: int) -> str | None:
+    """A health check's ``code`` (above) in words; None: usable."""
+    if code == USABLE:
         return None
+    if code == NONFINITE_COVARIANCE:
+        return "non-finite covariance"
+    if code == NONFINITE_NAVIGATION:
+        return "non-finite navigation state"
+    return f"negative variance in state {code}"
 
 
 @jit

@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from gnss_ins_common.types import FloatArray
-from ins_fusion.core.compiled import jit, kernel_array
+from ins_fusion.core.compiled import compilable, jit, kernel_array
 from ins_fusion.core.filter.eskf import (
     ATT,
     VEL,
@@ -34,7 +34,13 @@ from ins_fusion.core.filter.eskf import (
     StateLayout,
 )
 from ins_fusion.core.filter.records import Prediction
-from ins_fusion.core.filter.state import X_MOUNTING, FilterState, Geometry
+from ins_fusion.core.filter.state import (
+    X_HEADING_KNOWN,
+    X_MOUNTING,
+    FilterState,
+    Geometry,
+    nav_speeds,
+)
 from ins_fusion.core.measurements.common import (
     Model,
     gyro_error_columns,
@@ -105,6 +111,14 @@ def nhc_model(
         H[1, mt + 1] = -forward
         H[2, mt] = forward
     return -predicted, H[1:].copy(), np.eye(2) * sigma_m_s**2
+
+
+@compilable
+def nhc_due(x: FloatArray, use_nhc: bool, min_speed_m_s: float) -> bool:
+    """Whether a pseudo-measurement epoch without a stop files an NHC: ``use_nhc``, the heading
+    of the nominal state ``x`` (X_* layout) known and its horizontal speed above
+    ``min_speed_m_s`` [m/s]."""
+    return use_nhc and x[X_HEADING_KNOWN] != 0.0 and nav_speeds(x)[0] > min_speed_m_s
 
 
 class NhcUpdate:
