@@ -49,6 +49,7 @@ from ins_fusion.adapters.cdr_out import OutputWriter
 from ins_fusion.adapters.position_use import PositionUse
 from ins_fusion.adapters.status_log import WARN, StatusLog
 from ins_fusion.core.engine.engine import InsEngine
+from ins_fusion.core.engine.warm_up import warm_up
 from ins_fusion.core.output.output_clock import OutputClock
 from ins_fusion.core.output.output_numbers import fault_report
 from ins_fusion.core.output.solution import STATE, STATES, T
@@ -71,12 +72,13 @@ class InsFusionNode(Node):
         values = declare_parameters(self, PARAMETERS)
         self.params = values
         config = FusionConfig.from_parameters(values)
-        self.engine = InsEngine(config)
-        if self.engine.warm_up_s > 2.0:  # compiled now, not from numba's cache
+        warm_up_s = warm_up()  # the kernels ready before the first sample
+        if warm_up_s > 2.0:  # compiled now, not from numba's cache
             self.get_logger().info(
-                f"compiled the engine's kernels in {self.engine.warm_up_s:.0f} s (first start "
+                f"compiled the engine's kernels in {warm_up_s:.0f} s (first start "
                 "after an install or update; later starts load them from the cache)"
             )
+        self.engine = InsEngine(config)
         self._map_frame = tf_frames.world_frame(values)
         self._base_frame = config.base_frame
         self._output_clock = OutputClock(config.output_rate_hz)

@@ -37,7 +37,6 @@ from ins_fusion.core.engine.intake import (
 )
 from ins_fusion.core.engine.sample_runs import CompiledRuns
 from ins_fusion.core.engine.startup import Startup
-from ins_fusion.core.engine.warm_up import warm_up
 from ins_fusion.core.filter.eskf import ErrorStateFilter, StateLayout, problem_text
 from ins_fusion.core.filter.propagation import ImuDensities, Propagator, bridge
 from ins_fusion.core.filter.state import (
@@ -83,9 +82,6 @@ class EngineLoop:
     def __init__(self, config: FusionConfig, calibration: ImuCalibration | None = None) -> None:
         """``calibration`` overrides ``config.calibration_file`` (empty file name = none)."""
         self.config = config
-        #: Seconds spent readying the compiled kernels (core.engine.warm_up; 0 after the first
-        #: engine).
-        self.warm_up_s = warm_up()
         if calibration is None and config.calibration_file:
             calibration = ImuCalibration.from_yaml(config.calibration_file)
         self.calibration = calibration
