@@ -1,6 +1,6 @@
 """Where each module of the fusion core is tested: an explicit map, checked both ways. Every
 module of ins_fusion/core has an entry, and every test module named for it imports it (or, for
-the two modules only the engine reaches, drives the engine). A new core module without tests
+the module only the engine reaches, drives the engine). A new core module without tests
 fails here until it has them or its entry says why not."""
 
 from __future__ import annotations
@@ -57,11 +57,10 @@ TESTS: dict[str, tuple[str, ...]] = {
     "engine/startup.py": ("test_core_startup.py",),
     "engine/warm_up.py": ("test_compiled.py",),
 }
-#: Modules only the engine reaches (InsEngine's base class, the choice of the compiled
-#: updates): tested through the engine's tests, which must drive it.
+#: Modules only the engine reaches (InsEngine's base class): tested through the engine's
+#: tests, which must drive it.
 THROUGH_THE_ENGINE: dict[str, tuple[str, ...]] = {
     "engine/loop.py": ("test_fusion_engine.py", "test_fusion_drives.py"),
-    "measurements/fused.py": ("test_sample_runs.py",),
 }
 
 

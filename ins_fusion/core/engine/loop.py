@@ -52,7 +52,6 @@ from ins_fusion.core.filter.state import (
 from ins_fusion.core.filter.status import SPEED_KIND, new_counters
 from ins_fusion.core.filter.timeline import Checkpoint, Entry, Gap, Record, Timeline
 from ins_fusion.core.measurements.attitude import AttitudeUpdate
-from ins_fusion.core.measurements.fused import FusedUpdates
 from ins_fusion.core.measurements.gate import Corrections
 from ins_fusion.core.measurements.gnss_noise import GnssNoise
 from ins_fusion.core.measurements.gnss_position import PositionUpdate
@@ -102,21 +101,17 @@ class EngineLoop:
         self._densities = ImuDensities(noise.gyro_psd, noise.accel_psd)
         self._propagator = Propagator(config, geometry, self._densities)
         corrections = self._corrections = Corrections(config, self._counters)
-        corrections.handlers.update(  # the handler of each kind (core.measurements.<kind>)
+        filtering = (geometry, self._propagator, corrections)
+        corrections.handlers.update(  # the update of each kind (core.measurements.<kind>)
             {
-                "gnss_position": PositionUpdate(geometry, gnss_noise, corrections),
-                "gnss_velocity": VelocityUpdate(
-                    config, (geometry, gnss_noise, self._latest), corrections
-                ),
-                "attitude": AttitudeUpdate(geometry, corrections),
-                "zupt": ZuptUpdate(config, corrections),
-                "zaru": ZaruUpdate(config, geometry, corrections),
-                "nhc": NhcUpdate(config, geometry, corrections),
-                SPEED_KIND: SpeedUpdate(config, geometry, corrections),
+                "gnss_position": PositionUpdate(config, filtering, gnss_noise),
+                "gnss_velocity": VelocityUpdate(config, filtering, (gnss_noise, self._latest)),
+                "attitude": AttitudeUpdate(config, *filtering),
+                "zupt": ZuptUpdate(config, *filtering),
+                "zaru": ZaruUpdate(config, *filtering),
+                "nhc": NhcUpdate(config, *filtering),
+                SPEED_KIND: SpeedUpdate(config, *filtering),
             }
-        )
-        self._fused = FusedUpdates(
-            config, geometry, self._propagator, self._corrections, gnss_noise
         )
         self._startup = Startup(
             config, calibration, geometry, gnss_noise, self.layout, self._counters, self._latest
@@ -313,11 +308,12 @@ class EngineLoop:
         """Propagate P to the current sample, apply the measurement, restart the interval."""
         s, kf = self._state, self._filter
         assert s is not None and kf is not None
-        if self._fused.applied(s, kf, (record.kind, record.t_m, record.payload), live):
+        update = self._corrections.handlers[record.kind]
+        if update.fused(s, kf, (record.t_m, record.payload), live):
             return  # in one kernel
         self._propagator.propagate_covariance(s, kf)
         prediction = self._propagator.predict(s, kf, record.t_m)
-        self._corrections.handlers[record.kind](s, kf, prediction, record.payload, live)
+        update(s, kf, prediction, record.payload, live)
         x = s.x  # the covariance interval goes on from the corrected velocity
         x[X_COV_VEL0 : X_COV_VEL0 + 3] = x[X_VEL : X_VEL + 3]
 

@@ -190,7 +190,7 @@ def take_run(
             if epoch:  # InsEngine._pseudo_epoch, moving (the detector decides no stop)
                 pseudo_t = start_pseudo_interval(buf, t, period_s)
                 pseudo_out[0], pseudo_out[1] = pseudo_t, t
-                if nhc_due(x, use_nhc, nhc_min_speed_m_s):  # FusedNhc.apply
+                if nhc_due(x, use_nhc, nhc_min_speed_m_s):  # NhcUpdate.fused
                     gyro, accel = monitored_white_noise(block, floor, x[X_Q_SCALE])
                     stepped, phi, accepted, nis, P = nhc_apply(
                         P,
@@ -336,7 +336,7 @@ class CompiledRuns:
             (held, covs, phi, white, nhcs, pseudo),
         )
         # What ImuDensities.current read, Propagator.advanced, InsEngine._checkpoint and the
-        # NHC's books (FusedNhc.apply) did after each sample.
+        # NHC's books (NhcUpdate.fused) did after each sample.
         noises: list[tuple[FloatArray, FloatArray] | None] = [
             densities.adopt(snapshot[0], snapshot[1:]) for snapshot in snapshots[:v]
         ]

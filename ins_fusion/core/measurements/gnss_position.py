@@ -13,11 +13,12 @@ the prediction, ``PositionUpdate``: the white/correlated split of the fix's cova
 with the Joseph update and the injection, the white-noise monitor's push
 ``adaptation.white_push_fix``) is seven kernels with Python between them. ``position_apply``
 runs the same kernels in the same order in one call, so the numbers are the same to the bit,
-and ``FusedPosition`` keeps the books (NIS, process-noise adaptation, gated runs, counters, the
-last fix used). Taken only where the general way would do nothing else: a valid fix, the
-heading known, no time-offset state, no smoother, no gate recovery possible; and when the
-split asks for a restart of the correlated error states, the kernel stops after the covariance
-step and the general way goes on from there (a new variance of theirs it sets itself).
+and ``PositionUpdate.fused`` keeps the books (NIS, process-noise adaptation, gated runs,
+counters, the last fix used). Taken only where the general way would do nothing else: a valid
+fix, the heading known, no time-offset state, no smoother, no gate recovery possible; and when
+the split asks for a restart of the correlated error states, the kernel stops after the
+covariance step and the general way goes on from there (a new variance of theirs it sets
+itself).
 """
 
 from __future__ import annotations
@@ -48,7 +49,7 @@ from ins_fusion.core.filter.state import (
 )
 from ins_fusion.core.filter.update_algebra import projected_variance
 from ins_fusion.core.measurements.common import Model, late_imu, step_to, update_and_restart
-from ins_fusion.core.measurements.gate import Corrections, FusedUpdate
+from ins_fusion.core.measurements.gate import Corrections, KindUpdate
 from ins_fusion.core.measurements.gnss_noise import (
     NOISE_MOVED,
     NOISE_RESTART,
@@ -132,16 +133,20 @@ def position_model(
     return z[:rows].copy(), H[:rows].copy(), white_cov_ned[:rows, :rows].copy()
 
 
-class PositionUpdate:
-    """The engine's handler of GNSS fixes (core.measurements.gate.Handler): an invalid fix is
+class PositionUpdate(KindUpdate):
+    """The engine's update of GNSS fixes (core.measurements.gate.KindUpdate): an invalid fix is
     rejected, the noise split (``GnssNoise.position_noise``) with the restart or new variance of
     the correlated error states it asks for, the model, its time-offset terms (``late_imu``),
-    the gated update and the white-noise monitor's push."""
+    the gated update and the white-noise monitor's push; ``fused`` with ``position_apply``."""
 
-    def __init__(self, geometry: Geometry, gnss_noise: GnssNoise, corrections: Corrections) -> None:
-        self._geometry = geometry
+    def __init__(
+        self,
+        config: FusionConfig,
+        filtering: tuple[Geometry, Propagator, Corrections],
+        gnss_noise: GnssNoise,
+    ) -> None:
+        super().__init__(config, *filtering)
         self._noise = gnss_noise
-        self._corrections = corrections
 
     def __call__(
         self,
@@ -176,6 +181,56 @@ class PositionUpdate:
         s.gnss_white = s.gnss_white.pushed_fix(fix.t_s, z, H, dx, kf.P, predicted, reported)
         if dx is not None:
             s.last_position_t_s = max(s.last_position_t_s, fix.t_s)
+
+    def fused(
+        self,
+        s: FilterState,
+        kf: ErrorStateFilter,
+        record: tuple[float, GnssFixMeasurement],
+        live: bool,
+    ) -> bool:
+        """``position_apply`` where the general way would do what it does (False: the general
+        way applies the fix, possibly after the covariance step the kernel made)."""
+        fix = record[1]
+        if kf.smoother_hooks is not None or kf.layout.td is not None or not s.heading_known:
+            return False
+        if not (fix.valid and np.isfinite(fix.cov_enu_m2).all()):
+            return False
+        recover = self._config.gate_recovery_count
+        ready = s.gnss_white.ready  # else a gated fix is no reason for a recovery
+        if recover and ready and s.gated_runs.get(_KIND, 0) + 1 >= recover:
+            return False
+        kf.set_white_noise(*self._propagator.white_noise(s))  # read only by a step
+        geometry, corrections = self._geometry, self._corrections
+        rows = 3 if fix.height_known else 2
+        white = s.gnss_white.values.copy()
+        stepped, phi, action, P, accepted, nis = position_apply(
+            kernel_array(kf.P),
+            s.x,
+            white,
+            (
+                fix.t_s,
+                math.radians(fix.lat_deg),
+                math.radians(fix.lon_deg),
+                fix.height_m,
+                kernel_array(fix.cov_enu_m2),
+            ),
+            kf.process_model(),
+            (geometry.mat_bi, kernel_array(geometry.arms(s)[0])),
+            kf.layout.columns,
+            self._noise.settings(s),
+            (self._correlation_time_s, corrections.gate(rows), kf.layout.size),
+        )
+        self._taken(kf, stepped, phi, P)
+        if action == NOISE_RESTART:
+            return False
+        if action == NOISE_MOVED:  # the kernel set it in the state (set_correlated_variance)
+            kf.gnss_variance = s.gnss_variance
+        self._booked(s, _KIND, (accepted, nis), rows, live)
+        s.gnss_white = s.gnss_white.with_values(white)
+        if accepted:
+            s.last_position_t_s = max(s.last_position_t_s, fix.t_s)
+        return True
 
 
 @jit
@@ -243,63 +298,3 @@ def position_apply(
     accepted, nis, dx, P_new = update_and_restart(P, x, (z, H, R), threshold, columns)
     white_push_fix(white, t_m, z, H, dx, accepted, P_new, predicted, reported)
     return stepped, phi, action, P_new, accepted, nis
-
-
-class FusedPosition(FusedUpdate):
-    """The engine's side of ``position_apply`` (InsEngine._apply uses it where ``usable``)."""
-
-    def __init__(
-        self,
-        config: FusionConfig,
-        geometry: Geometry,
-        filtering: tuple[Propagator, Corrections, GnssNoise],
-    ) -> None:
-        propagator, corrections, self._noise = filtering
-        super().__init__(config, geometry, propagator, corrections)
-
-    def usable(self, s: FilterState, kf: ErrorStateFilter, fix: GnssFixMeasurement) -> bool:
-        """Whether the general way would do what ``apply`` does (or go on where it stops)."""
-        if kf.smoother_hooks is not None or kf.layout.td is not None or not s.heading_known:
-            return False
-        if not (fix.valid and np.isfinite(fix.cov_enu_m2).all()):
-            return False
-        recover = self._config.gate_recovery_count
-        ready = s.gnss_white.ready  # else a gated fix is no reason for a recovery
-        return not recover or not ready or s.gated_runs.get(_KIND, 0) + 1 < recover
-
-    def apply(
-        self, s: FilterState, kf: ErrorStateFilter, fix: GnssFixMeasurement, live: bool
-    ) -> bool:
-        """What InsEngine._apply does for a GNSS position record where ``usable`` (``live``:
-        counted); False: only the covariance step was made (see ``position_apply``)."""
-        kf.set_white_noise(*self._propagator.white_noise(s))  # read only by a step
-        geometry, corrections = self._geometry, self._corrections
-        rows = 3 if fix.height_known else 2
-        white = s.gnss_white.values.copy()
-        stepped, phi, action, P, accepted, nis = position_apply(
-            kernel_array(kf.P),
-            s.x,
-            white,
-            (
-                fix.t_s,
-                math.radians(fix.lat_deg),
-                math.radians(fix.lon_deg),
-                fix.height_m,
-                kernel_array(fix.cov_enu_m2),
-            ),
-            kf.process_model(),
-            (geometry.mat_bi, kernel_array(geometry.arms(s)[0])),
-            kf.layout.columns,
-            self._noise.settings(s),
-            (self._correlation_time_s, corrections.gate(rows), kf.layout.size),
-        )
-        self._taken(kf, stepped, phi, P)
-        if action == NOISE_RESTART:
-            return False
-        if action == NOISE_MOVED:  # the kernel set it in the state (set_correlated_variance)
-            kf.gnss_variance = s.gnss_variance
-        self._booked(s, _KIND, (accepted, nis), rows, live)
-        s.gnss_white = s.gnss_white.with_values(white)
-        if accepted:
-            s.last_position_t_s = max(s.last_position_t_s, fix.t_s)
-        return True

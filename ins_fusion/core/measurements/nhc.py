@@ -13,8 +13,8 @@ five kernels with Python between them: the covariance step to the epoch
 (``nhc_model``), the gated Joseph update (ErrorStateFilter.update) and the injection
 (state.inject). ``nhc_apply`` runs the same kernels in the same order in one call (the steps
 every compiled update shares, core.measurements.common: ``step_to``, ``update_and_restart``), so
-the numbers are the same to the bit; ``FusedNhc`` gives it its arguments and keeps the books
-(core.measurements.gate: FusedUpdate, Corrections.book). While the heading is known (the NHC is
+the numbers are the same to the bit; ``NhcUpdate.fused`` gives it its arguments and keeps the books
+(core.measurements.gate: KindUpdate, Corrections.book). While the heading is known (the NHC is
 filed only then) and without the smoother (its history is told of the steps in between); else
 the general way.
 """
@@ -38,7 +38,6 @@ from ins_fusion.core.filter.state import (
     X_HEADING_KNOWN,
     X_MOUNTING,
     FilterState,
-    Geometry,
     nav_speeds,
 )
 from ins_fusion.core.measurements.common import (
@@ -47,9 +46,8 @@ from ins_fusion.core.measurements.common import (
     step_to,
     update_and_restart,
 )
-from ins_fusion.core.measurements.gate import Corrections, FusedUpdate
+from ins_fusion.core.measurements.gate import KindUpdate
 from ins_fusion.core.nav.rotation import skew
-from ins_fusion.core.settings.config import FusionConfig
 
 
 def nhc(
@@ -121,23 +119,35 @@ def nhc_due(x: FloatArray, use_nhc: bool, min_speed_m_s: float) -> bool:
     return use_nhc and x[X_HEADING_KNOWN] != 0.0 and nav_speeds(x)[0] > min_speed_m_s
 
 
-class NhcUpdate:
-    """The engine's handler of NHC records (core.measurements.gate.Handler; no payload): the
-    model of the base_link origin with the residual mounting and the gated update."""
-
-    def __init__(self, config: FusionConfig, geometry: Geometry, corrections: Corrections) -> None:
-        self._sigma_m_s = config.nhc_sigma_m_s
-        self._geometry = geometry
-        self._corrections = corrections
+class NhcUpdate(KindUpdate):
+    """The engine's update of NHC records (core.measurements.gate.KindUpdate; no payload): the
+    model of the base_link origin with the residual mounting and the gated update; ``fused``
+    with ``nhc_apply``."""
 
     def __call__(
         self, s: FilterState, kf: ErrorStateFilter, pred: Prediction, _: None, live: bool
     ) -> None:
         geometry = self._geometry
-        model = nhc(
-            pred, kf.layout, geometry.arms(s)[1], geometry.mat_bi, self._sigma_m_s, s.mounting
-        )
+        sigma_m_s = self._config.nhc_sigma_m_s
+        model = nhc(pred, kf.layout, geometry.arms(s)[1], geometry.mat_bi, sigma_m_s, s.mounting)
         self._corrections.update(s, kf, "nhc", model, live)
+
+    def fused(
+        self, s: FilterState, kf: ErrorStateFilter, record: tuple[float, None], live: bool
+    ) -> bool:
+        if not self._pseudo_usable(s, kf):
+            return False
+        geometry = self._geometry
+        stepped, phi, accepted, nis, P = self._kernel(
+            nhc_apply,
+            (s, kf),
+            record[0],
+            (geometry.mat_bi, kernel_array(geometry.arms(s)[1])),
+            (self._correlation_time_s, self._config.nhc_sigma_m_s, self._gates[1], kf.layout.size),
+        )
+        self._taken(kf, stepped, phi, P)
+        self._booked(s, "nhc", (accepted, nis), 2, live)
+        return True
 
 
 @jit
@@ -176,22 +186,3 @@ def nhc_apply(
     )
     accepted, nis, _, P_new = update_and_restart(P, x, model, threshold, columns)
     return stepped, phi, accepted, nis, P_new
-
-
-class FusedNhc(FusedUpdate):
-    """The engine's side of ``nhc_apply`` (InsEngine._apply uses it while no smoother is
-    attached)."""
-
-    def apply(self, s: FilterState, kf: ErrorStateFilter, t_m: float, live: bool) -> None:
-        """What InsEngine._apply does for an NHC record at ``t_m`` while the heading is known
-        (``live``: counted)."""
-        geometry = self._geometry
-        stepped, phi, accepted, nis, P = self._kernel(
-            nhc_apply,
-            (s, kf),
-            t_m,
-            (geometry.mat_bi, kernel_array(geometry.arms(s)[1])),
-            (self._correlation_time_s, self._config.nhc_sigma_m_s, self._gates[1], kf.layout.size),
-        )
-        self._taken(kf, stepped, phi, P)
-        self._booked(s, "nhc", (accepted, nis), 2, live)
