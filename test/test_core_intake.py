@@ -28,6 +28,8 @@ from ins_fusion.core.engine.intake import (
     S_OUT_OF_ORDER,
     S_RATE,
     S_SAMPLES,
+    ImuReading,
+    IntakeStores,
     new_intake,
     take_sample,
 )
@@ -58,20 +60,15 @@ class Intake:
     def take(self, t: float, rate: tuple[float, ...], force: tuple[float, ...]) -> int:
         """take_sample without the strapdown step; a first sample starts the stream as
         EngineLoop._start_stream does."""
-        code = take_sample(
+        stores = IntakeStores(
             self.buf,
             np.zeros(T_SIZE),
             self.integrator.buffer,
             self.detector.ring,
             self.monitor.block,
-            np.zeros(X_SIZE),
-            np.eye(3).ravel(),
-            self.inc,
-            float(t),
-            *map(float, rate),
-            *map(float, force),
-            False,
         )
+        reading = ImuReading(float(t), *map(float, rate), *map(float, force))
+        code = take_sample(stores, np.zeros(X_SIZE), np.eye(3).ravel(), self.inc, reading, False)
         if code == FIRST:
             frd = self.buf[S_RATE : S_FORCE + 3]
             self.integrator.push(t, tuple(frd[:3]), tuple(frd[3:]))

@@ -60,10 +60,11 @@ from ins_fusion.core.engine.intake import (
     S_LAST_T,
     S_OUT_OF_ORDER,
     S_SAMPLES,
+    ImuReading,
     take_sample,
 )
 from ins_fusion.core.engine.loop import EngineLoop
-from ins_fusion.core.engine.sample_runs import RUN_DONE, RUN_PROBLEM
+from ins_fusion.core.engine.sample_runs import RUN_DONE, RUN_PROBLEM, ImuSeries
 from ins_fusion.core.filter.records import (
     AttitudeMeasurement,
     GnssFixMeasurement,
@@ -109,21 +110,19 @@ class InsEngine(EngineLoop):
         ready = self._filter is not None and timeline.replay_from is None and not timeline.due_by(t)
         inc = np.empty(INCREMENT_SIZE)
         code = take_sample(
-            self._intake,
-            self._calibration_table,
-            self._integrator.buffer,
-            self._detector.ring,
-            self._densities.monitor.block,
+            self._intake_stores(),
             self._state.x if ready else self._idle_x,  # type: ignore[union-attr]
             self._geometry.r_bi,
             inc,
-            t,
-            float(rate_flu_rad_s[0]),
-            float(rate_flu_rad_s[1]),
-            float(rate_flu_rad_s[2]),
-            float(force_flu_m_s2[0]),
-            float(force_flu_m_s2[1]),
-            float(force_flu_m_s2[2]),
+            ImuReading(
+                t,
+                float(rate_flu_rad_s[0]),
+                float(rate_flu_rad_s[1]),
+                float(rate_flu_rad_s[2]),
+                float(force_flu_m_s2[0]),
+                float(force_flu_m_s2[1]),
+                float(force_flu_m_s2[2]),
+            ),
             ready,
         )
         self._finish_sample(t, inc, code)
@@ -142,7 +141,7 @@ class InsEngine(EngineLoop):
         set its ``solution_row`` (when there is one) appended to ``rows``: what a replay does
         sample by sample, with runs of ordinary samples compiled (core.engine.sample_runs)."""
         k, stop = span
-        samples = (t_s, rate_flu_rad_s, force_flu_m_s2, ticks)
+        samples = ImuSeries(t_s, rate_flu_rad_s, force_flu_m_s2, ticks)
         while k < stop:
             if (
                 self._filter is None
@@ -158,7 +157,7 @@ class InsEngine(EngineLoop):
 
     def _take_run(
         self,
-        samples: tuple[FloatArray, FloatArray, FloatArray, BoolArray],
+        samples: ImuSeries,
         start: int,
         stop: int,
         rows: RowBuffer,

@@ -14,6 +14,7 @@ Frames: the input is imu_link FLU (REP-145); everything stored is imu FRD.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -82,6 +83,29 @@ GAP_FACTOR = 2.5
 BACK_RUN_RESET = 10
 
 
+class IntakeStores(NamedTuple):
+    """The arrays ``take_sample`` reads and writes besides the nominal state."""
+
+    buf: FloatArray  #: the intake array (S_* layout)
+    table: FloatArray  #: the calibration table (core.nav.calibration T_* layout)
+    integrator: FloatArray  #: core.nav.strapdown.SampleIntegrator.buffer
+    ring: FloatArray  #: the stop detector's sample ring (core.measurements.stop_detector)
+    block: FloatArray  #: the IMU noise monitor's block (core.filter.adaptation B_* layout)
+
+
+class ImuReading(NamedTuple):
+    """One IMU sample as received: stamp [s], rate [rad/s], specific force [m/s²], imu_link
+    FLU."""
+
+    t: float
+    wx: float
+    wy: float
+    wz: float
+    fx: float
+    fy: float
+    fz: float
+
+
 def new_intake(max_rate_rad_s: float, max_force_m_s2: float, calibrated: bool) -> FloatArray:
     """A fresh intake array (S_* layout) with its limits; no sample yet."""
     buf = np.zeros(S_SIZE)
@@ -108,29 +132,20 @@ def start_pseudo_interval(buf: FloatArray, t: float, period_s: float) -> float:
 
 @jit
 def take_sample(
-    buf: FloatArray,
-    table: FloatArray,
-    integrator: FloatArray,
-    ring: FloatArray,
-    block: FloatArray,
+    stores: IntakeStores,
     x: FloatArray,
     r_bi: FloatArray,
     inc: FloatArray,
-    t: float,
-    wx: float,
-    wy: float,
-    wz: float,
-    fx: float,
-    fy: float,
-    fz: float,
+    reading: ImuReading,
     step: bool,
 ) -> int:
-    """Take the sample (rate [rad/s], specific force [m/s²], imu_link FLU) stamped ``t`` [s]:
-    the checks and counters, the calibration (``table``: core.nav.calibration T_* layout, when
+    """Take the sample ``reading``: the checks and counters, the calibration (when
     S_CALIBRATED), FLU -> FRD into S_RATE/S_FORCE; for an ordinary interval the increment into
-    ``inc`` (``integrator``: strapdown.SampleIntegrator.buffer), ``record_sample``, and with
-    ``step`` the nominal state ``x`` advanced (core.filter.propagation.advance; ``r_bi`` imu ->
-    body). Returns a code (module constants) plus flags."""
+    ``inc``, ``record_sample``, and with ``step`` the nominal state ``x`` advanced
+    (core.filter.propagation.advance; ``r_bi`` imu -> body). Returns a code (module constants)
+    plus flags."""
+    buf = stores.buf
+    t, wx, wy, wz, fx, fy, fz = reading
     if not math.isfinite(t + wx + wy + wz + fx + fy + fz):
         buf[S_GAPS] += 1.0  # a corrupt sample is a one-sample gap
         return REJECTED
@@ -157,7 +172,7 @@ def take_sample(
     buf[S_BACK_RUN] = 0.0
     buf[S_SAMPLES] += 1.0
     if buf[S_CALIBRATED] != 0.0:
-        wx, wy, wz, fx, fy, fz = correct_sample(table, wx, wy, wz, fx, fy, fz)
+        wx, wy, wz, fx, fy, fz = correct_sample(stores.table, wx, wy, wz, fx, fy, fz)
     wy, wz, fy, fz = -wy, -wz, -fy, -fz  # FLU -> FRD
     buf[S_RATE], buf[S_RATE + 1], buf[S_RATE + 2] = wx, wy, wz
     buf[S_FORCE], buf[S_FORCE + 1], buf[S_FORCE + 2] = fx, fy, fz
@@ -170,9 +185,9 @@ def take_sample(
     if dt > GAP_FACTOR * nominal:
         buf[S_GAPS] += 1.0
         return GAP
-    integrate_sample(integrator, t, (wx, wy, wz, fx, fy, fz), inc)
+    integrate_sample(stores.integrator, t, (wx, wy, wz, fx, fy, fz), inc)
     buf[S_NOMINAL_DT] = dt if nominal == math.inf else nominal + 0.01 * (dt - nominal)
-    flags = record_sample(buf, ring, block, t)
+    flags = record_sample(buf, stores.ring, stores.block, t)
     if step:
         advance(x, inc, r_bi, False, t)
         flags += STEPPED

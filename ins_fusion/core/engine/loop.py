@@ -30,6 +30,7 @@ from ins_fusion.core.engine.intake import (
     S_ZARU_N,
     S_ZARU_SUM,
     STEPPED,
+    IntakeStores,
     forget_stream,
     new_intake,
     record_sample,
@@ -139,11 +140,20 @@ class EngineLoop:
         self._runs = CompiledRuns(
             config,
             geometry,
-            (self._intake, self._calibration_table),
-            (self._integrator, self._detector, self._densities),
+            (self._intake_stores, self._detector, self._densities),
             (self._propagator, self._output, self._timeline, self._corrections),
         )
         self._clear()
+
+    def _intake_stores(self) -> IntakeStores:
+        """The intake's arrays as they are now (the detector's ring grows: never kept)."""
+        return IntakeStores(
+            self._intake,
+            self._calibration_table,
+            self._integrator.buffer,
+            self._detector.ring,
+            self._densities.monitor.block,
+        )
 
     def _finish_sample(self, t: float, inc: FloatArray, code: int) -> None:
         """What follows the intake of a sample at ``t`` with its result ``code``."""

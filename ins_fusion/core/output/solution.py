@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -136,6 +137,20 @@ def unpack(row: FloatArray) -> InsSolution:
     )
 
 
+class RowModel(NamedTuple):
+    """What a solution row is made from besides the nominal state and the rate
+    (``SolutionBuilder.model``)."""
+
+    J: FloatArray  #: the row's Jacobian (written; SolutionBuilder.jacobian)
+    P: FloatArray  #: the error covariance
+    states: IntArray  #: the error states of the solution (J's columns)
+    arm_b: FloatArray  #: base_link's lever arm from the IMU, turned by the mounting [m]
+    arm_bi: FloatArray  #: [l×] R_bi of the configured arm (the velocity rows' gyro-bias terms)
+    mat_enu_ecef: FloatArray  #: the ENU plane's rotation from ECEF
+    mounting: tuple[float, float]  #: the residual mounting (pitch, yaw) [rad] (0: not estimated)
+    origin: Vec3  #: the ENU plane's ECEF origin [m]
+
+
 class SolutionBuilder:
     """Builds ``InsSolution`` rows at the output rate (see the module docstring)."""
 
@@ -168,70 +183,42 @@ class SolutionBuilder:
         """The solution row (``WIDTH``) of state ``s`` with covariance ``kf.P``; ``rate_i``: the
         latest raw sample's rate (imu FRD [rad/s]); ``datum_deg``: the ENU plane's origin (lat,
         lon [deg], height [m])."""
-        (J, P, states, arm_b, arm_bi, mat_enu_ecef), mounting, origin = self.model(s, kf, datum_deg)
         out = np.empty(WIDTH)
-        _fill_row(
-            out,
-            J,
-            s.x,
-            P,
-            states,
-            arm_b,
-            self._geometry.r_bi,
-            arm_bi,
-            rate_i,
-            mounting,
-            origin,
-            mat_enu_ecef,
-        )
+        _fill_row(out, s.x, self.model(s, kf, datum_deg), self._geometry.r_bi, rate_i)
         out[STATE] = STATES.index(state_name)
         return out
 
     def model(
         self, s: FilterState, kf: ErrorStateFilter, datum_deg: tuple[float, float, float]
-    ) -> tuple[
-        tuple[FloatArray, FloatArray, IntArray, FloatArray, FloatArray, FloatArray],
-        tuple[float, float],
-        Vec3,
-    ]:
-        """What ``_fill_row`` takes besides the state and the rate, for ``s`` and ``kf.P``: (J,
-        P, the solution states, base_link lever arm, arm_bi, the ENU plane's rotation), the
-        residual mounting (zero when not estimated) and the plane's ECEF origin."""
+    ) -> RowModel:
+        """What ``_fill_row`` takes besides the state and the rate, for ``s`` and ``kf.P``."""
         geometry = self._geometry
         if self._plane is None or self._datum_deg != datum_deg:
             lat0, lon0, h0 = datum_deg
             self._plane = earth.TangentPlane(math.radians(lat0), math.radians(lon0), h0)
             self._datum_deg = datum_deg
-        mounting = s.mounting if self._mt is not None else (0.0, 0.0)
-        arrays = (
+        return RowModel(
             self._jacobian,
             kernel_array(kf.P),
             self._solution_states,
             geometry.arms(s)[1],
             geometry.arm_bi,
             self._plane.mat_enu_ecef,
+            s.mounting if self._mt is not None else (0.0, 0.0),
+            self._plane.origin,
         )
-        return arrays, mounting, self._plane.origin
 
 
 @jit
 def _fill_row(
-    out: FloatArray,
-    J: FloatArray,
-    x: FloatArray,
-    P: FloatArray,
-    states: IntArray,
-    arm_b: FloatArray,
-    r_bi: FloatArray,
-    arm_bi: FloatArray,
-    rate_i: FloatArray,
-    mounting: tuple[float, float],
-    origin: Vec3,
-    mat_enu_ecef: FloatArray,
+    out: FloatArray, x: FloatArray, model: RowModel, r_bi: FloatArray, rate_i: FloatArray
 ) -> None:
-    """The numbers of a solution row but its state (``SolutionBuilder.row``), and its Jacobian
-    ``J`` (first 12 columns; the mounting's two when ``J`` has them: then the row's mounting,
-    else NaN; imu_link's attitude rows are ψ's alone, constant)."""
+    """The numbers of a solution row but its state (``SolutionBuilder.row``) from the nominal
+    state ``x``, ``model`` and the latest raw rate ``rate_i`` (imu FRD [rad/s]; ``r_bi`` imu ->
+    body), and its Jacobian ``model.J`` (first 12 columns; the mounting's two when ``J`` has
+    them: then the row's mounting, else NaN; imu_link's attitude rows are ψ's alone,
+    constant)."""
+    J, P, states, arm_b, arm_bi, mat_enu_ecef, mounting, origin = model
     C = mat_from_quat(x[X_QUAT], x[X_QUAT + 1], x[X_QUAT + 2], x[X_QUAT + 3])
     # base_link of the estimated mounting: the lever arm turned by it (arm_b), and below the
     # orientation and rate turned into it (C_bv = I + [μ×]). The lever arm in NED, and its
