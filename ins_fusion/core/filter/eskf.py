@@ -179,6 +179,18 @@ class ProcessModel(NamedTuple):
     markov_q: FloatArray
 
 
+class Motion(NamedTuple):
+    """What the error dynamics F depend on over a covariance interval (frames: imu FRD, NED)."""
+
+    mat_ni: FloatArray  #: rotation imu -> NED
+    force_n: FloatArray  #: mean specific force, NED [m/s²]
+    force_i: FloatArray  #: mean specific force, imu FRD [m/s²]
+    rate_i: FloatArray  #: mean corrected rate, imu FRD [rad/s]
+    lat_rad: float  #: latitude [rad]
+    height_m: float  #: height [m]
+    vel_ned_m_s: tuple[float, float, float]  #: NED velocity [m/s]
+
+
 @compilable
 def with_white_noise(
     process: ProcessModel, gyro_psd: FloatArray, accel_psd: FloatArray
@@ -280,8 +292,8 @@ class ErrorStateFilter:
         """The error-state matrix F (module docstring) for a rotation imu FRD -> NED, the
         specific force in NED and the corrected force/rate in imu FRD [m/s², rad/s], position
         and NED velocity. Returns an internal array, valid until the next call."""
-        inputs = (mat_ni, force_n, force_i, rate_i, lat_rad, height_m, vel_ned_m_s)
-        _fill_dynamics(self._F, *inputs, *self.scale_columns)
+        motion = Motion(mat_ni, force_n, force_i, rate_i, lat_rad, height_m, vel_ned_m_s)
+        _fill_dynamics(self._F, motion, *self.scale_columns)
         return self._F
 
     def noise_density(self, mat_ni: FloatArray, rate_i: FloatArray) -> FloatArray:
@@ -375,20 +387,10 @@ def problem_text(code: int) -> str | None:
 
 
 @jit
-def _fill_dynamics(
-    F: FloatArray,
-    mat_ni: FloatArray,
-    force_n: FloatArray,
-    force_i: FloatArray,
-    rate_i: FloatArray,
-    lat_rad: float,
-    height_m: float,
-    vel_ned_m_s: tuple[float, float, float],
-    sg: int,
-    sa: int,
-) -> None:
+def _fill_dynamics(F: FloatArray, motion: Motion, sg: int, sa: int) -> None:
     """The state-dependent blocks of F (ErrorStateFilter.dynamics; ``sg``, ``sa``: columns of
     the scale factors, -1 when not estimated)."""
+    mat_ni, force_n, force_i, rate_i, lat_rad, height_m, vel_ned_m_s = motion
     vn, ve, vd = vel_ned_m_s
     sin_lat = math.sin(lat_rad)
     r_m, r_n = earth.radii_from_sin(sin_lat)
@@ -450,27 +452,13 @@ def _fill_noise(
 
 @jit
 def propagate_kernel(
-    P: FloatArray,
-    F: FloatArray,
-    Q: FloatArray,
-    dt_s: float,
-    mat_ni: FloatArray,
-    force_n: FloatArray,
-    force_i: FloatArray,
-    rate_i: FloatArray,
-    lat_rad: float,
-    height_m: float,
-    vel_ned_m_s: tuple[float, float, float],
-    sg: int,
-    sa: int,
-    gyro_psd: FloatArray,
-    gyro_misalignment_q: FloatArray,
-    accel_psd: FloatArray,
-    markov_idx: IntArray,
-    markov_q: FloatArray,
+    P: FloatArray, process: ProcessModel, dt_s: float, motion: Motion, sg: int, sa: int
 ) -> tuple[FloatArray, FloatArray]:
-    """(P, Φ) after an interval (propagation.covariance_step); F and Q are filled in place."""
-    _fill_dynamics(F, mat_ni, force_n, force_i, rate_i, lat_rad, height_m, vel_ned_m_s, sg, sa)
+    """(P, Φ) after an interval of ``dt_s`` [s] with ``motion`` (propagation.covariance_step;
+    ``sg``, ``sa``: as ``_fill_dynamics``); F and Q of ``process`` are filled in place."""
+    F, Q, gyro_psd, gyro_misalignment_q, accel_psd, markov_idx, markov_q = process
+    _fill_dynamics(F, motion, sg, sa)
+    mat_ni, rate_i = motion.mat_ni, motion.rate_i
     _fill_noise(Q, mat_ni, rate_i, gyro_psd, gyro_misalignment_q, accel_psd, markov_idx, markov_q)
     f_dt = F * dt_s
     phi = np.eye(len(P)) + f_dt + 0.5 * (f_dt @ f_dt)

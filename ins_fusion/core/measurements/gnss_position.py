@@ -29,7 +29,7 @@ import numpy as np
 
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core.compiled import jit, kernel_array
-from ins_fusion.core.filter.adaptation import white_push_fix
+from ins_fusion.core.filter.adaptation import FixUpdate, white_push_fix
 from ins_fusion.core.filter.eskf import (
     ATT,
     POS,
@@ -79,13 +79,8 @@ def gnss_position(
     receiver's covariance. North and east rows only for a 2-D fix. Compiled
     (``position_model``)."""
     return position_model(
-        pred.lat_rad,
-        pred.lon_rad,
-        pred.height_m,
-        pred.mat_nb,
-        math.radians(meas.lat_deg),
-        math.radians(meas.lon_deg),
-        meas.height_m,
+        pred,
+        (math.radians(meas.lat_deg), math.radians(meas.lon_deg), meas.height_m),
         lever_b,
         white_cov_ned,
         gnss_error_ned,
@@ -97,13 +92,8 @@ def gnss_position(
 
 @jit
 def position_model(
-    lat_rad: float,
-    lon_rad: float,
-    height_m: float,
-    mat_nb: FloatArray,
-    fix_lat_rad: float,
-    fix_lon_rad: float,
-    fix_height_m: float,
+    pred: Prediction,
+    fix_rad: tuple[float, float, float],
     lever_b: FloatArray,
     white_cov_ned: FloatArray,
     gnss_error_ned: tuple[float, float, float],
@@ -111,9 +101,11 @@ def position_model(
     gp: int,
     vertical: bool,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """``gnss_position``'s model from the predicted IMU position (lat, lon [rad], h [m]) and
-    attitude, the fix's position and the layout's size and GNSS error column (-1: none);
-    without ``vertical`` (a 2-D fix) the north and east rows only."""
+    """``gnss_position``'s model from the prediction, the fix's latitude, longitude [rad] and
+    height [m] and the layout's size and GNSS error column (-1: none); without ``vertical`` (a
+    2-D fix) the north and east rows only."""
+    lat_rad, lon_rad, height_m, mat_nb = pred.lat_rad, pred.lon_rad, pred.height_m, pred.mat_nb
+    fix_lat_rad, fix_lon_rad, fix_height_m = fix_rad
     arm_n = mat_nb @ lever_b
     r_m, r_n = earth.radii_from_sin(math.sin(lat_rad))
     offset = (
@@ -207,7 +199,6 @@ class PositionUpdate(KindUpdate):
         stepped, phi, action, P, accepted, nis = position_apply(
             kernel_array(kf.P),
             s.x,
-            white,
             (
                 fix.t_s,
                 math.radians(fix.lat_deg),
@@ -218,7 +209,7 @@ class PositionUpdate(KindUpdate):
             kf.process_model(),
             (geometry.mat_bi, kernel_array(geometry.arms(s)[0])),
             kf.layout.columns,
-            self._noise.settings(s),
+            (white, self._noise.settings(s)),
             (self._correlation_time_s, corrections.gate(rows), kf.layout.size),
         )
         self._taken(kf, stepped, phi, P)
@@ -237,21 +228,20 @@ class PositionUpdate(KindUpdate):
 def position_apply(
     P: FloatArray,
     x: FloatArray,
-    white: FloatArray,
     measured: tuple[float, float, float, float, FloatArray],
     process: ProcessModel,
     geometry: tuple[FloatArray, FloatArray],
     columns: Columns,
-    noise: tuple[float, FloatArray, float, FloatArray],
+    noise: tuple[FloatArray, tuple[float, FloatArray, float, FloatArray]],
     constants: tuple[float, float, int],
 ) -> tuple[bool, FloatArray, int, FloatArray, bool, float]:
     """The fix ``measured`` = (stamp [s], latitude, longitude [rad], height [m], ENU
     covariance [m²]) on the error covariance ``P`` and the nominal state ``x`` (X_* layout,
     changed in place; heading known): ``step_to`` the stamp, the white/correlated split
-    (``noise``: GnssNoise.settings) with the new variance of the correlated error states when
-    it moved (``shrink_correlated``), the model of the antenna (``geometry``: rotation imu ->
-    body, lever arm of the antenna from the IMU [m], body FRD), diag(H P Hᵀ),
-    ``update_and_restart`` and the push of the white-noise monitor's values ``white`` (in
+    (``noise``: the white-noise monitor's values, GnssNoise.settings) with the new variance of
+    the correlated error states when it moved (``shrink_correlated``), the model of the antenna
+    (``geometry``: rotation imu -> body, lever arm of the antenna from the IMU [m], body FRD),
+    diag(H P Hᵀ), ``update_and_restart`` and the push of the white-noise monitor's values (in
     place). ``constants``: GNSS correlation time [s], the gate of the fix's rows (3, a 2-D fix
     2: ``height_measured``), state size.
     Returns (stepped, Φ of the step (P when none), what the split asked of the correlated
@@ -259,7 +249,7 @@ def position_apply(
     after the covariance step was made."""
     t_m, fix_lat, fix_lon, fix_height, cov_enu = measured
     mat_bi, arm_b = geometry
-    scale_sq, white_var_ned, white_fraction, share = noise
+    white, (scale_sq, white_var_ned, white_fraction, share) = noise
     correlation_time_s, threshold, size = constants
     stepped, phi, P, prediction = step_to(P, x, t_m, process, mat_bi, columns, correlation_time_s)
     gp = columns.gp
@@ -280,13 +270,8 @@ def position_apply(
         _, P, _ = shrink_correlated(P, x, correlated, gp)
     error = (x[X_GNSS_ERROR], x[X_GNSS_ERROR + 1], x[X_GNSS_ERROR + 2])
     z, H, R = position_model(
-        prediction.lat_rad,
-        prediction.lon_rad,
-        prediction.height_m,
-        prediction.mat_nb,
-        fix_lat,
-        fix_lon,
-        fix_height,
+        prediction,
+        (fix_lat, fix_lon, fix_height),
         arm_b,
         R,
         error,
@@ -296,5 +281,5 @@ def position_apply(
     )
     predicted = projected_variance(H, P)
     accepted, nis, dx, P_new = update_and_restart(P, x, (z, H, R), threshold, columns)
-    white_push_fix(white, t_m, z, H, dx, accepted, P_new, predicted, reported)
+    white_push_fix(white, t_m, FixUpdate(z, H, dx, accepted, P_new), predicted, reported)
     return stepped, phi, action, P_new, accepted, nis

@@ -70,10 +70,7 @@ def gnss_velocity(
     the variance at least UNKNOWN_VELOCITY_VARIANCE). None when the horizontal is unusable.
     Compiled (``velocity_model``)."""
     rows, z, H, R = velocity_model(
-        pred.mat_nb,
-        pred.vel_ned_m_s,
-        pred.rate_b,
-        pred.rate_i,
+        pred,
         lever_b,
         mat_bi,
         kernel_array(meas.vel_enu_m_s),
@@ -86,10 +83,7 @@ def gnss_velocity(
 
 @jit
 def velocity_model(
-    mat_nb: FloatArray,
-    vel: FloatArray,
-    rate_b: FloatArray,
-    rate_i: FloatArray,
+    pred: Prediction,
     lever_b: FloatArray,
     mat_bi: FloatArray,
     vel_enu: FloatArray,
@@ -97,9 +91,10 @@ def velocity_model(
     size: int,
     sg: int,
 ) -> tuple[int, FloatArray, FloatArray, FloatArray]:
-    """``gnss_velocity``'s model (rows, z, H, R; 0 rows: unusable) from the prediction's
-    arrays, the measured ENU velocity and covariance, the layout's size and the gyro scale
-    column (-1: not estimated)."""
+    """``gnss_velocity``'s model (rows, z, H, R; 0 rows: unusable) from the prediction, the
+    measured ENU velocity and covariance, the layout's size and the gyro scale column (-1: not
+    estimated)."""
+    mat_nb, vel, rate_b, rate_i = pred.mat_nb, pred.vel_ned_m_s, pred.rate_b, pred.rate_i
     measured = np.array((vel_enu[1], vel_enu[0], -vel_enu[2]))
     cov = ned_cov(cov_enu)
     if not np.isfinite(measured[:2]).all() or not np.isfinite(cov[:2, :2]).all():
@@ -205,10 +200,7 @@ def velocity_apply(
     correlation_time_s, gates, size = constants
     stepped, phi, P, prediction = step_to(P, x, t_m, process, mat_bi, columns, correlation_time_s)
     rows, z, H, R = velocity_model(
-        prediction.mat_nb,
-        prediction.vel_ned_m_s,
-        prediction.rate_b,
-        prediction.rate_i,
+        prediction,
         arm_b,
         mat_bi,
         vel_enu,

@@ -66,10 +66,7 @@ def nhc(
     (vertical), δμ_z -> -v_b,x (lateral) (the mounting's second-order terms in H left out).
     Compiled (``nhc_model``)."""
     return nhc_model(
-        pred.mat_nb,
-        pred.vel_ned_m_s,
-        pred.rate_b,
-        pred.rate_i,
+        pred,
         arm_b,
         mat_bi,
         sigma_m_s,
@@ -82,10 +79,7 @@ def nhc(
 
 @jit
 def nhc_model(
-    mat_nb: FloatArray,
-    vel: FloatArray,
-    rate_b: FloatArray,
-    rate_i: FloatArray,
+    pred: Prediction,
     arm_b: FloatArray,
     mat_bi: FloatArray,
     sigma_m_s: float,
@@ -94,8 +88,9 @@ def nhc_model(
     sg: int,
     mt: int,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """``nhc``'s model from the prediction's arrays and the layout's size and columns (-1:
-    state not estimated)."""
+    """``nhc``'s model from the prediction and the layout's size and columns (-1: state not
+    estimated)."""
+    mat_nb, vel, rate_b, rate_i = pred.mat_nb, pred.vel_ned_m_s, pred.rate_b, pred.rate_i
     c_bn = np.ascontiguousarray(mat_nb.T)
     v_b = c_bn @ vel + skew(rate_b) @ arm_b
     H = np.zeros((3, size))
@@ -172,10 +167,7 @@ def nhc_apply(
     stepped, phi, P, prediction = step_to(P, x, t_m, process, mat_bi, columns, correlation_time_s)
     mounting = (x[X_MOUNTING], x[X_MOUNTING + 1])
     model = nhc_model(
-        prediction.mat_nb,
-        prediction.vel_ned_m_s,
-        prediction.rate_b,
-        prediction.rate_i,
+        prediction,
         arm_b,
         mat_bi,
         sigma_m_s,
