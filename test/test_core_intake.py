@@ -28,9 +28,9 @@ from ins_fusion.core.engine.intake import (
     S_OUT_OF_ORDER,
     S_RATE,
     S_SAMPLES,
-    ImuReading,
-    IntakeStores,
+    S_STEP,
     new_intake,
+    put_reading,
     take_sample,
 )
 from ins_fusion.core.filter.adaptation import ImuNoiseMonitor
@@ -60,15 +60,18 @@ class Intake:
     def take(self, t: float, rate: tuple[float, ...], force: tuple[float, ...]) -> int:
         """take_sample without the strapdown step; a first sample starts the stream as
         EngineLoop._start_stream does."""
-        stores = IntakeStores(
+        put_reading(self.buf, float(t), rate, force)
+        self.buf[S_STEP] = 0.0
+        code = take_sample(
             self.buf,
             np.zeros(T_SIZE),
             self.integrator.buffer,
             self.detector.ring,
             self.monitor.block,
+            np.zeros(X_SIZE),
+            np.eye(3).ravel(),
+            self.inc,
         )
-        reading = ImuReading(float(t), *map(float, rate), *map(float, force))
-        code = take_sample(stores, np.zeros(X_SIZE), np.eye(3).ravel(), self.inc, reading, False)
         if code == FIRST:
             frd = self.buf[S_RATE : S_FORCE + 3]
             self.integrator.push(t, tuple(frd[:3]), tuple(frd[3:]))

@@ -44,7 +44,8 @@ HAND_NUMBERED = {
         **{"LAST_T": 0, "NOMINAL_DT": 1, "LAST_RATE": 2, "LAST_FORCE": 5, "ZARU_SUM": 8},
         **{"ZARU_N": 11, "SAMPLES": 12, "GAPS": 13, "DUPLICATES": 14, "OUT_OF_ORDER": 15},
         **{"IMPLAUSIBLE": 16, "BACK_RUN": 17, "MAX_RATE": 18, "MAX_FORCE": 19},
-        **{"CALIBRATED": 20, "RATE": 21, "FORCE": 24, "SIZE": 27},
+        **{"CALIBRATED": 20, "RATE": 21, "FORCE": 24, "READING_T": 27, "READING_RATE": 28},
+        **{"READING_FORCE": 31, "STEP": 34, "SIZE": 35},
     },
     "B_": {
         **{"START": 0, "SUM": 1, "N": 7, "TAU": 8, "PREV": 9, "HELD": 21, "MEAN": 22},

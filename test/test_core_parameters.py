@@ -1,6 +1,7 @@
 """No function of the fusion core takes more than MAX_POSITIONAL positional parameters (self and
-cls aside): what a kernel reads by position beyond that goes into a named record (a NamedTuple
-numba compiles, as intake.IntakeStores, sample_runs.RunSettings, solution.RowModel)."""
+cls aside): what a kernel reads beyond that goes into a named record (a NamedTuple numba
+compiles, as sample_runs.RunSettings, solution.RowModel) or a field of a named layout (as the
+intake array's S_READING_*)."""
 
 from __future__ import annotations
 

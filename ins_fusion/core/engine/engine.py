@@ -60,7 +60,8 @@ from ins_fusion.core.engine.intake import (
     S_LAST_T,
     S_OUT_OF_ORDER,
     S_SAMPLES,
-    ImuReading,
+    S_STEP,
+    put_reading,
     take_sample,
 )
 from ins_fusion.core.engine.loop import EngineLoop
@@ -109,21 +110,18 @@ class InsEngine(EngineLoop):
         # The strapdown step goes with the intake unless measurements are due before it.
         ready = self._filter is not None and timeline.replay_from is None and not timeline.due_by(t)
         inc = np.empty(INCREMENT_SIZE)
+        buf = self._intake
+        put_reading(buf, t, rate_flu_rad_s, force_flu_m_s2)
+        buf[S_STEP] = 1.0 if ready else 0.0
         code = take_sample(
-            self._intake_stores(),
+            buf,
+            self._calibration_table,
+            self._integrator.buffer,
+            self._detector.ring,
+            self._densities.monitor.block,
             self._state.x if ready else self._idle_x,  # type: ignore[union-attr]
             self._geometry.r_bi,
             inc,
-            ImuReading(
-                t,
-                float(rate_flu_rad_s[0]),
-                float(rate_flu_rad_s[1]),
-                float(rate_flu_rad_s[2]),
-                float(force_flu_m_s2[0]),
-                float(force_flu_m_s2[1]),
-                float(force_flu_m_s2[2]),
-            ),
-            ready,
         )
         self._finish_sample(t, inc, code)
 

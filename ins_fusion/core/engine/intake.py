@@ -14,6 +14,7 @@ Frames: the input is imu_link FLU (REP-145); everything stored is imu FRD.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import NamedTuple
 
 import numpy as np
@@ -46,6 +47,10 @@ S_LAYOUT = (
     ("calibrated", 1),  # 1.0 when a calibration table applies
     ("rate", 3),  # the sample just taken: rate [rad/s]
     ("force", 3),  # the sample just taken: specific force [m/s²]
+    ("reading_t", 1),  # the sample to take (``take_sample``'s input): stamp [s]
+    ("reading_rate", 3),  # its rate [rad/s], imu_link FLU, as received
+    ("reading_force", 3),  # its specific force [m/s²], imu_link FLU, as received
+    ("step", 1),  # 1.0: advance the nominal state with it
 )
 (
     S_LAST_T,
@@ -65,6 +70,10 @@ S_LAYOUT = (
     S_CALIBRATED,
     S_RATE,
     S_FORCE,
+    S_READING_T,
+    S_READING_RATE,
+    S_READING_FORCE,
+    S_STEP,
     S_SIZE,
 ) = offsets(S_LAYOUT)
 
@@ -93,19 +102,6 @@ class IntakeStores(NamedTuple):
     block: FloatArray  #: the IMU noise monitor's block (core.filter.adaptation B_* layout)
 
 
-class ImuReading(NamedTuple):
-    """One IMU sample as received: stamp [s], rate [rad/s], specific force [m/s²], imu_link
-    FLU."""
-
-    t: float
-    wx: float
-    wy: float
-    wz: float
-    fx: float
-    fy: float
-    fz: float
-
-
 def new_intake(max_rate_rad_s: float, max_force_m_s2: float, calibrated: bool) -> FloatArray:
     """A fresh intake array (S_* layout) with its limits; no sample yet."""
     buf = np.zeros(S_SIZE)
@@ -130,22 +126,42 @@ def start_pseudo_interval(buf: FloatArray, t: float, period_s: float) -> float:
     return (math.floor(t / period_s) + 1.0) * period_s
 
 
+@compilable
+def put_reading(
+    buf: FloatArray,
+    t: float,
+    rate: Sequence[float] | FloatArray,
+    force: Sequence[float] | FloatArray,
+) -> None:
+    """The sample to take next into the intake array ``buf``: stamp [s], rate [rad/s] and
+    specific force [m/s²] (imu_link FLU, as received)."""
+    buf[S_READING_T] = t
+    for k in range(3):
+        buf[S_READING_RATE + k] = rate[k]
+        buf[S_READING_FORCE + k] = force[k]
+
+
 @jit
 def take_sample(
-    stores: IntakeStores,
+    buf: FloatArray,
+    table: FloatArray,
+    integrator: FloatArray,
+    ring: FloatArray,
+    block: FloatArray,
     x: FloatArray,
     r_bi: FloatArray,
     inc: FloatArray,
-    reading: ImuReading,
-    step: bool,
 ) -> int:
-    """Take the sample ``reading``: the checks and counters, the calibration (when
-    S_CALIBRATED), FLU -> FRD into S_RATE/S_FORCE; for an ordinary interval the increment into
-    ``inc``, ``record_sample``, and with ``step`` the nominal state ``x`` advanced
-    (core.filter.propagation.advance; ``r_bi`` imu -> body). Returns a code (module constants)
-    plus flags."""
-    buf = stores.buf
-    t, wx, wy, wz, fx, fy, fz = reading
+    """Take the sample in S_READING_* of the intake array ``buf``: the checks and counters,
+    the calibration (``table``: core.nav.calibration T_* layout, when S_CALIBRATED), FLU -> FRD
+    into S_RATE/S_FORCE; for an ordinary interval the increment into ``inc`` (``integrator``:
+    strapdown.SampleIntegrator.buffer), ``record_sample`` (``ring``, ``block``: the stop
+    detector's and noise monitor's stores) and, with S_STEP set, the nominal state ``x``
+    advanced (core.filter.propagation.advance; ``r_bi`` imu -> body). Returns a code (module
+    constants) plus flags."""
+    t = buf[S_READING_T]
+    wx, wy, wz = buf[S_READING_RATE], buf[S_READING_RATE + 1], buf[S_READING_RATE + 2]
+    fx, fy, fz = buf[S_READING_FORCE], buf[S_READING_FORCE + 1], buf[S_READING_FORCE + 2]
     if not math.isfinite(t + wx + wy + wz + fx + fy + fz):
         buf[S_GAPS] += 1.0  # a corrupt sample is a one-sample gap
         return REJECTED
@@ -172,7 +188,7 @@ def take_sample(
     buf[S_BACK_RUN] = 0.0
     buf[S_SAMPLES] += 1.0
     if buf[S_CALIBRATED] != 0.0:
-        wx, wy, wz, fx, fy, fz = correct_sample(stores.table, wx, wy, wz, fx, fy, fz)
+        wx, wy, wz, fx, fy, fz = correct_sample(table, wx, wy, wz, fx, fy, fz)
     wy, wz, fy, fz = -wy, -wz, -fy, -fz  # FLU -> FRD
     buf[S_RATE], buf[S_RATE + 1], buf[S_RATE + 2] = wx, wy, wz
     buf[S_FORCE], buf[S_FORCE + 1], buf[S_FORCE + 2] = fx, fy, fz
@@ -185,10 +201,10 @@ def take_sample(
     if dt > GAP_FACTOR * nominal:
         buf[S_GAPS] += 1.0
         return GAP
-    integrate_sample(stores.integrator, t, (wx, wy, wz, fx, fy, fz), inc)
+    integrate_sample(integrator, t, (wx, wy, wz, fx, fy, fz), inc)
     buf[S_NOMINAL_DT] = dt if nominal == math.inf else nominal + 0.01 * (dt - nominal)
-    flags = record_sample(buf, stores.ring, stores.block, t)
-    if step:
+    flags = record_sample(buf, ring, block, t)
+    if buf[S_STEP] != 0.0:
         advance(x, inc, r_bi, False, t)
         flags += STEPPED
     return code + flags

@@ -29,14 +29,15 @@ from typing import NamedTuple
 import numpy as np
 
 from gnss_ins_common.types import BoolArray, FloatArray, IntArray, Vec3
-from ins_fusion.core.compiled import jit
+from ins_fusion.core.compiled import jit, plain
 from ins_fusion.core.engine.intake import (
     PUSHED,
     REJECTED,
     S_LAST_RATE,
+    S_STEP,
     STEPPED,
-    ImuReading,
     IntakeStores,
+    put_reading,
     start_pseudo_interval,
     take_sample,
 )
@@ -76,7 +77,7 @@ from ins_fusion.core.nav.strapdown import INCREMENT_SIZE
 from ins_fusion.core.output.solution import (
     STATE,
     WIDTH,
-    RowModel,
+    RowFields,
     SolutionBuilder,
     _fill_row,
     state_code,
@@ -101,24 +102,28 @@ class ImuSeries(NamedTuple):
 
 
 class RunSettings(NamedTuple):
-    """What ``take_run`` reads besides arrays: its span and the engine's numbers."""
+    """What a run starts from besides arrays."""
 
     start: int  #: first sample of the run
     stop: int  #: the sample after the last one it may take
-    offset_s: float  #: the IMU time offset taken off each stamp [s]
     due_t: float  #: stamp of the first pending measurement [s] (inf: none)
     pseudo_t: float  #: stamp of the next pseudo-measurement epoch [s]
+    detector_idle: bool  #: the stop detector has no stop and no candidate
+
+
+class RunConstants(NamedTuple):
+    """The engine's numbers every run reads (CompiledRuns builds them once)."""
+
+    offset_s: float  #: the IMU time offset taken off each stamp [s]
     interval_s: float  #: the covariance interval [s]
     degraded_after_s: float  #: degraded_after [s]
     period_s: float  #: the pseudo-measurement period [s]
     stop_speed_m_s: float  #: the stop detector's speed threshold [m/s]
     nhc_min_speed_m_s: float  #: nhc_min_speed [m/s]
     use_nhc: bool
-    detector_idle: bool  #: the stop detector has no stop and no candidate
     correlation_time_s: float  #: the GNSS error's correlation time [s]
     nhc_sigma_m_s: float  #: NHC σ [m/s]
     nhc_gate: float  #: the NHC's gate
-    size: int  #: the error state's size
 
 
 class RunFilter(NamedTuple):
@@ -162,6 +167,7 @@ def take_run(
     r_bi: FloatArray,
     series: ImuSeries,
     settings: RunSettings,
+    constants: RunConstants,
     filtering: RunFilter,
     outs: RunOutputs,
 ) -> tuple[int, int, int, int, int, int, int]:
@@ -171,23 +177,33 @@ def take_run(
     the engine, RUN_DONE or RUN_PROBLEM, m, rows written, snapshots written, covariances
     written, NHC updates)."""
     t_s, rate, force, ticks = series
-    block = stores.block
-    incs, xs, rows, seen, snapshots = outs.incs, outs.xs, outs.rows, outs.seen, outs.snapshots
-    held, covs, phi_out, white_out, nhcs = outs.held, outs.covs, outs.phi, outs.white, outs.nhcs
-    pseudo_out = outs.pseudo
-    P, process, floor, columns = filtering.P, filtering.process, filtering.floor, filtering.columns
-    mat_bi, base_arm_b = filtering.mat_bi, filtering.base_arm_b
-    pseudo_t, interval_s = settings.pseudo_t, settings.interval_s
+    buf, table, integrator, ring, block = stores
+    start, stop, due_t, pseudo_t, detector_idle = settings
+    (
+        offset_s,
+        interval_s,
+        degraded_after_s,
+        period_s,
+        stop_speed_m_s,
+        nhc_min_speed_m_s,
+        use_nhc,
+        correlation_time_s,
+        nhc_sigma_m_s,
+        nhc_gate,
+    ) = constants
+    P, process, floor, columns, mat_bi, base_arm_b, J, states, arm_bi, mat_enu_ecef, origin = (
+        filtering
+    )
+    incs, xs, rows, seen, snapshots, held, covs, phi_out, white_out, nhcs, pseudo_out = outs
     has_mounting = columns.mt >= 0
     arm_b = mounted_arm(base_arm_b, x, has_mounting)
     version = block[B_VERSION]
     m = r = v = c = e = 0
-    for i in range(settings.start, settings.stop):
-        t = t_s[i] - settings.offset_s
-        reading = ImuReading(
-            t, rate[i, 0], rate[i, 1], rate[i, 2], force[i, 0], force[i, 1], force[i, 2]
-        )
-        code = take_sample(stores, x, r_bi, incs[m], reading, not settings.due_t < t)
+    for i in range(start, stop):
+        t = t_s[i] - offset_s
+        put_reading(buf, t, rate[i], force[i])
+        buf[S_STEP] = 0.0 if due_t < t else 1.0
+        code = take_sample(buf, table, integrator, ring, block, x, r_bi, incs[m])
         if code != REJECTED:
             due = x[X_COV_DT] >= interval_s
             epoch = t >= pseudo_t
@@ -199,10 +215,7 @@ def take_run(
                 or (
                     epoch
                     and not (
-                        heading_known
-                        and vetoed(
-                            settings.detector_idle, nav_speeds(x)[1], settings.stop_speed_m_s
-                        )
+                        heading_known and vetoed(detector_idle, nav_speeds(x)[1], stop_speed_m_s)
                     )
                 )
             ):
@@ -216,7 +229,7 @@ def take_run(
             if due:  # Propagator.advanced with the heading known
                 gyro, accel = monitored_white_noise(block, floor, x[X_Q_SCALE])
                 model = with_white_noise(process, gyro, accel)
-                P, phi = covariance_step(P, x, mat_bi, model, columns, settings.correlation_time_s)
+                P, phi = covariance_step(P, x, mat_bi, model, columns, correlation_time_s)
                 phi_out[:, :] = phi
                 white_out[0, :], white_out[1, :] = gyro, accel
                 covs[c] = P
@@ -225,9 +238,9 @@ def take_run(
             xs[m, :] = x
             m += 1
             if epoch:  # InsEngine._pseudo_epoch, moving (the detector decides no stop)
-                pseudo_t = start_pseudo_interval(stores.buf, t, settings.period_s)
+                pseudo_t = start_pseudo_interval(buf, t, period_s)
                 pseudo_out[0], pseudo_out[1] = pseudo_t, t
-                if nhc_due(x, settings.use_nhc, settings.nhc_min_speed_m_s):  # NhcUpdate.fused
+                if nhc_due(x, use_nhc, nhc_min_speed_m_s):  # NhcUpdate.fused
                     gyro, accel = monitored_white_noise(block, floor, x[X_Q_SCALE])
                     stepped, phi, accepted, nis, P = nhc_apply(
                         P,
@@ -237,10 +250,10 @@ def take_run(
                         (mat_bi, arm_b),
                         columns,
                         (
-                            settings.correlation_time_s,
-                            settings.nhc_sigma_m_s,
-                            settings.nhc_gate,
-                            settings.size,
+                            correlation_time_s,
+                            nhc_sigma_m_s,
+                            nhc_gate,
+                            len(P),
                         ),
                     )
                     if stepped:
@@ -255,22 +268,13 @@ def take_run(
                     return i + 1, RUN_PROBLEM, m, r, v, c, e
         if ticks[i]:
             row = rows[r]
-            rate_i = stores.buf[S_LAST_RATE : S_LAST_RATE + 3]
+            rate_i = buf[S_LAST_RATE : S_LAST_RATE + 3]
             mounting = (x[X_MOUNTING], x[X_MOUNTING + 1]) if has_mounting else (0.0, 0.0)
-            row_model = RowModel(
-                filtering.J,
-                P,
-                filtering.states,
-                arm_b,
-                filtering.arm_bi,
-                filtering.mat_enu_ecef,
-                mounting,
-                filtering.origin,
-            )
+            row_model: RowFields = (J, P, states, arm_b, arm_bi, mat_enu_ecef, mounting, origin)
             _fill_row(row, x, row_model, r_bi, rate_i)
-            row[STATE] = state_code(x, settings.degraded_after_s)
+            row[STATE] = state_code(x, degraded_after_s)
             r += 1
-    return settings.stop, RUN_DONE, m, r, v, c, e
+    return stop, RUN_DONE, m, r, v, c, e
 
 
 @jit
@@ -311,6 +315,18 @@ class CompiledRuns:
         self._geometry = geometry
         self._stores, self._detector, self._densities = sensors
         self._propagator, self._output, self._timeline, self._corrections = filtering
+        self._constants = RunConstants(
+            config.imu_time_offset_s,
+            config.covariance_interval_s,
+            config.degraded_after_s,
+            1.0 / config.pseudo_measurement_rate_hz,
+            config.stop_detector.speed_m_s,
+            config.nhc_min_speed_m_s,
+            config.use_nhc,
+            config.gnss_correlation_time_s,
+            config.nhc_sigma_m_s,
+            self._corrections.gate(2),
+        )
 
     def take(
         self,
@@ -340,24 +356,9 @@ class CompiledRuns:
         noise = densities.current()
         # The run turns the configured base_link arm by the mounting itself (mounted_arm).
         row_model = self._output.model(s, kf, datum_deg)
-        geometry, config = self._geometry, self._config
+        geometry = self._geometry
         settings = RunSettings(
-            start,
-            stop,
-            config.imu_time_offset_s,
-            self._timeline.due_stamp(),
-            pseudo_t_s,
-            config.covariance_interval_s,
-            config.degraded_after_s,
-            1.0 / config.pseudo_measurement_rate_hz,
-            config.stop_detector.speed_m_s,
-            config.nhc_min_speed_m_s,
-            config.use_nhc,
-            self._detector.idle,
-            config.gnss_correlation_time_s,
-            config.nhc_sigma_m_s,
-            self._corrections.gate(2),
-            kf.layout.size,
+            start, stop, self._timeline.due_stamp(), pseudo_t_s, self._detector.idle
         )
         filtering = RunFilter(
             row_model.P,
@@ -374,7 +375,14 @@ class CompiledRuns:
         )
         outs = RunOutputs(incs, xs, out, seen, snapshots, held, covs, phi, white, nhcs, pseudo)
         k, code, m, r, v, c, e = take_run(
-            self._stores(), s.x, geometry.r_bi, samples, settings, filtering, outs
+            plain(self._stores()),
+            s.x,
+            geometry.r_bi,
+            plain(samples),
+            plain(settings),
+            plain(self._constants),
+            plain(filtering),
+            plain(outs),
         )
         # What ImuDensities.current read, Propagator.advanced, InsEngine._checkpoint and the
         # NHC's books (NhcUpdate.fused) did after each sample.

@@ -15,7 +15,7 @@ from typing import NamedTuple
 import numpy as np
 
 from gnss_ins_common.types import FloatArray, IntArray, Vec3
-from ins_fusion.core.compiled import compilable, jit, kernel_array
+from ins_fusion.core.compiled import compilable, jit, kernel_array, plain
 from ins_fusion.core.filter.eskf import ATT, BG, ErrorStateFilter, StateLayout
 from ins_fusion.core.filter.eskf import POS as POS_STATE
 from ins_fusion.core.filter.eskf import VEL as VEL_STATE
@@ -151,6 +151,12 @@ class RowModel(NamedTuple):
     origin: Vec3  #: the ENU plane's ECEF origin [m]
 
 
+#: ``RowModel``'s fields in order, as ``_fill_row`` takes them (plain: core.compiled.plain).
+RowFields = tuple[
+    FloatArray, FloatArray, IntArray, FloatArray, FloatArray, FloatArray, tuple[float, float], Vec3
+]
+
+
 class SolutionBuilder:
     """Builds ``InsSolution`` rows at the output rate (see the module docstring)."""
 
@@ -184,7 +190,7 @@ class SolutionBuilder:
         latest raw sample's rate (imu FRD [rad/s]); ``datum_deg``: the ENU plane's origin (lat,
         lon [deg], height [m])."""
         out = np.empty(WIDTH)
-        _fill_row(out, s.x, self.model(s, kf, datum_deg), self._geometry.r_bi, rate_i)
+        _fill_row(out, s.x, plain(self.model(s, kf, datum_deg)), self._geometry.r_bi, rate_i)
         out[STATE] = STATES.index(state_name)
         return out
 
@@ -211,7 +217,7 @@ class SolutionBuilder:
 
 @jit
 def _fill_row(
-    out: FloatArray, x: FloatArray, model: RowModel, r_bi: FloatArray, rate_i: FloatArray
+    out: FloatArray, x: FloatArray, model: RowFields, r_bi: FloatArray, rate_i: FloatArray
 ) -> None:
     """The numbers of a solution row but its state (``SolutionBuilder.row``) from the nominal
     state ``x``, ``model`` and the latest raw rate ``rate_i`` (imu FRD [rad/s]; ``r_bi`` imu ->
