@@ -84,7 +84,7 @@ class InsFusionNode(Node):
         self._output_clock = OutputClock(config.output_rate_hz)
         # IMU samples not yet given to the engine: those between two outputs are taken together
         # at the next output, GNSS message or status (module docstring).
-        self._held: list[messages_in.ImuSample] = []
+        self._held = messages_in.HeldImu(MAX_HELD)
         # Variance of one bias-corrected rate sample: white-noise density^2 x the IMU rate.
         gyro_psd = float(config.imu_noise.gyro_psd.mean())
         rate_variance = gyro_psd * NOMINAL_RATE_HZ
@@ -143,12 +143,11 @@ class InsFusionNode(Node):
             self._bad_imu_messages += 1
             self.get_logger().error(str(exc), throttle_duration_sec=10.0)
             return
-        held = self._held
-        held.append(sample)
+        self._held.hold(sample)
         # Build the solution (not free) only when an output is due by the sample's stamp (a
         # stamp before the last output, a bag played again: the clock starts anew).
         due = self._output_clock.due(sample.t_s)
-        if due or len(held) >= MAX_HELD:
+        if due or self._held.full:
             self._take_held()
         if due:
             row = self.engine.solution_row()
@@ -157,11 +156,9 @@ class InsFusionNode(Node):
                 self._publish(row)
 
     def _take_held(self) -> None:
-        """The IMU samples held since the last output, into the engine in their order."""
-        add_imu = self.engine.add_imu
-        for sample in self._held:
-            add_imu(*sample)
-        self._held.clear()
+        """The IMU samples held since the last output, into the engine in their order (its
+        compiled runs, as a replay's)."""
+        self._held.take(self.engine)
 
     def _on_fix(self, msg: NavSatFix) -> None:
         self._fixes_received += 1
