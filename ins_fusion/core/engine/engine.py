@@ -136,8 +136,9 @@ class InsEngine(EngineLoop):
     ) -> None:
         """Samples ``span`` = (start, stop) of arrays (stamps [s] (n,), rates and forces (n, 3)
         as ``add_imu`` takes them), each as ``add_imu``, and after each sample with ``ticks``
-        set its ``solution_row`` (when there is one) appended to ``rows``: what a replay does
-        sample by sample, with runs of ordinary samples compiled (core.engine.sample_runs)."""
+        set its ``solution_row`` (when there is one) appended to ``rows``, with runs of ordinary
+        samples compiled (core.engine.sample_runs): how a replay and the node feed the
+        engine."""
         k, stop = span
         samples = ImuSeries(t_s, rate_flu_rad_s, force_flu_m_s2, ticks)
         while k < stop:

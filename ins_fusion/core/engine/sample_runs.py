@@ -1,4 +1,4 @@
-"""Runs of ordinary IMU samples in one compiled call (core.compiled): the replay's fast path.
+"""Runs of ordinary IMU samples in one compiled call (core.compiled), for a replay and the node.
 
 An ordinary sample, once the filter runs, needs only the intake with its strapdown step
 (core.engine.intake.take_sample), a history entry with its checkpoint and the IMU noise densities in
