@@ -115,15 +115,24 @@ def forget_stream(buf: FloatArray) -> None:
     """No last sample, no nominal interval, no ZARU sums (start, reset); counters kept."""
     buf[S_LAST_T] = math.nan
     buf[S_NOMINAL_DT] = math.inf
-    buf[S_LAST_RATE : S_ZARU_N + 1] = 0.0
+    buf[S_LAST_RATE : S_LAST_RATE + 3] = 0.0
+    buf[S_LAST_FORCE : S_LAST_FORCE + 3] = 0.0
+    clear_zaru(buf)
 
 
 @compilable
 def start_pseudo_interval(buf: FloatArray, t: float, period_s: float) -> float:
     """A pseudo-measurement interval starts at ``t`` [s]: the ZARU sums in ``buf`` cleared;
     returns the stamp of its epoch, the next multiple of ``period_s`` after ``t`` [s]."""
-    buf[S_ZARU_SUM : S_ZARU_N + 1] = 0.0
+    clear_zaru(buf)
     return (math.floor(t / period_s) + 1.0) * period_s
+
+
+@compilable
+def clear_zaru(buf: FloatArray) -> None:
+    """No rates summed for the ZARU in the intake array ``buf`` (S_ZARU_SUM, S_ZARU_N)."""
+    buf[S_ZARU_SUM : S_ZARU_SUM + 3] = 0.0
+    buf[S_ZARU_N] = 0.0
 
 
 @compilable
@@ -218,7 +227,8 @@ def record_sample(buf: FloatArray, ring: FloatArray, block: FloatArray, t: float
     wx, wy, wz = buf[S_RATE], buf[S_RATE + 1], buf[S_RATE + 2]
     fx, fy, fz = buf[S_FORCE], buf[S_FORCE + 1], buf[S_FORCE + 2]
     buf[S_LAST_T] = t
-    buf[S_LAST_RATE : S_LAST_RATE + 6] = buf[S_RATE : S_RATE + 6]
+    buf[S_LAST_RATE : S_LAST_RATE + 3] = buf[S_RATE : S_RATE + 3]
+    buf[S_LAST_FORCE : S_LAST_FORCE + 3] = buf[S_FORCE : S_FORCE + 3]
     flags = 0
     if ring_push(ring, t, wx, wy, wz, fx, fy, fz):
         flags += RING_FULL

@@ -186,7 +186,9 @@ class EngineLoop:
 
     def _sample(self) -> tuple[Vec3, Vec3]:
         """The sample just taken (rate [rad/s], specific force [m/s²]; calibrated, imu FRD)."""
-        wx, wy, wz, fx, fy, fz = self._intake[S_RATE : S_FORCE + 3].tolist()
+        buf = self._intake
+        wx, wy, wz = buf[S_RATE : S_RATE + 3].tolist()
+        fx, fy, fz = buf[S_FORCE : S_FORCE + 3].tolist()
         return (wx, wy, wz), (fx, fy, fz)
 
     def _advance(self, t: float, inc: FloatArray, gap: Gap | None, flags: int) -> None:
@@ -255,7 +257,9 @@ class EngineLoop:
     @property
     def _last_sample(self) -> tuple[Vec3, Vec3]:
         """The last accepted sample (rate [rad/s], specific force [m/s²], imu FRD)."""
-        wx, wy, wz, fx, fy, fz = self._intake[S_LAST_RATE : S_LAST_FORCE + 3].tolist()
+        buf = self._intake
+        wx, wy, wz = buf[S_LAST_RATE : S_LAST_RATE + 3].tolist()
+        fx, fy, fz = buf[S_LAST_FORCE : S_LAST_FORCE + 3].tolist()
         return (wx, wy, wz), (fx, fy, fz)
 
     def _start_pseudo_interval(self, t: float) -> None:

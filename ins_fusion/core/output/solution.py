@@ -35,6 +35,7 @@ from ins_fusion.core.filter.state import (
     Geometry,
     mounting_rpy_from,
 )
+from ins_fusion.core.layout import fields, offsets
 from ins_fusion.core.nav import earth
 from ins_fusion.core.nav.earth import ecef_from_geodetic
 from ins_fusion.core.nav.rotation import (
@@ -106,12 +107,50 @@ def state_code(x: FloatArray, degraded_after_s: float) -> int:
     return 1
 
 
-T, LAT, LON, HEIGHT = 0, 1, 2, 3
-POS, VEL, QUAT, RATE = slice(4, 7), slice(7, 10), slice(10, 14), slice(14, 17)
-COV_POS, COV_VEL, COV_ATT = slice(17, 26), slice(26, 35), slice(35, 44)
-GYRO, ACCEL, MOUNTING, STATE = slice(44, 47), slice(47, 50), slice(50, 53), 53
-COV_ATT_IMU = slice(54, 63)
-WIDTH = 63
+#: Layout of a solution row: ``InsSolution``'s fields (core.layout), units and frames as there.
+ROW_LAYOUT = (
+    ("t", 1),
+    ("lat", 1),
+    ("lon", 1),
+    ("height", 1),
+    ("pos", 3),
+    ("vel", 3),
+    ("quat", 4),
+    ("rate", 3),
+    ("cov_pos", 9),
+    ("cov_vel", 9),
+    ("cov_att", 9),
+    ("gyro", 3),
+    ("accel", 3),
+    ("mounting", 3),
+    ("state", 1),
+    ("cov_att_imu", 9),
+)
+_ROW = fields(ROW_LAYOUT)
+#: The row's one-number fields as indices, the others as slices.
+T, LAT, LON, HEIGHT, STATE = (_ROW[name][0] for name in ("t", "lat", "lon", "height", "state"))
+POS, VEL, QUAT, RATE, COV_POS, COV_VEL, COV_ATT, GYRO, ACCEL, MOUNTING, COV_ATT_IMU = (
+    slice(_ROW[name][0], _ROW[name][0] + _ROW[name][1])
+    for name in (
+        "pos",
+        "vel",
+        "quat",
+        "rate",
+        "cov_pos",
+        "cov_vel",
+        "cov_att",
+        "gyro",
+        "accel",
+        "mounting",
+        "cov_att_imu",
+    )
+)
+WIDTH = offsets(ROW_LAYOUT)[-1]
+#: (offset, width) of the row's navigation fields, latitude to rate (the numbers that must be
+#: finite for an output, core.output.output_numbers).
+NAVIGATION_FIELDS = tuple(
+    _ROW[name] for name in ("lat", "lon", "height", "pos", "vel", "quat", "rate")
+)
 
 
 def unpack(row: FloatArray) -> InsSolution:
