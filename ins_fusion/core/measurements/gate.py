@@ -244,6 +244,22 @@ class KindUpdate(ABC):
             return
         self._booked(s, kind, (accepted, nis), rows, live)
 
+    def _pseudo_taken(
+        self,
+        state: tuple[FilterState, ErrorStateFilter],
+        kind: str,
+        result: tuple[bool, FloatArray, bool, float, FloatArray],
+        rows: int,
+        live: bool,
+    ) -> bool:
+        """What a pseudo-measurement's kernel ``result`` (stepped, Φ, accepted, NIS, new P) of a
+        model of ``rows`` rows leaves in the filter and the books; True (applied)."""
+        s, kf = state
+        stepped, phi, accepted, nis, P = result
+        self._taken(kf, stepped, phi, P)
+        self._booked(s, kind, (accepted, nis), rows, live)
+        return True
+
     @staticmethod
     def _taken(kf: ErrorStateFilter, stepped: bool, phi: FloatArray, P: FloatArray) -> None:
         """What the kernel leaves in the filter: Φ of its covariance step (when it made one)

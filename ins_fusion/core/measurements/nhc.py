@@ -133,16 +133,14 @@ class NhcUpdate(KindUpdate):
         if not self._pseudo_usable(s, kf):
             return False
         geometry = self._geometry
-        stepped, phi, accepted, nis, P = self._kernel(
+        result = self._kernel(
             nhc_apply,
             (s, kf),
             record[0],
             (geometry.mat_bi, kernel_array(geometry.arms(s)[1])),
             (self._correlation_time_s, self._config.nhc_sigma_m_s, self._gates[1], kf.layout.size),
         )
-        self._taken(kf, stepped, phi, P)
-        self._booked(s, "nhc", (accepted, nis), 2, live)
-        return True
+        return self._pseudo_taken((s, kf), "nhc", result, 2, live)
 
 
 @jit

@@ -122,16 +122,14 @@ class ZuptUpdate(KindUpdate):
     ) -> bool:
         if not self._pseudo_usable(s, kf):
             return False
-        stepped, phi, accepted, nis, P = self._kernel(
+        result = self._kernel(
             zupt_apply,
             (s, kf),
             record[0],
             self._geometry.mat_bi,
             (self._correlation_time_s, self._config.zupt_sigma_m_s, self._gates[2], kf.layout.size),
         )
-        self._taken(kf, stepped, phi, P)
-        self._booked(s, "zupt", (accepted, nis), 3, live)
-        return True
+        return self._pseudo_taken((s, kf), "zupt", result, 3, live)
 
 
 class ZaruUpdate(KindUpdate):
@@ -165,16 +163,14 @@ class ZaruUpdate(KindUpdate):
         if not self._pseudo_usable(s, kf):
             return False
         t_m, (mean_rate_i, span_s) = record
-        stepped, phi, accepted, nis, P = self._kernel(
+        result = self._kernel(
             zaru_apply,
             (s, kf),
             (t_m, kernel_array(mean_rate_i), zaru_variance(self._config, span_s)),
             self._geometry.mat_bi,
             (self._correlation_time_s, self._gates[2], kf.layout.size),
         )
-        self._taken(kf, stepped, phi, P)
-        self._booked(s, "zaru", (accepted, nis), 3, live)
-        return True
+        return self._pseudo_taken((s, kf), "zaru", result, 3, live)
 
 
 @jit
