@@ -35,10 +35,12 @@ import sys
 import ins_fusion.node  # rclpy, the messages, the engine: what the node imports
 from ins_fusion.core.settings.config import FusionConfig
 from ins_fusion.core.engine.engine import InsEngine
+from ins_fusion.core.engine.warm_up import warm_up
 from ins_fusion.replay.inputs import load_bag
 from ins_fusion.replay.topics import TopicMap
 
 inputs = load_bag(sys.argv[1], TopicMap())
+warm_up()  # as the node does before it builds its engine
 engine = InsEngine(FusionConfig.from_parameters({}))
 feed = {
     "fix": engine.add_gnss_fix,

@@ -49,6 +49,7 @@ from ins_fusion.adapters.cdr_out import OutputWriter
 from ins_fusion.adapters.position_use import PositionUse
 from ins_fusion.adapters.status_log import WARN, StatusLog
 from ins_fusion.core.engine.engine import InsEngine
+from ins_fusion.core.engine.warm_up import warm_up
 from ins_fusion.core.output.output_clock import OutputClock
 from ins_fusion.core.output.output_numbers import fault_report
 from ins_fusion.core.output.solution import STATE, STATES, T
@@ -71,18 +72,19 @@ class InsFusionNode(Node):
         values = declare_parameters(self, PARAMETERS)
         self.params = values
         config = FusionConfig.from_parameters(values)
-        self.engine = InsEngine(config)
-        if self.engine.warm_up_s > 2.0:  # compiled now, not from numba's cache
+        warm_up_s = warm_up()  # the kernels ready before the first sample
+        if warm_up_s > 2.0:  # compiled now, not from numba's cache
             self.get_logger().info(
-                f"compiled the engine's kernels in {self.engine.warm_up_s:.0f} s (first start "
+                f"compiled the engine's kernels in {warm_up_s:.0f} s (first start "
                 "after an install or update; later starts load them from the cache)"
             )
+        self.engine = InsEngine(config)
         self._map_frame = tf_frames.world_frame(values)
         self._base_frame = config.base_frame
         self._output_clock = OutputClock(config.output_rate_hz)
         # IMU samples not yet given to the engine: those between two outputs are taken together
         # at the next output, GNSS message or status (module docstring).
-        self._held: list[messages_in.ImuSample] = []
+        self._held = messages_in.HeldImu(MAX_HELD)
         # Variance of one bias-corrected rate sample: white-noise density^2 x the IMU rate.
         gyro_psd = float(config.imu_noise.gyro_psd.mean())
         rate_variance = gyro_psd * NOMINAL_RATE_HZ
@@ -141,12 +143,11 @@ class InsFusionNode(Node):
             self._bad_imu_messages += 1
             self.get_logger().error(str(exc), throttle_duration_sec=10.0)
             return
-        held = self._held
-        held.append(sample)
+        self._held.hold(sample)
         # Build the solution (not free) only when an output is due by the sample's stamp (a
         # stamp before the last output, a bag played again: the clock starts anew).
         due = self._output_clock.due(sample.t_s)
-        if due or len(held) >= MAX_HELD:
+        if due or self._held.full:
             self._take_held()
         if due:
             row = self.engine.solution_row()
@@ -155,11 +156,9 @@ class InsFusionNode(Node):
                 self._publish(row)
 
     def _take_held(self) -> None:
-        """The IMU samples held since the last output, into the engine in their order."""
-        add_imu = self.engine.add_imu
-        for sample in self._held:
-            add_imu(*sample)
-        self._held.clear()
+        """The IMU samples held since the last output, into the engine in their order (its
+        compiled runs, as a replay's)."""
+        self._held.take(self.engine)
 
     def _on_fix(self, msg: NavSatFix) -> None:
         self._fixes_received += 1

@@ -11,7 +11,7 @@ element is -1 marks a quantity the message does not carry.
 
 | topic | type | function | InsEngine input |
 |---|---|---|---|
-| imu/data_raw | Imu | ``cdr_fields.imu_sample`` (from the bytes) | ``add_imu(*sample)`` |
+| imu/data_raw | Imu | ``cdr_fields.imu_sample`` (bytes) into ``HeldImu`` | ``add_imu_series`` |
 | gnss/fix | NavSatFix | ``fix_measurement`` | ``add_gnss_fix`` |
 | gnss/vel | TwistWithCovarianceStamped (ENU) | ``velocity_measurement`` | ``add_gnss_velocity`` |
 | gnss/attitude | Imu (orientation only) | ``attitude_measurement`` | ``add_attitude`` |
@@ -28,12 +28,14 @@ import numpy as np
 
 from gnss_ins_common.navsat import CovarianceType, NavSatStatus
 from gnss_ins_common.types import BoolArray, FloatArray, Vec3
+from ins_fusion.core.engine.engine import InsEngine
 from ins_fusion.core.filter.records import (
     AttitudeMeasurement,
     GnssFixMeasurement,
     GnssVelocityMeasurement,
     VehicleSpeedMeasurement,
 )
+from ins_fusion.core.output.solution_rows import RowBuffer
 
 
 class ImuSample(NamedTuple):
@@ -43,6 +45,40 @@ class ImuSample(NamedTuple):
     t_s: float
     rate_flu_rad_s: Vec3
     force_flu_m_s2: Vec3
+
+
+class HeldImu:
+    """IMU samples held until the engine takes them together, in arrays as
+    ``InsEngine.add_imu_series`` takes a replay's: the node's way into the engine is the
+    replay's. At most ``capacity`` samples."""
+
+    def __init__(self, capacity: int) -> None:
+        self._t_s = np.empty(capacity)
+        self._rate = np.empty((capacity, 3))
+        self._force = np.empty((capacity, 3))
+        self._ticks = np.zeros(capacity, dtype=np.bool_)  # no rows: the caller builds its own
+        self._rows = RowBuffer()
+        self.count = 0
+
+    @property
+    def full(self) -> bool:
+        """Whether no further sample can be held."""
+        return self.count == len(self._t_s)
+
+    def hold(self, sample: ImuSample) -> None:
+        """Keep ``sample`` after those held (not when ``full``)."""
+        n = self.count
+        self._t_s[n] = sample.t_s
+        self._rate[n] = sample.rate_flu_rad_s
+        self._force[n] = sample.force_flu_m_s2
+        self.count = n + 1
+
+    def take(self, engine: InsEngine) -> None:
+        """The held samples into ``engine`` in their order; none held after it."""
+        if self.count:
+            span = (0, self.count)
+            engine.add_imu_series(self._t_s, self._rate, self._force, self._ticks, span, self._rows)
+            self.count = 0
 
 
 def stamp_s(msg: Any) -> float:

@@ -32,6 +32,7 @@ import numpy as np
 from numba.extending import register_jitable
 
 F = TypeVar("F", bound=Callable[..., Any])
+R = TypeVar("R", bound=tuple[Any, ...])
 
 #: The file beside numba's cache files that holds the digest of the sources they were made from.
 SOURCE_DIGEST_FILE = "kernels.source-digest"
@@ -99,3 +100,10 @@ def kernel_array(values: Any) -> Any:
     if flags is not None and flags.c_contiguous and flags.writeable and values.dtype == np.float64:
         return values
     return np.array(values, dtype=np.float64)
+
+
+def plain(record: R) -> R:
+    """A named record (a NamedTuple) as the plain tuple of its fields, for a kernel called from
+    Python that unpacks it by position in the record's field order: numba types a plain tuple
+    in C but a named one in Python, some microseconds a call (core.engine.sample_runs)."""
+    return cast(R, tuple(record))

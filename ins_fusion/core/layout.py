@@ -9,7 +9,7 @@ constants (numba reads module globals as compile-time constants)::
     NAV_LAT, NAV_LON, NAV_HEIGHT, NAV_VEL, NAV_QUAT, NAV_SIZE = offsets(NAV_LAYOUT)
 
 The constant of a field is the module's prefix and the field's name in capitals (``NAV_VEL``
-for "vel"); test/test_core_layouts.py checks every table against its constants.
+for "vel"); test/core/test_layout.py checks every table against its constants.
 """
 
 from __future__ import annotations

@@ -176,3 +176,50 @@ def test_rclpy_style_fields_are_read_the_same():
     np.testing.assert_array_equal(measured.cov_enu_m2, np.reshape(COV3, (3, 3)))
     vel = messages_in.velocity_measurement(twist)
     np.testing.assert_array_equal(vel.cov_enu_m2_s2, [[0, 1, 2], [6, 7, 8], [12, 13, 14]])
+
+
+def test_held_imu_feeds_the_engine_as_add_imu_does_sample_by_sample(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """HeldImu (the node's way in: the replay's add_imu_series, its compiled runs) gives the
+    same solution rows and counters as add_imu per sample, holding up to a few samples between
+    outputs and taking them before each measurement."""
+    from ins_fusion.core.engine import sample_runs
+    from ins_fusion.core.engine.engine import FusionConfig, InsEngine
+    from ins_fusion.core.engine.warm_up import synthetic_drive
+
+    runs = []
+    take_run = sample_runs.take_run
+    monkeypatch.setattr(sample_runs, "take_run", lambda *args: runs.append(1) or take_run(*args))
+
+    (t_s, rate, force, ticks), measurements = synthetic_drive()
+    config = FusionConfig.from_parameters({"alignment.duration": 1.0})
+    held_engine, plain_engine = InsEngine(config), InsEngine(config)
+    held = messages_in.HeldImu(3)
+    rows: dict[str, list[np.ndarray]] = {"held": [], "plain": []}
+    pending = list(measurements)
+    for k in range(len(t_s)):
+        while pending and pending[0][0] <= k:
+            measurement = pending.pop(0)[1]
+            held.take(held_engine)
+            for engine in (held_engine, plain_engine):
+                if isinstance(measurement, messages_in.GnssFixMeasurement):
+                    engine.add_gnss_fix(measurement)
+                elif isinstance(measurement, messages_in.GnssVelocityMeasurement):
+                    engine.add_gnss_velocity(measurement)
+                elif isinstance(measurement, messages_in.AttitudeMeasurement):
+                    engine.add_attitude(measurement)
+        sample = messages_in.ImuSample(float(t_s[k]), tuple(rate[k]), tuple(force[k]))
+        held.hold(sample)
+        plain_engine.add_imu(*sample)
+        if ticks[k] or held.full:
+            held.take(held_engine)
+        if ticks[k]:
+            for name, engine in (("held", held_engine), ("plain", plain_engine)):
+                row = engine.solution_row()
+                if row is not None:
+                    rows[name].append(row)
+    held.take(held_engine)
+    assert held.count == 0 and len(rows["plain"]) > 200 and len(runs) > 100
+    np.testing.assert_array_equal(np.array(rows["held"]), np.array(rows["plain"]))
+    assert repr(held_engine.status()) == repr(plain_engine.status())

@@ -14,9 +14,9 @@ from support.paths import REPO, TESTS
 CORE = REPO / "ins_fusion" / "core"
 CORE_TESTS = TESTS / "core"
 
-#: Modules only the engine reaches (InsEngine's base class, the choice of the compiled
-#: updates): tested through test/core/engine/, whose modules drive the engine.
-THROUGH_THE_ENGINE = {"engine/loop.py", "measurements/fused.py"}
+#: Modules only the engine reaches (InsEngine's base class): tested through test/core/engine/,
+#: whose modules drive the engine.
+THROUGH_THE_ENGINE = {"engine/loop.py"}
 
 
 def _core_modules() -> list[str]:

@@ -44,7 +44,8 @@ HAND_NUMBERED = {
         **{"LAST_T": 0, "NOMINAL_DT": 1, "LAST_RATE": 2, "LAST_FORCE": 5, "ZARU_SUM": 8},
         **{"ZARU_N": 11, "SAMPLES": 12, "GAPS": 13, "DUPLICATES": 14, "OUT_OF_ORDER": 15},
         **{"IMPLAUSIBLE": 16, "BACK_RUN": 17, "MAX_RATE": 18, "MAX_FORCE": 19},
-        **{"CALIBRATED": 20, "RATE": 21, "FORCE": 24, "SIZE": 27},
+        **{"CALIBRATED": 20, "RATE": 21, "FORCE": 24, "READING_T": 27, "READING_RATE": 28},
+        **{"READING_FORCE": 31, "STEP": 34, "SIZE": 35},
     },
     "B_": {
         **{"START": 0, "SUM": 1, "N": 7, "TAU": 8, "PREV": 9, "HELD": 21, "MEAN": 22},
@@ -196,3 +197,35 @@ def test_filter_state_fields_write_their_slots() -> None:
 
 def _span(field: tuple[int, int]) -> tuple[int, int]:
     return field[0], field[0] + field[1]
+
+
+def test_the_solution_row_and_the_output_numbers_keep_their_positions() -> None:
+    """The row's and the outputs' layouts give the positions the rows and messages had when
+    they were numbered by hand (saved rows and replays' exports read them)."""
+    from ins_fusion.core.output import output_numbers as o
+    from ins_fusion.core.output import solution as s
+
+    assert (s.T, s.LAT, s.LON, s.HEIGHT, s.STATE, s.WIDTH) == (0, 1, 2, 3, 53, 63)
+    spans = (s.POS, s.VEL, s.QUAT, s.RATE, s.COV_POS, s.COV_VEL, s.COV_ATT)
+    assert [(x.start, x.stop) for x in spans] == [
+        (4, 7),
+        (7, 10),
+        (10, 14),
+        (14, 17),
+        (17, 26),
+        (26, 35),
+        (35, 44),
+    ]
+    spans = (s.GYRO, s.ACCEL, s.MOUNTING, s.COV_ATT_IMU)
+    assert [(x.start, x.stop) for x in spans] == [(44, 47), (47, 50), (50, 53), (54, 63)]
+    assert s.NAVIGATION_FIELDS == ((1, 1), (2, 1), (3, 1), (4, 3), (7, 3), (10, 4), (14, 3))
+    assert (
+        slice(0, 85),
+        slice(0, 7),
+        slice(85, 97),
+        slice(97, 134),
+        134,
+    ) == (o.ODOMETRY, o.TRANSFORM, o.FIX, o.IMU, o.NUMBERS)
+    offsets = (o._O_QUAT, o._O_POSE_COV, o._O_VEL, o._O_RATE, o._O_TWIST_COV)
+    assert offsets == (3, 7, 43, 46, 49)
+    assert (o._I_COV, o._I_RATE, o._I_RATE_COV, o._I_ACCEL_COV) == (101, 110, 113, 125)

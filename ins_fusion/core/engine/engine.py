@@ -60,10 +60,12 @@ from ins_fusion.core.engine.intake import (
     S_LAST_T,
     S_OUT_OF_ORDER,
     S_SAMPLES,
+    S_STEP,
+    put_reading,
     take_sample,
 )
 from ins_fusion.core.engine.loop import EngineLoop
-from ins_fusion.core.engine.sample_runs import RUN_DONE, RUN_PROBLEM
+from ins_fusion.core.engine.sample_runs import RUN_DONE, RUN_PROBLEM, ImuSeries
 from ins_fusion.core.filter.records import (
     AttitudeMeasurement,
     GnssFixMeasurement,
@@ -108,8 +110,11 @@ class InsEngine(EngineLoop):
         # The strapdown step goes with the intake unless measurements are due before it.
         ready = self._filter is not None and timeline.replay_from is None and not timeline.due_by(t)
         inc = np.empty(INCREMENT_SIZE)
+        buf = self._intake
+        put_reading(buf, t, rate_flu_rad_s, force_flu_m_s2)
+        buf[S_STEP] = 1.0 if ready else 0.0
         code = take_sample(
-            self._intake,
+            buf,
             self._calibration_table,
             self._integrator.buffer,
             self._detector.ring,
@@ -117,14 +122,6 @@ class InsEngine(EngineLoop):
             self._state.x if ready else self._idle_x,  # type: ignore[union-attr]
             self._geometry.r_bi,
             inc,
-            t,
-            float(rate_flu_rad_s[0]),
-            float(rate_flu_rad_s[1]),
-            float(rate_flu_rad_s[2]),
-            float(force_flu_m_s2[0]),
-            float(force_flu_m_s2[1]),
-            float(force_flu_m_s2[2]),
-            ready,
         )
         self._finish_sample(t, inc, code)
 
@@ -139,10 +136,11 @@ class InsEngine(EngineLoop):
     ) -> None:
         """Samples ``span`` = (start, stop) of arrays (stamps [s] (n,), rates and forces (n, 3)
         as ``add_imu`` takes them), each as ``add_imu``, and after each sample with ``ticks``
-        set its ``solution_row`` (when there is one) appended to ``rows``: what a replay does
-        sample by sample, with runs of ordinary samples compiled (core.engine.sample_runs)."""
+        set its ``solution_row`` (when there is one) appended to ``rows``, with runs of ordinary
+        samples compiled (core.engine.sample_runs): how a replay and the node feed the
+        engine."""
         k, stop = span
-        samples = (t_s, rate_flu_rad_s, force_flu_m_s2, ticks)
+        samples = ImuSeries(t_s, rate_flu_rad_s, force_flu_m_s2, ticks)
         while k < stop:
             if (
                 self._filter is None
@@ -158,7 +156,7 @@ class InsEngine(EngineLoop):
 
     def _take_run(
         self,
-        samples: tuple[FloatArray, FloatArray, FloatArray, BoolArray],
+        samples: ImuSeries,
         start: int,
         stop: int,
         rows: RowBuffer,

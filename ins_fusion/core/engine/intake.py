@@ -14,11 +14,13 @@ Frames: the input is imu_link FLU (REP-145); everything stored is imu FRD.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+from typing import NamedTuple
 
 import numpy as np
 
 from gnss_ins_common.types import FloatArray
-from ins_fusion.core.compiled import jit
+from ins_fusion.core.compiled import compilable, jit
 from ins_fusion.core.filter.adaptation import block_push
 from ins_fusion.core.filter.propagation import advance
 from ins_fusion.core.layout import offsets
@@ -45,6 +47,10 @@ S_LAYOUT = (
     ("calibrated", 1),  # 1.0 when a calibration table applies
     ("rate", 3),  # the sample just taken: rate [rad/s]
     ("force", 3),  # the sample just taken: specific force [m/s²]
+    ("reading_t", 1),  # the sample to take (``take_sample``'s input): stamp [s]
+    ("reading_rate", 3),  # its rate [rad/s], imu_link FLU, as received
+    ("reading_force", 3),  # its specific force [m/s²], imu_link FLU, as received
+    ("step", 1),  # 1.0: advance the nominal state with it
 )
 (
     S_LAST_T,
@@ -64,6 +70,10 @@ S_LAYOUT = (
     S_CALIBRATED,
     S_RATE,
     S_FORCE,
+    S_READING_T,
+    S_READING_RATE,
+    S_READING_FORCE,
+    S_STEP,
     S_SIZE,
 ) = offsets(S_LAYOUT)
 
@@ -82,6 +92,16 @@ GAP_FACTOR = 2.5
 BACK_RUN_RESET = 10
 
 
+class IntakeStores(NamedTuple):
+    """The arrays ``take_sample`` reads and writes besides the nominal state."""
+
+    buf: FloatArray  #: the intake array (S_* layout)
+    table: FloatArray  #: the calibration table (core.nav.calibration T_* layout)
+    integrator: FloatArray  #: core.nav.strapdown.SampleIntegrator.buffer
+    ring: FloatArray  #: the stop detector's sample ring (core.measurements.stop_detector)
+    block: FloatArray  #: the IMU noise monitor's block (core.filter.adaptation B_* layout)
+
+
 def new_intake(max_rate_rad_s: float, max_force_m_s2: float, calibrated: bool) -> FloatArray:
     """A fresh intake array (S_* layout) with its limits; no sample yet."""
     buf = np.zeros(S_SIZE)
@@ -95,7 +115,39 @@ def forget_stream(buf: FloatArray) -> None:
     """No last sample, no nominal interval, no ZARU sums (start, reset); counters kept."""
     buf[S_LAST_T] = math.nan
     buf[S_NOMINAL_DT] = math.inf
-    buf[S_LAST_RATE : S_ZARU_N + 1] = 0.0
+    buf[S_LAST_RATE : S_LAST_RATE + 3] = 0.0
+    buf[S_LAST_FORCE : S_LAST_FORCE + 3] = 0.0
+    clear_zaru(buf)
+
+
+@compilable
+def start_pseudo_interval(buf: FloatArray, t: float, period_s: float) -> float:
+    """A pseudo-measurement interval starts at ``t`` [s]: the ZARU sums in ``buf`` cleared;
+    returns the stamp of its epoch, the next multiple of ``period_s`` after ``t`` [s]."""
+    clear_zaru(buf)
+    return (math.floor(t / period_s) + 1.0) * period_s
+
+
+@compilable
+def clear_zaru(buf: FloatArray) -> None:
+    """No rates summed for the ZARU in the intake array ``buf`` (S_ZARU_SUM, S_ZARU_N)."""
+    buf[S_ZARU_SUM : S_ZARU_SUM + 3] = 0.0
+    buf[S_ZARU_N] = 0.0
+
+
+@compilable
+def put_reading(
+    buf: FloatArray,
+    t: float,
+    rate: Sequence[float] | FloatArray,
+    force: Sequence[float] | FloatArray,
+) -> None:
+    """The sample to take next into the intake array ``buf``: stamp [s], rate [rad/s] and
+    specific force [m/s²] (imu_link FLU, as received)."""
+    buf[S_READING_T] = t
+    for k in range(3):
+        buf[S_READING_RATE + k] = rate[k]
+        buf[S_READING_FORCE + k] = force[k]
 
 
 @jit
@@ -108,21 +160,17 @@ def take_sample(
     x: FloatArray,
     r_bi: FloatArray,
     inc: FloatArray,
-    t: float,
-    wx: float,
-    wy: float,
-    wz: float,
-    fx: float,
-    fy: float,
-    fz: float,
-    step: bool,
 ) -> int:
-    """Take the sample (rate [rad/s], specific force [m/s²], imu_link FLU) stamped ``t`` [s]:
-    the checks and counters, the calibration (``table``: core.nav.calibration T_* layout, when
-    S_CALIBRATED), FLU -> FRD into S_RATE/S_FORCE; for an ordinary interval the increment into
-    ``inc`` (``integrator``: strapdown.SampleIntegrator.buffer), ``record_sample``, and with
-    ``step`` the nominal state ``x`` advanced (core.filter.propagation.advance; ``r_bi`` imu ->
-    body). Returns a code (module constants) plus flags."""
+    """Take the sample in S_READING_* of the intake array ``buf``: the checks and counters,
+    the calibration (``table``: core.nav.calibration T_* layout, when S_CALIBRATED), FLU -> FRD
+    into S_RATE/S_FORCE; for an ordinary interval the increment into ``inc`` (``integrator``:
+    strapdown.SampleIntegrator.buffer), ``record_sample`` (``ring``, ``block``: the stop
+    detector's and noise monitor's stores) and, with S_STEP set, the nominal state ``x``
+    advanced (core.filter.propagation.advance; ``r_bi`` imu -> body). Returns a code (module
+    constants) plus flags."""
+    t = buf[S_READING_T]
+    wx, wy, wz = buf[S_READING_RATE], buf[S_READING_RATE + 1], buf[S_READING_RATE + 2]
+    fx, fy, fz = buf[S_READING_FORCE], buf[S_READING_FORCE + 1], buf[S_READING_FORCE + 2]
     if not math.isfinite(t + wx + wy + wz + fx + fy + fz):
         buf[S_GAPS] += 1.0  # a corrupt sample is a one-sample gap
         return REJECTED
@@ -165,7 +213,7 @@ def take_sample(
     integrate_sample(integrator, t, (wx, wy, wz, fx, fy, fz), inc)
     buf[S_NOMINAL_DT] = dt if nominal == math.inf else nominal + 0.01 * (dt - nominal)
     flags = record_sample(buf, ring, block, t)
-    if step:
+    if buf[S_STEP] != 0.0:
         advance(x, inc, r_bi, False, t)
         flags += STEPPED
     return code + flags
@@ -179,7 +227,8 @@ def record_sample(buf: FloatArray, ring: FloatArray, block: FloatArray, t: float
     wx, wy, wz = buf[S_RATE], buf[S_RATE + 1], buf[S_RATE + 2]
     fx, fy, fz = buf[S_FORCE], buf[S_FORCE + 1], buf[S_FORCE + 2]
     buf[S_LAST_T] = t
-    buf[S_LAST_RATE : S_LAST_RATE + 6] = buf[S_RATE : S_RATE + 6]
+    buf[S_LAST_RATE : S_LAST_RATE + 3] = buf[S_RATE : S_RATE + 3]
+    buf[S_LAST_FORCE : S_LAST_FORCE + 3] = buf[S_FORCE : S_FORCE + 3]
     flags = 0
     if ring_push(ring, t, wx, wy, wz, fx, fy, fz):
         flags += RING_FULL

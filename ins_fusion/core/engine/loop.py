@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from gnss_ins_common.types import FloatArray, Vec3
+from ins_fusion.core.compiled import kernel_array
 from ins_fusion.core.engine.intake import (
     BACK_RUN_RESET,
     GAP,
@@ -29,39 +30,40 @@ from ins_fusion.core.engine.intake import (
     S_ZARU_N,
     S_ZARU_SUM,
     STEPPED,
+    IntakeStores,
     forget_stream,
     new_intake,
     record_sample,
+    start_pseudo_interval,
 )
 from ins_fusion.core.engine.sample_runs import CompiledRuns
 from ins_fusion.core.engine.startup import Startup
-from ins_fusion.core.engine.warm_up import warm_up
-from ins_fusion.core.filter.eskf import ErrorStateFilter, StateLayout
+from ins_fusion.core.filter.eskf import ErrorStateFilter, StateLayout, problem_text
 from ins_fusion.core.filter.propagation import ImuDensities, Propagator, bridge
 from ins_fusion.core.filter.state import (
     X_COV_VEL0,
-    X_NAV,
     X_SIZE,
     X_VEL,
     FilterState,
     Geometry,
     LatestInputs,
+    filter_problem,
+    nav_speeds,
 )
 from ins_fusion.core.filter.status import SPEED_KIND, new_counters
 from ins_fusion.core.filter.timeline import Checkpoint, Entry, Gap, Record, Timeline
 from ins_fusion.core.measurements.attitude import AttitudeUpdate
-from ins_fusion.core.measurements.fused import FusedUpdates
 from ins_fusion.core.measurements.gate import Corrections
 from ins_fusion.core.measurements.gnss_noise import GnssNoise
 from ins_fusion.core.measurements.gnss_position import PositionUpdate
 from ins_fusion.core.measurements.gnss_velocity import VelocityUpdate
-from ins_fusion.core.measurements.nhc import NhcUpdate
+from ins_fusion.core.measurements.nhc import NhcUpdate, nhc_due
 from ins_fusion.core.measurements.stationary import ZaruUpdate, ZuptUpdate
 from ins_fusion.core.measurements.stop_detector import GNSS_SPEED_MAX_AGE_S, StopDetector
 from ins_fusion.core.measurements.vehicle_speed import SpeedUpdate
 from ins_fusion.core.nav.calibration import T_SIZE as CALIBRATION_SIZE
 from ins_fusion.core.nav.calibration import ImuCalibration
-from ins_fusion.core.nav.strapdown import NAV_SIZE, SampleIntegrator, increment
+from ins_fusion.core.nav.strapdown import SampleIntegrator, increment
 from ins_fusion.core.nav.units import STANDARD_GRAVITY_M_S2
 from ins_fusion.core.output.solution import STATES, SolutionBuilder, state_code
 from ins_fusion.core.settings.config import FusionConfig
@@ -80,9 +82,6 @@ class EngineLoop:
     def __init__(self, config: FusionConfig, calibration: ImuCalibration | None = None) -> None:
         """``calibration`` overrides ``config.calibration_file`` (empty file name = none)."""
         self.config = config
-        #: Seconds spent readying the compiled kernels (core.engine.warm_up; 0 after the first
-        #: engine).
-        self.warm_up_s = warm_up()
         if calibration is None and config.calibration_file:
             calibration = ImuCalibration.from_yaml(config.calibration_file)
         self.calibration = calibration
@@ -104,21 +103,17 @@ class EngineLoop:
         self._densities = ImuDensities(noise.gyro_psd, noise.accel_psd)
         self._propagator = Propagator(config, geometry, self._densities)
         corrections = self._corrections = Corrections(config, self._counters)
-        corrections.handlers.update(  # the handler of each kind (core.measurements.<kind>)
+        filtering = (geometry, self._propagator, corrections)
+        corrections.handlers.update(  # the update of each kind (core.measurements.<kind>)
             {
-                "gnss_position": PositionUpdate(geometry, gnss_noise, corrections),
-                "gnss_velocity": VelocityUpdate(
-                    config, (geometry, gnss_noise, self._latest), corrections
-                ),
-                "attitude": AttitudeUpdate(geometry, corrections),
-                "zupt": ZuptUpdate(config, corrections),
-                "zaru": ZaruUpdate(config, geometry, corrections),
-                "nhc": NhcUpdate(config, geometry, corrections),
-                SPEED_KIND: SpeedUpdate(config, geometry, corrections),
+                "gnss_position": PositionUpdate(config, filtering, gnss_noise),
+                "gnss_velocity": VelocityUpdate(config, filtering, (gnss_noise, self._latest)),
+                "attitude": AttitudeUpdate(config, *filtering),
+                "zupt": ZuptUpdate(config, *filtering),
+                "zaru": ZaruUpdate(config, *filtering),
+                "nhc": NhcUpdate(config, *filtering),
+                SPEED_KIND: SpeedUpdate(config, *filtering),
             }
-        )
-        self._fused = FusedUpdates(
-            config, geometry, self._propagator, self._corrections, gnss_noise
         )
         self._startup = Startup(
             config, calibration, geometry, gnss_noise, self.layout, self._counters, self._latest
@@ -146,11 +141,20 @@ class EngineLoop:
         self._runs = CompiledRuns(
             config,
             geometry,
-            (self._intake, self._calibration_table),
-            (self._integrator, self._detector, self._densities),
+            (self._intake_stores, self._detector, self._densities),
             (self._propagator, self._output, self._timeline, self._corrections),
         )
         self._clear()
+
+    def _intake_stores(self) -> IntakeStores:
+        """The intake's arrays as they are now (the detector's ring grows: never kept)."""
+        return IntakeStores(
+            self._intake,
+            self._calibration_table,
+            self._integrator.buffer,
+            self._detector.ring,
+            self._densities.monitor.block,
+        )
 
     def _finish_sample(self, t: float, inc: FloatArray, code: int) -> None:
         """What follows the intake of a sample at ``t`` with its result ``code``."""
@@ -183,7 +187,9 @@ class EngineLoop:
 
     def _sample(self) -> tuple[Vec3, Vec3]:
         """The sample just taken (rate [rad/s], specific force [m/s²]; calibrated, imu FRD)."""
-        wx, wy, wz, fx, fy, fz = self._intake[S_RATE : S_FORCE + 3].tolist()
+        buf = self._intake
+        wx, wy, wz = buf[S_RATE : S_RATE + 3].tolist()
+        fx, fy, fz = buf[S_FORCE : S_FORCE + 3].tolist()
         return (wx, wy, wz), (fx, fy, fz)
 
     def _advance(self, t: float, inc: FloatArray, gap: Gap | None, flags: int) -> None:
@@ -252,14 +258,13 @@ class EngineLoop:
     @property
     def _last_sample(self) -> tuple[Vec3, Vec3]:
         """The last accepted sample (rate [rad/s], specific force [m/s²], imu FRD)."""
-        wx, wy, wz, fx, fy, fz = self._intake[S_LAST_RATE : S_LAST_FORCE + 3].tolist()
+        buf = self._intake
+        wx, wy, wz = buf[S_LAST_RATE : S_LAST_RATE + 3].tolist()
+        fx, fy, fz = buf[S_LAST_FORCE : S_LAST_FORCE + 3].tolist()
         return (wx, wy, wz), (fx, fy, fz)
 
     def _start_pseudo_interval(self, t: float) -> None:
-        self._next_pseudo_t_s = (
-            math.floor(t / self._pseudo_period_s) + 1.0
-        ) * self._pseudo_period_s
-        self._intake[S_ZARU_SUM : S_ZARU_N + 1] = 0.0
+        self._next_pseudo_t_s = start_pseudo_interval(self._intake, t, self._pseudo_period_s)
         self._zaru_start_s = t
 
     def _checkpoint(self) -> Checkpoint:
@@ -318,11 +323,12 @@ class EngineLoop:
         """Propagate P to the current sample, apply the measurement, restart the interval."""
         s, kf = self._state, self._filter
         assert s is not None and kf is not None
-        if self._fused.applied(s, kf, (record.kind, record.t_m, record.payload), live):
+        update = self._corrections.handlers[record.kind]
+        if update.fused(s, kf, (record.t_m, record.payload), live):
             return  # in one kernel
         self._propagator.propagate_covariance(s, kf)
         prediction = self._propagator.predict(s, kf, record.t_m)
-        self._corrections.handlers[record.kind](s, kf, prediction, record.payload, live)
+        update(s, kf, prediction, record.payload, live)
         x = s.x  # the covariance interval goes on from the corrected velocity
         x[X_COV_VEL0 : X_COV_VEL0 + 3] = x[X_VEL : X_VEL + 3]
 
@@ -342,11 +348,7 @@ class EngineLoop:
         s, kf = self._state, self._filter
         assert s is not None and kf is not None
         cfg = self.config
-        x = s.x  # navigation at X_NAV (core.nav.strapdown.NAV_SIZE): position, velocity, attitude
-        vn, ve, vd = x[X_VEL], x[X_VEL + 1], x[X_VEL + 2]
-        horizontal = math.hypot(vn, ve)
-        speed = math.hypot(horizontal, vd)
-        stationary = self._detector.evaluate(t, self._recent_gnss_speed(t), speed)
+        stationary = self._detector.evaluate(t, self._recent_gnss_speed(t), nav_speeds(s.x)[1])
         buf = self._intake
         mean_rate = buf[S_ZARU_SUM : S_ZARU_SUM + 3] / max(int(buf[S_ZARU_N]), 1)
         span = t - self._zaru_start_s
@@ -357,7 +359,7 @@ class EngineLoop:
                 kinds.append(("zupt", None))
             if cfg.use_zaru:
                 kinds.append(("zaru", (mean_rate, span)))
-        elif cfg.use_nhc and s.heading_known and horizontal > cfg.nhc_min_speed_m_s:
+        elif nhc_due(s.x, cfg.use_nhc, cfg.nhc_min_speed_m_s):
             kinds.append(("nhc", None))
         for kind, payload in kinds:
             record = self._timeline.record(kind, t, payload)
@@ -369,10 +371,7 @@ class EngineLoop:
         """After a pseudo-measurement epoch: reset when the filter is unusable."""
         s, kf = self._state, self._filter
         assert s is not None and kf is not None
-        problem = kf.problem()
-        nav = s.x[X_NAV : X_NAV + NAV_SIZE].tolist()
-        if problem is None and not all(map(math.isfinite, nav)):
-            problem = "non-finite navigation state"
+        problem = problem_text(filter_problem(kernel_array(kf.P), s.x))
         if problem is not None:
             self._reset(problem)
 

@@ -1,4 +1,4 @@
-"""Runs of ordinary IMU samples in one compiled call (core.compiled): the replay's fast path.
+"""Runs of ordinary IMU samples in one compiled call (core.compiled), for a replay and the node.
 
 An ordinary sample, once the filter runs, needs only the intake with its strapdown step
 (core.engine.intake.take_sample), a history entry with its checkpoint and the IMU noise densities in
@@ -23,22 +23,27 @@ covariance step.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from typing import NamedTuple
 
 import numpy as np
 
-from gnss_ins_common.types import BoolArray, FloatArray, IntArray
-from ins_fusion.core.compiled import jit
+from gnss_ins_common.types import BoolArray, FloatArray, IntArray, Vec3
+from ins_fusion.core.compiled import jit, plain
 from ins_fusion.core.engine.intake import (
     PUSHED,
     REJECTED,
     S_LAST_RATE,
-    S_ZARU_N,
-    S_ZARU_SUM,
+    S_STEP,
     STEPPED,
+    IntakeStores,
+    put_reading,
+    start_pseudo_interval,
     take_sample,
 )
 from ins_fusion.core.filter.adaptation import B_MEAN, B_VERSION
 from ins_fusion.core.filter.eskf import (
+    USABLE,
     Columns,
     ErrorStateFilter,
     ProcessModel,
@@ -55,22 +60,28 @@ from ins_fusion.core.filter.state import (
     X_COV_DT,
     X_HEADING_KNOWN,
     X_MOUNTING,
-    X_NAV,
     X_Q_SCALE,
     X_SIZE,
     X_T,
-    X_VEL,
     FilterState,
     Geometry,
+    filter_problem,
     mounted_arm,
+    nav_speeds,
 )
 from ins_fusion.core.filter.timeline import Record, RunEntries, Timeline
-from ins_fusion.core.filter.update_algebra import covariance_problem
 from ins_fusion.core.measurements.gate import Corrections
-from ins_fusion.core.measurements.nhc import nhc_apply
-from ins_fusion.core.measurements.stop_detector import StopDetector
-from ins_fusion.core.nav.strapdown import INCREMENT_SIZE, NAV_SIZE, SampleIntegrator
-from ins_fusion.core.output.solution import STATE, WIDTH, SolutionBuilder, _fill_row, state_code
+from ins_fusion.core.measurements.nhc import nhc_apply, nhc_due
+from ins_fusion.core.measurements.stop_detector import StopDetector, vetoed
+from ins_fusion.core.nav.strapdown import INCREMENT_SIZE
+from ins_fusion.core.output.solution import (
+    STATE,
+    WIDTH,
+    RowFields,
+    SolutionBuilder,
+    _fill_row,
+    state_code,
+)
 from ins_fusion.core.output.solution_rows import RowBuffer
 from ins_fusion.core.settings.config import FusionConfig
 
@@ -81,88 +92,132 @@ RUN_DONE, RUN_PROBLEM = -1, -2
 STEPS_PER_RUN = 8
 
 
+class ImuSeries(NamedTuple):
+    """IMU samples in arrays, as a replay holds them."""
+
+    t_s: FloatArray  #: stamps [s] (n,)
+    rate: FloatArray  #: rates [rad/s] (n, 3), imu_link FLU
+    force: FloatArray  #: specific forces [m/s²] (n, 3), imu_link FLU
+    ticks: BoolArray  #: an output tick after the sample (n,)
+
+
+class RunSettings(NamedTuple):
+    """What a run starts from besides arrays."""
+
+    start: int  #: first sample of the run
+    stop: int  #: the sample after the last one it may take
+    due_t: float  #: stamp of the first pending measurement [s] (inf: none)
+    pseudo_t: float  #: stamp of the next pseudo-measurement epoch [s]
+    detector_idle: bool  #: the stop detector has no stop and no candidate
+
+
+class RunConstants(NamedTuple):
+    """The engine's numbers every run reads (CompiledRuns builds them once)."""
+
+    offset_s: float  #: the IMU time offset taken off each stamp [s]
+    interval_s: float  #: the covariance interval [s]
+    degraded_after_s: float  #: degraded_after [s]
+    period_s: float  #: the pseudo-measurement period [s]
+    stop_speed_m_s: float  #: the stop detector's speed threshold [m/s]
+    nhc_min_speed_m_s: float  #: nhc_min_speed [m/s]
+    use_nhc: bool
+    correlation_time_s: float  #: the GNSS error's correlation time [s]
+    nhc_sigma_m_s: float  #: NHC σ [m/s]
+    nhc_gate: float  #: the NHC's gate
+
+
+class RunFilter(NamedTuple):
+    """The filter's side of a run: the covariance at its start and what a step, an NHC and a
+    solution row need (core.output.solution.RowModel but the arm turned and the mounting)."""
+
+    P: FloatArray  #: the error covariance at the start (n, n)
+    process: ProcessModel  #: ErrorStateFilter.process_model
+    floor: tuple[FloatArray, FloatArray]  #: the user's white-noise densities (ImuDensities)
+    columns: Columns  #: StateLayout.columns
+    mat_bi: FloatArray  #: imu -> body rotation
+    base_arm_b: FloatArray  #: base_link lever arm before the mounting turns it [m]
+    J: FloatArray  #: the solution rows' Jacobian (written)
+    states: IntArray  #: the solution's error states
+    arm_bi: FloatArray  #: SolutionBuilder's arm_bi
+    mat_enu_ecef: FloatArray  #: the ENU plane's rotation
+    origin: Vec3  #: the ENU plane's ECEF origin [m]
+
+
+class RunOutputs(NamedTuple):
+    """What ``take_run`` writes (rows 0 .. m-1 of the per-sample arrays: its ordinary
+    samples)."""
+
+    incs: FloatArray  #: each sample's increment; row m: that of the sample left to the engine
+    xs: FloatArray  #: the nominal state after each sample
+    rows: FloatArray  #: the solution rows of the ticks
+    seen: IntArray  #: the noise snapshot each sample saw (-1: the one in force at the start)
+    snapshots: FloatArray  #: the noise monitor's version and B_MEAN numbers at each change
+    held: IntArray  #: the covariance each sample's checkpoint holds (-1: RunFilter.P)
+    covs: FloatArray  #: the covariance after each change (STEPS_PER_RUN, n, n)
+    phi: FloatArray  #: the last transition (n, n)
+    white: FloatArray  #: the last white-noise densities (2, 3)
+    nhcs: FloatArray  #: the NHC of each epoch (rows: sample, accepted, NIS)
+    pseudo: FloatArray  #: (next epoch's stamp, start of its ZARU interval) [s]
+
+
 @jit
 def take_run(
-    stores: tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray],
+    stores: IntakeStores,
+    x: FloatArray,
     r_bi: FloatArray,
-    samples: tuple[FloatArray, FloatArray, FloatArray, BoolArray],
-    span: tuple[int, int],
-    limits: tuple[float, float, float, float, float],
-    outs: tuple[FloatArray, FloatArray, FloatArray, IntArray, FloatArray],
-    row_model: tuple[FloatArray, FloatArray, IntArray, FloatArray, FloatArray, FloatArray],
-    origin: tuple[float, float, float],
-    filtering: tuple[FloatArray, ProcessModel, tuple[FloatArray, FloatArray]],
-    constants: tuple[Columns, float, float, float, int],
-    epochs: tuple[float, float, float, bool, bool],
-    steps: tuple[IntArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray],
+    series: ImuSeries,
+    settings: RunSettings,
+    constants: RunConstants,
+    filtering: RunFilter,
+    outs: RunOutputs,
 ) -> tuple[int, int, int, int, int, int, int]:
-    """Take samples ``span`` = (start, stop) of ``samples`` (stamps [s], rates [rad/s] and
-    forces [m/s²] (n, 3) imu_link FLU, output tick after each sample) until one needs the
-    engine (module docstring).
-
-    ``stores``: the intake array, calibration table, sample integrator, detector ring, noise
-    monitor block and nominal state x (take_sample's arguments); ``limits``: the IMU time
-    offset [s] taken off each stamp, the stamp of the first pending measurement (inf: none),
-    of the next pseudo-measurement epoch, the covariance interval [s], degraded_after [s].
-    ``outs``: ``incs`` / ``xs`` the increment and state after each ordinary sample (rows 0 ..
-    m-1; row m the increment of the sample left to the engine), ``rows`` the solution rows of
-    the ticks (``row_model``: J, P, the solution states, base_link lever arm, arm_bi and the
-    ENU plane's rotation; ``origin`` as SolutionBuilder.row gives it), ``seen`` the noise
-    snapshot each ordinary sample saw (-1: the one in force at the start), ``snapshots`` the
-    noise monitor's version and B_MEAN numbers at each change.
-    ``filtering``: mat_bi, the filter's process model (ErrorStateFilter.process_model) and
-    the user's white-noise densities (ImuDensities.floor); ``constants``: StateLayout.columns,
-    the GNSS error's correlation time [s], NHC σ [m/s], the NHC's gate, the state size;
-    ``epochs``: the pseudo-measurement period [s], the stop detector's speed threshold [m/s],
-    nhc_min_speed [m/s], use_nhc, whether the detector is idle (no stop, no candidate).
-    ``steps`` receives the covariance each ordinary sample's checkpoint holds (-1: that of
-    ``row_model``), the covariance after each change (STEPS_PER_RUN, n, n), the last
-    transition (n, n) and white-noise densities (2, 3), the NHC of each epoch (rows: sample,
-    accepted, NIS) and (next epoch's stamp, start of its ZARU interval) [s].
-    Returns (next sample index, code of the sample left to the engine, RUN_DONE or
-    RUN_PROBLEM, m, rows written, snapshots written, covariances written, NHC updates)."""
-    buf, table, integrator, ring, block, x = stores
-    t_s, rate, force, ticks = samples
-    start, stop = span
-    offset_s, due_t, pseudo_t, interval_s, degraded_after_s = limits
-    incs, xs, rows, seen, snapshots = outs
-    J, P, states, base_arm_b, arm_bi, mat_enu_ecef = row_model
-    mat_bi, process, floor = filtering
-    columns, correlation_time_s, sigma_m_s, gate, size = constants
-    period_s, stop_speed_m_s, nhc_min_speed_m_s, use_nhc, detector_idle = epochs
-    held, covs, phi_out, white_out, nhcs, pseudo_out = steps
+    """Take the samples ``settings.start`` .. ``stop`` of ``series`` until one needs the
+    engine (module docstring), with the intake's ``stores``, the nominal state ``x`` and
+    ``r_bi`` as take_sample takes them. Returns (next sample index, code of the sample left to
+    the engine, RUN_DONE or RUN_PROBLEM, m, rows written, snapshots written, covariances
+    written, NHC updates)."""
+    t_s, rate, force, ticks = series
+    buf, table, integrator, ring, block = stores
+    start, stop, due_t, pseudo_t, detector_idle = settings
+    (
+        offset_s,
+        interval_s,
+        degraded_after_s,
+        period_s,
+        stop_speed_m_s,
+        nhc_min_speed_m_s,
+        use_nhc,
+        correlation_time_s,
+        nhc_sigma_m_s,
+        nhc_gate,
+    ) = constants
+    P, process, floor, columns, mat_bi, base_arm_b, J, states, arm_bi, mat_enu_ecef, origin = (
+        filtering
+    )
+    incs, xs, rows, seen, snapshots, held, covs, phi_out, white_out, nhcs, pseudo_out = outs
     has_mounting = columns.mt >= 0
     arm_b = mounted_arm(base_arm_b, x, has_mounting)
     version = block[B_VERSION]
     m = r = v = c = e = 0
     for i in range(start, stop):
         t = t_s[i] - offset_s
-        code = take_sample(
-            buf,
-            table,
-            integrator,
-            ring,
-            block,
-            x,
-            r_bi,
-            incs[m],
-            t,
-            rate[i, 0],
-            rate[i, 1],
-            rate[i, 2],
-            force[i, 0],
-            force[i, 1],
-            force[i, 2],
-            not due_t < t,
-        )
+        put_reading(buf, t, rate[i], force[i])
+        buf[S_STEP] = 0.0 if due_t < t else 1.0
+        code = take_sample(buf, table, integrator, ring, block, x, r_bi, incs[m])
         if code != REJECTED:
             due = x[X_COV_DT] >= interval_s
             epoch = t >= pseudo_t
+            heading_known = x[X_HEADING_KNOWN] != 0.0
             if (
                 code != PUSHED + STEPPED
                 or c + 2 > len(covs)
-                or (due and x[X_HEADING_KNOWN] == 0.0)
-                or (epoch and not _moving_epoch(x, detector_idle, stop_speed_m_s))
+                or (due and not heading_known)
+                or (
+                    epoch
+                    and not (
+                        heading_known and vetoed(detector_idle, nav_speeds(x)[1], stop_speed_m_s)
+                    )
+                )
             ):
                 return i + 1, code, m, r, v, c, e
             if block[B_VERSION] != version:
@@ -183,11 +238,9 @@ def take_run(
             xs[m, :] = x
             m += 1
             if epoch:  # InsEngine._pseudo_epoch, moving (the detector decides no stop)
-                pseudo_t = (math.floor(t / period_s) + 1.0) * period_s
-                buf[S_ZARU_SUM : S_ZARU_N + 1] = 0.0
+                pseudo_t = start_pseudo_interval(buf, t, period_s)
                 pseudo_out[0], pseudo_out[1] = pseudo_t, t
-                horizontal = math.hypot(x[X_VEL], x[X_VEL + 1])
-                if use_nhc and horizontal > nhc_min_speed_m_s:  # FusedNhc.apply
+                if nhc_due(x, use_nhc, nhc_min_speed_m_s):  # NhcUpdate.fused
                     gyro, accel = monitored_white_noise(block, floor, x[X_Q_SCALE])
                     stepped, phi, accepted, nis, P = nhc_apply(
                         P,
@@ -196,7 +249,12 @@ def take_run(
                         with_white_noise(process, gyro, accel),
                         (mat_bi, arm_b),
                         columns,
-                        (correlation_time_s, sigma_m_s, gate, size),
+                        (
+                            correlation_time_s,
+                            nhc_sigma_m_s,
+                            nhc_gate,
+                            len(P),
+                        ),
                     )
                     if stepped:
                         phi_out[:, :] = phi
@@ -206,30 +264,17 @@ def take_run(
                     nhcs[e, 0], nhcs[e, 1], nhcs[e, 2] = m - 1, accepted, nis
                     e += 1
                     arm_b = mounted_arm(base_arm_b, x, has_mounting)
-                if (
-                    covariance_problem(P) != -1
-                    or not np.isfinite(x[X_NAV : X_NAV + NAV_SIZE]).all()
-                ):
+                if filter_problem(P, x) != USABLE:  # InsEngine._check_health
                     return i + 1, RUN_PROBLEM, m, r, v, c, e
         if ticks[i]:
             row = rows[r]
             rate_i = buf[S_LAST_RATE : S_LAST_RATE + 3]
             mounting = (x[X_MOUNTING], x[X_MOUNTING + 1]) if has_mounting else (0.0, 0.0)
-            _fill_row(
-                row, J, x, P, states, arm_b, r_bi, arm_bi, rate_i, mounting, origin, mat_enu_ecef
-            )
+            row_model: RowFields = (J, P, states, arm_b, arm_bi, mat_enu_ecef, mounting, origin)
+            _fill_row(row, x, row_model, r_bi, rate_i)
             row[STATE] = state_code(x, degraded_after_s)
             r += 1
     return stop, RUN_DONE, m, r, v, c, e
-
-
-@jit
-def _moving_epoch(x: FloatArray, detector_idle: bool, stop_speed_m_s: float) -> bool:
-    """Whether a pseudo-measurement epoch at state ``x`` can stay in the run: the heading is
-    known and StopDetector.evaluate would decide no stop without looking at the IMU (it is
-    idle and the filter's speed vetoes a stop: at or above ``stop_speed_m_s`` [m/s])."""
-    speed = math.hypot(math.hypot(x[X_VEL], x[X_VEL + 1]), x[X_VEL + 2])
-    return x[X_HEADING_KNOWN] != 0.0 and detector_idle and speed >= stop_speed_m_s
 
 
 @jit
@@ -261,21 +306,26 @@ class CompiledRuns:
         self,
         config: FusionConfig,
         geometry: Geometry,
-        arrays: tuple[FloatArray, FloatArray],
-        sensors: tuple[SampleIntegrator, StopDetector, ImuDensities],
+        sensors: tuple[Callable[[], IntakeStores], StopDetector, ImuDensities],
         filtering: tuple[Propagator, SolutionBuilder, Timeline, Corrections],
     ) -> None:
-        """``arrays``: the intake (core.engine.intake S_* layout) and calibration table."""
+        """``sensors``: the engine's intake stores as they are now, its stop detector and IMU
+        densities."""
         self._config = config
         self._geometry = geometry
-        self._intake, self._table = arrays
-        self._integrator, self._detector, self._densities = sensors
+        self._stores, self._detector, self._densities = sensors
         self._propagator, self._output, self._timeline, self._corrections = filtering
-        self._epochs = (
+        self._constants = RunConstants(
+            config.imu_time_offset_s,
+            config.covariance_interval_s,
+            config.degraded_after_s,
             1.0 / config.pseudo_measurement_rate_hz,
             config.stop_detector.speed_m_s,
             config.nhc_min_speed_m_s,
             config.use_nhc,
+            config.gnss_correlation_time_s,
+            config.nhc_sigma_m_s,
+            self._corrections.gate(2),
         )
 
     def take(
@@ -284,7 +334,7 @@ class CompiledRuns:
         kf: ErrorStateFilter,
         datum_deg: tuple[float, float, float],
         pseudo_t_s: float,
-        samples: tuple[FloatArray, FloatArray, FloatArray, BoolArray],
+        samples: ImuSeries,
         span: tuple[int, int],
         rows: RowBuffer,
     ) -> tuple[int, int, FloatArray, tuple[float, float] | None]:
@@ -305,47 +355,37 @@ class CompiledRuns:
         densities = self._densities
         noise = densities.current()
         # The run turns the configured base_link arm by the mounting itself (mounted_arm).
-        (J, P, states, _turned_arm, arm_bi, plane), _mounting, origin = self._output.model(
-            s, kf, datum_deg
+        row_model = self._output.model(s, kf, datum_deg)
+        geometry = self._geometry
+        settings = RunSettings(
+            start, stop, self._timeline.due_stamp(), pseudo_t_s, self._detector.idle
         )
-        geometry, config = self._geometry, self._config
-        limits = (
-            config.imu_time_offset_s,
-            self._timeline.due_stamp(),
-            pseudo_t_s,
-            config.covariance_interval_s,
-            config.degraded_after_s,
+        filtering = RunFilter(
+            row_model.P,
+            kf.process_model(),
+            densities.floor,
+            kf.layout.columns,
+            geometry.mat_bi,
+            geometry.base_arm_b,
+            row_model.J,
+            row_model.states,
+            row_model.arm_bi,
+            row_model.mat_enu_ecef,
+            row_model.origin,
         )
-        stores = (
-            self._intake,
-            self._table,
-            self._integrator.buffer,
-            self._detector.ring,
-            densities.monitor.block,
-            s.x,
-        )
+        outs = RunOutputs(incs, xs, out, seen, snapshots, held, covs, phi, white, nhcs, pseudo)
         k, code, m, r, v, c, e = take_run(
-            stores,
+            plain(self._stores()),
+            s.x,
             geometry.r_bi,
-            samples,
-            span,
-            limits,
-            (incs, xs, out, seen, snapshots),
-            (J, P, states, geometry.base_arm_b, arm_bi, plane),
-            origin,
-            (geometry.mat_bi, kf.process_model(), densities.floor),
-            (
-                kf.layout.columns,
-                config.gnss_correlation_time_s,
-                config.nhc_sigma_m_s,
-                self._corrections.gate(2),
-                kf.layout.size,
-            ),
-            (*self._epochs, self._detector.idle),
-            (held, covs, phi, white, nhcs, pseudo),
+            plain(samples),
+            plain(settings),
+            plain(self._constants),
+            plain(filtering),
+            plain(outs),
         )
         # What ImuDensities.current read, Propagator.advanced, InsEngine._checkpoint and the
-        # NHC's books (FusedNhc.apply) did after each sample.
+        # NHC's books (NhcUpdate.fused) did after each sample.
         noises: list[tuple[FloatArray, FloatArray] | None] = [
             densities.adopt(snapshot[0], snapshot[1:]) for snapshot in snapshots[:v]
         ]

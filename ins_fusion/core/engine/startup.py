@@ -151,15 +151,10 @@ class Startup:
         accel_var = self._accel_bias_variance()
         tilt_var = float(accel_var.max()) / g**2
         return self._start(
-            t,
-            fix,
-            quat_nb,
-            np.zeros(3),
-            np.diag([tilt_var, tilt_var, yaw_variance]),
-            (float(gyro_seed[0]), float(gyro_seed[1]), float(gyro_seed[2])),
-            seed_var,
-            np.full(3, self._config.zupt_sigma_m_s**2),
-            heading_known,
+            (t, fix, heading_known),
+            (quat_nb, np.diag([tilt_var, tilt_var, yaw_variance])),
+            (np.zeros(3), np.full(3, self._config.zupt_sigma_m_s**2)),
+            ((float(gyro_seed[0]), float(gyro_seed[1]), float(gyro_seed[2])), seed_var),
         )
 
     def _check_level(self, roll: float, pitch: float) -> None:
@@ -205,15 +200,10 @@ class Startup:
         vel_ned = np.nan_to_num(MAT_ENU_NED @ vel.vel_enu_m_s)
         gyro_var = self._gyro_bias_variance()
         started = self._start(
-            t,
-            fix,
-            quat_from_euler(roll, pitch, yaw),
-            vel_ned,
-            np.diag(att_var),
-            (0.0, 0.0, 0.0),
-            gyro_var,
-            velocity_variance(vel),
-            True,
+            (t, fix, True),
+            (quat_from_euler(roll, pitch, yaw), np.diag(att_var)),
+            (vel_ned, velocity_variance(vel)),
+            ((0.0, 0.0, 0.0), gyro_var),
         )
         if att is None:
             self._counters["course_heading"]["used"] += 1
@@ -221,17 +211,19 @@ class Startup:
 
     def _start(
         self,
-        t: float,
-        fix: GnssFixMeasurement,
-        quat_nb: FloatArray,
-        vel_ned: FloatArray,
-        att_cov: FloatArray,
-        gyro_bias: Vec3,
-        gyro_bias_var: FloatArray,
-        vel_var: FloatArray,
-        heading_known: bool,
+        start: tuple[float, GnssFixMeasurement, bool],
+        attitude: tuple[FloatArray, FloatArray],
+        velocity: tuple[FloatArray, FloatArray],
+        gyro: tuple[Vec3, FloatArray],
     ) -> Started:
-        """Create the filter: position from the fix (moved to t with the velocity)."""
+        """Create the filter at ``start`` = (t [s], the fix, whether the heading is known):
+        position from the fix (moved to t with the velocity), ``attitude`` = (body -> NED
+        quaternion, its 3x3 covariance [rad²]), ``velocity`` = (NED [m/s], variances [m²/s²]),
+        ``gyro`` = (bias seed [rad/s], imu FRD, variances)."""
+        t, fix, heading_known = start
+        quat_nb, att_cov = attitude
+        vel_ned, vel_var = velocity
+        gyro_bias, gyro_bias_var = gyro
         config = self._config
         noise = config.imu_noise
         nav = NavState(

@@ -8,7 +8,9 @@ a standstill, a start, a drive, late GNSS data and an IMU gap) through two engin
 every optional error state (the vehicle speed's too) and the smoother's history attached
 (every update the general way, sample by sample) and one with the defaults fed as a replay
 feeds it (compiled runs, the fused updates, re-propagations), and the output kernel on a row of
-each. InsEngine calls it when it is built, ``make venv`` once after the install. A kernel called
+each. Building an engine does not call it: the node calls it before it builds its engine, a
+replay before its first engine (ins_fusion.replay.run.run_fusion), ``make venv`` once after the
+install; an engine used without it compiles each kernel at its first call. A kernel called
 later with other argument types would compile again (test_compiled.py checks that a drive adds
 no signature).
 """
@@ -22,6 +24,8 @@ from collections.abc import Iterator
 import numpy as np
 
 from gnss_ins_common.types import BoolArray, FloatArray
+from ins_fusion.core.engine.engine import InsEngine
+from ins_fusion.core.engine.smoothed_solution import attach_history
 from ins_fusion.core.filter.records import (
     AttitudeMeasurement,
     GnssFixMeasurement,
@@ -64,7 +68,7 @@ _ready = False
 
 def warm_up() -> float:
     """Compile or load every kernel once per process; returns the seconds it took (0 when
-    done already or under way: the engines it builds call it too)."""
+    done already)."""
     global _ready
     if _ready:
         return 0.0
@@ -80,10 +84,6 @@ def warm_up() -> float:
 
 def _drive_engines() -> None:
     """The synthetic drive through both engines (module docstring) and the output kernel."""
-    # engine imports this module: imported here, when the first engine is being built.
-    from ins_fusion.core.engine.engine import InsEngine
-    from ins_fusion.core.engine.smoothed_solution import attach_history
-
     imu, measurements = synthetic_drive()
     for parameters, smooth in ((_EVERY_STATE, True), (_QUICK, False)):
         config = FusionConfig.from_parameters(parameters)

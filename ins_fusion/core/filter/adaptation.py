@@ -32,6 +32,7 @@ dominate); both report nothing until ``_MIN_COUNT`` differences have been seen.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -282,17 +283,9 @@ class WhiteNoiseMonitor:
         ``white_push_fix``)."""
         values = self.values.copy()
         accepted = dx is not None
-        white_push_fix(
-            values,
-            t_s,
-            innovation_ned_m,
-            H,
-            dx if dx is not None else innovation_ned_m,
-            accepted,
-            P,
-            predicted_var_m2,
-            reported_var_m2,
-        )
+        estimate = dx if dx is not None else innovation_ned_m
+        update = FixUpdate(innovation_ned_m, H, estimate, accepted, P)
+        white_push_fix(values, t_s, update, predicted_var_m2, reported_var_m2)
         return self.with_values(values)
 
     def restarted(self) -> WhiteNoiseMonitor:
@@ -315,21 +308,27 @@ class WhiteNoiseMonitor:
         return self.values[W_MEAN : W_MEAN + 3].copy()
 
 
+class FixUpdate(NamedTuple):
+    """A fix's update z ≈ H δx as ``white_push_fix`` reads it."""
+
+    innovation: FloatArray  #: z [m], NED
+    H: FloatArray  #: the model's Jacobian
+    dx: FloatArray  #: the estimate δx when accepted (else not read)
+    accepted: bool
+    P: FloatArray  #: the error covariance after the update
+
+
 @jit
 def white_push_fix(
     values: FloatArray,
     t_s: float,
-    innovation: FloatArray,
-    H: FloatArray,
-    dx: FloatArray,
-    accepted: bool,
-    P: FloatArray,
+    update: FixUpdate,
     predicted: FloatArray,
     reported: FloatArray,
 ) -> None:
-    """``white_push`` of a fix's update z ≈ H δx (``innovation`` z, estimate ``dx`` when
-    ``accepted``; P after it): the residual z - H δx (z when rejected) and diag(H P Hᵀ) are
-    computed here."""
+    """``white_push`` of a fix's ``update``: the residual z - H δx (z when rejected) and
+    diag(H P Hᵀ) are computed here."""
+    innovation, H, dx, accepted, P = update
     residual = innovation - H @ dx if accepted else innovation.copy()
     white_push(values, t_s, innovation, residual, predicted, projected_variance(H, P), reported)
 

@@ -19,8 +19,8 @@ f̃ = (1 + s_a)∘f + b_a + n_a, with b, s and a first-order Gauss-Markov proces
 frame b is base_link FRD, C_ni = C_nb R_bi with R_bi the imu -> base_link mounting. Linearised
 error dynamics (the "phi-angle" form of Shin 2001 / KF-GINS; the position terms of order v/R,
 Ω v/R and ∂g/∂φ, below 5e-6 s⁻¹ at car speeds, are left out: they change a position error of
-1 m by < 0.1 mm in a 20 s outage; test_fusion_eskf.py checks every block against finite
-differences of the strapdown):
+1 m by < 0.1 mm in a 20 s outage; test/core/filter/test_eskf.py checks every block against
+finite differences of the strapdown):
 
     δṗ = δv
     δv̇ = -[f_n×]ψ + F_vv δv + (2g/(R+h)) δp_D e_D - C_ni (δb_a + diag(f_i) δs_a) - C_ni n_a
@@ -48,11 +48,11 @@ symmetric states cannot follow (docs/fusion.md).
 
 Discretisation over an interval Δt: Φ = I + FΔt + (FΔt)²/2 and Q_d = (Φ Q_c Φᵀ + Q_c)Δt/2, both
 second-order accurate; propagated in steps of 1/134 s or 0.1 s for 10 s they agree with Van Loan's
-exact form to 0.5 % (test_fusion_eskf.py; Oslo notes "Implications" R2). The engine propagates P
-every ``covariance_interval`` (0.1 s, the pseudo-measurement period) with the interval's mean
-specific force, and always up to the stamp of a measurement before updating; per IMU sample
-instead gives the same errors and NEES at 1.6 times the CPU time (bench/bench_fusion_engine.py).
-The gated update and its algebra: core.filter.update_algebra.
+exact form to 0.5 % (test/core/filter/test_eskf.py; Oslo notes "Implications" R2). The engine
+propagates P every ``covariance_interval`` (0.1 s, the pseudo-measurement period) with the
+interval's mean specific force, and always up to the stamp of a measurement before updating;
+per IMU sample instead gives the same errors and NEES at 1.6 times the CPU time
+(bench/bench_fusion_engine.py). The gated update and its algebra: core.filter.update_algebra.
 """
 
 from __future__ import annotations
@@ -201,6 +201,18 @@ class ProcessModel(NamedTuple):
     markov_q: FloatArray
 
 
+class Motion(NamedTuple):
+    """What the error dynamics F depend on over a covariance interval (frames: imu FRD, NED)."""
+
+    mat_ni: FloatArray  #: rotation imu -> NED
+    force_n: FloatArray  #: mean specific force, NED [m/s²]
+    force_i: FloatArray  #: mean specific force, imu FRD [m/s²]
+    rate_i: FloatArray  #: mean corrected rate, imu FRD [rad/s]
+    lat_rad: float  #: latitude [rad]
+    height_m: float  #: height [m]
+    vel_ned_m_s: tuple[float, float, float]  #: NED velocity [m/s]
+
+
 @compilable
 def with_white_noise(
     process: ProcessModel, gyro_psd: FloatArray, accel_psd: FloatArray
@@ -308,8 +320,8 @@ class ErrorStateFilter:
         """The error-state matrix F (module docstring) for a rotation imu FRD -> NED, the
         specific force in NED and the corrected force/rate in imu FRD [m/s², rad/s], position
         and NED velocity. Returns an internal array, valid until the next call."""
-        inputs = (mat_ni, force_n, force_i, rate_i, lat_rad, height_m, vel_ned_m_s)
-        _fill_dynamics(self._F, *inputs, *self.scale_columns)
+        motion = Motion(mat_ni, force_n, force_i, rate_i, lat_rad, height_m, vel_ned_m_s)
+        _fill_dynamics(self._F, motion, *self.scale_columns)
         return self._F
 
     def noise_density(self, mat_ni: FloatArray, rate_i: FloatArray) -> FloatArray:
@@ -382,30 +394,31 @@ class ErrorStateFilter:
 
     def problem(self) -> str | None:
         """Why the covariance is unusable (non-finite, negative variance), or None."""
-        worst = covariance_problem(kernel_array(self.P))
-        if worst == -2:
-            return "non-finite covariance"
-        if worst >= 0:
-            return f"negative variance in state {worst}"
+        return problem_text(covariance_problem(kernel_array(self.P)))
+
+
+#: What makes a filter unusable besides a negative variance (whose state index the checks
+#: return): nothing (usable), a non-finite covariance (update_algebra.covariance_problem), a
+#: non-finite navigation state (core.filter.state.filter_problem).
+USABLE, NONFINITE_COVARIANCE, NONFINITE_NAVIGATION = -1, -2, -3
+
+
+def problem_text(code: int) -> str | None:
+    """A health check's ``code`` (above) in words; None: usable."""
+    if code == USABLE:
         return None
+    if code == NONFINITE_COVARIANCE:
+        return "non-finite covariance"
+    if code == NONFINITE_NAVIGATION:
+        return "non-finite navigation state"
+    return f"negative variance in state {code}"
 
 
 @jit
-def _fill_dynamics(
-    F: FloatArray,
-    mat_ni: FloatArray,
-    force_n: FloatArray,
-    force_i: FloatArray,
-    rate_i: FloatArray,
-    lat_rad: float,
-    height_m: float,
-    vel_ned_m_s: tuple[float, float, float],
-    sg: int,
-    sa: int,
-    sr: int,
-) -> None:
+def _fill_dynamics(F: FloatArray, motion: Motion, sg: int, sa: int, sr: int) -> None:
     """The state-dependent blocks of F (ErrorStateFilter.dynamics; ``sg``, ``sa``, ``sr``:
     columns of the scale factors and the gyro scale asymmetry, -1 when not estimated)."""
+    mat_ni, force_n, force_i, rate_i, lat_rad, height_m, vel_ned_m_s = motion
     vn, ve, vd = vel_ned_m_s
     sin_lat = math.sin(lat_rad)
     r_m, r_n = earth.radii_from_sin(sin_lat)
@@ -469,28 +482,13 @@ def _fill_noise(
 
 @jit
 def propagate_kernel(
-    P: FloatArray,
-    F: FloatArray,
-    Q: FloatArray,
-    dt_s: float,
-    mat_ni: FloatArray,
-    force_n: FloatArray,
-    force_i: FloatArray,
-    rate_i: FloatArray,
-    lat_rad: float,
-    height_m: float,
-    vel_ned_m_s: tuple[float, float, float],
-    sg: int,
-    sa: int,
-    sr: int,
-    gyro_psd: FloatArray,
-    gyro_misalignment_q: FloatArray,
-    accel_psd: FloatArray,
-    markov_idx: IntArray,
-    markov_q: FloatArray,
+    P: FloatArray, process: ProcessModel, dt_s: float, motion: Motion, sg: int, sa: int, sr: int
 ) -> tuple[FloatArray, FloatArray]:
-    """(P, Φ) after an interval (propagation.covariance_step); F and Q are filled in place."""
-    _fill_dynamics(F, mat_ni, force_n, force_i, rate_i, lat_rad, height_m, vel_ned_m_s, sg, sa, sr)
+    """(P, Φ) after an interval of ``dt_s`` [s] with ``motion`` (propagation.covariance_step;
+    ``sg``, ``sa``, ``sr``: as ``_fill_dynamics``); F and Q of ``process`` are filled in place."""
+    F, Q, gyro_psd, gyro_misalignment_q, accel_psd, markov_idx, markov_q = process
+    _fill_dynamics(F, motion, sg, sa, sr)
+    mat_ni, rate_i = motion.mat_ni, motion.rate_i
     _fill_noise(Q, mat_ni, rate_i, gyro_psd, gyro_misalignment_q, accel_psd, markov_idx, markov_q)
     f_dt = F * dt_s
     phi = np.eye(len(P)) + f_dt + 0.5 * (f_dt @ f_dt)

@@ -21,6 +21,7 @@ from ins_fusion.core.filter.eskf import (
     VEL,
     Columns,
     ErrorStateFilter,
+    Motion,
     ProcessModel,
     propagate_kernel,
 )
@@ -220,14 +221,12 @@ def advance(x: FloatArray, inc: FloatArray, r_bi: FloatArray, bridged: bool, t: 
 
 
 @jit
-def covariance_interval(
-    x: FloatArray, mat_bi: FloatArray
-) -> tuple[float, FloatArray, FloatArray, FloatArray, FloatArray, float, float, Vec3]:
-    """The arguments of eskf.propagate_kernel for the interval accumulated in ``x``
-    (X_COV_* of core.filter.state; ``mat_bi`` imu -> body): its length [s], the rotation imu -> NED,
-    the mean specific force in NED (from the velocity change and normal gravity) and in imu
-    FRD, the mean rate (imu FRD), latitude, height and NED velocity at its end; the interval
-    restarts (accumulators zero, its start velocity the current one)."""
+def covariance_interval(x: FloatArray, mat_bi: FloatArray) -> tuple[float, Motion]:
+    """The interval accumulated in ``x`` (X_COV_* of core.filter.state; ``mat_bi`` imu ->
+    body) as eskf.propagate_kernel takes it: its length [s] and its ``Motion`` (the mean
+    specific force in NED from the velocity change and normal gravity; latitude, height and
+    NED velocity at its end); the interval restarts (accumulators zero, its start velocity the
+    current one)."""
     dt = x[X_COV_DT]
     inv_dt = 1.0 / dt
     lat, height = x[X_LAT], x[X_HEIGHT]
@@ -242,7 +241,7 @@ def covariance_interval(
     x[X_COV_DV : X_COV_DV + 3] = 0.0
     x[X_COV_VEL0 : X_COV_VEL0 + 3] = vel
     velocity = (vel[0], vel[1], vel[2])
-    return dt, mat_nb @ mat_bi, force_n, force_i, rate_i, lat, height, velocity
+    return dt, Motion(mat_nb @ mat_bi, force_n, force_i, rate_i, lat, height, velocity)
 
 
 @jit
@@ -258,29 +257,8 @@ def covariance_step(
     it; ``process``: ErrorStateFilter.process_model), and the estimate of the correlated GNSS
     error in ``x`` decayed over it when ``columns`` (StateLayout.columns) hold that block
     (``correlation_time_s``: its correlation time [s])."""
-    F, Q, gyro_psd, misalignment_q, accel_psd, markov_idx, markov_q = process
-    dt, mat_ni, force_n, force_i, rate_i, lat, height, vel = covariance_interval(x, mat_bi)
-    P_new, phi = propagate_kernel(
-        P,
-        F,
-        Q,
-        dt,
-        mat_ni,
-        force_n,
-        force_i,
-        rate_i,
-        lat,
-        height,
-        vel,
-        columns.sg,
-        columns.sa,
-        columns.sr,
-        gyro_psd,
-        misalignment_q,
-        accel_psd,
-        markov_idx,
-        markov_q,
-    )
+    dt, motion = covariance_interval(x, mat_bi)
+    P_new, phi = propagate_kernel(P, process, dt, motion, columns.sg, columns.sa, columns.sr)
     if columns.gp >= 0:
         decay = math.exp(-dt / correlation_time_s)
         for k in range(3):

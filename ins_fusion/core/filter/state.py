@@ -20,7 +20,9 @@ from ins_fusion.core.filter.eskf import (
     ATT,
     BA,
     BG,
+    NONFINITE_NAVIGATION,
     POS,
+    USABLE,
     VEL,
     Columns,
     ErrorStateFilter,
@@ -31,6 +33,7 @@ from ins_fusion.core.filter.records import (
     GnssFixMeasurement,
     GnssVelocityMeasurement,
 )
+from ins_fusion.core.filter.update_algebra import covariance_problem
 from ins_fusion.core.layout import offsets
 from ins_fusion.core.nav import earth
 from ins_fusion.core.nav.rotation import (
@@ -448,6 +451,24 @@ def inject_nominal(x: FloatArray, dx: FloatArray, columns: Columns) -> None:
         x[X_TIME_OFFSET] += dx[columns.td]
     if columns.ks >= 0:
         x[X_SPEED_SCALE] += dx[columns.ks]
+
+
+@compilable
+def filter_problem(P: FloatArray, x: FloatArray) -> int:
+    """Whether the covariance ``P`` and the nominal state ``x`` (X_* layout) are usable
+    (core.filter.eskf.USABLE) or why not: eskf's codes, or the state whose variance is the most
+    negative."""
+    worst: int = covariance_problem(P)
+    if worst == USABLE and not np.isfinite(x[X_NAV : X_NAV + NAV_SIZE]).all():
+        return NONFINITE_NAVIGATION
+    return worst
+
+
+@compilable
+def nav_speeds(x: FloatArray) -> tuple[float, float]:
+    """Horizontal and 3-D speed of the nominal state ``x`` (X_* layout) [m/s]."""
+    horizontal = math.hypot(x[X_VEL], x[X_VEL + 1])
+    return horizontal, math.hypot(horizontal, x[X_VEL + 2])
 
 
 def decouple_yaw(kf: ErrorStateFilter, yaw_variance: float = UNKNOWN_YAW_VARIANCE) -> None:

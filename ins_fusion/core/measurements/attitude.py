@@ -11,7 +11,7 @@ and again in every re-propagation through its stamp. The general way (InsEngine.
 covariance step and the prediction, ``AttitudeUpdate`` with Geometry.measured_mat_nb and the
 model ``attitude_model``, Corrections.update with the Joseph update and the injection) is five
 kernels with Python between them; ``attitude_apply`` runs the same kernels in the same order in
-one call, so the numbers are the same to the bit, and ``FusedAttitude`` keeps the books (NIS,
+one call, so the numbers are the same to the bit, and ``AttitudeUpdate.fused`` keeps the books (NIS,
 gated runs, counters). Taken only where the general way would do nothing else: the heading
 known (else the attitude sets it), no time-offset state, no smoother, and no gate recovery
 possible.
@@ -27,7 +27,7 @@ from gnss_ins_common.types import FloatArray, Quat
 from ins_fusion.core.compiled import jit, kernel_array
 from ins_fusion.core.filter.eskf import ATT, Columns, ErrorStateFilter, ProcessModel, StateLayout
 from ins_fusion.core.filter.records import AttitudeMeasurement, Prediction
-from ins_fusion.core.filter.state import X_MOUNTING, FilterState, Geometry, base_mat_nb
+from ins_fusion.core.filter.state import X_MOUNTING, FilterState, base_mat_nb
 from ins_fusion.core.measurements.common import (
     UNKNOWN_ANGLE_VARIANCE,
     Model,
@@ -36,7 +36,7 @@ from ins_fusion.core.measurements.common import (
     step_to,
     update_rows,
 )
-from ins_fusion.core.measurements.gate import Corrections, FusedUpdate
+from ins_fusion.core.measurements.gate import KindUpdate
 from ins_fusion.core.measurements.heading import set_heading
 from ins_fusion.core.nav.rotation import as_quat, euler_rad, wrap_angle
 
@@ -131,14 +131,10 @@ def attitude_model(
     return rows, z[keep], H[keep], R
 
 
-class AttitudeUpdate:
-    """The engine's handler of attitude epochs (core.measurements.gate.Handler): while the
+class AttitudeUpdate(KindUpdate):
+    """The engine's update of attitude epochs (core.measurements.gate.KindUpdate): while the
     heading is unknown, a measured yaw sets it (counted used); else the model and the gated
-    update (an epoch without a measured angle rejected)."""
-
-    def __init__(self, geometry: Geometry, corrections: Corrections) -> None:
-        self._geometry = geometry
-        self._corrections = corrections
+    update (an epoch without a measured angle rejected); ``fused`` with ``attitude_apply``."""
 
     def __call__(
         self,
@@ -161,6 +157,26 @@ class AttitudeUpdate:
             corrections.reject(_KIND, live)
             return
         corrections.update(s, kf, _KIND, model, live)
+
+    def fused(
+        self,
+        s: FilterState,
+        kf: ErrorStateFilter,
+        record: tuple[float, AttitudeMeasurement],
+        live: bool,
+    ) -> bool:
+        if not self._sensor_usable(s, kf, _KIND):
+            return False
+        att, geometry = record[1], self._geometry
+        result = self._kernel(
+            attitude_apply,
+            (s, kf),
+            (att.t_s, as_quat(att.quat_enu_flu_xyzw), kernel_array(att.cov_rpy_rad2)),
+            (geometry.mat_bi, geometry.q_a_base),
+            (self._correlation_time_s, self._gates, kf.layout.size),
+        )
+        self._sensor_taken((s, kf), _KIND, result, live)
+        return True
 
 
 @jit
@@ -197,26 +213,3 @@ def attitude_apply(
     )
     accepted, nis, P_new = update_rows(P, x, rows, (z, H, R), gates, columns)
     return stepped, phi, rows, accepted, nis, P_new
-
-
-class FusedAttitude(FusedUpdate):
-    """The engine's side of ``attitude_apply`` (InsEngine._apply uses it where ``usable``)."""
-
-    def usable(self, s: FilterState, kf: ErrorStateFilter) -> bool:
-        """Whether the general way would do just what ``apply`` does."""
-        return self._sensor_usable(s, kf, _KIND)
-
-    def apply(
-        self, s: FilterState, kf: ErrorStateFilter, att: AttitudeMeasurement, live: bool
-    ) -> None:
-        """What InsEngine._apply does for an attitude record where ``usable`` (``live``:
-        counted)."""
-        geometry = self._geometry
-        result = self._kernel(
-            attitude_apply,
-            (s, kf),
-            (att.t_s, as_quat(att.quat_enu_flu_xyzw), kernel_array(att.cov_rpy_rad2)),
-            (geometry.mat_bi, geometry.q_a_base),
-            (self._correlation_time_s, self._gates, kf.layout.size),
-        )
-        self._sensor_taken((s, kf), _KIND, result, live)

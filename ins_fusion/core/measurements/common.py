@@ -3,7 +3,7 @@ a component as not measured, ENU <-> NED covariances, the residual mounting, the
 columns of H, the Euler-angle Jacobian and the IMU time-offset terms of a GNSS measurement.
 Their compiled updates: the covariance step and the prediction to the stamp (``step_to``) and
 the gated Joseph update with the injection (``update_and_restart``, ``update_rows``), the
-kernels each ``<kind>_apply`` is made of (their books: core.measurements.gate.FusedUpdate).
+kernels each ``<kind>_apply`` is made of (their books: core.measurements.gate.KindUpdate).
 
 Every model returns (z, H, R) with the innovation z = measured - predicted, so that
 z ≈ H δx + v for the error state of core.filter.eskf (x_true = x_nominal + δx, C_true = (I + [ψ×])

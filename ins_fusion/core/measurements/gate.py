@@ -5,19 +5,21 @@ innovation's NIS (threshold core.filter.update_algebra.chi2_threshold), the Jose
 feedback of the estimate into the nominal state and, after ``gate_recovery_count`` gated
 updates of a sensor in a row, the recovery that grows the covariance until the measurement
 fits. ``Corrections.book`` keeps the books of an update, made here or by a compiled update of
-core.measurements: NIS, the process-noise adaptation, the runs of gated updates, the counters;
-``FusedUpdate``, the base of each kind's compiled update on the engine's side, what such an
-update leaves in the filter and in those books.
+core.measurements: NIS, the process-noise adaptation, the runs of gated updates, the counters.
 
-The handlers, one per kind, are in the kind's module (gnss_position, gnss_velocity, attitude,
-stationary, nhc, vehicle_speed), registered in ``Corrections.handlers`` by core.engine.loop.
-Every handler takes the current nominal state, the filter, the prediction to the measurement's
-stamp, the payload and ``live`` (first application: counted; a re-propagation is not).
+``KindUpdate`` is the base of each kind's update, one class in the kind's module (gnss_position,
+gnss_velocity, attitude, stationary, nhc, vehicle_speed), registered in ``Corrections.handlers``
+by core.engine.loop. Called, it is the handler of the general way: it takes the current nominal
+state, the filter, the prediction to the measurement's stamp, the payload and ``live`` (first
+application: counted; a re-propagation is not). Its ``fused`` applies the record in one compiled
+call with the covariance step before it, where the kind has such a kernel and the general way
+would do just that; the base gives what such a kernel reads and leaves in the filter and books.
 """
 
 from __future__ import annotations
 
 import math
+from abc import ABC, abstractmethod
 from collections.abc import Callable
 from typing import Any
 
@@ -44,9 +46,6 @@ _RECOVERY_BLOCKS = {"gnss_position": POS, "gnss_velocity": VEL, "attitude": ATT}
 #: While the heading is unknown, GNSS updates are applied only below this speed [m/s].
 _ALIGN_MAX_SPEED_M_S = 1.0
 
-#: A measurement kind's handler: (state, filter, prediction, payload, live).
-Handler = Callable[[FilterState, ErrorStateFilter, Prediction, Any, bool], None]
-
 
 class Corrections:
     """The gated update and the books (see the module docstring); ``handlers`` maps each
@@ -59,7 +58,7 @@ class Corrections:
         self._gates = {dof: chi2_threshold(config.gate_probability, dof) for dof in (1, 2, 3)}
         self.nis = dict.fromkeys(counters, math.nan)
         self.fading = 1.0
-        self.handlers: dict[str, Handler] = {}
+        self.handlers: dict[str, KindUpdate] = {}
 
     def update(
         self, s: FilterState, kf: ErrorStateFilter, kind: str, model: Model, live: bool
@@ -156,10 +155,10 @@ class Corrections:
         return True
 
 
-class FusedUpdate:
-    """The base of each kind's compiled update on the engine's side (``Fused<Kind>`` in the
-    kind's module): what it reads (the configuration, the geometry, the propagator's white-noise
-    densities, the gates) and what its kernel leaves in the filter and in the books."""
+class KindUpdate(ABC):
+    """The base of each measurement kind's update (module docstring): what its compiled update
+    reads (the configuration, the geometry, the propagator's white-noise densities, the gates)
+    and what its kernel leaves in the filter and in the books."""
 
     def __init__(
         self,
@@ -174,6 +173,27 @@ class FusedUpdate:
         self._corrections = corrections
         self._correlation_time_s = config.gnss_correlation_time_s
         self._gates = (corrections.gate(1), corrections.gate(2), corrections.gate(3))
+
+    @abstractmethod
+    def __call__(
+        self, s: FilterState, kf: ErrorStateFilter, pred: Prediction, payload: Any, live: bool
+    ) -> None:
+        """The general way's update of a record with ``payload`` after the covariance step and
+        the prediction ``pred`` to its stamp (``live``: counted)."""
+
+    def fused(
+        self, s: FilterState, kf: ErrorStateFilter, record: tuple[float, Any], live: bool
+    ) -> bool:
+        """Apply ``record`` = (stamp [s], payload) in one compiled call with the covariance step
+        before it, where the general way would do just that (``live``: counted); False: the
+        general way applies it (always, for a kind without a compiled update)."""
+        return False
+
+    @staticmethod
+    def _pseudo_usable(s: FilterState, kf: ErrorStateFilter) -> bool:
+        """Whether the general way would apply a pseudo-measurement just as its kernel does:
+        the heading known and no smoother (its history hears each step)."""
+        return kf.smoother_hooks is None and s.heading_known
 
     def _kernel(
         self,
@@ -223,6 +243,22 @@ class FusedUpdate:
             self._corrections.reject(kind, live)
             return
         self._booked(s, kind, (accepted, nis), rows, live)
+
+    def _pseudo_taken(
+        self,
+        state: tuple[FilterState, ErrorStateFilter],
+        kind: str,
+        result: tuple[bool, FloatArray, bool, float, FloatArray],
+        rows: int,
+        live: bool,
+    ) -> bool:
+        """What a pseudo-measurement's kernel ``result`` (stepped, Φ, accepted, NIS, new P) of a
+        model of ``rows`` rows leaves in the filter and the books; True (applied)."""
+        s, kf = state
+        stepped, phi, accepted, nis, P = result
+        self._taken(kf, stepped, phi, P)
+        self._booked(s, kind, (accepted, nis), rows, live)
+        return True
 
     @staticmethod
     def _taken(kf: ErrorStateFilter, stepped: bool, phi: FloatArray, P: FloatArray) -> None:

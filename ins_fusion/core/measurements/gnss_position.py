@@ -13,11 +13,12 @@ the prediction, ``PositionUpdate``: the white/correlated split of the fix's cova
 with the Joseph update and the injection, the white-noise monitor's push
 ``adaptation.white_push_fix``) is seven kernels with Python between them. ``position_apply``
 runs the same kernels in the same order in one call, so the numbers are the same to the bit,
-and ``FusedPosition`` keeps the books (NIS, process-noise adaptation, gated runs, counters, the
-last fix used). Taken only where the general way would do nothing else: a valid fix, the
-heading known, no time-offset state, no smoother, no gate recovery possible; and when the
-split asks for a restart of the correlated error states, the kernel stops after the covariance
-step and the general way goes on from there (a new variance of theirs it sets itself).
+and ``PositionUpdate.fused`` keeps the books (NIS, process-noise adaptation, gated runs,
+counters, the last fix used). Taken only where the general way would do nothing else: a valid
+fix, the heading known, no time-offset state, no smoother, no gate recovery possible; and when
+the split asks for a restart of the correlated error states, the kernel stops after the
+covariance step and the general way goes on from there (a new variance of theirs it sets
+itself).
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ import numpy as np
 
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core.compiled import jit, kernel_array
-from ins_fusion.core.filter.adaptation import white_push_fix
+from ins_fusion.core.filter.adaptation import FixUpdate, white_push_fix
 from ins_fusion.core.filter.eskf import (
     ATT,
     POS,
@@ -48,7 +49,7 @@ from ins_fusion.core.filter.state import (
 )
 from ins_fusion.core.filter.update_algebra import projected_variance
 from ins_fusion.core.measurements.common import Model, late_imu, step_to, update_and_restart
-from ins_fusion.core.measurements.gate import Corrections, FusedUpdate
+from ins_fusion.core.measurements.gate import Corrections, KindUpdate
 from ins_fusion.core.measurements.gnss_noise import (
     NOISE_MOVED,
     NOISE_RESTART,
@@ -78,13 +79,8 @@ def gnss_position(
     receiver's covariance. North and east rows only for a 2-D fix. Compiled
     (``position_model``)."""
     return position_model(
-        pred.lat_rad,
-        pred.lon_rad,
-        pred.height_m,
-        pred.mat_nb,
-        math.radians(meas.lat_deg),
-        math.radians(meas.lon_deg),
-        meas.height_m,
+        pred,
+        (math.radians(meas.lat_deg), math.radians(meas.lon_deg), meas.height_m),
         lever_b,
         white_cov_ned,
         gnss_error_ned,
@@ -96,13 +92,8 @@ def gnss_position(
 
 @jit
 def position_model(
-    lat_rad: float,
-    lon_rad: float,
-    height_m: float,
-    mat_nb: FloatArray,
-    fix_lat_rad: float,
-    fix_lon_rad: float,
-    fix_height_m: float,
+    pred: Prediction,
+    fix_rad: tuple[float, float, float],
     lever_b: FloatArray,
     white_cov_ned: FloatArray,
     gnss_error_ned: tuple[float, float, float],
@@ -110,9 +101,11 @@ def position_model(
     gp: int,
     vertical: bool,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """``gnss_position``'s model from the predicted IMU position (lat, lon [rad], h [m]) and
-    attitude, the fix's position and the layout's size and GNSS error column (-1: none);
-    without ``vertical`` (a 2-D fix) the north and east rows only."""
+    """``gnss_position``'s model from the prediction, the fix's latitude, longitude [rad] and
+    height [m] and the layout's size and GNSS error column (-1: none); without ``vertical`` (a
+    2-D fix) the north and east rows only."""
+    lat_rad, lon_rad, height_m, mat_nb = pred.lat_rad, pred.lon_rad, pred.height_m, pred.mat_nb
+    fix_lat_rad, fix_lon_rad, fix_height_m = fix_rad
     arm_n = mat_nb @ lever_b
     r_m, r_n = earth.radii_from_sin(math.sin(lat_rad))
     offset = (
@@ -132,16 +125,20 @@ def position_model(
     return z[:rows].copy(), H[:rows].copy(), white_cov_ned[:rows, :rows].copy()
 
 
-class PositionUpdate:
-    """The engine's handler of GNSS fixes (core.measurements.gate.Handler): an invalid fix is
+class PositionUpdate(KindUpdate):
+    """The engine's update of GNSS fixes (core.measurements.gate.KindUpdate): an invalid fix is
     rejected, the noise split (``GnssNoise.position_noise``) with the restart or new variance of
     the correlated error states it asks for, the model, its time-offset terms (``late_imu``),
-    the gated update and the white-noise monitor's push."""
+    the gated update and the white-noise monitor's push; ``fused`` with ``position_apply``."""
 
-    def __init__(self, geometry: Geometry, gnss_noise: GnssNoise, corrections: Corrections) -> None:
-        self._geometry = geometry
+    def __init__(
+        self,
+        config: FusionConfig,
+        filtering: tuple[Geometry, Propagator, Corrections],
+        gnss_noise: GnssNoise,
+    ) -> None:
+        super().__init__(config, *filtering)
         self._noise = gnss_noise
-        self._corrections = corrections
 
     def __call__(
         self,
@@ -177,26 +174,74 @@ class PositionUpdate:
         if dx is not None:
             s.last_position_t_s = max(s.last_position_t_s, fix.t_s)
 
+    def fused(
+        self,
+        s: FilterState,
+        kf: ErrorStateFilter,
+        record: tuple[float, GnssFixMeasurement],
+        live: bool,
+    ) -> bool:
+        """``position_apply`` where the general way would do what it does (False: the general
+        way applies the fix, possibly after the covariance step the kernel made)."""
+        fix = record[1]
+        if kf.smoother_hooks is not None or kf.layout.td is not None or not s.heading_known:
+            return False
+        if not (fix.valid and np.isfinite(fix.cov_enu_m2).all()):
+            return False
+        recover = self._config.gate_recovery_count
+        ready = s.gnss_white.ready  # else a gated fix is no reason for a recovery
+        if recover and ready and s.gated_runs.get(_KIND, 0) + 1 >= recover:
+            return False
+        kf.set_white_noise(*self._propagator.white_noise(s))  # read only by a step
+        geometry, corrections = self._geometry, self._corrections
+        rows = 3 if fix.height_known else 2
+        white = s.gnss_white.values.copy()
+        stepped, phi, action, P, accepted, nis = position_apply(
+            kernel_array(kf.P),
+            s.x,
+            (
+                fix.t_s,
+                math.radians(fix.lat_deg),
+                math.radians(fix.lon_deg),
+                fix.height_m,
+                kernel_array(fix.cov_enu_m2),
+            ),
+            kf.process_model(),
+            (geometry.mat_bi, kernel_array(geometry.arms(s)[0])),
+            kf.layout.columns,
+            (white, self._noise.settings(s)),
+            (self._correlation_time_s, corrections.gate(rows), kf.layout.size),
+        )
+        self._taken(kf, stepped, phi, P)
+        if action == NOISE_RESTART:
+            return False
+        if action == NOISE_MOVED:  # the kernel set it in the state (set_correlated_variance)
+            kf.gnss_variance = s.gnss_variance
+        self._booked(s, _KIND, (accepted, nis), rows, live)
+        s.gnss_white = s.gnss_white.with_values(white)
+        if accepted:
+            s.last_position_t_s = max(s.last_position_t_s, fix.t_s)
+        return True
+
 
 @jit
 def position_apply(
     P: FloatArray,
     x: FloatArray,
-    white: FloatArray,
     measured: tuple[float, float, float, float, FloatArray],
     process: ProcessModel,
     geometry: tuple[FloatArray, FloatArray],
     columns: Columns,
-    noise: tuple[float, FloatArray, float, FloatArray],
+    noise: tuple[FloatArray, tuple[float, FloatArray, float, FloatArray]],
     constants: tuple[float, float, int],
 ) -> tuple[bool, FloatArray, int, FloatArray, bool, float]:
     """The fix ``measured`` = (stamp [s], latitude, longitude [rad], height [m], ENU
     covariance [m²]) on the error covariance ``P`` and the nominal state ``x`` (X_* layout,
     changed in place; heading known): ``step_to`` the stamp, the white/correlated split
-    (``noise``: GnssNoise.settings) with the new variance of the correlated error states when
-    it moved (``shrink_correlated``), the model of the antenna (``geometry``: rotation imu ->
-    body, lever arm of the antenna from the IMU [m], body FRD), diag(H P Hᵀ),
-    ``update_and_restart`` and the push of the white-noise monitor's values ``white`` (in
+    (``noise``: the white-noise monitor's values, GnssNoise.settings) with the new variance of
+    the correlated error states when it moved (``shrink_correlated``), the model of the antenna
+    (``geometry``: rotation imu -> body, lever arm of the antenna from the IMU [m], body FRD),
+    diag(H P Hᵀ), ``update_and_restart`` and the push of the white-noise monitor's values (in
     place). ``constants``: GNSS correlation time [s], the gate of the fix's rows (3, a 2-D fix
     2: ``height_measured``), state size.
     Returns (stepped, Φ of the step (P when none), what the split asked of the correlated
@@ -204,7 +249,7 @@ def position_apply(
     after the covariance step was made."""
     t_m, fix_lat, fix_lon, fix_height, cov_enu = measured
     mat_bi, arm_b = geometry
-    scale_sq, white_var_ned, white_fraction, share = noise
+    white, (scale_sq, white_var_ned, white_fraction, share) = noise
     correlation_time_s, threshold, size = constants
     stepped, phi, P, prediction = step_to(P, x, t_m, process, mat_bi, columns, correlation_time_s)
     gp = columns.gp
@@ -225,13 +270,8 @@ def position_apply(
         _, P, _ = shrink_correlated(P, x, correlated, gp)
     error = (x[X_GNSS_ERROR], x[X_GNSS_ERROR + 1], x[X_GNSS_ERROR + 2])
     z, H, R = position_model(
-        prediction.lat_rad,
-        prediction.lon_rad,
-        prediction.height_m,
-        prediction.mat_nb,
-        fix_lat,
-        fix_lon,
-        fix_height,
+        prediction,
+        (fix_lat, fix_lon, fix_height),
         arm_b,
         R,
         error,
@@ -241,65 +281,5 @@ def position_apply(
     )
     predicted = projected_variance(H, P)
     accepted, nis, dx, P_new = update_and_restart(P, x, (z, H, R), threshold, columns)
-    white_push_fix(white, t_m, z, H, dx, accepted, P_new, predicted, reported)
+    white_push_fix(white, t_m, FixUpdate(z, H, dx, accepted, P_new), predicted, reported)
     return stepped, phi, action, P_new, accepted, nis
-
-
-class FusedPosition(FusedUpdate):
-    """The engine's side of ``position_apply`` (InsEngine._apply uses it where ``usable``)."""
-
-    def __init__(
-        self,
-        config: FusionConfig,
-        geometry: Geometry,
-        filtering: tuple[Propagator, Corrections, GnssNoise],
-    ) -> None:
-        propagator, corrections, self._noise = filtering
-        super().__init__(config, geometry, propagator, corrections)
-
-    def usable(self, s: FilterState, kf: ErrorStateFilter, fix: GnssFixMeasurement) -> bool:
-        """Whether the general way would do what ``apply`` does (or go on where it stops)."""
-        if kf.smoother_hooks is not None or kf.layout.td is not None or not s.heading_known:
-            return False
-        if not (fix.valid and np.isfinite(fix.cov_enu_m2).all()):
-            return False
-        recover = self._config.gate_recovery_count
-        ready = s.gnss_white.ready  # else a gated fix is no reason for a recovery
-        return not recover or not ready or s.gated_runs.get(_KIND, 0) + 1 < recover
-
-    def apply(
-        self, s: FilterState, kf: ErrorStateFilter, fix: GnssFixMeasurement, live: bool
-    ) -> bool:
-        """What InsEngine._apply does for a GNSS position record where ``usable`` (``live``:
-        counted); False: only the covariance step was made (see ``position_apply``)."""
-        kf.set_white_noise(*self._propagator.white_noise(s))  # read only by a step
-        geometry, corrections = self._geometry, self._corrections
-        rows = 3 if fix.height_known else 2
-        white = s.gnss_white.values.copy()
-        stepped, phi, action, P, accepted, nis = position_apply(
-            kernel_array(kf.P),
-            s.x,
-            white,
-            (
-                fix.t_s,
-                math.radians(fix.lat_deg),
-                math.radians(fix.lon_deg),
-                fix.height_m,
-                kernel_array(fix.cov_enu_m2),
-            ),
-            kf.process_model(),
-            (geometry.mat_bi, kernel_array(geometry.arms(s)[0])),
-            kf.layout.columns,
-            self._noise.settings(s),
-            (self._correlation_time_s, corrections.gate(rows), kf.layout.size),
-        )
-        self._taken(kf, stepped, phi, P)
-        if action == NOISE_RESTART:
-            return False
-        if action == NOISE_MOVED:  # the kernel set it in the state (set_correlated_variance)
-            kf.gnss_variance = s.gnss_variance
-        self._booked(s, _KIND, (accepted, nis), rows, live)
-        s.gnss_white = s.gnss_white.with_values(white)
-        if accepted:
-            s.last_position_t_s = max(s.last_position_t_s, fix.t_s)
-        return True

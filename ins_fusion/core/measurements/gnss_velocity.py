@@ -13,7 +13,7 @@ Propagator.propagate_covariance and predict, ``VelocityUpdate`` with the model
 ``velocity_model``, Corrections.update with the Joseph update and the injection) is five
 kernels with Python between them; ``velocity_apply`` runs the same kernels in the same order in
 one call (``step_to`` and ``update_rows`` of core.measurements.common), so the numbers are the
-same to the bit, and ``FusedVelocity`` keeps the books (NIS, process-noise adaptation, gated
+same to the bit, and ``VelocityUpdate.fused`` keeps the books (NIS, process-noise adaptation, gated
 runs, counters). Taken only where the general way would do nothing else: the heading known, velocity
 updates on, no time-offset state (its terms), no smoother (its history hears each step), and
 no gate recovery possible (fewer gated updates in a row than the recovery needs).
@@ -35,6 +35,7 @@ from ins_fusion.core.filter.eskf import (
     ProcessModel,
     StateLayout,
 )
+from ins_fusion.core.filter.propagation import Propagator
 from ins_fusion.core.filter.records import GnssVelocityMeasurement, Prediction
 from ins_fusion.core.filter.state import FilterState, Geometry, LatestInputs
 from ins_fusion.core.measurements.common import (
@@ -46,7 +47,7 @@ from ins_fusion.core.measurements.common import (
     step_to,
     update_rows,
 )
-from ins_fusion.core.measurements.gate import Corrections, FusedUpdate
+from ins_fusion.core.measurements.gate import Corrections, KindUpdate
 from ins_fusion.core.measurements.gnss_noise import GnssNoise
 from ins_fusion.core.measurements.heading import fast_enough, heading_from_course
 from ins_fusion.core.nav.rotation import skew
@@ -69,10 +70,7 @@ def gnss_velocity(
     the variance at least UNKNOWN_VELOCITY_VARIANCE). None when the horizontal is unusable.
     Compiled (``velocity_model``)."""
     rows, z, H, R = velocity_model(
-        pred.mat_nb,
-        pred.vel_ned_m_s,
-        pred.rate_b,
-        pred.rate_i,
+        pred,
         lever_b,
         mat_bi,
         kernel_array(meas.vel_enu_m_s),
@@ -85,10 +83,7 @@ def gnss_velocity(
 
 @jit
 def velocity_model(
-    mat_nb: FloatArray,
-    vel: FloatArray,
-    rate_b: FloatArray,
-    rate_i: FloatArray,
+    pred: Prediction,
     lever_b: FloatArray,
     mat_bi: FloatArray,
     vel_enu: FloatArray,
@@ -96,9 +91,9 @@ def velocity_model(
     size: int,
     columns: Columns,
 ) -> tuple[int, FloatArray, FloatArray, FloatArray]:
-    """``gnss_velocity``'s model (rows, z, H, R; 0 rows: unusable) from the prediction's
-    arrays, the measured ENU velocity and covariance, the layout's size and columns (-1: not
-    estimated)."""
+    """``gnss_velocity``'s model (rows, z, H, R; 0 rows: unusable) from the prediction, the
+    measured ENU velocity and covariance, the layout's size and columns (-1: not estimated)."""
+    mat_nb, vel, rate_b, rate_i = pred.mat_nb, pred.vel_ned_m_s, pred.rate_b, pred.rate_i
     measured = np.array((vel_enu[1], vel_enu[0], -vel_enu[2]))
     cov = ned_cov(cov_enu)
     if not np.isfinite(measured[:2]).all() or not np.isfinite(cov[:2, :2]).all():
@@ -115,21 +110,21 @@ def velocity_model(
     return rows, z[:rows].copy(), H[:rows].copy(), cov[:rows, :rows].copy()
 
 
-class VelocityUpdate:
-    """The engine's handler of GNSS velocities (core.measurements.gate.Handler): while the
+class VelocityUpdate(KindUpdate):
+    """The engine's update of GNSS velocities (core.measurements.gate.KindUpdate): while the
     heading is unknown, the heading from the course when fast enough (counted as a
     ``course_heading`` used) or nothing when too fast to align; else, with velocity updates on,
-    the model, its time-offset terms (``late_imu``) and the gated update."""
+    the model, its time-offset terms (``late_imu``) and the gated update; ``fused`` with
+    ``velocity_apply``."""
 
     def __init__(
         self,
         config: FusionConfig,
-        inputs: tuple[Geometry, GnssNoise, LatestInputs],
-        corrections: Corrections,
+        filtering: tuple[Geometry, Propagator, Corrections],
+        inputs: tuple[GnssNoise, LatestInputs],
     ) -> None:
-        self._config = config
-        self._geometry, self._gnss_noise, self._latest = inputs
-        self._corrections = corrections
+        super().__init__(config, *filtering)
+        self._gnss_noise, self._latest = inputs
 
     def __call__(
         self,
@@ -161,6 +156,26 @@ class VelocityUpdate:
             model = late_imu(s, kf, model, np.array(s.accel_lp), _TIME_OFFSET_MIN_ACCEL_M_S2)
         corrections.update(s, kf, _KIND, model, live)
 
+    def fused(
+        self,
+        s: FilterState,
+        kf: ErrorStateFilter,
+        record: tuple[float, GnssVelocityMeasurement],
+        live: bool,
+    ) -> bool:
+        if not (self._config.use_gnss_velocity and self._sensor_usable(s, kf, _KIND)):
+            return False
+        vel, geometry = record[1], self._geometry
+        result = self._kernel(
+            velocity_apply,
+            (s, kf),
+            (vel.t_s, kernel_array(vel.vel_enu_m_s), kernel_array(vel.cov_enu_m2_s2)),
+            (geometry.mat_bi, kernel_array(geometry.arms(s)[0])),
+            (self._correlation_time_s, self._gates, kf.layout.size),
+        )
+        self._sensor_taken((s, kf), _KIND, result, live)
+        return True
+
 
 @jit
 def velocity_apply(
@@ -184,10 +199,7 @@ def velocity_apply(
     correlation_time_s, gates, size = constants
     stepped, phi, P, prediction = step_to(P, x, t_m, process, mat_bi, columns, correlation_time_s)
     rows, z, H, R = velocity_model(
-        prediction.mat_nb,
-        prediction.vel_ned_m_s,
-        prediction.rate_b,
-        prediction.rate_i,
+        prediction,
         arm_b,
         mat_bi,
         vel_enu,
@@ -197,26 +209,3 @@ def velocity_apply(
     )
     accepted, nis, P_new = update_rows(P, x, rows, (z, H, R), gates, columns)
     return stepped, phi, rows, accepted, nis, P_new
-
-
-class FusedVelocity(FusedUpdate):
-    """The engine's side of ``velocity_apply`` (InsEngine._apply uses it where ``usable``)."""
-
-    def usable(self, s: FilterState, kf: ErrorStateFilter) -> bool:
-        """Whether the general way would do just what ``apply`` does."""
-        return self._config.use_gnss_velocity and self._sensor_usable(s, kf, _KIND)
-
-    def apply(
-        self, s: FilterState, kf: ErrorStateFilter, vel: GnssVelocityMeasurement, live: bool
-    ) -> None:
-        """What InsEngine._apply does for a GNSS velocity record where ``usable`` (``live``:
-        counted)."""
-        geometry = self._geometry
-        result = self._kernel(
-            velocity_apply,
-            (s, kf),
-            (vel.t_s, kernel_array(vel.vel_enu_m_s), kernel_array(vel.cov_enu_m2_s2)),
-            (geometry.mat_bi, kernel_array(geometry.arms(s)[0])),
-            (self._correlation_time_s, self._gates, kf.layout.size),
-        )
-        self._sensor_taken((s, kf), _KIND, result, live)

@@ -13,8 +13,8 @@ five kernels with Python between them: the covariance step to the epoch
 (``nhc_model``), the gated Joseph update (ErrorStateFilter.update) and the injection
 (state.inject). ``nhc_apply`` runs the same kernels in the same order in one call (the steps
 every compiled update shares, core.measurements.common: ``step_to``, ``update_and_restart``), so
-the numbers are the same to the bit; ``FusedNhc`` gives it its arguments and keeps the books
-(core.measurements.gate: FusedUpdate, Corrections.book). While the heading is known (the NHC is
+the numbers are the same to the bit; ``NhcUpdate.fused`` gives it its arguments and keeps the books
+(core.measurements.gate: KindUpdate, Corrections.book). While the heading is known (the NHC is
 filed only then) and without the smoother (its history is told of the steps in between); else
 the general way.
 """
@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from gnss_ins_common.types import FloatArray
-from ins_fusion.core.compiled import jit, kernel_array
+from ins_fusion.core.compiled import compilable, jit, kernel_array
 from ins_fusion.core.filter.eskf import (
     ATT,
     VEL,
@@ -34,16 +34,20 @@ from ins_fusion.core.filter.eskf import (
     StateLayout,
 )
 from ins_fusion.core.filter.records import Prediction
-from ins_fusion.core.filter.state import X_MOUNTING, FilterState, Geometry
+from ins_fusion.core.filter.state import (
+    X_HEADING_KNOWN,
+    X_MOUNTING,
+    FilterState,
+    nav_speeds,
+)
 from ins_fusion.core.measurements.common import (
     Model,
     gyro_error_columns,
     step_to,
     update_and_restart,
 )
-from ins_fusion.core.measurements.gate import Corrections, FusedUpdate
+from ins_fusion.core.measurements.gate import KindUpdate
 from ins_fusion.core.nav.rotation import skew
-from ins_fusion.core.settings.config import FusionConfig
 
 
 def nhc(
@@ -62,10 +66,7 @@ def nhc(
     (vertical), δμ_z -> -v_b,x (lateral) (the mounting's second-order terms in H left out).
     Compiled (``nhc_model``)."""
     return nhc_model(
-        pred.mat_nb,
-        pred.vel_ned_m_s,
-        pred.rate_b,
-        pred.rate_i,
+        pred,
         arm_b,
         mat_bi,
         sigma_m_s,
@@ -77,10 +78,7 @@ def nhc(
 
 @jit
 def nhc_model(
-    mat_nb: FloatArray,
-    vel: FloatArray,
-    rate_b: FloatArray,
-    rate_i: FloatArray,
+    pred: Prediction,
     arm_b: FloatArray,
     mat_bi: FloatArray,
     sigma_m_s: float,
@@ -88,8 +86,9 @@ def nhc_model(
     size: int,
     columns: Columns,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """``nhc``'s model from the prediction's arrays and the layout's size and columns (-1:
-    state not estimated)."""
+    """``nhc``'s model from the prediction and the layout's size and columns (-1: state not
+    estimated)."""
+    mat_nb, vel, rate_b, rate_i = pred.mat_nb, pred.vel_ned_m_s, pred.rate_b, pred.rate_i
     c_bn = np.ascontiguousarray(mat_nb.T)
     v_b = c_bn @ vel + skew(rate_b) @ arm_b
     H = np.zeros((3, size))
@@ -106,23 +105,41 @@ def nhc_model(
     return -predicted, H[1:].copy(), np.eye(2) * sigma_m_s**2
 
 
-class NhcUpdate:
-    """The engine's handler of NHC records (core.measurements.gate.Handler; no payload): the
-    model of the base_link origin with the residual mounting and the gated update."""
+@compilable
+def nhc_due(x: FloatArray, use_nhc: bool, min_speed_m_s: float) -> bool:
+    """Whether a pseudo-measurement epoch without a stop files an NHC: ``use_nhc``, the heading
+    of the nominal state ``x`` (X_* layout) known and its horizontal speed above
+    ``min_speed_m_s`` [m/s]."""
+    return use_nhc and x[X_HEADING_KNOWN] != 0.0 and nav_speeds(x)[0] > min_speed_m_s
 
-    def __init__(self, config: FusionConfig, geometry: Geometry, corrections: Corrections) -> None:
-        self._sigma_m_s = config.nhc_sigma_m_s
-        self._geometry = geometry
-        self._corrections = corrections
+
+class NhcUpdate(KindUpdate):
+    """The engine's update of NHC records (core.measurements.gate.KindUpdate; no payload): the
+    model of the base_link origin with the residual mounting and the gated update; ``fused``
+    with ``nhc_apply``."""
 
     def __call__(
         self, s: FilterState, kf: ErrorStateFilter, pred: Prediction, _: None, live: bool
     ) -> None:
         geometry = self._geometry
-        model = nhc(
-            pred, kf.layout, geometry.arms(s)[1], geometry.mat_bi, self._sigma_m_s, s.mounting
-        )
+        sigma_m_s = self._config.nhc_sigma_m_s
+        model = nhc(pred, kf.layout, geometry.arms(s)[1], geometry.mat_bi, sigma_m_s, s.mounting)
         self._corrections.update(s, kf, "nhc", model, live)
+
+    def fused(
+        self, s: FilterState, kf: ErrorStateFilter, record: tuple[float, None], live: bool
+    ) -> bool:
+        if not self._pseudo_usable(s, kf):
+            return False
+        geometry = self._geometry
+        result = self._kernel(
+            nhc_apply,
+            (s, kf),
+            record[0],
+            (geometry.mat_bi, kernel_array(geometry.arms(s)[1])),
+            (self._correlation_time_s, self._config.nhc_sigma_m_s, self._gates[1], kf.layout.size),
+        )
+        return self._pseudo_taken((s, kf), "nhc", result, 2, live)
 
 
 @jit
@@ -147,10 +164,7 @@ def nhc_apply(
     stepped, phi, P, prediction = step_to(P, x, t_m, process, mat_bi, columns, correlation_time_s)
     mounting = (x[X_MOUNTING], x[X_MOUNTING + 1])
     model = nhc_model(
-        prediction.mat_nb,
-        prediction.vel_ned_m_s,
-        prediction.rate_b,
-        prediction.rate_i,
+        prediction,
         arm_b,
         mat_bi,
         sigma_m_s,
@@ -160,22 +174,3 @@ def nhc_apply(
     )
     accepted, nis, _, P_new = update_and_restart(P, x, model, threshold, columns)
     return stepped, phi, accepted, nis, P_new
-
-
-class FusedNhc(FusedUpdate):
-    """The engine's side of ``nhc_apply`` (InsEngine._apply uses it while no smoother is
-    attached)."""
-
-    def apply(self, s: FilterState, kf: ErrorStateFilter, t_m: float, live: bool) -> None:
-        """What InsEngine._apply does for an NHC record at ``t_m`` while the heading is known
-        (``live``: counted)."""
-        geometry = self._geometry
-        stepped, phi, accepted, nis, P = self._kernel(
-            nhc_apply,
-            (s, kf),
-            t_m,
-            (geometry.mat_bi, kernel_array(geometry.arms(s)[1])),
-            (self._correlation_time_s, self._config.nhc_sigma_m_s, self._gates[1], kf.layout.size),
-        )
-        self._taken(kf, stepped, phi, P)
-        self._booked(s, "nhc", (accepted, nis), 2, live)

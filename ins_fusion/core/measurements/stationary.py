@@ -12,10 +12,10 @@ re-propagation after a late GNSS or attitude message applies them again. The gen
 (InsEngine._apply: the covariance step and the prediction, the model ``zupt_model`` or
 ``zaru_model``, Corrections.update with the Joseph update and the injection) is four kernels
 with Python between them; ``zupt_apply`` and ``zaru_apply`` run the same kernels in the same
-order in one call each, so the numbers are the same to the bit, and ``FusedStationary`` keeps
-the books. Taken while the heading is known (without it the covariance step decouples the yaw
-and the earth rate's horizontal part is unknown) and without the smoother; neither update has
-a gate recovery.
+order in one call each, so the numbers are the same to the bit, and the ``fused`` of
+``ZuptUpdate`` and ``ZaruUpdate`` keeps the books. Taken while the heading is known (without it
+the covariance step decouples the yaw and the earth rate's horizontal part is unknown) and
+without the smoother; neither update has a gate recovery.
 """
 
 from __future__ import annotations
@@ -33,9 +33,9 @@ from ins_fusion.core.filter.eskf import (
     StateLayout,
 )
 from ins_fusion.core.filter.records import Prediction
-from ins_fusion.core.filter.state import X_BG, FilterState, Geometry
+from ins_fusion.core.filter.state import X_BG, FilterState
 from ins_fusion.core.measurements.common import Model, step_to, update_and_restart
-from ins_fusion.core.measurements.gate import Corrections, FusedUpdate
+from ins_fusion.core.measurements.gate import KindUpdate
 from ins_fusion.core.nav.levelling import earth_rate_body_rad_s, unknown_earth_rate_rad_s
 from ins_fusion.core.settings.config import FusionConfig
 
@@ -107,28 +107,35 @@ def zaru_variance(config: FusionConfig, span_s: float) -> FloatArray:
     return config.imu_noise.gyro_psd / max(span_s, 1e-3) + config.zaru_sigma_rad_s**2
 
 
-class ZuptUpdate:
-    """The engine's handler of ZUPT records (core.measurements.gate.Handler; no payload)."""
-
-    def __init__(self, config: FusionConfig, corrections: Corrections) -> None:
-        self._sigma_m_s = config.zupt_sigma_m_s
-        self._corrections = corrections
+class ZuptUpdate(KindUpdate):
+    """The engine's update of ZUPT records (core.measurements.gate.KindUpdate; no payload);
+    ``fused`` with ``zupt_apply``."""
 
     def __call__(
         self, s: FilterState, kf: ErrorStateFilter, pred: Prediction, _: None, live: bool
     ) -> None:
-        self._corrections.update(s, kf, "zupt", zupt(pred, kf.layout, self._sigma_m_s), live)
+        model = zupt(pred, kf.layout, self._config.zupt_sigma_m_s)
+        self._corrections.update(s, kf, "zupt", model, live)
+
+    def fused(
+        self, s: FilterState, kf: ErrorStateFilter, record: tuple[float, None], live: bool
+    ) -> bool:
+        if not self._pseudo_usable(s, kf):
+            return False
+        result = self._kernel(
+            zupt_apply,
+            (s, kf),
+            record[0],
+            self._geometry.mat_bi,
+            (self._correlation_time_s, self._config.zupt_sigma_m_s, self._gates[2], kf.layout.size),
+        )
+        return self._pseudo_taken((s, kf), "zupt", result, 3, live)
 
 
-class ZaruUpdate:
-    """The engine's handler of ZARU records (core.measurements.gate.Handler; payload: the mean
+class ZaruUpdate(KindUpdate):
+    """The engine's update of ZARU records (core.measurements.gate.KindUpdate; payload: the mean
     calibrated rate [rad/s], imu FRD, and the span of the rest [s]): with the heading unknown
-    the earth rate's horizontal part is added to the variance."""
-
-    def __init__(self, config: FusionConfig, geometry: Geometry, corrections: Corrections) -> None:
-        self._config = config
-        self._geometry = geometry
-        self._corrections = corrections
+    the earth rate's horizontal part is added to the variance; ``fused`` with ``zaru_apply``."""
 
     def __call__(
         self,
@@ -145,6 +152,25 @@ class ZaruUpdate:
         rates_i = (mean_rate_i, s.x[X_BG : X_BG + 3])
         model = zaru(pred, kf.layout, rates_i, self._geometry.mat_bi, variance, s.heading_known)
         self._corrections.update(s, kf, "zaru", model, live)
+
+    def fused(
+        self,
+        s: FilterState,
+        kf: ErrorStateFilter,
+        record: tuple[float, tuple[FloatArray, float]],
+        live: bool,
+    ) -> bool:
+        if not self._pseudo_usable(s, kf):
+            return False
+        t_m, (mean_rate_i, span_s) = record
+        result = self._kernel(
+            zaru_apply,
+            (s, kf),
+            (t_m, kernel_array(mean_rate_i), zaru_variance(self._config, span_s)),
+            self._geometry.mat_bi,
+            (self._correlation_time_s, self._gates[2], kf.layout.size),
+        )
+        return self._pseudo_taken((s, kf), "zaru", result, 3, live)
 
 
 @jit
@@ -189,40 +215,3 @@ def zaru_apply(
     model = zaru_model(prediction.mat_nb, prediction.lat_rad, True, rates_i, mat_bi, variance, size)
     accepted, nis, _, P_new = update_and_restart(P, x, model, threshold, columns)
     return stepped, phi, accepted, nis, P_new
-
-
-class FusedStationary(FusedUpdate):
-    """The engine's side of ``zupt_apply`` and ``zaru_apply`` (InsEngine._apply uses them while
-    the heading is known and no smoother is attached)."""
-
-    def zupt(self, s: FilterState, kf: ErrorStateFilter, t_m: float, live: bool) -> None:
-        """What InsEngine._apply does for a ZUPT record at ``t_m`` (``live``: counted)."""
-        stepped, phi, accepted, nis, P = self._kernel(
-            zupt_apply,
-            (s, kf),
-            t_m,
-            self._geometry.mat_bi,
-            (self._correlation_time_s, self._config.zupt_sigma_m_s, self._gates[2], kf.layout.size),
-        )
-        self._taken(kf, stepped, phi, P)
-        self._booked(s, "zupt", (accepted, nis), 3, live)
-
-    def zaru(
-        self,
-        s: FilterState,
-        kf: ErrorStateFilter,
-        record: tuple[float, tuple[FloatArray, float]],
-        live: bool,
-    ) -> None:
-        """What InsEngine._apply does for a ZARU ``record`` = (stamp [s], (mean rate [rad/s],
-        imu FRD, span of the rest [s])) (``live``: counted)."""
-        t_m, (mean_rate_i, span_s) = record
-        stepped, phi, accepted, nis, P = self._kernel(
-            zaru_apply,
-            (s, kf),
-            (t_m, kernel_array(mean_rate_i), zaru_variance(self._config, span_s)),
-            self._geometry.mat_bi,
-            (self._correlation_time_s, self._gates[2], kf.layout.size),
-        )
-        self._taken(kf, stepped, phi, P)
-        self._booked(s, "zaru", (accepted, nis), 3, live)

@@ -29,7 +29,7 @@ import math
 import numpy as np
 
 from gnss_ins_common.types import FloatArray, Vec3
-from ins_fusion.core.compiled import jit
+from ins_fusion.core.compiled import compilable, jit
 from ins_fusion.core.settings.config import StopDetectorConfig
 
 #: A GNSS speed older than this no longer vetoes or confirms a stop [s].
@@ -61,8 +61,7 @@ class StopDetector:
 
     @property
     def idle(self) -> bool:
-        """No stop and no stop candidate: ``evaluate`` then leaves the detector as it is when
-        a speed vetoes a stop (core.engine.sample_runs relies on it)."""
+        """No stop and no stop candidate (``vetoed``)."""
         return not self.stationary and self._candidate_since is None and self._stop_force is None
 
     def reset(self) -> None:
@@ -98,6 +97,8 @@ class StopDetector:
     ) -> bool:
         """Update and return the decision at t_s; speeds are None when unknown."""
         cfg = self.config
+        if ins_speed_m_s is not None and vetoed(self.idle, ins_speed_m_s, cfg.speed_m_s):
+            return False
         factor = cfg.hysteresis if self.stationary else 1.0
         slow = all(s is None or s < cfg.speed_m_s * factor for s in (gnss_speed_m_s, ins_speed_m_s))
         ring = self.ring
@@ -129,6 +130,15 @@ class StopDetector:
             if self.stationary:
                 self._stop_force = window_force
         return self.stationary
+
+
+@compilable
+def vetoed(idle: bool, ins_speed_m_s: float, threshold_m_s: float) -> bool:
+    """Whether ``StopDetector.evaluate`` decides 'no stop' from the filter's speed alone and
+    leaves the detector as it is: ``idle`` (no stop, no candidate) and that speed at or above
+    the ``threshold_m_s`` [m/s] (the compiled runs of core.engine.sample_runs take such
+    epochs)."""
+    return idle and ins_speed_m_s >= threshold_m_s
 
 
 @jit

@@ -35,12 +35,11 @@ from gnss_ins_common.types import FloatArray
 from ins_fusion.core.compiled import jit
 from ins_fusion.core.filter.eskf import ATT, VEL, Columns, ErrorStateFilter, StateLayout
 from ins_fusion.core.filter.records import Prediction, VehicleSpeedMeasurement
-from ins_fusion.core.filter.state import FilterState, Geometry
+from ins_fusion.core.filter.state import FilterState
 from ins_fusion.core.filter.status import SPEED_KIND
 from ins_fusion.core.measurements.common import Model, gyro_error_columns
-from ins_fusion.core.measurements.gate import Corrections
+from ins_fusion.core.measurements.gate import KindUpdate
 from ins_fusion.core.nav.rotation import skew
-from ins_fusion.core.settings.config import FusionConfig
 
 
 def speed_variance(measured: VehicleSpeedMeasurement, least_sigma_m_s: float) -> float:
@@ -109,14 +108,9 @@ def vehicle_speed(
     )
 
 
-class SpeedUpdate:
-    """The engine's handler of vehicle speed readings (core.measurements.gate.Handler)."""
-
-    def __init__(self, config: FusionConfig, geometry: Geometry, corrections: Corrections) -> None:
-        self._least_sigma_m_s = config.speed_sigma_m_s
-        self._max_accel_m_s2 = config.speed_max_accel_m_s2
-        self._geometry = geometry
-        self._corrections = corrections
+class SpeedUpdate(KindUpdate):
+    """The engine's update of vehicle speed readings (core.measurements.gate.KindUpdate; no
+    compiled update)."""
 
     def __call__(
         self,
@@ -133,10 +127,10 @@ class SpeedUpdate:
         if not s.heading_known and corrections.too_fast_to_align(pred, live, SPEED_KIND):
             return
         forward_accel = float(pred.mat_nb[:, 0] @ np.asarray(s.accel_lp))
-        if abs(forward_accel) > self._max_accel_m_s2:  # the tyres may slip: not used
+        if abs(forward_accel) > self._config.speed_max_accel_m_s2:  # the tyres may slip
             corrections.reject(SPEED_KIND, live)
             return
-        reading = (measured.speed_m_s, speed_variance(measured, self._least_sigma_m_s))
+        reading = (measured.speed_m_s, speed_variance(measured, self._config.speed_sigma_m_s))
         geometry = self._geometry
         model = vehicle_speed(pred, kf.layout, geometry.speed_arm(s), geometry.mat_bi, s, reading)
         corrections.update(s, kf, SPEED_KIND, model, live)

@@ -26,14 +26,65 @@ import numpy as np
 
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core.compiled import compilable, jit
+from ins_fusion.core.layout import offsets
 from ins_fusion.core.nav.rotation import mat_from_quat
-from ins_fusion.core.output.solution import COV_ATT, COV_POS, COV_VEL, LAT, POS, QUAT, RATE, VEL
+from ins_fusion.core.output.solution import (
+    COV_ATT,
+    COV_POS,
+    COV_VEL,
+    HEIGHT,
+    LAT,
+    LON,
+    NAVIGATION_FIELDS,
+    POS,
+    QUAT,
+    RATE,
+    VEL,
+)
 
-ODOMETRY = slice(0, 85)
-TRANSFORM = slice(0, 7)
-FIX = slice(85, 97)
-IMU = slice(97, 134)
-NUMBERS = 134
+#: Layout of the outputs' numbers (core.layout): Odometry's pose (position ENU [m], orientation
+#: FLU -> ENU (x, y, z, w)), its 6x6 covariance, its twist (velocity and rate in base_link FLU)
+#: and 6x6 covariance; NavSatFix's latitude, longitude [deg], altitude [m] and 3x3 ENU
+#: covariance [m²]; Imu's orientation, its covariance, rate, rate covariance, acceleration and
+#: acceleration covariance (-1: not given).
+NUMBERS_LAYOUT = (
+    ("o_position", 3),
+    ("o_quat", 4),
+    ("o_pose_cov", 36),
+    ("o_vel", 3),
+    ("o_rate", 3),
+    ("o_twist_cov", 36),
+    ("f_position", 3),
+    ("f_cov", 9),
+    ("i_quat", 4),
+    ("i_cov", 9),
+    ("i_rate", 3),
+    ("i_rate_cov", 9),
+    ("i_accel", 3),
+    ("i_accel_cov", 9),
+)
+(
+    _O_POSITION,
+    _O_QUAT,
+    _O_POSE_COV,
+    _O_VEL,
+    _O_RATE,
+    _O_TWIST_COV,
+    _F_POSITION,
+    _F_COV,
+    _I_QUAT,
+    _I_COV,
+    _I_RATE,
+    _I_RATE_COV,
+    _I_ACCEL,
+    _I_ACCEL_COV,
+    NUMBERS,
+) = offsets(NUMBERS_LAYOUT)
+#: Each message's numbers, and the transform's (the pose).
+ODOMETRY = slice(_O_POSITION, _F_POSITION)
+TRANSFORM = slice(_O_POSITION, _O_POSE_COV)
+FIX = slice(_F_POSITION, _I_QUAT)
+IMU = slice(_I_QUAT, NUMBERS)
 
 #: Relative tolerance on negative covariance eigenvalues (rounding in a PSD matrix).
 PSD_TOLERANCE = 1e-9
@@ -41,9 +92,6 @@ PSD_TOLERANCE = 1e-9
 #: column (√(C_ii C_jj)): an off-diagonal element many orders below the variances differs from
 #: its mirror by rounding of that size, not of its own.
 SYMMETRY_TOLERANCE = 1e-9
-
-_O_QUAT, _O_POSE_COV, _O_VEL, _O_RATE, _O_TWIST_COV = 3, 7, 43, 46, 49
-_I_COV, _I_RATE, _I_RATE_COV, _I_ACCEL_COV = 101, 110, 113, 125
 
 
 #: The covariances a row's outputs carry, in the order row_fault checks them.
@@ -82,9 +130,10 @@ def _matrix_fault(row: FloatArray, start: int) -> int:
 @compilable
 def row_fault(row: FloatArray) -> int:
     """Index in FAULTS of the first reason the row is not publishable (0: publishable)."""
-    for i in range(LAT, RATE.stop):
-        if not math.isfinite(row[i]):
-            return 1
+    for start, width in NAVIGATION_FIELDS:
+        for i in range(start, start + width):
+            if not math.isfinite(row[i]):
+                return 1
     starts = (COV_POS.start, COV_VEL.start, COV_ATT.start)
     for block in range(3):
         fault = _matrix_fault(row, starts[block])
@@ -106,7 +155,8 @@ def fault_report(row: FloatArray) -> str:
     if fault == 0:
         return "publishable"
     if fault == 1:
-        return f"{FAULTS[fault]}: {np.array2string(row[LAT : RATE.stop], precision=6)}"
+        numbers = np.concatenate([row[start : start + width] for start, width in NAVIGATION_FIELDS])
+        return f"{FAULTS[fault]}: {np.array2string(numbers, precision=6)}"
     _, block = CHECKED_COVARIANCES[(fault - _FIRST_COVARIANCE_FAULT) // len(_MATRIX_FAULTS)]
     matrix = row[block].reshape(3, 3)
     text = f"{FAULTS[fault]}: {np.array2string(matrix, precision=17)}"
@@ -126,9 +176,8 @@ def output_numbers(row: FloatArray, rate_variance_rad2_s2: float, out: FloatArra
     C = mat_from_quat(row[q], row[q + 1], row[q + 2], row[q + 3])  # FLU -> ENU
     out[:] = 0.0
     for i in range(3):
-        out[i] = row[POS.start + i]  # position ENU
+        out[_O_POSITION + i] = row[POS.start + i]  # position ENU
         out[_O_RATE + i] = row[RATE.start + i]
-        out[FIX.start + i] = row[LAT + i]
         out[_I_RATE + i] = row[RATE.start + i]
         out[_I_RATE_COV + 4 * i] = rate_variance_rad2_s2
         out[_O_TWIST_COV + 6 * (3 + i) + 3 + i] = rate_variance_rad2_s2
@@ -136,14 +185,15 @@ def output_numbers(row: FloatArray, rate_variance_rad2_s2: float, out: FloatArra
         for k in range(3):
             v += C[k, i] * row[VEL.start + k]
         out[_O_VEL + i] = v
+    out[_F_POSITION], out[_F_POSITION + 1], out[_F_POSITION + 2] = row[LAT], row[LON], row[HEIGHT]
     for i in range(4):
         out[_O_QUAT + i] = row[q + i]
-        out[IMU.start + i] = row[q + i]
+        out[_I_QUAT + i] = row[q + i]
     for i in range(3):
         for j in range(3):
             out[_O_POSE_COV + 6 * i + j] = row[COV_POS.start + 3 * i + j]
             out[_O_POSE_COV + 6 * (3 + i) + 3 + j] = row[COV_ATT.start + 3 * i + j]
-            out[FIX.start + 3 + 3 * i + j] = row[COV_POS.start + 3 * i + j]
+            out[_F_COV + 3 * i + j] = row[COV_POS.start + 3 * i + j]
             out[_I_COV + 3 * i + j] = row[COV_ATT.start + 3 * i + j]
             # twist covariance C^T Σ C (velocity covariance in the body)
             value = 0.0

@@ -10,11 +10,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
 from gnss_ins_common.types import FloatArray, IntArray, Vec3
-from ins_fusion.core.compiled import compilable, jit, kernel_array
+from ins_fusion.core.compiled import compilable, jit, kernel_array, plain
 from ins_fusion.core.filter.eskf import ATT, BG, ErrorStateFilter, StateLayout
 from ins_fusion.core.filter.eskf import POS as POS_STATE
 from ins_fusion.core.filter.eskf import VEL as VEL_STATE
@@ -36,6 +37,7 @@ from ins_fusion.core.filter.state import (
     Geometry,
     mounting_rpy_from,
 )
+from ins_fusion.core.layout import fields, offsets
 from ins_fusion.core.nav import earth
 from ins_fusion.core.nav.earth import ecef_from_geodetic
 from ins_fusion.core.nav.rotation import (
@@ -107,12 +109,50 @@ def state_code(x: FloatArray, degraded_after_s: float) -> int:
     return 1
 
 
-T, LAT, LON, HEIGHT = 0, 1, 2, 3
-POS, VEL, QUAT, RATE = slice(4, 7), slice(7, 10), slice(10, 14), slice(14, 17)
-COV_POS, COV_VEL, COV_ATT = slice(17, 26), slice(26, 35), slice(35, 44)
-GYRO, ACCEL, MOUNTING, STATE = slice(44, 47), slice(47, 50), slice(50, 53), 53
-COV_ATT_IMU = slice(54, 63)
-WIDTH = 63
+#: Layout of a solution row: ``InsSolution``'s fields (core.layout), units and frames as there.
+ROW_LAYOUT = (
+    ("t", 1),
+    ("lat", 1),
+    ("lon", 1),
+    ("height", 1),
+    ("pos", 3),
+    ("vel", 3),
+    ("quat", 4),
+    ("rate", 3),
+    ("cov_pos", 9),
+    ("cov_vel", 9),
+    ("cov_att", 9),
+    ("gyro", 3),
+    ("accel", 3),
+    ("mounting", 3),
+    ("state", 1),
+    ("cov_att_imu", 9),
+)
+_ROW = fields(ROW_LAYOUT)
+#: The row's one-number fields as indices, the others as slices.
+T, LAT, LON, HEIGHT, STATE = (_ROW[name][0] for name in ("t", "lat", "lon", "height", "state"))
+POS, VEL, QUAT, RATE, COV_POS, COV_VEL, COV_ATT, GYRO, ACCEL, MOUNTING, COV_ATT_IMU = (
+    slice(_ROW[name][0], _ROW[name][0] + _ROW[name][1])
+    for name in (
+        "pos",
+        "vel",
+        "quat",
+        "rate",
+        "cov_pos",
+        "cov_vel",
+        "cov_att",
+        "gyro",
+        "accel",
+        "mounting",
+        "cov_att_imu",
+    )
+)
+WIDTH = offsets(ROW_LAYOUT)[-1]
+#: (offset, width) of the row's navigation fields, latitude to rate (the numbers that must be
+#: finite for an output, core.output.output_numbers).
+NAVIGATION_FIELDS = tuple(
+    _ROW[name] for name in ("lat", "lon", "height", "pos", "vel", "quat", "rate")
+)
 
 
 def unpack(row: FloatArray) -> InsSolution:
@@ -136,6 +176,26 @@ def unpack(row: FloatArray) -> InsSolution:
         imu_mounting_rpy_rad=None if np.isnan(mounting).any() else mounting.copy(),
         cov_att_imu_enu_rad2=row[COV_ATT_IMU].reshape(3, 3).copy(),
     )
+
+
+class RowModel(NamedTuple):
+    """What a solution row is made from besides the nominal state and the rate
+    (``SolutionBuilder.model``)."""
+
+    J: FloatArray  #: the row's Jacobian (written; SolutionBuilder.jacobian)
+    P: FloatArray  #: the error covariance
+    states: IntArray  #: the error states of the solution (J's columns)
+    arm_b: FloatArray  #: base_link's lever arm from the IMU, turned by the mounting [m]
+    arm_bi: FloatArray  #: [l×] R_bi of the configured arm (the velocity rows' gyro-bias terms)
+    mat_enu_ecef: FloatArray  #: the ENU plane's rotation from ECEF
+    mounting: tuple[float, float]  #: the residual mounting (pitch, yaw) [rad] (0: not estimated)
+    origin: Vec3  #: the ENU plane's ECEF origin [m]
+
+
+#: ``RowModel``'s fields in order, as ``_fill_row`` takes them (plain: core.compiled.plain).
+RowFields = tuple[
+    FloatArray, FloatArray, IntArray, FloatArray, FloatArray, FloatArray, tuple[float, float], Vec3
+]
 
 
 class SolutionBuilder:
@@ -170,70 +230,42 @@ class SolutionBuilder:
         """The solution row (``WIDTH``) of state ``s`` with covariance ``kf.P``; ``rate_i``: the
         latest raw sample's rate (imu FRD [rad/s]); ``datum_deg``: the ENU plane's origin (lat,
         lon [deg], height [m])."""
-        (J, P, states, arm_b, arm_bi, mat_enu_ecef), mounting, origin = self.model(s, kf, datum_deg)
         out = np.empty(WIDTH)
-        _fill_row(
-            out,
-            J,
-            s.x,
-            P,
-            states,
-            arm_b,
-            self._geometry.r_bi,
-            arm_bi,
-            rate_i,
-            mounting,
-            origin,
-            mat_enu_ecef,
-        )
+        _fill_row(out, s.x, plain(self.model(s, kf, datum_deg)), self._geometry.r_bi, rate_i)
         out[STATE] = STATES.index(state_name)
         return out
 
     def model(
         self, s: FilterState, kf: ErrorStateFilter, datum_deg: tuple[float, float, float]
-    ) -> tuple[
-        tuple[FloatArray, FloatArray, IntArray, FloatArray, FloatArray, FloatArray],
-        tuple[float, float],
-        Vec3,
-    ]:
-        """What ``_fill_row`` takes besides the state and the rate, for ``s`` and ``kf.P``: (J,
-        P, the solution states, base_link lever arm, arm_bi, the ENU plane's rotation), the
-        residual mounting (zero when not estimated) and the plane's ECEF origin."""
+    ) -> RowModel:
+        """What ``_fill_row`` takes besides the state and the rate, for ``s`` and ``kf.P``."""
         geometry = self._geometry
         if self._plane is None or self._datum_deg != datum_deg:
             lat0, lon0, h0 = datum_deg
             self._plane = earth.TangentPlane(math.radians(lat0), math.radians(lon0), h0)
             self._datum_deg = datum_deg
-        mounting = s.mounting if self._mt is not None else (0.0, 0.0)
-        arrays = (
+        return RowModel(
             self._jacobian,
             kernel_array(kf.P),
             self._solution_states,
             geometry.arms(s)[1],
             geometry.arm_bi,
             self._plane.mat_enu_ecef,
+            s.mounting if self._mt is not None else (0.0, 0.0),
+            self._plane.origin,
         )
-        return arrays, mounting, self._plane.origin
 
 
 @jit
 def _fill_row(
-    out: FloatArray,
-    J: FloatArray,
-    x: FloatArray,
-    P: FloatArray,
-    states: IntArray,
-    arm_b: FloatArray,
-    r_bi: FloatArray,
-    arm_bi: FloatArray,
-    rate_i: FloatArray,
-    mounting: tuple[float, float],
-    origin: Vec3,
-    mat_enu_ecef: FloatArray,
+    out: FloatArray, x: FloatArray, model: RowFields, r_bi: FloatArray, rate_i: FloatArray
 ) -> None:
-    """The numbers of a solution row but its state (``SolutionBuilder.row``), and its Jacobian
-    ``J`` (first 12 columns; the mounting's two when ``J`` has them: then the row's mounting,
-    else NaN; imu_link's attitude rows are ψ's alone, constant)."""
+    """The numbers of a solution row but its state (``SolutionBuilder.row``) from the nominal
+    state ``x``, ``model`` and the latest raw rate ``rate_i`` (imu FRD [rad/s]; ``r_bi`` imu ->
+    body), and its Jacobian ``model.J`` (first 12 columns; the mounting's two when ``J`` has
+    them: then the row's mounting, else NaN; imu_link's attitude rows are ψ's alone,
+    constant)."""
+    J, P, states, arm_b, arm_bi, mat_enu_ecef, mounting, origin = model
     C = mat_from_quat(x[X_QUAT], x[X_QUAT + 1], x[X_QUAT + 2], x[X_QUAT + 3])
     # base_link of the estimated mounting: the lever arm turned by it (arm_b), and below the
     # orientation and rate turned into it (C_bv = I + [μ×]). The lever arm in NED, and its

@@ -28,7 +28,9 @@ from ins_fusion.core.engine.intake import (
     S_OUT_OF_ORDER,
     S_RATE,
     S_SAMPLES,
+    S_STEP,
     new_intake,
+    put_reading,
     take_sample,
 )
 from ins_fusion.core.filter.adaptation import ImuNoiseMonitor
@@ -58,6 +60,8 @@ class Intake:
     def take(self, t: float, rate: tuple[float, ...], force: tuple[float, ...]) -> int:
         """take_sample without the strapdown step; a first sample starts the stream as
         EngineLoop._start_stream does."""
+        put_reading(self.buf, float(t), rate, force)
+        self.buf[S_STEP] = 0.0
         code = take_sample(
             self.buf,
             np.zeros(T_SIZE),
@@ -67,10 +71,6 @@ class Intake:
             np.zeros(X_SIZE),
             np.eye(3).ravel(),
             self.inc,
-            float(t),
-            *map(float, rate),
-            *map(float, force),
-            False,
         )
         if code == FIRST:
             frd = self.buf[S_RATE : S_FORCE + 3]

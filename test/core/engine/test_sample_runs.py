@@ -17,10 +17,10 @@ from gnss_ins_common.params import validate_all
 from ins_fusion.core.compiled import kernel_array
 from ins_fusion.core.engine import sample_runs
 from ins_fusion.core.engine.engine import InsEngine
-from ins_fusion.core.measurements.attitude import FusedAttitude
-from ins_fusion.core.measurements.gnss_position import FusedPosition
-from ins_fusion.core.measurements.gnss_velocity import FusedVelocity
-from ins_fusion.core.measurements.stationary import FusedStationary
+from ins_fusion.core.measurements.attitude import AttitudeUpdate
+from ins_fusion.core.measurements.gnss_position import PositionUpdate
+from ins_fusion.core.measurements.gnss_velocity import VelocityUpdate
+from ins_fusion.core.measurements.stationary import ZaruUpdate, ZuptUpdate
 from ins_fusion.core.output.output_clock import output_ticks
 from ins_fusion.core.output.solution_rows import RowBuffer
 from ins_fusion.core.settings.config import FusionConfig
@@ -88,21 +88,21 @@ def test_the_fast_paths_equal_the_general_path(
     expected_rows, expected_status = sample_by_sample(inputs, parameters, smooth=True)
     taken = _count_runs(monkeypatch)
     fused = {"velocity": 0, "position": 0, "attitude": 0, "zupt": 0, "zaru": 0}
-    for kind, update, method in (
-        ("velocity", FusedVelocity, "apply"),
-        ("position", FusedPosition, "apply"),
-        ("attitude", FusedAttitude, "apply"),
-        ("zupt", FusedStationary, "zupt"),
-        ("zaru", FusedStationary, "zaru"),
+    for kind, update in (
+        ("velocity", VelocityUpdate),
+        ("position", PositionUpdate),
+        ("attitude", AttitudeUpdate),
+        ("zupt", ZuptUpdate),
+        ("zaru", ZaruUpdate),
     ):
-        apply = getattr(update, method)
+        apply = update.fused
 
         def counted(*args, kind=kind, apply=apply):  # type: ignore[no-untyped-def]
             done = apply(*args)
-            fused[kind] += done is not False  # the position's False: only the step was made
+            fused[kind] += done  # False: the general way (the position's: after the step)
             return done
 
-        monkeypatch.setattr(update, method, counted)
+        monkeypatch.setattr(update, "fused", counted)
     run = run_fusion(inputs, parameters)
     sensors = min(fused[kind] for kind in ("velocity", "position", "attitude"))
     if drive == "inputs":

@@ -20,7 +20,7 @@ from support.sample_runs import figure_eight, sample_by_sample
 from gnss_ins_common.navsat import HEIGHT_UNKNOWN_VARIANCE_M2
 from gnss_ins_common.params import validate_all
 from ins_fusion.core.filter.records import GnssFixMeasurement
-from ins_fusion.core.measurements.gnss_position import FusedPosition
+from ins_fusion.core.measurements.gnss_position import PositionUpdate
 from ins_fusion.core.settings.params import PARAMETERS
 from ins_fusion.replay.inputs import ReplayInputs
 from ins_fusion.replay.run import run_fusion
@@ -106,14 +106,14 @@ def test_2d_fixes_take_the_same_update_compiled_and_the_general_way(
     parameters = validate_all(PARAMETERS, {})
     expected_rows, expected_status = sample_by_sample(two_d, parameters, smooth=True)
     fused = {"2d": 0}
-    apply = FusedPosition.apply
+    apply = PositionUpdate.fused
 
-    def counted(self, s, kf, fix, live):  # type: ignore[no-untyped-def]
-        done = apply(self, s, kf, fix, live)
-        fused["2d"] += done is not False and not fix.height_known
+    def counted(self, s, kf, record, live):  # type: ignore[no-untyped-def]
+        done = apply(self, s, kf, record, live)
+        fused["2d"] += done and not record[1].height_known
         return done
 
-    monkeypatch.setattr(FusedPosition, "apply", counted)
+    monkeypatch.setattr(PositionUpdate, "fused", counted)
     run_ = run_fusion(two_d, parameters)
     assert fused["2d"] > 10
     np.testing.assert_array_equal(run_.track.rows, expected_rows)

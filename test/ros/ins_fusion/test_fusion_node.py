@@ -232,7 +232,7 @@ def test_samples_held_between_outputs_reach_the_engine_in_order(drive_bag, outpu
                     add(measurement(m.message))
                     continue
                 node._on_imu(m.message)
-                most_held = max(most_held, len(node._held))
+                most_held = max(most_held, node._held.count)
                 sample = cdr_fields.imu_sample(m.message)
                 eager.add_imu(*sample)
                 if clock.due(sample.t_s):
