@@ -223,7 +223,7 @@ def test_a_hung_node_is_killed_and_restarted_and_the_others_left(tmp_path):
     assert launcher.returncode == 0, output[0]
     # Killed for the silence it was given, not before.
     found = re.search(r"imu400cc_node killed: no status on /diagnostics for ([\d.]+) s", output[0])
-    assert found and float(found.group(1)) > 6.0, output[0]
+    assert found and float(found.group(1)) >= 6.0, output[0]  # printed to 0.1 s
     assert "imu400cc_node exited (signal SIGKILL)" in output[0]
     log = (tmp_path / "imu400cc_node.log").read_text()
     assert "imu400cc_node killed: no status on /diagnostics for " in log
