@@ -177,6 +177,9 @@ class Session:
             stderr=subprocess.STDOUT,
             text=True,
             start_new_session=True,
+            # As in a terminal, Ctrl-C interrupts: a test process started in the background of a
+            # shell (make's two sessions) ignores SIGINT, and the block would inherit that.
+            preexec_fn=_default_interrupt,
         )
         try:
             output, _ = process.communicate(timeout=limit)
@@ -188,6 +191,10 @@ class Session:
             with contextlib.suppress(ProcessLookupError):  # what a block left behind
                 os.killpg(process.pid, signal.SIGKILL)
         return Result(output, process.returncode)
+
+
+def _default_interrupt() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def _interruptible(line: str, until: str | None = None) -> str:

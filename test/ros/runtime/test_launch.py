@@ -341,6 +341,16 @@ def _diagnostics_since(collector: Collector, since: float):
                 yield at, status.name.split(":")[0], status
 
 
+def _recorder_takes_imu_since(collector: Collector, since: float) -> bool:
+    """A status received after ``since`` [s, host time] reports an IMU message taken by a
+    recorder less than 0.5 s before it."""
+    for _, _, status in _diagnostics_since(collector, since):
+        values = {kv.key: kv.value for kv in status.values}
+        if float(values.get("/imu/data_raw age_s", "inf")) < 0.5:
+            return True
+    return False
+
+
 def _levels_since(collector: Collector, since: float) -> set[tuple[str, int]]:
     return {(name, status.level[0]) for _, name, status in _diagnostics_since(collector, since)}
 
@@ -446,7 +456,9 @@ def test_each_node_and_the_recorder_killed_in_turn_come_back_and_the_recording_g
         log = tmp_path / "recorder.log"
         continued = lambda: "recording continued: gap of" in log.read_text()  # noqa: E731
         assert wait_for(continued, 30.0)
-        pause(max(0.0, killed_at + 3.0 - time.time()))  # recorded after the kill: more than 2 s
+        # It takes IMU messages later than 2 s after the kill (its own status says so: its
+        # first writes may be another topic's, its IMU subscription matched later).
+        assert wait_for(lambda: _recorder_takes_imu_since(collector, killed_at + 2.5), 30.0)
     assert launcher.returncode == 0, output[0]
     (bag,) = bags.iterdir()
     assert "continuing " in log.read_text()
