@@ -208,15 +208,8 @@ def _interruptible(line: str, until: str | None = None) -> str:
             f"{{ timeout --preserve-status -s INT {CTRL_C_S:g} {command.strip()}"
             " || [ $? -eq 130 ]; }"
         )
-    # The check starts once the command's process has left the shell for its program: an
-    # interrupt that reached the forked shell before its exec would be lost (a loaded machine).
-    started = (
-        "shell=$(readlink /proc/$$/exe); for _ in $(seq 1000); do"
-        ' [ "$(readlink /proc/$running/exe 2>/dev/null)" != "$shell" ] && break; sleep 0.01; done;'
-    )
     return (
-        f"{{ {command.strip()} & running=$!; {started}"
-        f" .venv/bin/python {until} && checked=0 || checked=$?;"
+        f"{{ {command.strip()} & running=$!; .venv/bin/python {until} && checked=0 || checked=$?;"
         " kill -INT $running; wait $running || [ $? -eq 130 ]; [ $checked -eq 0 ]; }"
     )
 
