@@ -4,8 +4,9 @@ of ``gnss_ins replay``.
 ``cluster`` connects to a running scheduler (``tcp://HOST:PORT``, its workers started with the
 standard ``dask worker`` command) or starts a LocalCluster on this machine: one single-threaded
 worker process per core (the engine holds the GIL, so threads would not run two tasks at once),
-no dashboard. ``completed`` yields each task's result or exception as it finishes, so that one
-failing task is reported and the others complete. docs/fleet.md describes the set-ups.
+no dashboard, its log silent. ``completed`` yields each task's result or exception as it
+finishes, so that one failing task is reported and the others complete. docs/fleet.md describes
+the set-ups.
 """
 
 from __future__ import annotations
@@ -58,8 +59,14 @@ def cluster(scheduler: str | None, workers: int | None, tasks: int) -> Iterator[
             n_workers=local_workers(workers, tasks),
             threads_per_worker=1,
             processes=True,
-            dashboard_address=None,
-            silence_logs=logging.ERROR,
+            # No dashboard; its HTTP server (health routes) on a free port, not 8787, so that two
+            # sweeps at once start without a warning.
+            dashboard_address=":0",
+            scheduler_kwargs={"dashboard": False},
+            # The cluster's own log stays quiet: a task's failure reaches its future (reported by
+            # the command), and a loaded machine's shutdown race (a worker's heartbeat to the
+            # scheduler that just closed) is logged by distributed as an ERROR with a traceback.
+            silence_logs=logging.CRITICAL,
         ) as local,
         Client(local) as client,
     ):

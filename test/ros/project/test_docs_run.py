@@ -39,8 +39,12 @@ def run_page(page: Path, scratch: Path, text: str | None = None) -> list[str]:
         tail = "\n".join(result.output.splitlines()[-30:])
         if result.timed_out:
             return [f"{block.where}: still running after its time limit\n{tail}"]
-        if result.status != 0 or FAILURE.search(result.output):
+        if result.status != 0:
             return [f"{block.where}: exit status {result.status}\n{tail}"]
+        if found := FAILURE.search(result.output):
+            start = result.output.count("\n", 0, found.start())
+            lines = result.output.splitlines()[max(0, start - 5) : start + 25]
+            return [f"{block.where}: printed {found.group()!r}\n" + "\n".join(lines)]
         if block.kind == "example" and (found := differences(block, result.output)):
             return [f"{block.where}: the example differs from the output now:", *found]
     return []
@@ -129,3 +133,12 @@ def test_a_check_run_beside_a_command_decides_its_line(tmp_path: Path) -> None:
             assert failures == []
         else:
             assert failures and "exit status 1" in failures[0]
+
+
+def test_a_traceback_fails_a_block_that_exits_0_and_is_shown(tmp_path: Path) -> None:
+    text = (
+        "<!-- docs-test: run -->\n```sh\n"
+        "seq 1 100\necho 'Traceback (most recent call last):'\necho '  the cause'\nseq 1 100\n```\n"
+    )
+    failures = run_page(BAGS, tmp_path, text)
+    assert failures and "printed 'Traceback" in failures[0] and "the cause" in failures[0]
