@@ -50,6 +50,7 @@ from ins_fusion.adapters.position_use import PositionUse
 from ins_fusion.adapters.status_log import WARN, StatusLog
 from ins_fusion.core.engine.engine import InsEngine
 from ins_fusion.core.engine.warm_up import warm_up
+from ins_fusion.core.measurements.gnss_position import POSITION
 from ins_fusion.core.output.output_clock import OutputClock
 from ins_fusion.core.output.output_numbers import fault_report
 from ins_fusion.core.output.solution import STATE, STATES, T
@@ -247,7 +248,7 @@ class InsFusionNode(Node):
         outputs stay valid, with a covariance that grows honestly. After an outage the level
         returns to OK only once positions have kept the state 'navigating' for another
         degraded_after_s, so sparse fixes in an outage do not flip it between OK and WARN.
-        ``positions``: the engine's gnss_position counters (why it is degraded)."""
+        ``positions``: the engine's counters of GNSS positions (why it is degraded)."""
         use, now = self._position_use, time.monotonic()
         use.update(positions, self._fixes_received, now)
         if state == "degraded":
@@ -267,7 +268,7 @@ class InsFusionNode(Node):
         status = self.engine.status()
         solution = self.engine.solution()
         level, message = self._state_level(
-            status.state, solution.t_s if solution else None, status.measurements["gnss_position"]
+            status.state, solution.t_s if solution else None, status.measurements[POSITION.name]
         )
         if status.aligning:
             message = f"aligning: {status.aligning}"

@@ -2,8 +2,8 @@
 
 The engine goes 'degraded' when no GNSS position has been used for ``degraded_after_s``. The
 status then says for how long and why: no fix came, the fixes that came were gated by the
-innovation test, came too late, or were refused otherwise (counters of
-``EngineStatus.measurements['gnss_position']``), or the IMU was silent. ``PositionUse`` keeps the
+innovation test, came too late, or were refused otherwise (the engine's counters of
+GNSS positions), or the IMU was silent. ``PositionUse`` keeps the
 counts at the last use and compares.
 """
 

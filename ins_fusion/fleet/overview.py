@@ -14,7 +14,10 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from ins_fusion.fleet.summary import Row
+from ins_fusion.core.measurements.attitude import ATTITUDE
+from ins_fusion.core.measurements.gnss_position import POSITION
+from ins_fusion.core.measurements.gnss_velocity import VELOCITY
+from ins_fusion.fleet.summary import Row, gated
 
 #: Panels: (title, [(column, legend label)]).
 _PANELS = (
@@ -31,9 +34,9 @@ _PANELS = (
     (
         "gated fraction",
         [
-            ("gated_gnss_position", "GNSS position"),
-            ("gated_gnss_velocity", "GNSS velocity"),
-            ("gated_attitude", "attitude"),
+            (gated(POSITION.name), "GNSS position"),
+            (gated(VELOCITY.name), "GNSS velocity"),
+            (gated(ATTITUDE.name), "GNSS attitude"),
         ],
     ),
 )

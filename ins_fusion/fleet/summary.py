@@ -19,6 +19,9 @@ import io
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from ins_fusion.core.measurements.attitude import ATTITUDE
+from ins_fusion.core.measurements.gnss_position import POSITION
+from ins_fusion.core.measurements.gnss_velocity import VELOCITY
 from ins_fusion.replay.ranking import RANK_METRICS
 
 Row = dict[str, Any]
@@ -43,6 +46,11 @@ def _accuracy(report: Mapping[str, Any], prefix: str) -> Row:
     return row
 
 
+def gated(kind: str) -> str:
+    """The column of the gated fraction of the measurement kind named ``kind``."""
+    return f"gated_{kind}"
+
+
 def bag_row(name: str, outcome: Mapping[str, Any], report: Mapping[str, Any] | None) -> Row:
     """The summary row of one bag from its outcome and its report (None: none written)."""
     row: Row = {"bag": name, "status": outcome["status"], "error": outcome["error"]}
@@ -55,7 +63,7 @@ def bag_row(name: str, outcome: Mapping[str, Any], report: Mapping[str, Any] | N
         )
         for kind, counts in report["measurements"].items():
             tried = counts["used"] + counts["rejected"]
-            row[f"gated_{kind}"] = counts["gated"] / tried if tried else None
+            row[gated(kind)] = counts["gated"] / tried if tried else None
         row.update(_accuracy(report, ""))
         if report.get("smoothed") is not None:
             row.update(_accuracy(report["smoothed"], "smoothed_"))
@@ -107,9 +115,9 @@ _TABLE = (
     ("dur s", "duration_s"),
     ("state", "final_state"),
     ("resets", "resets"),
-    ("gated pos", "gated_gnss_position"),
-    ("gated vel", "gated_gnss_velocity"),
-    ("gated att", "gated_attitude"),
+    ("gated pos", gated(POSITION.name)),
+    ("gated vel", gated(VELOCITY.name)),
+    ("gated att", gated(ATTITUDE.name)),
     ("horiz rms m", "horizontal_rms_m"),
     ("outage end m", "outage_end_max_m"),
     ("withheld end m", "withheld_end_max_m"),

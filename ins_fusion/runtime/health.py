@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ins_fusion.core.measurements.gnss_position import POSITION
 from ins_fusion.runtime.processes import gnss_ins_command
 
 #: The values a recorder's row shows (the vehicle's and one started by hand).
@@ -56,7 +57,7 @@ SHOWN: dict[str, tuple[str, ...]] = {
     "ins_fusion_node": (
         "state",
         "horizontal_sigma_m",
-        "gnss_position.used",
+        f"{POSITION.name}.used",
         "imu_silent_s",
         "resets",
         "outputs_invalid",

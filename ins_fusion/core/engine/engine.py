@@ -65,6 +65,7 @@ from ins_fusion.core.engine.intake import (
     take_sample,
 )
 from ins_fusion.core.engine.loop import EngineLoop
+from ins_fusion.core.engine.measurement_kinds import MEASUREMENT_NAMES
 from ins_fusion.core.engine.sample_runs import RUN_DONE, RUN_PROBLEM, ImuSeries
 from ins_fusion.core.filter.records import (
     AttitudeMeasurement,
@@ -72,7 +73,11 @@ from ins_fusion.core.filter.records import (
     GnssVelocityMeasurement,
     VehicleSpeedMeasurement,
 )
-from ins_fusion.core.filter.status import MEASUREMENT_NAMES, SPEED_KIND, EngineStatus
+from ins_fusion.core.filter.status import EngineStatus
+from ins_fusion.core.measurements.attitude import ATTITUDE
+from ins_fusion.core.measurements.gnss_position import POSITION
+from ins_fusion.core.measurements.gnss_velocity import VELOCITY
+from ins_fusion.core.measurements.vehicle_speed import SPEED
 from ins_fusion.core.nav.calibration import ImuCalibration
 from ins_fusion.core.nav.strapdown import INCREMENT_SIZE
 from ins_fusion.core.output.solution import InsSolution, self_calibration, unpack
@@ -190,7 +195,7 @@ class InsEngine(EngineLoop):
             self._latest.fix = fix
             if self.datum is None:
                 self.datum = (fix.lat_deg, fix.lon_deg, fix.height_m)
-        self._add("gnss_position", fix.t_s, fix)
+        self._add(POSITION.name, fix.t_s, fix)
 
     def add_gnss_velocity(self, vel: GnssVelocityMeasurement) -> None:
         """Antenna velocity (gnss/vel) at its epoch."""
@@ -199,7 +204,7 @@ class InsEngine(EngineLoop):
             self._latest.velocity = vel
             self._latest.gnss_speed = (vel.t_s, horizontal)
         if self.config.use_gnss_velocity or self.config.use_course_heading:
-            self._add("gnss_velocity", vel.t_s, vel)
+            self._add(VELOCITY.name, vel.t_s, vel)
 
     def add_vehicle_speed(self, speed: VehicleSpeedMeasurement) -> None:
         """Forward speed of the measuring point (vehicle/speed) at its stamp less
@@ -209,13 +214,13 @@ class InsEngine(EngineLoop):
         if not config.use_speed:
             raise ValueError("a vehicle speed was given to an engine without speed.use")
         t_s = speed.t_s - config.speed_time_offset_s
-        self._add(SPEED_KIND, t_s, speed if t_s == speed.t_s else replace(speed, t_s=t_s))
+        self._add(SPEED.name, t_s, speed if t_s == speed.t_s else replace(speed, t_s=t_s))
 
     def add_attitude(self, att: AttitudeMeasurement) -> None:
         """Orientation from the attitude receiver (gnss/attitude) at its epoch."""
         if self.config.use_attitude:
             self._latest.attitude = att
-            self._add("attitude", att.t_s, att)
+            self._add(ATTITUDE.name, att.t_s, att)
 
     def solution(self) -> InsSolution | None:
         """The fused base_link state at the latest IMU sample; None before the filter starts

@@ -36,6 +36,7 @@ from ins_fusion.core.engine.intake import (
     record_sample,
     start_pseudo_interval,
 )
+from ins_fusion.core.engine.measurement_kinds import MEASUREMENT_NAMES, kinds_of, updates_of
 from ins_fusion.core.engine.sample_runs import CompiledRuns
 from ins_fusion.core.engine.startup import Startup
 from ins_fusion.core.filter.eskf import ErrorStateFilter, StateLayout, problem_text
@@ -50,17 +51,13 @@ from ins_fusion.core.filter.state import (
     filter_problem,
     nav_speeds,
 )
-from ins_fusion.core.filter.status import SPEED_KIND, new_counters
+from ins_fusion.core.filter.status import new_counters
 from ins_fusion.core.filter.timeline import Checkpoint, Entry, Gap, Record, Timeline
-from ins_fusion.core.measurements.attitude import AttitudeUpdate
-from ins_fusion.core.measurements.gate import Corrections
+from ins_fusion.core.measurements.gate import Corrections, EngineParts
 from ins_fusion.core.measurements.gnss_noise import GnssNoise
-from ins_fusion.core.measurements.gnss_position import PositionUpdate
-from ins_fusion.core.measurements.gnss_velocity import VelocityUpdate
-from ins_fusion.core.measurements.nhc import NhcUpdate, nhc_due
-from ins_fusion.core.measurements.stationary import ZaruUpdate, ZuptUpdate
+from ins_fusion.core.measurements.nhc import NHC, nhc_due
+from ins_fusion.core.measurements.stationary import ZARU, ZUPT
 from ins_fusion.core.measurements.stop_detector import GNSS_SPEED_MAX_AGE_S, StopDetector
-from ins_fusion.core.measurements.vehicle_speed import SpeedUpdate
 from ins_fusion.core.nav.calibration import T_SIZE as CALIBRATION_SIZE
 from ins_fusion.core.nav.calibration import ImuCalibration
 from ins_fusion.core.nav.strapdown import SampleIntegrator, increment
@@ -97,29 +94,19 @@ class EngineLoop:
         )
         geometry = self._geometry = Geometry(config, self.layout)
         self.datum: tuple[float, float, float] | None = config.datum_deg
-        self._counters = new_counters(config.use_speed)
+        self._counters = new_counters(kinds_of(config))
         self._latest = LatestInputs()
         gnss_noise = GnssNoise(config, self.layout)
         self._densities = ImuDensities(noise.gyro_psd, noise.accel_psd)
         self._propagator = Propagator(config, geometry, self._densities)
         corrections = self._corrections = Corrections(config, self._counters)
-        filtering = (geometry, self._propagator, corrections)
-        corrections.handlers.update(  # the update of each kind (core.measurements.<kind>)
-            {
-                "gnss_position": PositionUpdate(config, filtering, gnss_noise),
-                "gnss_velocity": VelocityUpdate(config, filtering, (gnss_noise, self._latest)),
-                "attitude": AttitudeUpdate(config, *filtering),
-                "zupt": ZuptUpdate(config, *filtering),
-                "zaru": ZaruUpdate(config, *filtering),
-                "nhc": NhcUpdate(config, *filtering),
-                SPEED_KIND: SpeedUpdate(config, *filtering),
-            }
-        )
+        parts = EngineParts(geometry, self._propagator, corrections, gnss_noise, self._latest)
+        corrections.handlers.update(updates_of(config, parts))
         self._startup = Startup(
             config, calibration, geometry, gnss_noise, self.layout, self._counters, self._latest
         )
         self._output = SolutionBuilder(geometry, self.layout)
-        self._timeline = Timeline(config.history_s)
+        self._timeline = Timeline(config.history_s, MEASUREMENT_NAMES)
         self._pseudo_period_s = 1.0 / config.pseudo_measurement_rate_hz
         self._resets = 0
         self._last_reset_reason = ""
@@ -356,11 +343,11 @@ class EngineLoop:
         kinds: list[tuple[str, Any]] = []
         if stationary:
             if cfg.use_zupt:
-                kinds.append(("zupt", None))
+                kinds.append((ZUPT.name, None))
             if cfg.use_zaru:
-                kinds.append(("zaru", (mean_rate, span)))
+                kinds.append((ZARU.name, (mean_rate, span)))
         elif nhc_due(s.x, cfg.use_nhc, cfg.nhc_min_speed_m_s):
-            kinds.append(("nhc", None))
+            kinds.append((NHC.name, None))
         for kind, payload in kinds:
             record = self._timeline.record(kind, t, payload)
             entry.measurements.append(record)

@@ -71,7 +71,7 @@ from ins_fusion.core.filter.state import (
 )
 from ins_fusion.core.filter.timeline import Record, RunEntries, Timeline
 from ins_fusion.core.measurements.gate import Corrections
-from ins_fusion.core.measurements.nhc import nhc_apply, nhc_due
+from ins_fusion.core.measurements.nhc import NHC, nhc_apply, nhc_due
 from ins_fusion.core.measurements.stop_detector import StopDetector, vetoed
 from ins_fusion.core.nav.strapdown import INCREMENT_SIZE
 from ins_fusion.core.output.solution import (
@@ -399,8 +399,8 @@ class CompiledRuns:
             stamps = xs[:m, X_T].tolist()
             for at, accepted, nis in nhcs[:e].tolist():  # (sample, accepted, NIS) in order
                 j = int(at)
-                records[j] = [timeline.record("nhc", stamps[j], None)]
-                corrections.book(s, "nhc", (bool(accepted), nis), 2, True)
+                records[j] = [timeline.record(NHC.name, stamps[j], None)]
+                corrections.book(s, NHC, (bool(accepted), nis), 2, True)
                 if s.gated_runs is not gated[-1][1]:  # from the next entry on
                     gated.append((j + 1, s.gated_runs))
             seen_by = seen[:m].tolist()

@@ -35,6 +35,7 @@ from ins_fusion.core.filter.state import UNKNOWN_YAW_VARIANCE, FilterState, Geom
 from ins_fusion.core.filter.status import Counters
 from ins_fusion.core.measurements.common import UNKNOWN_ANGLE_VARIANCE
 from ins_fusion.core.measurements.gnss_noise import GnssNoise
+from ins_fusion.core.measurements.gnss_velocity import COURSE_HEADING
 from ins_fusion.core.measurements.heading import (
     ALIGN_FIX_MAX_AGE_S,
     course,
@@ -206,7 +207,7 @@ class Startup:
             ((0.0, 0.0, 0.0), gyro_var),
         )
         if att is None:
-            self._counters["course_heading"]["used"] += 1
+            self._counters[COURSE_HEADING.name]["used"] += 1
         return started
 
     def _start(

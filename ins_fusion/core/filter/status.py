@@ -1,34 +1,20 @@
-"""What the engine reports besides the solution: the measurement kinds, their counters and the
+"""What the engine reports besides the solution: the counters of its measurement kinds and the
 diagnostics snapshot (``EngineStatus``)."""
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 
-#: Measurement kinds, as counted in ``EngineStatus.measurements``.
-MEASUREMENT_NAMES = (
-    "gnss_position",
-    "gnss_velocity",
-    "attitude",
-    "zupt",
-    "zaru",
-    "nhc",
-    "course_heading",
-    "vehicle_speed",
-)
-#: The kind counted only when the engine uses the vehicle speed (FusionConfig.use_speed).
-SPEED_KIND = "vehicle_speed"
 #: Counters kept per measurement kind ('rejected' includes 'gated' and 'too_old').
 COUNTERS = ("used", "rejected", "gated", "too_old", "duplicates", "recoveries")
 
 Counters = dict[str, dict[str, int]]
-"""{measurement kind: {counter: n}} (MEASUREMENT_NAMES x COUNTERS)."""
+"""{measurement kind: {counter: n}} (the engine's kinds x COUNTERS)."""
 
 
-def new_counters(speed: bool = False) -> Counters:
-    """Every counter of every measurement kind at zero; the vehicle speed's only with
-    ``speed`` (an engine without it reports what it did before there was one)."""
-    kinds = MEASUREMENT_NAMES if speed else tuple(k for k in MEASUREMENT_NAMES if k != SPEED_KIND)
+def new_counters(kinds: Iterable[str]) -> Counters:
+    """Every counter of each of ``kinds`` (names, core.engine.measurement_kinds) at zero."""
     return {name: dict.fromkeys(COUNTERS, 0) for name in kinds}
 
 

@@ -24,7 +24,7 @@ from typing import Any, NamedTuple
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core.filter.adaptation import WhiteNoiseMonitor
 from ins_fusion.core.filter.state import FilterState
-from ins_fusion.core.filter.status import MEASUREMENT_NAMES, Counters
+from ins_fusion.core.filter.status import Counters
 
 
 class Record(NamedTuple):
@@ -34,7 +34,7 @@ class Record(NamedTuple):
 
     #: Stamp [s].
     t_m: float
-    #: Rank of its kind in MEASUREMENT_NAMES.
+    #: Rank of its kind in the timeline's kinds.
     rank: int
     #: Arrival sequence.
     sequence: int
@@ -42,7 +42,6 @@ class Record(NamedTuple):
     payload: Any
 
 
-_RANK = {name: rank for rank, name in enumerate(MEASUREMENT_NAMES)}
 #: Most measurements waiting for a later IMU sample.
 MAX_PENDING = 256
 
@@ -146,8 +145,11 @@ class Timeline:
 
     replay_from: int | None
 
-    def __init__(self, history_s: float) -> None:
+    def __init__(self, history_s: float, kinds: tuple[str, ...]) -> None:
+        """``kinds``: the measurement kinds' names, in the order records of one stamp are
+        applied."""
         self._history_s = history_s
+        self._rank = {name: rank for rank, name in enumerate(kinds)}
         self._sequence = itertools.count()
         self.clear()
 
@@ -159,7 +161,7 @@ class Timeline:
         self._pending: list[Record] = []
         self.replay_from = None
         self._fresh: set[int] = set()
-        self._seen: dict[str, set[float]] = {name: set() for name in MEASUREMENT_NAMES}
+        self._seen: dict[str, set[float]] = {name: set() for name in self._rank}
 
     def start(self, entry: Entry) -> None:
         """The first entry of a running filter."""
@@ -248,7 +250,7 @@ class Timeline:
 
     def record(self, kind: str, t_m: float, payload: Any) -> Record:
         """A new record of a measurement."""
-        return Record(t_m, _RANK[kind], next(self._sequence), kind, payload)
+        return Record(t_m, self._rank[kind], next(self._sequence), kind, payload)
 
     def add(
         self, kind: str, t_m: float, payload: Any, counters: Counters, running: bool

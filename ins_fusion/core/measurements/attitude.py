@@ -36,11 +36,12 @@ from ins_fusion.core.measurements.common import (
     step_to,
     update_rows,
 )
-from ins_fusion.core.measurements.gate import KindUpdate
+from ins_fusion.core.measurements.gate import Kind, KindUpdate
 from ins_fusion.core.measurements.heading import set_heading
 from ins_fusion.core.nav.rotation import as_quat, euler_rad, wrap_angle
 
-_KIND = "attitude"
+#: The attitude receiver's epochs; a recovery widens the attitude.
+ATTITUDE = Kind("attitude", recovery_block=ATT)
 #: FLU <-> FRD sign flips of the (roll, pitch, yaw) errors of a REP-103 orientation covariance.
 _RPY_SIGN = (1.0, -1.0, -1.0)
 #: Attitude measurements observe the IMU time offset only above this Euler rate [rad/s].
@@ -150,13 +151,13 @@ class AttitudeUpdate(KindUpdate):
             yaw_variance = float(att.cov_rpy_rad2[2, 2])
             if math.isfinite(yaw_variance) and yaw_variance < UNKNOWN_ANGLE_VARIANCE:
                 set_heading(s, kf, self._geometry, float(euler_rad(mat_nb)[2]), yaw_variance)
-                corrections.count_used(_KIND, live)
+                corrections.count_used(ATTITUDE, live)
             return
         model = attitude(pred, kf.layout, mat_nb, att.cov_rpy_rad2, s.time_offset, s.mounting)
         if model is None:
-            corrections.reject(_KIND, live)
+            corrections.reject(ATTITUDE, live)
             return
-        corrections.update(s, kf, _KIND, model, live)
+        corrections.update(s, kf, ATTITUDE, model, live)
 
     def fused(
         self,
@@ -165,7 +166,7 @@ class AttitudeUpdate(KindUpdate):
         record: tuple[float, AttitudeMeasurement],
         live: bool,
     ) -> bool:
-        if not self._sensor_usable(s, kf, _KIND):
+        if not self._sensor_usable(s, kf, ATTITUDE):
             return False
         att, geometry = record[1], self._geometry
         result = self._kernel(
@@ -175,7 +176,7 @@ class AttitudeUpdate(KindUpdate):
             (geometry.mat_bi, geometry.q_a_base),
             (self._correlation_time_s, self._gates, kf.layout.size),
         )
-        self._sensor_taken((s, kf), _KIND, result, live)
+        self._sensor_taken((s, kf), ATTITUDE, result, live)
         return True
 
 

@@ -7,13 +7,14 @@ updates of a sensor in a row, the recovery that grows the covariance until the m
 fits. ``Corrections.book`` keeps the books of an update, made here or by a compiled update of
 core.measurements: NIS, the process-noise adaptation, the runs of gated updates, the counters.
 
-``KindUpdate`` is the base of each kind's update, one class in the kind's module (gnss_position,
-gnss_velocity, attitude, stationary, nhc, vehicle_speed), registered in ``Corrections.handlers``
-by core.engine.loop. Called, it is the handler of the general way: it takes the current nominal
-state, the filter, the prediction to the measurement's stamp, the payload and ``live`` (first
-application: counted; a re-propagation is not). Its ``fused`` applies the record in one compiled
-call with the covariance step before it, where the kind has such a kernel and the general way
-would do just that; the base gives what such a kernel reads and leaves in the filter and books.
+A measurement kind is a ``Kind`` (its name and how the gate treats it) and a ``KindUpdate``,
+both in the kind's module of core.measurements, listed once in core.engine.measurement_kinds;
+core.engine.loop registers the handlers in ``Corrections.handlers``. Called, a handler is the
+general way: it takes the current nominal state, the filter, the prediction to the
+measurement's stamp, the payload and ``live`` (first application: counted; a re-propagation is
+not). Its ``fused`` applies the record in one compiled call with the covariance step before it,
+where the kind has such a kernel and the general way would do just that; the base gives what
+such a kernel reads and leaves in the filter and books.
 """
 
 from __future__ import annotations
@@ -21,28 +22,38 @@ from __future__ import annotations
 import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable
-from typing import Any
+from dataclasses import dataclass
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from gnss_ins_common.types import FloatArray
 from ins_fusion.core.compiled import kernel_array
 from ins_fusion.core.filter.adaptation import adapt_process_noise, fading_factor
-from ins_fusion.core.filter.eskf import ATT, POS, VEL, ErrorStateFilter
+from ins_fusion.core.filter.eskf import ATT, ErrorStateFilter
 from ins_fusion.core.filter.propagation import Propagator
 from ins_fusion.core.filter.records import Prediction
-from ins_fusion.core.filter.state import FilterState, Geometry, inject
+from ins_fusion.core.filter.state import FilterState, Geometry, LatestInputs, inject
 from ins_fusion.core.filter.status import Counters
 from ins_fusion.core.filter.update_algebra import chi2_threshold
 from ins_fusion.core.measurements.common import Model
+from ins_fusion.core.measurements.gnss_noise import GnssNoise
 from ins_fusion.core.settings.config import FusionConfig
 
-#: The measurements whose normalised innovations scale the IMU process noise (adaptation.py).
-_ADAPTING_KINDS = frozenset({"gnss_position", "gnss_velocity"})
-#: The error states a gate recovery widens, per sensor measurement (Corrections.update); the
-#: pseudo-measurements (ZUPT, ZARU, NHC) are constraints a real vehicle can break (a skid),
-#: so their rejections stay rejections.
-_RECOVERY_BLOCKS = {"gnss_position": POS, "gnss_velocity": VEL, "attitude": ATT}
+
+@dataclass(frozen=True, slots=True)
+class Kind:
+    """A measurement kind: ``name``, the key of its counters, records and reports; ``adapts``:
+    its normalised innovations scale the IMU process noise (adaptation.py); ``recovery_block``:
+    the first of the error states a gate recovery widens (Corrections.update), None for none
+    (the pseudo-measurements, constraints a real vehicle can break in a skid: their rejections
+    stay rejections)."""
+
+    name: str
+    adapts: bool = False
+    recovery_block: int | None = None
+
+
 #: While the heading is unknown, GNSS updates are applied only below this speed [m/s].
 _ALIGN_MAX_SPEED_M_S = 1.0
 
@@ -61,10 +72,17 @@ class Corrections:
         self.handlers: dict[str, KindUpdate] = {}
 
     def update(
-        self, s: FilterState, kf: ErrorStateFilter, kind: str, model: Model, live: bool
+        self,
+        s: FilterState,
+        kf: ErrorStateFilter,
+        kind: Kind,
+        model: Model,
+        live: bool,
+        recoverable: bool = True,
     ) -> FloatArray | None:
         """Gated update; inject the estimate into the nominal state and return it (None:
-        rejected)."""
+        rejected). ``recoverable`` False: no gate recovery now, whatever the kind (the sensor,
+        not the state, may be off)."""
         z, H, R = model
         if not s.heading_known:
             H = H.copy()
@@ -73,11 +91,10 @@ class Corrections:
         nis = result.nis  # booked as first tested, also when a recovery follows
         gated = not result.accepted and math.isfinite(nis)
         recover = self._config.gate_recovery_count
-        block = _RECOVERY_BLOCKS.get(kind)
-        if kind == "gnss_position" and not s.gnss_white.ready:
-            block = None  # the receiver's noise is not learnt yet: it, not the state, may be off
+        block = kind.recovery_block if recoverable else None
         recovered = False
-        if gated and recover and block is not None and s.gated_runs.get(kind, 0) + 1 >= recover:
+        runs = s.gated_runs.get(kind.name, 0) + 1
+        if gated and recover and block is not None and runs >= recover:
             # The filter has rejected this sensor `recover` times running: its state, not the
             # sensor, is the likelier culprit (a state that went wrong and a covariance too
             # small to admit the fix, e.g. IMU noise far above the model). Grow the whole
@@ -107,7 +124,7 @@ class Corrections:
     def book(
         self,
         s: FilterState,
-        kind: str,
+        kind: Kind,
         outcome: tuple[bool, float],
         rows: int,
         live: bool,
@@ -119,15 +136,16 @@ class Corrections:
         of gated updates in ``s`` and, ``live``, its counters (``recovered``: a gate recovery
         admitted it)."""
         accepted, nis = outcome
-        self.nis[kind] = nis
-        if kind in _ADAPTING_KINDS and math.isfinite(nis):
+        name = kind.name
+        self.nis[name] = nis
+        if kind.adapts and math.isfinite(nis):
             s.nis_mean, s.q_scale = adapt_process_noise(s.nis_mean, s.q_scale, nis / rows)
         gated = not (accepted or recovered) and math.isfinite(nis)
         runs = s.gated_runs
-        if gated or runs.get(kind, 0):
-            s.gated_runs = {**runs, kind: runs.get(kind, 0) + 1 if gated else 0}
+        if gated or runs.get(name, 0):
+            s.gated_runs = {**runs, name: runs.get(name, 0) + 1 if gated else 0}
         if live:
-            counters = self._counters[kind]
+            counters = self._counters[name]
             if recovered:
                 counters["recoveries"] += 1
             if accepted:
@@ -136,18 +154,18 @@ class Corrections:
                 counters["rejected"] += 1
                 counters["gated"] += 1
 
-    def reject(self, kind: str, live: bool) -> None:
+    def reject(self, kind: Kind, live: bool) -> None:
         """A measurement of ``kind`` not used: counted rejected when ``live``."""
         if live:
-            self._counters[kind]["rejected"] += 1
+            self._counters[kind.name]["rejected"] += 1
 
-    def count_used(self, kind: str, live: bool) -> None:
+    def count_used(self, kind: Kind, live: bool) -> None:
         """A measurement of ``kind`` used outside an update (the heading set from it): counted
         used when ``live``."""
         if live:
-            self._counters[kind]["used"] += 1
+            self._counters[kind.name]["used"] += 1
 
-    def too_fast_to_align(self, pred: Prediction, live: bool, kind: str) -> bool:
+    def too_fast_to_align(self, pred: Prediction, live: bool, kind: Kind) -> bool:
         """Heading unknown and moving: GNSS updates would need the yaw; count them rejected."""
         if float(np.hypot(pred.vel_ned_m_s[0], pred.vel_ned_m_s[1])) < _ALIGN_MAX_SPEED_M_S:
             return False
@@ -155,24 +173,33 @@ class Corrections:
         return True
 
 
+class EngineParts(NamedTuple):
+    """The parts of the engine a kind's update is built with."""
+
+    geometry: Geometry
+    propagator: Propagator
+    corrections: Corrections
+    gnss_noise: GnssNoise
+    latest: LatestInputs
+
+
 class KindUpdate(ABC):
     """The base of each measurement kind's update (module docstring): what its compiled update
     reads (the configuration, the geometry, the propagator's white-noise densities, the gates)
     and what its kernel leaves in the filter and in the books."""
 
-    def __init__(
-        self,
-        config: FusionConfig,
-        geometry: Geometry,
-        propagator: Propagator,
-        corrections: Corrections,
-    ) -> None:
+    def __init__(self, config: FusionConfig, parts: EngineParts) -> None:
         self._config = config
-        self._geometry = geometry
-        self._propagator = propagator
-        self._corrections = corrections
+        self._geometry = parts.geometry
+        self._propagator = parts.propagator
+        self._corrections = corrections = parts.corrections
         self._correlation_time_s = config.gnss_correlation_time_s
         self._gates = (corrections.gate(1), corrections.gate(2), corrections.gate(3))
+
+    @staticmethod
+    def wanted(config: FusionConfig) -> bool:
+        """Whether an engine of ``config`` has this kind (its counters and its handler)."""
+        return True
 
     @abstractmethod
     def __call__(
@@ -217,7 +244,7 @@ class KindUpdate(ABC):
             constants,
         )
 
-    def _sensor_usable(self, s: FilterState, kf: ErrorStateFilter, kind: str) -> bool:
+    def _sensor_usable(self, s: FilterState, kf: ErrorStateFilter, kind: Kind) -> bool:
         """Whether the general way would apply a sensor's update of ``kind`` just as its
         kernel does: the heading known, no smoother (its history hears each step), no
         time-offset state (its terms) and no gate recovery possible (fewer gated updates in a
@@ -225,12 +252,12 @@ class KindUpdate(ABC):
         if kf.smoother_hooks is not None or kf.layout.td is not None or not s.heading_known:
             return False
         recover = self._config.gate_recovery_count
-        return not recover or s.gated_runs.get(kind, 0) + 1 < recover
+        return not recover or s.gated_runs.get(kind.name, 0) + 1 < recover
 
     def _sensor_taken(
         self,
         state: tuple[FilterState, ErrorStateFilter],
-        kind: str,
+        kind: Kind,
         result: tuple[bool, FloatArray, int, bool, float, FloatArray],
         live: bool,
     ) -> None:
@@ -247,7 +274,7 @@ class KindUpdate(ABC):
     def _pseudo_taken(
         self,
         state: tuple[FilterState, ErrorStateFilter],
-        kind: str,
+        kind: Kind,
         result: tuple[bool, FloatArray, bool, float, FloatArray],
         rows: int,
         live: bool,
@@ -269,7 +296,7 @@ class KindUpdate(ABC):
         kf.P = P
 
     def _booked(
-        self, s: FilterState, kind: str, result: tuple[bool, float], rows: int, live: bool
+        self, s: FilterState, kind: Kind, result: tuple[bool, float], rows: int, live: bool
     ) -> None:
         """After an update of ``kind`` with ``rows`` rows a kernel made (``result``: accepted,
         NIS): the state changed when accepted, and its books (Corrections.book)."""

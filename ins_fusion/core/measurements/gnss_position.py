@@ -38,22 +38,19 @@ from ins_fusion.core.filter.eskf import (
     ProcessModel,
     StateLayout,
 )
-from ins_fusion.core.filter.propagation import Propagator
 from ins_fusion.core.filter.records import GnssFixMeasurement, Prediction, height_measured
 from ins_fusion.core.filter.state import (
     X_GNSS_ERROR,
     X_GNSS_REPORTED,
     X_GNSS_VARIANCE,
     FilterState,
-    Geometry,
 )
 from ins_fusion.core.filter.update_algebra import projected_variance
 from ins_fusion.core.measurements.common import Model, late_imu, step_to, update_and_restart
-from ins_fusion.core.measurements.gate import Corrections, KindUpdate
+from ins_fusion.core.measurements.gate import EngineParts, Kind, KindUpdate
 from ins_fusion.core.measurements.gnss_noise import (
     NOISE_MOVED,
     NOISE_RESTART,
-    GnssNoise,
     _position_noise,
     shrink_correlated,
 )
@@ -61,7 +58,8 @@ from ins_fusion.core.nav import earth
 from ins_fusion.core.nav.rotation import skew
 from ins_fusion.core.settings.config import FusionConfig
 
-_KIND = "gnss_position"
+#: GNSS fixes: they adapt the process noise; a recovery widens the position.
+POSITION = Kind("gnss_position", adapts=True, recovery_block=POS)
 #: The IMU time offset is observed only above this speed of the antenna [m/s] (``late_imu``).
 _TIME_OFFSET_MIN_SPEED_M_S = 1.0
 
@@ -131,14 +129,9 @@ class PositionUpdate(KindUpdate):
     the correlated error states it asks for, the model, its time-offset terms (``late_imu``),
     the gated update and the white-noise monitor's push; ``fused`` with ``position_apply``."""
 
-    def __init__(
-        self,
-        config: FusionConfig,
-        filtering: tuple[Geometry, Propagator, Corrections],
-        gnss_noise: GnssNoise,
-    ) -> None:
-        super().__init__(config, *filtering)
-        self._noise = gnss_noise
+    def __init__(self, config: FusionConfig, parts: EngineParts) -> None:
+        super().__init__(config, parts)
+        self._noise = parts.gnss_noise
 
     def __call__(
         self,
@@ -150,9 +143,9 @@ class PositionUpdate(KindUpdate):
     ) -> None:
         corrections = self._corrections
         if not (fix.valid and np.isfinite(fix.cov_enu_m2).all()):
-            corrections.reject(_KIND, live)
+            corrections.reject(POSITION, live)
             return
-        if not s.heading_known and corrections.too_fast_to_align(pred, live, _KIND):
+        if not s.heading_known and corrections.too_fast_to_align(pred, live, POSITION):
             return
         noise = self._noise
         white, correlated, reported, action = noise.position_noise(s, fix)
@@ -169,7 +162,8 @@ class PositionUpdate(KindUpdate):
             )
         z, H, _ = model
         predicted = projected_variance(H, kf.P)
-        dx = corrections.update(s, kf, _KIND, model, live)
+        # Until the receiver's noise is learnt, it, not the state, may be off: no recovery.
+        dx = corrections.update(s, kf, POSITION, model, live, s.gnss_white.ready)
         s.gnss_white = s.gnss_white.pushed_fix(fix.t_s, z, H, dx, kf.P, predicted, reported)
         if dx is not None:
             s.last_position_t_s = max(s.last_position_t_s, fix.t_s)
@@ -190,7 +184,7 @@ class PositionUpdate(KindUpdate):
             return False
         recover = self._config.gate_recovery_count
         ready = s.gnss_white.ready  # else a gated fix is no reason for a recovery
-        if recover and ready and s.gated_runs.get(_KIND, 0) + 1 >= recover:
+        if recover and ready and s.gated_runs.get(POSITION.name, 0) + 1 >= recover:
             return False
         kf.set_white_noise(*self._propagator.white_noise(s))  # read only by a step
         geometry, corrections = self._geometry, self._corrections
@@ -217,7 +211,7 @@ class PositionUpdate(KindUpdate):
             return False
         if action == NOISE_MOVED:  # the kernel set it in the state (set_correlated_variance)
             kf.gnss_variance = s.gnss_variance
-        self._booked(s, _KIND, (accepted, nis), rows, live)
+        self._booked(s, POSITION, (accepted, nis), rows, live)
         s.gnss_white = s.gnss_white.with_values(white)
         if accepted:
             s.last_position_t_s = max(s.last_position_t_s, fix.t_s)

@@ -35,9 +35,8 @@ from ins_fusion.core.filter.eskf import (
     ProcessModel,
     StateLayout,
 )
-from ins_fusion.core.filter.propagation import Propagator
 from ins_fusion.core.filter.records import GnssVelocityMeasurement, Prediction
-from ins_fusion.core.filter.state import FilterState, Geometry, LatestInputs
+from ins_fusion.core.filter.state import FilterState
 from ins_fusion.core.measurements.common import (
     UNKNOWN_VELOCITY_VARIANCE,
     Model,
@@ -47,13 +46,15 @@ from ins_fusion.core.measurements.common import (
     step_to,
     update_rows,
 )
-from ins_fusion.core.measurements.gate import Corrections, KindUpdate
-from ins_fusion.core.measurements.gnss_noise import GnssNoise
+from ins_fusion.core.measurements.gate import EngineParts, Kind, KindUpdate
 from ins_fusion.core.measurements.heading import fast_enough, heading_from_course
 from ins_fusion.core.nav.rotation import skew
 from ins_fusion.core.settings.config import FusionConfig
 
-_KIND = "gnss_velocity"
+#: GNSS velocities: they adapt the process noise; a recovery widens the velocity.
+VELOCITY = Kind("gnss_velocity", adapts=True, recovery_block=VEL)
+#: A velocity that set the unknown heading from the course (counted, no update of its own).
+COURSE_HEADING = Kind("course_heading")
 #: The IMU time offset is observed only above this acceleration [m/s²] (``late_imu``).
 _TIME_OFFSET_MIN_ACCEL_M_S2 = 0.3
 
@@ -117,14 +118,9 @@ class VelocityUpdate(KindUpdate):
     the model, its time-offset terms (``late_imu``) and the gated update; ``fused`` with
     ``velocity_apply``."""
 
-    def __init__(
-        self,
-        config: FusionConfig,
-        filtering: tuple[Geometry, Propagator, Corrections],
-        inputs: tuple[GnssNoise, LatestInputs],
-    ) -> None:
-        super().__init__(config, *filtering)
-        self._gnss_noise, self._latest = inputs
+    def __init__(self, config: FusionConfig, parts: EngineParts) -> None:
+        super().__init__(config, parts)
+        self._gnss_noise, self._latest = parts.gnss_noise, parts.latest
 
     def __call__(
         self,
@@ -141,20 +137,20 @@ class VelocityUpdate(KindUpdate):
                     s, kf, self._geometry, self._gnss_noise, self._latest.fix, vel
                 )
                 if applied:
-                    corrections.count_used("course_heading", live)
+                    corrections.count_used(COURSE_HEADING, live)
                 return
-            if corrections.too_fast_to_align(pred, live, _KIND):
+            if corrections.too_fast_to_align(pred, live, VELOCITY):
                 return
         if not config.use_gnss_velocity:
             return
         geometry = self._geometry
         model = gnss_velocity(pred, kf.layout, vel, geometry.arms(s)[0], geometry.mat_bi)
         if model is None:
-            corrections.reject(_KIND, live)
+            corrections.reject(VELOCITY, live)
             return
         if kf.layout.td is not None:
             model = late_imu(s, kf, model, np.array(s.accel_lp), _TIME_OFFSET_MIN_ACCEL_M_S2)
-        corrections.update(s, kf, _KIND, model, live)
+        corrections.update(s, kf, VELOCITY, model, live)
 
     def fused(
         self,
@@ -163,7 +159,7 @@ class VelocityUpdate(KindUpdate):
         record: tuple[float, GnssVelocityMeasurement],
         live: bool,
     ) -> bool:
-        if not (self._config.use_gnss_velocity and self._sensor_usable(s, kf, _KIND)):
+        if not (self._config.use_gnss_velocity and self._sensor_usable(s, kf, VELOCITY)):
             return False
         vel, geometry = record[1], self._geometry
         result = self._kernel(
@@ -173,7 +169,7 @@ class VelocityUpdate(KindUpdate):
             (geometry.mat_bi, kernel_array(geometry.arms(s)[0])),
             (self._correlation_time_s, self._gates, kf.layout.size),
         )
-        self._sensor_taken((s, kf), _KIND, result, live)
+        self._sensor_taken((s, kf), VELOCITY, result, live)
         return True
 
 

@@ -46,8 +46,11 @@ from ins_fusion.core.measurements.common import (
     step_to,
     update_and_restart,
 )
-from ins_fusion.core.measurements.gate import KindUpdate
+from ins_fusion.core.measurements.gate import Kind, KindUpdate
 from ins_fusion.core.nav.rotation import skew
+
+#: The non-holonomic constraint's epochs (no recovery: a skid breaks it).
+NHC = Kind("nhc")
 
 
 def nhc(
@@ -124,7 +127,7 @@ class NhcUpdate(KindUpdate):
         geometry = self._geometry
         sigma_m_s = self._config.nhc_sigma_m_s
         model = nhc(pred, kf.layout, geometry.arms(s)[1], geometry.mat_bi, sigma_m_s, s.mounting)
-        self._corrections.update(s, kf, "nhc", model, live)
+        self._corrections.update(s, kf, NHC, model, live)
 
     def fused(
         self, s: FilterState, kf: ErrorStateFilter, record: tuple[float, None], live: bool
@@ -139,7 +142,7 @@ class NhcUpdate(KindUpdate):
             (geometry.mat_bi, kernel_array(geometry.arms(s)[1])),
             (self._correlation_time_s, self._config.nhc_sigma_m_s, self._gates[1], kf.layout.size),
         )
-        return self._pseudo_taken((s, kf), "nhc", result, 2, live)
+        return self._pseudo_taken((s, kf), NHC, result, 2, live)
 
 
 @jit

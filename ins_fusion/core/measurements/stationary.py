@@ -35,9 +35,13 @@ from ins_fusion.core.filter.eskf import (
 from ins_fusion.core.filter.records import Prediction
 from ins_fusion.core.filter.state import X_BG, FilterState
 from ins_fusion.core.measurements.common import Model, step_to, update_and_restart
-from ins_fusion.core.measurements.gate import KindUpdate
+from ins_fusion.core.measurements.gate import Kind, KindUpdate
 from ins_fusion.core.nav.levelling import earth_rate_body_rad_s, unknown_earth_rate_rad_s
 from ins_fusion.core.settings.config import FusionConfig
+
+#: Zero velocity at rest and zero angular rate at rest (no recovery: constraints).
+ZUPT = Kind("zupt")
+ZARU = Kind("zaru")
 
 
 def zupt(pred: Prediction, layout: StateLayout, sigma_m_s: float) -> Model:
@@ -115,7 +119,7 @@ class ZuptUpdate(KindUpdate):
         self, s: FilterState, kf: ErrorStateFilter, pred: Prediction, _: None, live: bool
     ) -> None:
         model = zupt(pred, kf.layout, self._config.zupt_sigma_m_s)
-        self._corrections.update(s, kf, "zupt", model, live)
+        self._corrections.update(s, kf, ZUPT, model, live)
 
     def fused(
         self, s: FilterState, kf: ErrorStateFilter, record: tuple[float, None], live: bool
@@ -129,7 +133,7 @@ class ZuptUpdate(KindUpdate):
             self._geometry.mat_bi,
             (self._correlation_time_s, self._config.zupt_sigma_m_s, self._gates[2], kf.layout.size),
         )
-        return self._pseudo_taken((s, kf), "zupt", result, 3, live)
+        return self._pseudo_taken((s, kf), ZUPT, result, 3, live)
 
 
 class ZaruUpdate(KindUpdate):
@@ -151,7 +155,7 @@ class ZaruUpdate(KindUpdate):
             variance = variance + unknown_earth_rate_rad_s(pred.lat_rad) ** 2
         rates_i = (mean_rate_i, s.x[X_BG : X_BG + 3])
         model = zaru(pred, kf.layout, rates_i, self._geometry.mat_bi, variance, s.heading_known)
-        self._corrections.update(s, kf, "zaru", model, live)
+        self._corrections.update(s, kf, ZARU, model, live)
 
     def fused(
         self,
@@ -170,7 +174,7 @@ class ZaruUpdate(KindUpdate):
             self._geometry.mat_bi,
             (self._correlation_time_s, self._gates[2], kf.layout.size),
         )
-        return self._pseudo_taken((s, kf), "zaru", result, 3, live)
+        return self._pseudo_taken((s, kf), ZARU, result, 3, live)
 
 
 @jit

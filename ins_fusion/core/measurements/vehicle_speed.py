@@ -36,10 +36,13 @@ from ins_fusion.core.compiled import jit
 from ins_fusion.core.filter.eskf import ATT, VEL, Columns, ErrorStateFilter, StateLayout
 from ins_fusion.core.filter.records import Prediction, VehicleSpeedMeasurement
 from ins_fusion.core.filter.state import FilterState
-from ins_fusion.core.filter.status import SPEED_KIND
 from ins_fusion.core.measurements.common import Model, gyro_error_columns
-from ins_fusion.core.measurements.gate import KindUpdate
+from ins_fusion.core.measurements.gate import Kind, KindUpdate
 from ins_fusion.core.nav.rotation import skew
+from ins_fusion.core.settings.config import FusionConfig
+
+#: The vehicle's speed readings (no recovery: the tyres may slip).
+SPEED = Kind("vehicle_speed")
 
 
 def speed_variance(measured: VehicleSpeedMeasurement, least_sigma_m_s: float) -> float:
@@ -112,6 +115,12 @@ class SpeedUpdate(KindUpdate):
     """The engine's update of vehicle speed readings (core.measurements.gate.KindUpdate; no
     compiled update)."""
 
+    @staticmethod
+    def wanted(config: FusionConfig) -> bool:
+        """Only an engine that uses the speed has the kind (one without reports what it did
+        before there was one)."""
+        return config.use_speed
+
     def __call__(
         self,
         s: FilterState,
@@ -122,15 +131,15 @@ class SpeedUpdate(KindUpdate):
     ) -> None:
         corrections = self._corrections
         if not math.isfinite(measured.speed_m_s):
-            corrections.reject(SPEED_KIND, live)
+            corrections.reject(SPEED, live)
             return
-        if not s.heading_known and corrections.too_fast_to_align(pred, live, SPEED_KIND):
+        if not s.heading_known and corrections.too_fast_to_align(pred, live, SPEED):
             return
         forward_accel = float(pred.mat_nb[:, 0] @ np.asarray(s.accel_lp))
         if abs(forward_accel) > self._config.speed_max_accel_m_s2:  # the tyres may slip
-            corrections.reject(SPEED_KIND, live)
+            corrections.reject(SPEED, live)
             return
         reading = (measured.speed_m_s, speed_variance(measured, self._config.speed_sigma_m_s))
         geometry = self._geometry
         model = vehicle_speed(pred, kf.layout, geometry.speed_arm(s), geometry.mat_bi, s, reading)
-        corrections.update(s, kf, SPEED_KIND, model, live)
+        corrections.update(s, kf, SPEED, model, live)

@@ -9,6 +9,7 @@ import math
 import numpy as np
 import pytest
 
+from ins_fusion.core.engine.measurement_kinds import MEASUREMENT_NAMES
 from ins_fusion.core.engine.startup import Startup
 from ins_fusion.core.filter.eskf import ATT, BA, BG, ErrorStateFilter, StateLayout
 from ins_fusion.core.filter.records import GnssFixMeasurement
@@ -39,7 +40,7 @@ def _startup(layout: StateLayout) -> tuple[Startup, LatestInputs]:
         Geometry(config, layout),
         GnssNoise(config, layout),
         layout,
-        new_counters(),
+        new_counters(MEASUREMENT_NAMES),
         latest,
     )
     return startup, latest

@@ -8,6 +8,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from ins_fusion.core.engine.measurement_kinds import MEASUREMENT_NAMES
 from ins_fusion.core.filter.adaptation import WhiteNoiseMonitor
 from ins_fusion.core.filter.state import X_SIZE, X_T
 from ins_fusion.core.filter.status import new_counters
@@ -47,7 +48,8 @@ def _run(stamps: list[float]) -> RunEntries:
     st.lists(st.tuples(st.floats(1e-3, 0.4), st.integers(1, 40)), min_size=1, max_size=60),
 )
 def test_extend_keeps_the_history_of_appending_one_by_one(history_s, batches):
-    one_by_one, batched = Timeline(history_s), Timeline(history_s)
+    one_by_one = Timeline(history_s, MEASUREMENT_NAMES)
+    batched = Timeline(history_s, MEASUREMENT_NAMES)
     one_by_one.start(_entry(0.0))
     batched.start(_entry(0.0))
     t = 0.0
@@ -65,7 +67,7 @@ def test_extend_keeps_the_history_of_appending_one_by_one(history_s, batches):
     # The oldest entry decides what is too old: the same answer from both.
     oldest = one_by_one.entry(0).t_s
     for timeline in (one_by_one, batched):
-        counters = new_counters()
+        counters = new_counters(MEASUREMENT_NAMES)
         assert timeline.add("gnss_position", oldest - 1e-6, None, counters, True) is None
         assert counters["gnss_position"]["too_old"] == 1
 
@@ -76,7 +78,7 @@ def test_a_run_gives_back_its_entries(m, j):
     j %= m
     stamps = [0.01 * (i + 1) for i in range(m)]
     run = _run(stamps)
-    timeline = Timeline(10.0)
+    timeline = Timeline(10.0, MEASUREMENT_NAMES)
     timeline.start(_entry(0.0))
     timeline.extend_run(run)
     entry = timeline.entry(j + 1)
@@ -94,7 +96,7 @@ def test_a_run_gives_back_its_entries(m, j):
 
 def test_plain_entries_are_read_and_refiled_without_building_the_others():
     stamps = [0.01 * (i + 1) for i in range(6)]
-    timeline = Timeline(10.0)
+    timeline = Timeline(10.0, MEASUREMENT_NAMES)
     timeline.start(_entry(0.0))
     timeline.extend_run(_run(stamps))
     assert timeline.plain_from(1) == ([], None)  # its first entry has a measurement
