@@ -10,13 +10,7 @@ Defaults and their sources (docs/fusion.md explains the choices; references are 
 shared/reference/: "Aalborg" imu400cc-aalborg-notes.md, "NTNU" gnss-ins-ntnu-notes.md, "Oslo"
 mems-noise-oslo-notes.md):
 
-- white noise: the per-axis per-sample σ of Aalborg (7.14) with the bandwidths of §1.3 (25 Hz
-  gyro, 75 Hz accelerometer) converted by Aalborg (5.21), RW = 60σ/√BW; the gyro mean 2.96 °/√h
-  matches the report's 2.98 °/√h (the datasheet promises < 2.25 °/√h, §1.2);
-- bias instability: σ of the six field standstill gyro biases (Aalborg §3.3 Fig. 9-9) and of the
-  30-min accelerometer setups (Fig. 5-28); correlation time assumed (no reference value);
-- turn-on bias when neither a calibration file nor a standstill gives one: the datasheet bounds
-  (Aalborg §1.2, read as 1σ in §1.3.1);
+- the IMU noise model: ins_fusion.core.settings.imu_noise_params;
 - stop detector: 1 s window and var(a_x)+var(a_y) < 0.048 (m/s²)² (NTNU §7), speed 0.2 m/s
   (NTNU §7 ground-truth threshold); gyro variance, hysteresis and minimum duration are ours
   (NTNU §14 item 19 and D6 ask for them);
@@ -25,25 +19,13 @@ mems-noise-oslo-notes.md):
 
 from __future__ import annotations
 
-import math
-
-from gnss_ins_common.params import Param, needs_values
+from gnss_ins_common.params import Param
 from ins_fusion.core.nav.calibration import CalibrationError, ImuCalibration
+from ins_fusion.core.settings.imu_noise_params import IMU_NOISE_PARAMETERS, vector_param
 
 #: ``tf_mode`` values: the frame of ins/odometry and of its transform; none = no /tf
 #: (ins_fusion.adapters.tf_frames).
 TF_MODES = ("map", "odom", "none")
-
-# Per-axis per-sample σ of Aalborg (7.14) [rad/s, m/s²] and the sensor bandwidths of §1.3 [Hz].
-_GYRO_SIGMA_7_14 = (0.0041, 0.0040, 0.0048)
-_ACCEL_SIGMA_7_14 = (0.0029, 0.0038, 0.0036)
-_GYRO_BANDWIDTH_HZ = 25.0
-_ACCEL_BANDWIDTH_HZ = 75.0
-
-
-def _random_walk(sigmas: tuple[float, ...], bandwidth_hz: float, to_user: float) -> list[float]:
-    """Aalborg (5.21): RW = 60 σ / √BW in user units (deg/√h or m/s/√h), 3 significant digits."""
-    return [float(f"{60.0 * s * to_user / math.sqrt(bandwidth_hz):.3g}") for s in sigmas]
 
 
 def _calibration_file(path: str) -> str | None:
@@ -66,125 +48,31 @@ def _datum(values: list[float]) -> str | None:
     return None if abs(lat) <= 90.0 and abs(lon) <= 180.0 else "latitude/longitude out of range"
 
 
-def _vector(
-    name: str, default: list[float], description: str, low: float, high: float, axes: bool = False
-) -> Param:
-    """A three-value parameter; ``axes``: per sensor axis, one number meaning all three."""
-    if axes:
-        description += " (one number = the same on every axis)"
-    return Param(
-        name, default, description, low, high, check=needs_values(3, "x, y, z"), broadcast=axes
-    )
-
-
 PARAMETERS: tuple[Param, ...] = (
-    # IMU noise model (continuous densities, Gauss-Markov biases; per imu_link axis x, y, z).
-    _vector(
-        "imu_noise.gyro_arw",
-        _random_walk(_GYRO_SIGMA_7_14, _GYRO_BANDWIDTH_HZ, 180.0 / math.pi),
-        "gyro angle random walk per axis [deg/sqrt(h)]",
-        0.0,
-        100.0,
-        axes=True,
-    ),
-    _vector(
-        "imu_noise.accel_vrw",
-        _random_walk(_ACCEL_SIGMA_7_14, _ACCEL_BANDWIDTH_HZ, 1.0),
-        "accelerometer velocity random walk per axis [m/s/sqrt(h)]",
-        0.0,
-        10.0,
-        axes=True,
-    ),
-    _vector(
-        "imu_noise.gyro_bias_instability",
-        [10.8, 6.84, 18.4],
-        "gyro bias instability: stationary sigma of the Gauss-Markov bias per axis [deg/h]",
-        0.0,
-        3600.0,
-        axes=True,
-    ),
-    _vector(
-        "imu_noise.accel_bias_instability",
-        [0.4, 0.4, 0.4],
-        "accelerometer bias instability: stationary sigma of the Gauss-Markov bias [mg]",
-        0.0,
-        100.0,
-        axes=True,
-    ),
-    Param(
-        "imu_noise.bias_correlation_time",
-        300.0,
-        "correlation time of the Gauss-Markov biases and scale factors [s]",
-        1.0,
-        1.0e6,
-    ),
-    Param(
-        "imu_noise.gyro_scale_sigma",
-        0.0,
-        "sigma of the gyro scale-factor error states [ppm]; 0 = no gyro scale states",
-        0.0,
-        1.0e5,
-    ),
-    Param(
-        "imu_noise.accel_scale_sigma",
-        0.0,
-        "sigma of the accelerometer scale-factor error states [ppm]; 0 = no accel scale states",
-        0.0,
-        1.0e5,
-    ),
-    Param(
-        "imu_noise.gyro_asymmetry_sigma",
-        10000.0,
-        "sigma of the gyro scale-asymmetry states [ppm] (the part of the scale factor that"
-        " changes sign with the rate: S+/- = s +/- a); 0 = none; default: the datasheet's"
-        " < 1 % scale accuracy",
-        0.0,
-        1.0e5,
-    ),
-    Param(
-        "imu_noise.gyro_misalignment",
-        0.0,
-        "gyro axis misalignment sigma (datasheet) [mrad]: turn-rate-dependent attitude noise",
-        0.0,
-        100.0,
-    ),
-    Param(
-        "imu_noise.gyro_turn_on_bias",
-        1.0,
-        "initial gyro bias sigma when no standstill seeds it and no calibration gives one [deg/s]",
-        0.0,
-        10.0,
-    ),
-    Param(
-        "imu_noise.accel_turn_on_bias",
-        8.5,
-        "initial accelerometer bias sigma when no calibration file gives one [mg]",
-        0.0,
-        100.0,
-    ),
+    *IMU_NOISE_PARAMETERS,
     # Installation (REP-103: base_link FLU, angles of the sensor frame in base_link).
-    _vector(
+    vector_param(
         "imu_mounting_rpy_deg",
         [0.0, 0.0, 0.0],
         "roll, pitch, yaw of imu_link in base_link [deg]",
         -180.0,
         180.0,
     ),
-    _vector(
+    vector_param(
         "imu_lever_arm",
         [0.8, 0.0, 1.6],
         "origin of imu_link in base_link FLU [m] (the simulator's survey car)",
         -50.0,
         50.0,
     ),
-    _vector(
+    vector_param(
         "gnss_lever_arm",
         [0.0, 0.0, 1.75],
         "GNSS antenna phase centre in base_link FLU [m] (the simulator's survey car)",
         -50.0,
         50.0,
     ),
-    _vector(
+    vector_param(
         "attitude_mounting_rpy_deg",
         [0.0, 0.0, 0.0],
         "roll, pitch, yaw of the frame the attitude receiver reports, in base_link [deg]",
@@ -277,7 +165,7 @@ PARAMETERS: tuple[Param, ...] = (
         0,
         1000,
     ),
-    _vector(
+    vector_param(
         "gnss_noise.white_sigma",
         [0.014, 0.014, 0.021],
         "largest white (epoch-to-epoch) part of the receiver's position sigma, E/N/U [m]; the "
@@ -339,7 +227,7 @@ PARAMETERS: tuple[Param, ...] = (
         "scale state; gnss_ins replay turns it on when the bag holds the speed topic, unless"
         " --params or --set make it false",
     ),
-    _vector(
+    vector_param(
         "speed.lever_arm",
         [0.0, 0.0, 0.0],
         "measuring point of the speed in base_link FLU [m] (a single wheel's hub, or the "

@@ -21,6 +21,7 @@ from ins_fusion.core.nav.rotation import MAT_FLU_FRD, quat_from_euler
 from ins_fusion.core.nav.strapdown import NavState
 from ins_fusion.core.nav.units import DEG, STANDARD_GRAVITY_M_S2, mg
 from ins_fusion.core.settings.config import NODE_NAME, FusionConfig, StopDetectorConfig
+from ins_fusion.core.settings.imu_noise_params import IMU_NOISE_PARAMETERS
 from ins_fusion.core.settings.params import PARAMETERS
 from ins_fusion.sim.imu_model import IMU400CC, ImuErrorModel, ImuProfile, TriadErrors
 
@@ -62,6 +63,12 @@ def test_every_parameter_is_described_and_its_default_valid():
     assert len(names) == len(set(names))
     for spec in PARAMETERS:
         assert spec.description and spec.problem(spec.default) is None, spec.name
+
+
+def test_the_imu_noise_model_leads_the_table_and_is_all_of_imu_noise():
+    noise = [p.name for p in IMU_NOISE_PARAMETERS]
+    assert [p.name for p in PARAMETERS[: len(noise)]] == noise
+    assert {p.name for p in PARAMETERS if p.name.startswith("imu_noise.")} == set(noise)
 
 
 def test_noise_defaults_follow_the_aalborg_notes_and_match_the_simulated_imu400cc():
