@@ -16,6 +16,7 @@ from ins_fusion.core.filter import adaptation, state
 from ins_fusion.core.filter.state import X_LAYOUT, FilterState, _ScalarField, _Vec3Field
 from ins_fusion.core.nav import calibration, strapdown
 from ins_fusion.core.nav.strapdown import NavState
+from ins_fusion.core.output import solution
 
 #: (module, constant prefix, table, name of its size) of every layout.
 TABLES: list[tuple[ModuleType, str, layout.Layout, str]] = [
@@ -26,6 +27,7 @@ TABLES: list[tuple[ModuleType, str, layout.Layout, str]] = [
     (adaptation, "B_", adaptation.B_LAYOUT, "B_SIZE"),
     (adaptation, "W_", adaptation.W_LAYOUT, "W_SIZE"),
     (calibration, "T_", calibration.T_LAYOUT, "T_SIZE"),
+    (solution, "E_", solution.ERROR_LAYOUT, "E_SIZE"),
 ]
 
 #: The offsets as they were numbered by hand before the tables (and the sizes).
@@ -56,6 +58,7 @@ HAND_NUMBERED = {
         **{"WINDOW": 14, "MAX_INTERVAL": 15, "SIZE": 16},
     },
     "T_": {"INVERSES": 0, "BIAS": 1152, "LARGE": 1158, "G": 1160, "SIZE": 1169},
+    "E_": {"POS": 0, "VEL": 3, "ATT": 6, "ATT_IMU": 9, "SIZE": 12},
 }
 
 

@@ -34,6 +34,7 @@ from ins_fusion.core.filter.eskf import BA, BG, StateLayout
 from ins_fusion.core.nav import earth
 from ins_fusion.core.nav.rotation import frd_to_flu, quat_from_rotvec, quat_multiply, quat_normalize
 from ins_fusion.core.output import solution_rows as rows
+from ins_fusion.core.output.solution import E_ATT, E_ATT_IMU, E_POS, E_VEL
 from ins_fusion.core.smoother.history import SmoothedEpoch, SmootherHistory, Snapshot
 
 #: Extra margin on the engine's history for rollbacks [s].
@@ -79,19 +80,22 @@ def _smoothed(epoch: SmoothedEpoch) -> FloatArray:
     row, delta, cov = epoch.row.copy(), epoch.delta, epoch.cov
     lat_rad, height = math.radians(row[rows.LAT]), float(row[rows.HEIGHT])
     r_m, r_n = earth.radii_m(lat_rad)
-    d_east, d_north, d_up = delta[0:3].tolist()
+    d_east, d_north, d_up = delta[E_POS : E_POS + 3].tolist()
     row[rows.LAT] += math.degrees(d_north / (r_m + height))
     row[rows.LON] += math.degrees(d_east / ((r_n + height) * math.cos(lat_rad)))
     row[rows.HEIGHT] += d_up
-    row[rows.POS] += delta[0:3]
-    row[rows.VEL] += delta[3:6]
-    rx, ry, rz = delta[6:9].tolist()
+    row[rows.POS] += delta[E_POS : E_POS + 3]
+    row[rows.VEL] += delta[E_VEL : E_VEL + 3]
+    rx, ry, rz = delta[E_ATT : E_ATT + 3].tolist()
     x, y, z, w = row[rows.QUAT].tolist()
     row[rows.QUAT] = quat_normalize(quat_multiply(quat_from_rotvec(rx, ry, rz), (x, y, z, w)))
-    row[rows.COV_POS] = cov[0:3, 0:3].ravel()
-    row[rows.COV_VEL] = cov[3:6, 3:6].ravel()
-    row[rows.COV_ATT] = cov[6:9, 6:9].ravel()
-    row[rows.COV_ATT_IMU] = cov[9:12, 9:12].ravel()
+    for field, first in (
+        (rows.COV_POS, E_POS),
+        (rows.COV_VEL, E_VEL),
+        (rows.COV_ATT, E_ATT),
+        (rows.COV_ATT_IMU, E_ATT_IMU),
+    ):
+        row[field] = cov[first : first + 3, first : first + 3].ravel()
     row[rows.GYRO] += frd_to_flu(epoch.error[BG : BG + 3])
     row[rows.ACCEL] += frd_to_flu(epoch.error[BA : BA + 3])
     return row

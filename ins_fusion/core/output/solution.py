@@ -88,6 +88,12 @@ class InsSolution:
     cov_att_imu_enu_rad2: FloatArray | None = None
 
 
+#: Rows of the solution's Jacobian (``SolutionBuilder.jacobian``; core.smoother's smoothed change
+#: and covariance have them too, core.layout): the errors of base_link's ENU position, velocity
+#: and attitude and of imu_link's attitude (about the ENU axes).
+ERROR_LAYOUT = (("pos", 3), ("vel", 3), ("att", 3), ("att_imu", 3))
+E_POS, E_VEL, E_ATT, E_ATT_IMU, E_SIZE = offsets(ERROR_LAYOUT)
+
 #: ``InsSolution`` as one row of float64 numbers (core.output.solution_rows holds many): t_s;
 #: lat_deg, lon_deg, height_m; pos_enu_m (3); vel_enu_m_s (3); quat_enu_flu_xyzw (4); rate_flu_rad_s
 #: (3); cov_pos_enu_m2, cov_vel_enu, cov_att_enu_rad2 (9 each, row-major); gyro_bias_flu_rad_s (3);
@@ -209,8 +215,8 @@ class SolutionBuilder:
         # blocks that depend on the state are filled in per call.
         mt = layout.mt
         self._solution_states = np.r_[0 : BG + 3, [] if mt is None else [mt, mt + 1]].astype(int)
-        self._jacobian = np.zeros((12, len(self._solution_states)))
-        for row, col in ((0, POS_STATE), (3, VEL_STATE), (6, ATT), (9, ATT)):
+        self._jacobian = np.zeros((E_SIZE, len(self._solution_states)))
+        for row, col in ((E_POS, POS_STATE), (E_VEL, VEL_STATE), (E_ATT, ATT), (E_ATT_IMU, ATT)):
             self._jacobian[row : row + 3, col : col + 3] = MAT_ENU_NED
         self._plane: earth.TangentPlane | None = None
         self._datum_deg = (math.nan, math.nan, math.nan)  # that of _plane
@@ -287,14 +293,14 @@ def _fill_row(
     lat, lon, height = earth.displace(x[X_LAT], x[X_LON], x[X_HEIGHT], n0, n1, n2)
     c_en = np.empty((3, 3))  # MAT_ENU_NED @ C
     c_en[0, :], c_en[1, :], c_en[2, :] = C[1, :], C[0, :], -C[2, :]
-    for k, rows in enumerate((enu_skew(-n0, -n1, -n2), enu_skew(-r0, -r1, -r2))):
+    for first, rows in ((E_POS, enu_skew(-n0, -n1, -n2)), (E_VEL, enu_skew(-r0, -r1, -r2))):
         for i in range(3):
             for j in range(3):
-                J[3 * k + i, ATT + j] = rows[i][j]
-    J[3:6, BG : BG + 3] = c_en @ arm_bi
+                J[first + i, ATT + j] = rows[i][j]
+    J[E_VEL : E_VEL + 3, BG : BG + 3] = c_en @ arm_bi
     mu_y, mu_z = mounting
     if J.shape[1] > BG + 3:  # the vehicle's attitude error is ψ + C_nb μ: the mounting states
-        J[6:9, BG + 3 :] = c_en[:, 1:3]
+        J[E_ATT : E_ATT + 3, BG + 3 :] = c_en[:, 1:3]
     n = len(states)
     P_sub = np.empty((n, n))
     for i in range(n):
@@ -314,15 +320,15 @@ def _fill_row(
     out[T] = x[X_T]
     out[LAT], out[LON], out[HEIGHT] = math.degrees(lat), math.degrees(lon), height
     out[POS] = mat_enu_ecef @ d
-    out[7], out[8], out[9] = ve + r1, vn + r0, -(vd + r2)
+    out[VEL] = np.array((ve + r1, vn + r0, -(vd + r2)))
     out[QUAT] = np.array(quat_enu_flu(quat_nb))
-    out[14], out[15], out[16] = wx, -wy, -wz
-    out[COV_POS] = cov[0:3, 0:3].copy().ravel()
-    out[COV_VEL] = cov[3:6, 3:6].copy().ravel()
-    out[COV_ATT] = cov[6:9, 6:9].copy().ravel()
-    out[COV_ATT_IMU] = cov[9:12, 9:12].copy().ravel()
-    out[44], out[45], out[46] = x[X_BG], -x[X_BG + 1], -x[X_BG + 2]
-    out[47], out[48], out[49] = x[X_BA], -x[X_BA + 1], -x[X_BA + 2]
+    out[RATE] = np.array((wx, -wy, -wz))
+    out[COV_POS] = cov[E_POS : E_POS + 3, E_POS : E_POS + 3].copy().ravel()
+    out[COV_VEL] = cov[E_VEL : E_VEL + 3, E_VEL : E_VEL + 3].copy().ravel()
+    out[COV_ATT] = cov[E_ATT : E_ATT + 3, E_ATT : E_ATT + 3].copy().ravel()
+    out[COV_ATT_IMU] = cov[E_ATT_IMU : E_ATT_IMU + 3, E_ATT_IMU : E_ATT_IMU + 3].copy().ravel()
+    out[GYRO] = np.array((x[X_BG], -x[X_BG + 1], -x[X_BG + 2]))
+    out[ACCEL] = np.array((x[X_BA], -x[X_BA + 1], -x[X_BA + 2]))
 
 
 def self_calibration(
