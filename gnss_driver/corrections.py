@@ -16,7 +16,6 @@ import collections
 import copy
 import math
 import threading
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -106,25 +105,20 @@ class CorrectionQueue:
             return bool(self._frames)
 
     def wake(self) -> None:
-        """End every ``wait`` and ``take`` in progress now (they see no frame unless one is
-        queued)."""
+        """End every ``wait`` in progress now (it sees no frame unless one is queued)."""
         with self._ready:
             self._ready.notify_all()
 
-    def take(self, now_s: float, timeout_s: float) -> bytes | None:
+    def take(self, now_s: float) -> bytes | None:
         """The next frame no older than ``max_age_s`` at host time ``now_s`` [s] (older ones are
-        dropped), waiting up to ``timeout_s`` [s] for one; None when none came."""
-        deadline = time.monotonic() + timeout_s
+        dropped); None when none is queued (``wait`` waits for one)."""
         with self._ready:
-            while True:
-                while self._frames:
-                    frame, received_s = self._frames.popleft()
-                    if now_s - received_s <= self.max_age_s:
-                        return frame
-                    self._stats.dropped_stale += 1
-                remaining = deadline - time.monotonic()
-                if remaining <= 0.0 or not self._ready.wait(remaining):
-                    return None
+            while self._frames:
+                frame, received_s = self._frames.popleft()
+                if now_s - received_s <= self.max_age_s:
+                    return frame
+                self._stats.dropped_stale += 1
+            return None
 
     def clear(self) -> int:
         """Drop every queued frame (counted stale), e.g. when the port is lost; returns how
@@ -195,7 +189,7 @@ class CorrectionWriter:
             if not self._ready():
                 queue.clear()
                 continue
-            frame = queue.take(self._now(), 0.0)
+            frame = queue.take(self._now())
             if frame is None:
                 continue
             ok = self._write(frame)

@@ -26,7 +26,7 @@ def _frames(count: int, seed: int = 1) -> list[bytes]:
 
 def _taken(queue: CorrectionQueue, now_s: float) -> list[bytes]:
     out = []
-    while (frame := queue.take(now_s, 0.0)) is not None:
+    while (frame := queue.take(now_s)) is not None:
         out.append(frame)
     return out
 
@@ -59,10 +59,10 @@ def test_frames_older_than_the_age_limit_at_their_turn_are_dropped():
     queue = CorrectionQueue(max_age_s=3.0)
     queue.put([old], 10.0)
     queue.put([fresh], 12.0)
-    assert queue.take(13.5, 0.0) == fresh  # old: 3.5 s > 3 s at its turn
+    assert queue.take(13.5) == fresh  # old: 3.5 s > 3 s at its turn
     assert queue.stats.dropped_stale == 1
     queue.put([old], 10.0)
-    assert queue.take(13.0, 0.0) == old  # exactly the limit: still written
+    assert queue.take(13.0) == old  # exactly the limit: still written
 
 
 def test_overflow_drops_the_oldest_and_clear_drops_everything():
@@ -70,22 +70,33 @@ def test_overflow_drops_the_oldest_and_clear_drops_everything():
     queue = CorrectionQueue(max_frames=3)
     queue.put(frames, 0.0)
     assert queue.stats.dropped_overflow == 2 and len(queue) == 3
-    assert queue.take(0.0, 0.0) == frames[2]
+    assert queue.take(0.0) == frames[2]
     assert queue.clear() == 2
-    assert queue.take(0.0, 0.0) is None
+    assert queue.take(0.0) is None
     assert queue.stats.dropped_stale == 2
 
 
-def test_take_waits_for_a_frame_from_another_thread():
+def _waiting(queue: CorrectionQueue) -> bool:
+    """Whether a thread waits in ``queue.wait`` (its condition's waiters: CPython's)."""
+    return bool(queue._ready._waiters)  # type: ignore[attr-defined]
+
+
+def test_wait_ends_when_another_thread_queues_a_frame_or_wakes_it():
     (frame,) = _frames(1)
     queue = CorrectionQueue()
-    got: list[bytes | None] = []
-    taker = threading.Thread(target=lambda: got.append(queue.take(0.0, 30.0)))
-    taker.start()
+    waited: list[bool] = []
+    waiter = threading.Thread(target=lambda: waited.append(queue.wait(30.0)))
+    waiter.start()
     queue.put([frame], 0.0)
-    taker.join(timeout=30.0)
-    assert got == [frame]
-    assert queue.take(0.0, 0.0) is None  # nothing more: returns after the time-out
+    waiter.join(timeout=30.0)
+    assert waited == [True] and queue.take(0.0) == frame
+    assert queue.take(0.0) is None  # nothing more
+    waiter = threading.Thread(target=lambda: waited.append(queue.wait(30.0)))
+    waiter.start()
+    wait_for(lambda: _waiting(queue), 30.0)
+    queue.wake()
+    waiter.join(timeout=30.0)
+    assert not waiter.is_alive() and waited == [True, False]
 
 
 class _Device:
