@@ -4,9 +4,10 @@
 Fed one packet per read (as the node reads them live): the driver core (``ImuDriver.feed``:
 framer, device clock, conversion) and its parts, the read's stamp on the node's ROS clock, the
 serialized messages the node publishes (``SampleWriter.write``) against the Python messages it
-built before (``sample_messages`` with rclpy's classes, then rclpy's serialization, which
-``publish`` did for them), and ``publish`` itself on a publisher without subscribers. Each is
-the best of five passes over the stream; a warm process, so a lower bound of the live cost.
+built before (``sample_messages`` with rclpy's classes), and ``publish`` on a publisher without
+subscribers, of the bytes and of a Python message (which rclpy converts to its C message
+first). Each is the best of five passes over the stream; a warm process, so a lower bound of
+the live cost.
 
     .venv/bin/python bench/bench_imu_packet.py [--packets 20000]
 """
@@ -93,8 +94,8 @@ def main() -> None:
         fed = ImuDriver(config)  # a new driver each pass: its clock needs increasing times
         return lambda read: fed.feed(*read)
 
-    def python_message(sample: ImuSample) -> bytes:
-        return serialize_message(sample_messages(sample, driver, "imu_link", Imu, Temperature)[0])
+    def python_messages(sample: ImuSample) -> object:
+        return sample_messages(sample, driver, "imu_link", Imu, Temperature)
 
     rows = [
         ("ImuDriver.feed (framer, clock, conversion)", feeding, reads),
@@ -102,10 +103,10 @@ def main() -> None:
         ("  conversion", lambda: convert, raws),
         ("read stamp on the ROS clock (node_time_s)", lambda: lambda _: node_time_s(node), reads),
         ("serialized messages (SampleWriter.write)", lambda: writer.write, samples),
-        ("Python messages + serialization (before)", lambda: python_message, samples),
+        ("Python messages (sample_messages, before)", lambda: python_messages, samples),
         ("publish(bytes), no subscriber", lambda: lambda _: publisher.publish(imu_bytes), reads),
         (
-            "publish(Imu), no subscriber (before)",
+            "publish(Imu): conversion + publish (before)",
             lambda: lambda _: publisher.publish(imu_message),
             reads,
         ),
