@@ -100,17 +100,6 @@ class PacketConverter:
         return ImuMeasurement(rate, force, celsius, raw.timer)
 
 
-def packet_to_measurement(
-    raw: RawPacket,
-    scaling: Scaling,
-    axis_map: AxisMap,
-    accel_sign: float,
-    gravity_m_s2: float = STANDARD_GRAVITY_M_S2,
-) -> ImuMeasurement:
-    """Device counts -> imu_link FLU, rad/s, m/s^2 and degC (``PacketConverter``)."""
-    return PacketConverter(scaling, axis_map, accel_sign, gravity_m_s2)(raw)
-
-
 def measurement_to_packet(
     rate_flu_rad_s: ArrayLike,
     specific_force_flu_m_s2: ArrayLike,
@@ -121,7 +110,7 @@ def measurement_to_packet(
     accel_sign: float,
     gravity_m_s2: float = STANDARD_GRAVITY_M_S2,
 ) -> RawPacket:
-    """Inverse of packet_to_measurement (for the emulator): nearest counts, clipped to the field
+    """Inverse of ``PacketConverter`` (for the emulator): nearest counts, clipped to the field
     ranges; use the Scaling ``*_counts`` methods to learn whether a value saturated."""
     m_s2_per_g = _m_s2_per_device_g(accel_sign, gravity_m_s2)
     rate_dps = np.degrees(axis_map.from_flu(_vector3(rate_flu_rad_s, "rate_flu_rad_s")))

@@ -24,7 +24,6 @@ from imu400cc_driver.axes import (
     STANDARD_GRAVITY_M_S2,
     PacketConverter,
     measurement_to_packet,
-    packet_to_measurement,
 )
 from imu400cc_driver.protocol import RawPacket, Scaling
 
@@ -45,7 +44,7 @@ def _device_packet(gravity_direction_frd_g, rates_frd_dps=(0.0, 0.0, 0.0)) -> Ra
 
 
 def _measure(raw: RawPacket, accel_sign: float = DEFAULT_ACCEL_SIGN):
-    return packet_to_measurement(raw, SCALING, DEFAULT_MAP, accel_sign)
+    return PacketConverter(SCALING, DEFAULT_MAP, accel_sign)(raw)
 
 
 def test_defaults_are_the_frd_device():
@@ -198,9 +197,9 @@ def test_vector_shape_is_checked():
 
 
 @given(raw_packets, st.sampled_from(ALL_SPECS), st.sampled_from([1.0, -1.0]))
-def test_measurement_to_packet_inverts_packet_to_measurement(raw, spec, accel_sign):
+def test_measurement_to_packet_inverts_the_packet_conversion(raw, spec, accel_sign):
     axis_map = AxisMap.from_spec(spec)
-    m = packet_to_measurement(raw, SCALING, axis_map, accel_sign, 9.81)
+    m = PacketConverter(SCALING, axis_map, accel_sign, 9.81)(raw)
     back = measurement_to_packet(
         m.rate_flu_rad_s,
         m.specific_force_flu_m_s2,
@@ -242,11 +241,9 @@ def test_measurement_to_packet_checks_its_inputs():
 
 
 @pytest.mark.parametrize("accel_sign", [0.0, 2.0, math.nan])
-def test_packet_to_measurement_rejects_bad_accel_sign(accel_sign):
+def test_packet_conversion_rejects_bad_accel_sign(accel_sign):
     with pytest.raises(ValueError, match="accel_sign"):
-        packet_to_measurement(
-            RawPacket((0, 0, 0), (0, 0, 0), 0, 0), SCALING, DEFAULT_MAP, accel_sign
-        )
+        PacketConverter(SCALING, DEFAULT_MAP, accel_sign)
 
 
 @pytest.mark.parametrize("spec", ALL_SPECS, ids=lambda s: ",".join(s))

@@ -23,7 +23,7 @@ from gnss_driver.profiles import Receiver
 from gnss_driver.utc import DateSource, UtcTime
 from gnss_ins_common.axes import AxisMap
 from imu400cc_driver import node as imu_node
-from imu400cc_driver.axes import ImuMeasurement, measurement_to_packet, packet_to_measurement
+from imu400cc_driver.axes import ImuMeasurement, PacketConverter, measurement_to_packet
 from imu400cc_driver.driver import ImuDriver, ImuSample
 from imu400cc_driver.messages import SampleWriter
 from imu400cc_driver.protocol import Scaling
@@ -241,6 +241,7 @@ def test_imu_messages_are_what_imu400cc_node_publishes():
     events = Simulation(config).imu_events(0.0, 1.0)
     axes = AxisMap.from_spec(defaults["axis_map"])
     scaling = Scaling(defaults["gyro_range_dps"], defaults["accel_range_g"])
+    convert = PacketConverter(scaling, axes, defaults["accel_sign"], defaults["gravity"])
     for event in events:
         m = event.message
         stamp_s = _stamp(m) / 1e9
@@ -253,9 +254,7 @@ def test_imu_messages_are_what_imu400cc_node_publishes():
             packet = measurement_to_packet(
                 [w.x, w.y, w.z], [f.x, f.y, f.z], 28.0, 0, scaling, axes, defaults["accel_sign"]
             )
-            measured = packet_to_measurement(
-                packet, scaling, axes, defaults["accel_sign"], defaults["gravity"]
-            )
+            measured = convert(packet)
             stub._publish(ImuSample(stamp_s, measured, with_temperature=False))
             node_msg = TS.deserialize_cdr(published["_imu_pub"][-1], "sensor_msgs/msg/Imu")
             # Same device counts: equal to rounding; the node's covariances come from densities
