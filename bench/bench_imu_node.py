@@ -5,12 +5,16 @@ emulated IMU400CC on a pseudo-terminal; this process hosts the emulator and a su
 Latency = subscriber receive time - the time the emulator wrote the packet's last byte, matched
 through the message stamp to the emulator's true sample time (4.6875 ms of wire time before the
 scheduled write); the stamp error is measured against that true sample time too.
-CPU = the node process's user + system time over the measurement, in percent of one core.
+CPU = the node process's user + system time over the measurement, in percent of one core, and
+per thread (/proc/PID/task: "main" spins the executor, the serial link's thread is named after
+the executable, Fast DDS's threads after their task), with the load average beside it (the
+machine is shared).
 
-    .venv/bin/python bench/bench_imu_node.py [--packets 10000] [--raw-output false]
+    .venv/bin/python bench/bench_imu_node.py [--packets 10000] [--raw-output false] [--tree DIR]
 
 ``--raw-output false`` runs the node without its imu/raw topic (parameter ``raw_output``), so the
-two runs give the raw topic's cost; no subscriber listens to imu/raw either way.
+two runs give the raw topic's cost; no subscriber listens to imu/raw either way. ``--tree DIR``
+runs the node from another source tree (an A/B in one session: ``git worktree add DIR COMMIT``).
 """
 
 from __future__ import annotations
@@ -41,12 +45,13 @@ def process_cpu_s(pid: int) -> float:
 
 def thread_cpu_s(pid: int) -> dict[str, float]:
     """user + system CPU seconds of each thread of a process, by name (threads of one name
-    summed; Fast DDS names its threads, the Python ones are named after the executable)."""
+    summed; Fast DDS names its threads, the Python ones are named after the executable, but the
+    main thread, which spins the executor, is "main")."""
     tick = os.sysconf("SC_CLK_TCK")
     threads: dict[str, float] = {}
     for task in Path(f"/proc/{pid}/task").iterdir():
         try:
-            name = (task / "comm").read_text().strip()
+            name = "main" if task.name == str(pid) else (task / "comm").read_text().strip()
             fields = (task / "stat").read_text().rsplit(")", 1)[1].split()
         except FileNotFoundError:  # ended meanwhile
             continue
@@ -61,6 +66,7 @@ def main() -> None:
         "--raw-output", choices=("true", "false"), default="true", help="the node's raw_output"
     )
     parser.add_argument("--warmup", type=float, default=3.0, help="seconds before measuring")
+    parser.add_argument("--tree", type=Path, help="run the node from this source tree")
     args = parser.parse_args()
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     os.environ.setdefault("ROS_DOMAIN_ID", str(40 + os.getpid() % 50))
@@ -84,6 +90,9 @@ def main() -> None:
     spin.start()
 
     exe = Path(sys.executable).parent / "imu400cc_node"
+    node_env = dict(os.environ)
+    if args.tree:
+        node_env["PYTHONPATH"] = str(args.tree.resolve())
     with Imu400ccEmulator(on_packet=sent.append) as device:
         node = subprocess.Popen(
             [
@@ -93,16 +102,20 @@ def main() -> None:
                 f"port:={device.path}",
                 "-p",
                 f"raw_output:={args.raw_output}",
-            ]
+            ],
+            env=node_env,
         )
         time.sleep(args.warmup)
         with lock:
             received.clear()
         first = len(sent)
         cpu0, wall0 = process_cpu_s(node.pid), time.monotonic()
+        threads0 = thread_cpu_s(node.pid)
         duration = args.packets / IMU400CC_RATE_HZ
         time.sleep(duration)
         cpu1, wall1 = process_cpu_s(node.pid), time.monotonic()
+        threads1 = thread_cpu_s(node.pid)
+        load = os.getloadavg()
         written = len(sent) - first
         time.sleep(0.5)  # let the last messages arrive
         node.terminate()
@@ -139,7 +152,15 @@ def main() -> None:
         f"p50 {np.percentile(stamp_error[matched], 50) * 1e3:+.3f}  "
         f"p99 |err| {np.percentile(np.abs(stamp_error[matched]), 99) * 1e3:.3f}"
     )
-    print(f"  node CPU: {100 * (cpu1 - cpu0) / (wall1 - wall0):.2f} % of one core")
+    wall = wall1 - wall0
+    print(
+        f"  node CPU: {100 * (cpu1 - cpu0) / wall:.2f} % of one core "
+        f"(load average {load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f})"
+    )
+    for name in sorted(threads1, key=lambda n: threads0.get(n, 0.0) - threads1[n]):
+        share = 100 * (threads1[name] - threads0.get(name, 0.0)) / wall
+        if share >= 0.05:
+            print(f"    thread {name}: {share:.2f} %")
 
 
 if __name__ == "__main__":

@@ -10,6 +10,7 @@ is this project's assumption (notes §2.7, §12 item 1). With the defaults a lev
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Final
 
@@ -17,7 +18,12 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from gnss_ins_common.axes import AxisMap
-from imu400cc_driver.protocol import RawPacket, Scaling
+from imu400cc_driver.protocol import (
+    TEMPERATURE_C_PER_COUNT,
+    TEMPERATURE_OFFSET_C,
+    RawPacket,
+    Scaling,
+)
 
 #: FLU axis i of imu_link = this device axis (FRD device; notes §1.4, §11.1 item 5).
 DEFAULT_AXIS_SPEC: Final[tuple[str, str, str]] = ("x", "-y", "-z")
@@ -26,6 +32,8 @@ DEFAULT_AXIS_SPEC: Final[tuple[str, str, str]] = ("x", "-y", "-z")
 DEFAULT_ACCEL_SIGN: Final = -1.0
 #: Standard gravity [m/s^2] used to turn the device's g into m/s^2 (notes §11.1 item 4).
 STANDARD_GRAVITY_M_S2: Final = 9.80665
+#: Radians per degree, the factor of numpy's ``radians``.
+_RAD_PER_DEG: Final = math.pi / 180.0
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -58,18 +66,38 @@ def _vector3(vec: ArrayLike, name: str) -> NDArray[np.float64]:
     return array
 
 
-def packet_to_measurement(
-    raw: RawPacket,
-    scaling: Scaling,
-    axis_map: AxisMap,
-    accel_sign: float,
-    gravity_m_s2: float = STANDARD_GRAVITY_M_S2,
-) -> ImuMeasurement:
-    """Device counts -> imu_link FLU, rad/s, m/s^2 and degC (notes §2.4, §11.1 items 4-5)."""
-    m_s2_per_g = _m_s2_per_device_g(accel_sign, gravity_m_s2)
-    rate = axis_map.to_flu(np.radians(scaling.rate_dps(raw.rates)))
-    force = axis_map.to_flu(scaling.accel_g(raw.accels)) * m_s2_per_g
-    return ImuMeasurement(rate, force, float(scaling.temperature_c(raw.temperature)), raw.timer)
+class PacketConverter:
+    """Device counts -> imu_link FLU, rad/s, m/s^2 and degC (notes §2.4, §11.1 items 4-5), with
+    the factors of a unit's scaling and mounting worked out once: the driver converts every
+    packet. Each value is ``count * per_count`` [deg/s, g], then * pi/180 for a rate, then the
+    axis sign, then for a specific force ``accel_sign * gravity``: the rounding of the
+    element-wise ``Scaling`` and ``AxisMap`` methods (test_imu_axes.py)."""
+
+    def __init__(
+        self,
+        scaling: Scaling,
+        axis_map: AxisMap,
+        accel_sign: float,
+        gravity_m_s2: float = STANDARD_GRAVITY_M_S2,
+    ) -> None:
+        """The conversion of ``scaling``'s counts through ``axis_map`` (FLU axis i = sign i x
+        device axis i); ValueError for an ``accel_sign`` other than ±1 or a gravity not > 0."""
+        self._m_s2_per_g = _m_s2_per_device_g(accel_sign, gravity_m_s2)
+        self._dps = scaling.dps_per_count
+        self._g = scaling.g_per_count
+        self._indices = axis_map.indices
+        self._signs = axis_map.signs
+
+    def __call__(self, raw: RawPacket) -> ImuMeasurement:
+        """The measurement of one packet."""
+        i, j, k = self._indices
+        si, sj, sk = self._signs
+        dps, rad, g, m_s2 = self._dps, _RAD_PER_DEG, self._g, self._m_s2_per_g
+        w, a = raw.rates, raw.accels
+        rate = np.array((w[i] * dps * rad * si, w[j] * dps * rad * sj, w[k] * dps * rad * sk))
+        force = np.array((a[i] * g * si * m_s2, a[j] * g * sj * m_s2, a[k] * g * sk * m_s2))
+        celsius = raw.temperature * TEMPERATURE_C_PER_COUNT + TEMPERATURE_OFFSET_C
+        return ImuMeasurement(rate, force, celsius, raw.timer)
 
 
 def measurement_to_packet(
@@ -82,7 +110,7 @@ def measurement_to_packet(
     accel_sign: float,
     gravity_m_s2: float = STANDARD_GRAVITY_M_S2,
 ) -> RawPacket:
-    """Inverse of packet_to_measurement (for the emulator): nearest counts, clipped to the field
+    """Inverse of ``PacketConverter`` (for the emulator): nearest counts, clipped to the field
     ranges; use the Scaling ``*_counts`` methods to learn whether a value saturated."""
     m_s2_per_g = _m_s2_per_device_g(accel_sign, gravity_m_s2)
     rate_dps = np.degrees(axis_map.from_flu(_vector3(rate_flu_rad_s, "rate_flu_rad_s")))

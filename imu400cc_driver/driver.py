@@ -7,7 +7,7 @@
 - ``DeviceClock`` stamps the packets of one read together, with their sample times on the host
   clock from the device timer (all packets of a read share its receive time, so that a stalled
   read is not taken for lost packets; docs/timing.md);
-- ``packet_to_measurement`` turns them into ``imu_link`` (FLU) SI values with the unit's scaling,
+- ``PacketConverter`` turns them into ``imu_link`` (FLU) SI values with the unit's scaling,
   axis map, accelerometer sign and gravity (notes §2.4, §11.1 items 4-5);
 - every ``temperature_every``-th sample also carries the temperature for ``imu/temperature``.
 
@@ -28,7 +28,7 @@ from imu400cc_driver.axes import (
     DEFAULT_AXIS_SPEC,
     STANDARD_GRAVITY_M_S2,
     ImuMeasurement,
-    packet_to_measurement,
+    PacketConverter,
 )
 from imu400cc_driver.device_clock import NOMINAL_TICK_S, DeviceClock
 from imu400cc_driver.framer import PacketFramer
@@ -120,6 +120,9 @@ class ImuDriver:
             min_points=134 if continuous else 10,
             max_gap_s=1.0 if continuous else max(1.0, 3.0 / config.poll_rate_hz),
         )
+        self._convert = PacketConverter(
+            config.scaling, config.axis_map, config.accel_sign, config.gravity_m_s2
+        )
         self.temperature_every = max(1, round(config.sample_rate_hz / config.temperature_rate_hz))
         #: Variance of one sample [(rad/s)^2, (m/s^2)^2] per axis: density^2 x 134 Hz.
         self.gyro_variance = tuple(d * d * IMU400CC_RATE_HZ for d in config.gyro_noise_density)
@@ -136,12 +139,10 @@ class ImuDriver:
         """Bytes read at host time ``receive_time_s`` [s] -> the samples they completed."""
         packets = self.framer.feed(chunk)
         stamps = self.clock.stamp_chunk([raw.timer for raw in packets], receive_time_s)
-        config, stats = self.config, self.stats
+        convert, stats = self._convert, self.stats
         samples = []
         for raw, stamp in zip(packets, stamps, strict=True):
-            measurement = packet_to_measurement(
-                raw, config.scaling, config.axis_map, config.accel_sign, config.gravity_m_s2
-            )
+            measurement = convert(raw)
             stats.samples += 1
             stats.last_temperature_c = measurement.temperature_c
             with_temperature = stats.samples % self.temperature_every == 0

@@ -3,12 +3,13 @@
 Serial bytes are read on the link's thread and handed to the ROS-free ``ImuDriver``, which
 frames them and stamps each packet with the device clock mapped to the host clock (the sample
 time, not the read time); the samples are published straight from that thread, so a busy
-executor adds no latency. Publishes ``imu/data_raw`` (REP-145: FLU ``imu_link``, SI units,
-orientation_covariance[0] = -1), ``imu/temperature``, ``/diagnostics`` and, with ``raw_output``,
-``imu/raw`` (gnss_ins_msgs/SerialChunk): every read as the driver was fed it, with the receive
-time in ns that the driver got, gathered into one message every 0.1 s
-(gnss_ins_common.serial_reads), and every (re)open of the port, in every lifecycle state, for
-``gnss_ins redecode`` (docs/redecode.md).
+executor adds no latency, as serialized messages (``messages.SampleWriter``). Publishes
+``imu/data_raw`` (REP-145: FLU ``imu_link``, SI units, orientation_covariance[0] = -1),
+``imu/temperature``, ``/diagnostics`` and, with ``raw_output``, ``imu/raw``
+(gnss_ins_msgs/SerialChunk): every read as the driver was fed it, with the receive time in ns
+that the driver got, gathered into one message every 0.1 s (gnss_ins_common.serial_reads), and
+every (re)open of the port, in every lifecycle state, for ``gnss_ins redecode``
+(docs/redecode.md).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import time
 from typing import Any
 
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import serialize_message
 from sensor_msgs.msg import Imu, Temperature
 
 from gnss_ins_common import ros_diagnostics as diag
@@ -35,7 +37,7 @@ from gnss_ins_common.ros_serial import (
 from gnss_ins_common.serial_link import LinkSettings, SerialLink
 from imu400cc_driver.driver import ImuDriver, ImuSample
 from imu400cc_driver.link import configure_device, stop_stream
-from imu400cc_driver.messages import sample_messages
+from imu400cc_driver.messages import SampleWriter
 from imu400cc_driver.parameters import DRIVER_PARAMETERS, driver_config
 from imu400cc_driver.protocol import Command
 
@@ -65,6 +67,10 @@ class Imu400ccNode(ManagedSerialDriver):
                 f"axis_map {p['axis_map']} is a mirror image (left-handed): check the mounting"
             )
         self._frame_id = p["frame_id"]
+        # Serialized once and rewritten in place: no Python message built and converted.
+        self._writer = SampleWriter(
+            self._driver, self._frame_id, Imu, Temperature, serialize_message
+        )
         # Since the last status: at 134 Hz one period is enough, and a rate back to normal
         # shows at once after a gap (a window would keep it low for its length).
         self._rate = RateMeter(time.monotonic(), window_s=0.0)
@@ -145,7 +151,7 @@ class Imu400ccNode(ManagedSerialDriver):
     def _publish(self, sample: ImuSample) -> None:
         if not self.publishing():
             return
-        imu, temperature = sample_messages(sample, self._driver, self._frame_id, Imu, Temperature)
+        imu, temperature = self._writer.write(sample)
         self._imu_pub.publish(imu)
         if temperature is not None:
             self._temp_pub.publish(temperature)

@@ -233,12 +233,11 @@ TEMPERATURE_C_PER_V: Final = 44.44
 #: (notes §2.4); the formula itself is only as good as the report's calibration of it.
 TEMPERATURE_VARIANCE_C2: Final = (ADC_VOLTS_PER_COUNT * TEMPERATURE_C_PER_V) ** 2
 
-_TEMPERATURE: Final = _Channel(
-    ADC_VOLTS_PER_COUNT * TEMPERATURE_C_PER_V,
-    -TEMPERATURE_OFFSET_V * TEMPERATURE_C_PER_V,
-    0,
-    UINT16_MAX,
-)
+#: (D-4) as one linear map: degC = counts * TEMPERATURE_C_PER_COUNT + TEMPERATURE_OFFSET_C.
+TEMPERATURE_C_PER_COUNT: Final = ADC_VOLTS_PER_COUNT * TEMPERATURE_C_PER_V
+TEMPERATURE_OFFSET_C: Final = -TEMPERATURE_OFFSET_V * TEMPERATURE_C_PER_V
+
+_TEMPERATURE: Final = _Channel(TEMPERATURE_C_PER_COUNT, TEMPERATURE_OFFSET_C, 0, UINT16_MAX)
 _VOLTAGE: Final = _Channel(ADC_VOLTS_PER_COUNT, 0.0, 0, ADC_MAX_COUNT)
 
 
@@ -263,12 +262,22 @@ class Scaling:
                 raise ValueError(f"Scaling.{name} must be a finite number > 0, got {value!r}")
 
     @property
+    def dps_per_count(self) -> float:
+        """Angular rate of one count [deg/s], (D-3): RR * 1.5 / 2^15."""
+        return self.gyro_range_dps * _FULL_SCALE_PER_COUNT
+
+    @property
+    def g_per_count(self) -> float:
+        """Acceleration of one count [g], (D-2): GR * 1.5 / 2^15."""
+        return self.accel_range_g * _FULL_SCALE_PER_COUNT
+
+    @property
     def _rate(self) -> _Channel:
-        return _Channel(self.gyro_range_dps * _FULL_SCALE_PER_COUNT, 0.0, INT16_MIN, INT16_MAX)
+        return _Channel(self.dps_per_count, 0.0, INT16_MIN, INT16_MAX)
 
     @property
     def _accel(self) -> _Channel:
-        return _Channel(self.accel_range_g * _FULL_SCALE_PER_COUNT, 0.0, INT16_MIN, INT16_MAX)
+        return _Channel(self.g_per_count, 0.0, INT16_MIN, INT16_MAX)
 
     def rate_dps(self, counts: ArrayLike) -> NDArray[np.float64]:
         """Angular rate [deg/s] from int16 counts, (D-3): counts * RR * 1.5 / 2^15."""

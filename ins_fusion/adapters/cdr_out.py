@@ -1,10 +1,10 @@
 """ins_fusion_node's outputs written straight into serialized (CDR) messages (no ROS import).
 
 rclpy converts a Python message to its C twin field by field before it serializes it (~20 µs for
-an Odometry and its two 36-element covariances, most of a publish); a publisher also takes the
-serialized bytes. The node therefore serializes one message per output once, with its frame ids
-(the only variable-length fields) set, and for each output overwrites in place the stamp and the
-fixed-size run of float64 at the end of the message, where every number it publishes sits:
+an Odometry and its two 36-element covariances, most of a publish). The node therefore
+serializes one message per output once, with its frame ids set, and for each output overwrites
+in place the stamp and the fixed-size run of float64 at the end of the message, where every
+number it publishes sits (``gnss_ins_common.cdr_messages``):
 
 - nav_msgs/Odometry: position, orientation, pose covariance, linear and angular velocity, twist
   covariance (85 float64, ``core.output.output_numbers``);
@@ -15,9 +15,8 @@ fixed-size run of float64 at the end of the message, where every number it publi
 - tf2_msgs/TFMessage with one transform: translation and rotation (7 float64); its stamp comes
   after the sequence length.
 
-Layouts as in ``cdr_fields`` (XCDR1: a 4-byte encapsulation header whose second byte is 1 for
-little-endian). The messages decode to what ``solution_out.fill_odometry`` / ``fill_fused_fix``
-and ``message_fields.fill_orientation`` fill (test_cdr_out.py).
+Layouts as in ``cdr_fields``. The messages decode to what ``solution_out.fill_odometry`` /
+``fill_fused_fix`` and ``message_fields.fill_orientation`` fill (test_cdr_out.py).
 """
 
 from __future__ import annotations
@@ -27,6 +26,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from gnss_ins_common.cdr_messages import CDR_HEADER, IMU_DOUBLES, SerializedMessage
 from gnss_ins_common.message_fields import stamp_ns
 from gnss_ins_common.navsat import NavSatStatus
 from gnss_ins_common.types import FloatArray
@@ -40,34 +40,9 @@ from ins_fusion.core.output.output_numbers import (
 )
 from ins_fusion.core.output.solution import STATE, STATES, T
 
-_ENCAPSULATION = 4
-_NS_PER_S = 1_000_000_000
 _ODOMETRY_DOUBLES = 3 + 4 + 36 + 3 + 3 + 36
 _FIX_DOUBLES = 3 + 9
-_IMU_DOUBLES = 4 + 9 + 3 + 9 + 3 + 9
 _TF_DOUBLES = 3 + 4
-
-
-class SerializedMessage:
-    """A serialized message whose stamp and last ``doubles`` float64 (followed by ``trailing``
-    bytes) are rewritten for each output; ``stamp_at``: offset of header.stamp [bytes]."""
-
-    def __init__(self, template: bytes, stamp_at: int, doubles: int, trailing: int = 0) -> None:
-        """Take a copy of ``template`` (a serialized message of the type, frame ids set)."""
-        if len(template) < _ENCAPSULATION or template[1] not in (0, 1):
-            raise ValueError(f"not a CDR message: {bytes(template[:4]).hex()}")
-        order = "<" if template[1] == 1 else ">"
-        self.buffer = bytearray(template)
-        self._stamp = struct.Struct(order + "iI")
-        self._stamp_at = stamp_at
-        start = len(template) - trailing - 8 * doubles
-        self.values = np.frombuffer(self.buffer, np.dtype(order + "f8"), doubles, start)
-
-    def write(self, time_ns: int, values: FloatArray) -> bytes:
-        """The message stamped ``time_ns`` [ns since the epoch] with ``values`` at its end."""
-        self._stamp.pack_into(self.buffer, self._stamp_at, *divmod(time_ns, _NS_PER_S))
-        self.values[:] = values
-        return bytes(self.buffer)
 
 
 class Outputs(NamedTuple):
@@ -93,13 +68,13 @@ class OutputWriter:
         rate_variance_rad2_s2: float,
     ) -> None:
         """Templates of each message; ``rate_variance_rad2_s2``: variance of each rate axis."""
-        self._odometry = SerializedMessage(odometry, _ENCAPSULATION, _ODOMETRY_DOUBLES)
-        self._fix = SerializedMessage(fix, _ENCAPSULATION, _FIX_DOUBLES, trailing=1)
-        self._imu = SerializedMessage(imu, _ENCAPSULATION, _IMU_DOUBLES)
-        self._transform = SerializedMessage(transform, _ENCAPSULATION + 4, _TF_DOUBLES)
+        self._odometry = SerializedMessage(odometry, CDR_HEADER, _ODOMETRY_DOUBLES)
+        self._fix = SerializedMessage(fix, CDR_HEADER, _FIX_DOUBLES, trailing=1)
+        self._imu = SerializedMessage(imu, CDR_HEADER, IMU_DOUBLES)
+        self._transform = SerializedMessage(transform, CDR_HEADER + 4, _TF_DOUBLES)
         # status.status: the int8 right after frame_id (stamp, then its length and characters)
-        (length,) = struct.unpack_from("<I" if fix[1] == 1 else ">I", fix, _ENCAPSULATION + 8)
-        self._fix_status_at = _ENCAPSULATION + 12 + length
+        (length,) = struct.unpack_from("<I" if fix[1] == 1 else ">I", fix, CDR_HEADER + 8)
+        self._fix_status_at = CDR_HEADER + 12 + length
         self._rate_variance = rate_variance_rad2_s2
         self._numbers = np.empty(NUMBERS)
 

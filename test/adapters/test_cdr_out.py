@@ -13,7 +13,6 @@ from sensor_msgs.msg import Imu, NavSatFix
 from tf2_msgs.msg import TFMessage
 
 from gnss_ins_common.message_fields import fill_orientation, stamp_ns
-from ins_fusion.adapters.cdr_out import SerializedMessage
 from ins_fusion.adapters.solution_out import fill_fused_fix, fill_odometry
 from ins_fusion.core.engine.engine import InsSolution
 from ins_fusion.core.output.solution_rows import COV_VEL, LAT, pack
@@ -96,17 +95,3 @@ def test_a_row_that_is_not_publishable_gives_no_messages(column, value):
     assert writer.write(row) is not None
     row[column] = value  # NaN latitude, negative variance, asymmetric covariance
     assert writer.write(row) is None
-
-
-def test_a_big_endian_template_is_rewritten_big_endian():
-    # header.stamp, frame_id "" (length 1: the NUL), padding to 8, then two float64.
-    template = b"\x00\x00\x00\x00" + bytes(8) + b"\x00\x00\x00\x01\x00" + bytes(3) + bytes(16)
-    message = SerializedMessage(template, 4, 2)
-    data = message.write(3_000_000_007, np.array([1.5, -2.0]))
-    assert data[4:12] == b"\x00\x00\x00\x03\x00\x00\x00\x07"
-    assert np.frombuffer(data[-16:], ">f8").tolist() == [1.5, -2.0]
-
-
-def test_bytes_that_are_not_cdr_are_refused():
-    with pytest.raises(ValueError, match="not a CDR message"):
-        SerializedMessage(b"\x07\x07\x00\x00" + bytes(24), 4, 1)

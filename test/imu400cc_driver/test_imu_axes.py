@@ -22,8 +22,8 @@ from imu400cc_driver.axes import (
     DEFAULT_ACCEL_SIGN,
     DEFAULT_AXIS_SPEC,
     STANDARD_GRAVITY_M_S2,
+    PacketConverter,
     measurement_to_packet,
-    packet_to_measurement,
 )
 from imu400cc_driver.protocol import RawPacket, Scaling
 
@@ -44,7 +44,7 @@ def _device_packet(gravity_direction_frd_g, rates_frd_dps=(0.0, 0.0, 0.0)) -> Ra
 
 
 def _measure(raw: RawPacket, accel_sign: float = DEFAULT_ACCEL_SIGN):
-    return packet_to_measurement(raw, SCALING, DEFAULT_MAP, accel_sign)
+    return PacketConverter(SCALING, DEFAULT_MAP, accel_sign)(raw)
 
 
 def test_defaults_are_the_frd_device():
@@ -197,9 +197,9 @@ def test_vector_shape_is_checked():
 
 
 @given(raw_packets, st.sampled_from(ALL_SPECS), st.sampled_from([1.0, -1.0]))
-def test_measurement_to_packet_inverts_packet_to_measurement(raw, spec, accel_sign):
+def test_measurement_to_packet_inverts_the_packet_conversion(raw, spec, accel_sign):
     axis_map = AxisMap.from_spec(spec)
-    m = packet_to_measurement(raw, SCALING, axis_map, accel_sign, 9.81)
+    m = PacketConverter(SCALING, axis_map, accel_sign, 9.81)(raw)
     back = measurement_to_packet(
         m.rate_flu_rad_s,
         m.specific_force_flu_m_s2,
@@ -241,8 +241,33 @@ def test_measurement_to_packet_checks_its_inputs():
 
 
 @pytest.mark.parametrize("accel_sign", [0.0, 2.0, math.nan])
-def test_packet_to_measurement_rejects_bad_accel_sign(accel_sign):
+def test_packet_conversion_rejects_bad_accel_sign(accel_sign):
     with pytest.raises(ValueError, match="accel_sign"):
-        packet_to_measurement(
-            RawPacket((0, 0, 0), (0, 0, 0), 0, 0), SCALING, DEFAULT_MAP, accel_sign
-        )
+        PacketConverter(SCALING, DEFAULT_MAP, accel_sign)
+
+
+@pytest.mark.parametrize("spec", ALL_SPECS, ids=lambda s: ",".join(s))
+@pytest.mark.parametrize("scaling", [SCALING, Scaling(gyro_range_dps=300.0, accel_range_g=1.7)])
+def test_packet_conversion_is_the_element_wise_one_to_the_bit(spec, scaling):
+    """PacketConverter against Scaling and AxisMap on arrays: every count of each field on the
+    default axes, every 61st on the others (the axes only move and sign whole values)."""
+    axis_map = AxisMap.from_spec(spec)
+    counts = np.arange(-(2**15), 2**15)[:: 1 if axis_map == DEFAULT_MAP else 61]
+    rates = np.stack([counts, np.roll(counts, 1), np.roll(counts, 2)], axis=1)
+    accels = np.stack([np.roll(counts, 3), counts[::-1], np.roll(counts, 5)], axis=1)
+    temperatures = counts + 2**15
+    expected_rate = axis_map.to_flu(np.radians(scaling.rate_dps(rates)))
+    expected_celsius = scaling.temperature_c(temperatures)
+    for accel_sign, gravity in ((-1.0, G), (1.0, 9.81)):
+        convert = PacketConverter(scaling, axis_map, accel_sign, gravity)
+        measurements = [
+            convert(RawPacket(tuple(w), tuple(a), t, 7))  # type: ignore[arg-type]
+            for w, a, t in zip(rates.tolist(), accels.tolist(), temperatures.tolist(), strict=True)
+        ]
+        expected_force = axis_map.to_flu(scaling.accel_g(accels)) * accel_sign * gravity
+        rate = np.array([m.rate_flu_rad_s for m in measurements])
+        force = np.array([m.specific_force_flu_m_s2 for m in measurements])
+        celsius = np.array([m.temperature_c for m in measurements])
+        assert rate.tobytes() == expected_rate.tobytes()
+        assert force.tobytes() == expected_force.tobytes()
+        assert celsius.tobytes() == expected_celsius.tobytes()

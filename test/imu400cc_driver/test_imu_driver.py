@@ -15,7 +15,7 @@ from support.imu_strategies import int16s
 
 from gnss_ins_common.axes import AxisMap
 from gnss_ins_common.rates import IMU400CC_RATE_HZ
-from imu400cc_driver.axes import packet_to_measurement
+from imu400cc_driver.axes import PacketConverter
 from imu400cc_driver.device_clock import PACKET_TRANSMISSION_S
 from imu400cc_driver.driver import DriverConfig, ImuDriver, ImuSample
 from imu400cc_driver.protocol import PACKET_LENGTH, RawPacket, Scaling, encode_packet
@@ -68,10 +68,8 @@ def test_any_chunking_gives_every_packet_once_in_imu_link_with_sample_stamps(rat
     packets = _packets(rates)
     samples = _feed(driver, packets, cuts)
 
-    expected = [
-        packet_to_measurement(p, config.scaling, config.axis_map, config.accel_sign)
-        for p in packets
-    ]
+    convert = PacketConverter(config.scaling, config.axis_map, config.accel_sign)
+    expected = [convert(p) for p in packets]
     assert len(samples) == len(packets) == driver.stats.samples
     for sample, meas in zip(samples, expected, strict=True):
         assert np.array_equal(sample.measurement.rate_flu_rad_s, meas.rate_flu_rad_s)

@@ -21,7 +21,7 @@ from support.waiting import wait_for
 from gnss_driver.reader import NmeaReader
 from gnss_driver.sentences import ASHRPAT
 from gnss_ins_common.axes import AxisMap
-from imu400cc_driver.axes import DEFAULT_AXIS_SPEC, packet_to_measurement
+from imu400cc_driver.axes import DEFAULT_AXIS_SPEC, PacketConverter
 from imu400cc_driver.framer import PacketFramer
 from imu400cc_driver.protocol import Scaling
 from ins_fusion.runtime.vehicle_nodes import VEHICLE
@@ -86,11 +86,11 @@ def _utc_s(sentence: pynmea2.NMEASentence, near_s: float) -> float:
 def _imu(port: Port) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Host receive times [s], angular rates and specific forces (FLU, SI) of the packets."""
     framer = PacketFramer(confirm_with_next_packet=True)
-    axes, scaling = AxisMap.from_spec(list(DEFAULT_AXIS_SPEC)), Scaling()
+    convert = PacketConverter(Scaling(), AxisMap.from_spec(list(DEFAULT_AXIS_SPEC)), -1.0)
     times, rates, forces = [], [], []
     for received_s, chunk in list(port.chunks):
         for packet in framer.feed(chunk):
-            m = packet_to_measurement(packet, scaling, axes, -1.0)
+            m = convert(packet)
             times.append(received_s)
             rates.append(m.rate_flu_rad_s)
             forces.append(m.specific_force_flu_m_s2)

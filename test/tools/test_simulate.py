@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 import pytest
 from rclpy.serialization import serialize_message
+from sensor_msgs.msg import Imu, Temperature
 from support.paths import REPO
 
 from gnss_driver.driver import EpochOutput
@@ -22,8 +23,9 @@ from gnss_driver.profiles import Receiver
 from gnss_driver.utc import DateSource, UtcTime
 from gnss_ins_common.axes import AxisMap
 from imu400cc_driver import node as imu_node
-from imu400cc_driver.axes import ImuMeasurement, measurement_to_packet, packet_to_measurement
+from imu400cc_driver.axes import ImuMeasurement, PacketConverter, measurement_to_packet
 from imu400cc_driver.driver import ImuDriver, ImuSample
+from imu400cc_driver.messages import SampleWriter
 from imu400cc_driver.protocol import Scaling
 from ins_fusion.bags import topics as T  # noqa: N812
 from ins_fusion.bags.bag_io import BagReader
@@ -232,32 +234,29 @@ def test_imu_messages_are_what_imu400cc_node_publishes():
     """imu400cc_node's own publishing code (with its default parameters) on the packets the
     emulator makes of the simulated samples gives the simulated messages."""
     defaults = {p.name: p.default for p in imu_node.PARAMETERS}
-    stub, published = _node_stub(
-        imu_node.Imu400ccNode,
-        _frame_id=defaults["frame_id"],
-        _driver=ImuDriver(imu_node.driver_config(defaults)),
-    )
+    driver = ImuDriver(imu_node.driver_config(defaults))
+    writer = SampleWriter(driver, defaults["frame_id"], Imu, Temperature, serialize_message)
+    stub, published = _node_stub(imu_node.Imu400ccNode, _driver=driver, _writer=writer)
     config = dataclasses.replace(CONFIG, duration_s=1.0, sky_zones=())
     events = Simulation(config).imu_events(0.0, 1.0)
     axes = AxisMap.from_spec(defaults["axis_map"])
     scaling = Scaling(defaults["gyro_range_dps"], defaults["accel_range_g"])
+    convert = PacketConverter(scaling, axes, defaults["accel_sign"], defaults["gravity"])
     for event in events:
         m = event.message
         stamp_s = _stamp(m) / 1e9
         if event.topic == T.IMU_TEMPERATURE:
             still = ImuMeasurement(np.zeros(3), np.zeros(3), m.temperature, 0)
             stub._publish(ImuSample(stamp_s, still, with_temperature=True))
-            node_msg = _from_rclpy(published["_temp_pub"][-1], "sensor_msgs/msg/Temperature")
+            node_msg = TS.deserialize_cdr(published["_temp_pub"][-1], "sensor_msgs/msg/Temperature")
         else:
             w, f = m.angular_velocity, m.linear_acceleration
             packet = measurement_to_packet(
                 [w.x, w.y, w.z], [f.x, f.y, f.z], 28.0, 0, scaling, axes, defaults["accel_sign"]
             )
-            measured = packet_to_measurement(
-                packet, scaling, axes, defaults["accel_sign"], defaults["gravity"]
-            )
+            measured = convert(packet)
             stub._publish(ImuSample(stamp_s, measured, with_temperature=False))
-            node_msg = _from_rclpy(published["_imu_pub"][-1], "sensor_msgs/msg/Imu")
+            node_msg = TS.deserialize_cdr(published["_imu_pub"][-1], "sensor_msgs/msg/Imu")
             # Same device counts: equal to rounding; the node's covariances come from densities
             # rounded to 1e-9.
             for ours, theirs in ((w, node_msg.angular_velocity), (f, node_msg.linear_acceleration)):

@@ -19,7 +19,7 @@ from support.pacing import pause
 from gnss_driver.reader import NmeaReader
 from gnss_driver.sentences import ASHRPAT, lat_lon_deg
 from gnss_ins_common.axes import AxisMap
-from imu400cc_driver.axes import DEFAULT_AXIS_SPEC, packet_to_measurement
+from imu400cc_driver.axes import DEFAULT_AXIS_SPEC, PacketConverter
 from imu400cc_driver.framer import PacketFramer
 from imu400cc_driver.protocol import Scaling
 from ins_fusion.bags.bag_io import BagReader
@@ -64,10 +64,8 @@ def test_imu_port_streams_valid_packets_of_the_simulated_drive(live):
     framer = PacketFramer(confirm_with_next_packet=True)
     packets = framer.feed(imu_bytes)
     assert len(packets) >= 150 and framer.stats.bad_checksums == 0
-    measurements = [
-        packet_to_measurement(p, Scaling(), AxisMap.from_spec(list(DEFAULT_AXIS_SPEC)), -1.0)
-        for p in packets
-    ]
+    convert = PacketConverter(Scaling(), AxisMap.from_spec(list(DEFAULT_AXIS_SPEC)), -1.0)
+    measurements = [convert(p) for p in packets]
     force = np.array([m.specific_force_flu_m_s2 for m in measurements])
     assert force[:, 2].mean() == pytest.approx(9.82, abs=0.3)  # REP-145 after the driver's axes
     assert all(20.0 < m.temperature_c < 36.0 for m in measurements)
