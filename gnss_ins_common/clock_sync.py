@@ -89,27 +89,17 @@ def _bridge(front: list[_Point], back: list[_Point]) -> tuple[int, int]:
     ends and only moves outwards, so it stops after at most len(front) + len(back) steps (a few in
     practice: it only crosses the vertices near the join).
     """
-    # _cross(u, v, w) written out on plain floats, with the front's x mirrored: the same
-    # arithmetic without a call and a tuple per step (the walk runs on every update).
     i = j = 0
-    last_i, last_j = len(front) - 1, len(back) - 1
-    ux, uy = -front[0][0], front[0][1]
-    vx, vy = back[0]
+    u, v = _mirror(front[0]), back[0]
     while True:
-        if i < last_i:
-            wx, wy = front[i + 1]
-            wx = -wx
-            if (vx - ux) * (wy - uy) - (vy - uy) * (wx - ux) < 0.0:
-                i += 1
-                ux, uy = wx, wy
-                continue
-        if j < last_j:
-            wx, wy = back[j + 1]
-            if (vx - ux) * (wy - uy) - (vy - uy) * (wx - ux) < 0.0:
-                j += 1
-                vx, vy = wx, wy
-                continue
-        return i, j
+        if i + 1 < len(front) and _cross(u, v, _mirror(front[i + 1])) < 0.0:
+            i += 1
+            u = _mirror(front[i])
+        elif j + 1 < len(back) and _cross(u, v, back[j + 1]) < 0.0:
+            j += 1
+            v = back[j]
+        else:
+            return i, j
 
 
 class _Moments:
