@@ -18,6 +18,7 @@ sensor_msgs/Temperature with temperature and variance.
 from __future__ import annotations
 
 import struct
+from collections.abc import Iterable
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -57,6 +58,12 @@ class SerializedMessage:
         self.stamp(time_ns)
         self.values[:] = values
         return bytes(self.buffer)
+
+
+def write_each(time_ns: int, filled: Iterable[tuple[SerializedMessage, ArrayLike]]) -> list[bytes]:
+    """Each (message, values) of ``filled`` written at ``time_ns`` [ns since the epoch]
+    (``SerializedMessage.write``): the messages of one output."""
+    return [message.write(time_ns, values) for message, values in filled]
 
 
 class ImuWriter:

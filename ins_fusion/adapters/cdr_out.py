@@ -26,7 +26,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from gnss_ins_common.cdr_messages import CDR_HEADER, IMU_DOUBLES, SerializedMessage
+from gnss_ins_common.cdr_messages import CDR_HEADER, IMU_DOUBLES, SerializedMessage, write_each
 from gnss_ins_common.message_fields import stamp_ns
 from gnss_ins_common.navsat import NavSatStatus
 from gnss_ins_common.types import FloatArray
@@ -90,8 +90,13 @@ class OutputWriter:
             NavSatStatus.NO_FIX if aligning else NavSatStatus.FIX
         ) & 0xFF
         return Outputs(
-            self._odometry.write(time_ns, numbers[ODOMETRY]),
-            self._fix.write(time_ns, numbers[FIX]),
-            self._imu.write(time_ns, numbers[IMU]),
-            self._transform.write(time_ns, numbers[TRANSFORM]),
+            *write_each(
+                time_ns,
+                (
+                    (self._odometry, numbers[ODOMETRY]),
+                    (self._fix, numbers[FIX]),
+                    (self._imu, numbers[IMU]),
+                    (self._transform, numbers[TRANSFORM]),
+                ),
+            )
         )
