@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 import rclpy
-from bench_imu_node import process_cpu_s, thread_cpu_s
+from bench_imu_node import print_cpu, process_cpu_s, thread_cpu_s
 from nav_msgs.msg import Odometry
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import QoSProfile, ReliabilityPolicy
@@ -238,21 +238,13 @@ def main() -> None:
             f"p50 {np.percentile(latency_ms, 50):.3f}  p99 {np.percentile(latency_ms, 99):.3f}  "
             f"max {latency_ms.max():.3f}"
         )
-    wall = wall1 - wall0
-    print(
-        f"  node CPU: {100 * (cpu1 - cpu0) / wall:.1f} % of one core "
-        f"(load average {load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f})"
-    )
+    print_cpu(cpu1 - cpu0, (threads0, threads1), wall1 - wall0, load, 1)
     if first_output:
         steady = wall1 - first_output["wall"]
         print(
             f"  node CPU from the first Odometry on ({steady:.0f} s): "
             f"{100 * (cpu1 - first_output['cpu']) / steady:.1f} % of one core"
         )
-    for name in sorted(threads1, key=lambda n: threads0.get(n, 0.0) - threads1[n]):
-        share = 100 * (threads1[name] - threads0.get(name, 0.0)) / wall
-        if share >= 0.05:
-            print(f"    thread {name}: {share:.1f} %")
 
 
 if __name__ == "__main__":

@@ -59,6 +59,27 @@ def thread_cpu_s(pid: int) -> dict[str, float]:
     return threads
 
 
+def print_cpu(
+    cpu_s: float,
+    threads: tuple[dict[str, float], dict[str, float]],
+    wall_s: float,
+    load: tuple[float, float, float],
+    digits: int,
+) -> None:
+    """The node's CPU over ``wall_s`` [s] (``cpu_s`` seconds of it) with the ``load`` average
+    taken at its end, then each thread's share from its ``thread_cpu_s`` before and after (those
+    of 0.05 % or more)."""
+    print(
+        f"  node CPU: {100 * cpu_s / wall_s:.{digits}f} % of one core "
+        f"(load average {load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f})"
+    )
+    before, after = threads
+    for name in sorted(after, key=lambda n: before.get(n, 0.0) - after[n]):
+        share = 100 * (after[name] - before.get(name, 0.0)) / wall_s
+        if share >= 0.05:
+            print(f"    thread {name}: {share:.{digits}f} %")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--packets", type=int, default=10_000)
@@ -152,15 +173,7 @@ def main() -> None:
         f"p50 {np.percentile(stamp_error[matched], 50) * 1e3:+.3f}  "
         f"p99 |err| {np.percentile(np.abs(stamp_error[matched]), 99) * 1e3:.3f}"
     )
-    wall = wall1 - wall0
-    print(
-        f"  node CPU: {100 * (cpu1 - cpu0) / wall:.2f} % of one core "
-        f"(load average {load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f})"
-    )
-    for name in sorted(threads1, key=lambda n: threads0.get(n, 0.0) - threads1[n]):
-        share = 100 * (threads1[name] - threads0.get(name, 0.0)) / wall
-        if share >= 0.05:
-            print(f"    thread {name}: {share:.2f} %")
+    print_cpu(cpu1 - cpu0, (threads0, threads1), wall1 - wall0, load, 2)
 
 
 if __name__ == "__main__":
